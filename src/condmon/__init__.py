@@ -1,0 +1,31 @@
+"""condmon — model-based condition monitoring of machines.
+
+From a short test record, estimate the physical parameters of a machine
+(refined instrumental-variable identification, exact zero-order-hold inverse),
+check the fit, and report each parameter with its standard error.
+
+Example
+-------
+>>> import condmon
+>>> rec = condmon.simulate_actuator(seed=1)
+>>> res = condmon.estimate(rec)
+>>> round(res.parameters["R"], 2)
+1.0
+"""
+
+from condmon.errors import (
+    CondmonError, CondmonWarning, ConfigError, ConversionError, ConvergenceWarning,
+    DataError, DataWarning, EstimationError, ModelError,
+)
+from condmon.identify import EstimateResult, estimate
+from condmon.io import read_record
+from condmon.simulate import load_actuator_rig, simulate_actuator
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "estimate", "EstimateResult", "read_record", "simulate_actuator", "load_actuator_rig",
+    "CondmonError", "DataError", "ConfigError", "ModelError", "ConversionError",
+    "EstimationError", "CondmonWarning", "DataWarning", "ConvergenceWarning",
+    "__version__",
+]

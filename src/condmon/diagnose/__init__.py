@@ -1,0 +1,1 @@
+"""(diagnose: see the issues that introduce this stage.)"""

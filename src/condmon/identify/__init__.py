@@ -1,0 +1,29 @@
+"""Identification: discrete transfer-function estimators, fit check, the estimate pipeline.
+
+Estimators share their leading arguments ``(u, y, order, *, dt, ...)``:
+
+- :func:`arx` — least squares (biased by output noise; a baseline).
+- :func:`iv` — basic instrumental variables.
+- :func:`sriv` — simplified refined IV (Young): the default.
+- :func:`rls`, :func:`riv` — recursive LS / IV with a prior.
+
+Closed-loop data: pass the external excitation signals as ``excitation`` and the
+instruments are built from them (:func:`noise_free_input`).
+"""
+
+from condmon.identify._common import TFEstimate
+from condmon.identify.closed_loop import noise_free_input
+from condmon.identify.estimate import (
+    DEFAULT_EXCITATION, EstimateResult, estimate, estimate_record, list_estimators,
+)
+from condmon.identify.fit import DEFAULT_FIT_THRESHOLD, FitCheck, fit_check
+from condmon.identify.ls import arx, iv
+from condmon.identify.recursive import RecursiveEstimate, riv, rls
+from condmon.identify.sriv import sriv
+
+__all__ = [
+    "TFEstimate", "RecursiveEstimate", "EstimateResult", "FitCheck",
+    "arx", "iv", "sriv", "rls", "riv", "noise_free_input",
+    "fit_check", "DEFAULT_FIT_THRESHOLD", "estimate", "estimate_record",
+    "list_estimators", "DEFAULT_EXCITATION",
+]

@@ -1,0 +1,202 @@
+"""Shared pieces of the linear-in-the-parameters estimators.
+
+Model (single input u, outputs y_j, common denominator, one sample of delay)::
+
+    A(q^-1) y_j(k) = B_j(q^-1) u(k) + e_j(k)
+    A = 1 + a_1 q^-1 + ... + a_n q^-n,   B_j = b_j1 q^-1 + ... + b_jn q^-n
+
+Parameter vector ``theta = [a_1..a_n, b_11..b_1n, ..., b_m1..b_mn]``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.signal import lfilter
+
+from condmon.errors import DataError, EstimationError, ModelError
+from condmon.models.transfer import DiscreteTF
+
+__all__ = ["TFEstimate", "prepare", "normal_equations", "to_model", "stabilise",
+           "simulate_outputs"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class TFEstimate:
+    """A discrete transfer-function estimate with its uncertainty.
+
+    Attributes
+    ----------
+    model : DiscreteTF
+        The estimated model (common denominator over all outputs).
+    theta : ndarray, shape (n_params,)
+        ``[a_1..a_n, b_11..b_1n, ..., b_m1..b_mn]``.
+    covariance : ndarray, shape (n_params, n_params)
+        Asymptotic covariance of ``theta``.
+    noise_variance : ndarray, shape (n_outputs,)
+        Variance of each output's residual (output error for IV methods,
+        equation error for least squares). [output unit^2]
+    method : str
+        Estimator name ("arx", "iv", "sriv", "rls", "riv").
+    iterations : int
+        Iterations used (1 for one-shot estimators).
+    converged : bool
+        Whether the convergence test was met (True for one-shot estimators).
+    closed_loop_instruments : bool
+        Whether instruments were built from external excitation signals.
+    n_samples : int
+        Samples used.
+    notes : tuple of str
+        Anything the user should know about this estimate.
+    """
+
+    model: DiscreteTF
+    theta: FloatArray
+    covariance: FloatArray
+    noise_variance: FloatArray
+    method: str
+    iterations: int = 1
+    converged: bool = True
+    closed_loop_instruments: bool = False
+    n_samples: int = 0
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def std_errors(self) -> FloatArray:
+        """Standard errors of ``theta``."""
+        return np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary."""
+        return {
+            "method": self.method,
+            "theta": self.theta.tolist(),
+            "std_errors": self.std_errors.tolist(),
+            "noise_variance": dict(zip(self.model.outputs, self.noise_variance.tolist())),
+            "iterations": self.iterations,
+            "converged": self.converged,
+            "closed_loop_instruments": self.closed_loop_instruments,
+            "n_samples": self.n_samples,
+            "notes": list(self.notes),
+            **self.model.to_dict(),
+        }
+
+
+def prepare(u: ArrayLike, y: ArrayLike, order: int) -> tuple[FloatArray, FloatArray]:
+    """Check and shape the data: ``u`` (N,), ``y`` (N, n_outputs)."""
+    u_arr = np.asarray(u, dtype=np.float64)
+    y_arr = np.asarray(y, dtype=np.float64)
+    if y_arr.ndim == 1:
+        y_arr = y_arr[:, None]
+    if u_arr.ndim != 1:
+        raise DataError(f"input u must be 1-D, got shape {u_arr.shape}")
+    if y_arr.ndim != 2:
+        raise DataError(f"outputs y must be 1-D or 2-D, got shape {y_arr.shape}")
+    if y_arr.shape[0] != u_arr.size:
+        raise DataError(f"u has {u_arr.size} samples but y has {y_arr.shape[0]}")
+    if not isinstance(order, (int, np.integer)) or order < 1:
+        raise ModelError(f"order must be a positive integer, got {order!r}")
+    n_par = order * (1 + y_arr.shape[1])
+    if u_arr.size < 10 * n_par:
+        raise DataError(f"{u_arr.size} samples are too few for {n_par} parameters "
+                        f"(order {order}); need at least {10 * n_par}")
+    if not (np.all(np.isfinite(u_arr)) and np.all(np.isfinite(y_arr))):
+        raise DataError("data contain NaN or inf")
+    return u_arr, y_arr
+
+
+def normal_equations(sig: FloatArray, m: int, order: int, weights: FloatArray
+                     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Weighted IV normal equations of the common-denominator SIMO model.
+
+    Parameters
+    ----------
+    sig : ndarray, shape (N, 2m+2)
+        Columns ``[y_1..y_m, u, z_1..z_m, z_u]``: outputs and input build the
+        regressors φ_j = [-y_j lags, u lags], the instrument signals build
+        ζ_j = [-z_j lags, z_u lags] (pass ``z = y``, ``z_u = u`` for least squares).
+    m : int
+        Number of outputs.
+    order : int
+        Model order n.
+    weights : ndarray, shape (m,)
+        Weight of each output's equations (1/σ_j²).
+
+    Returns
+    -------
+    R, r, S, Q : ndarray
+        ``Σ w ζφᵀ``, ``Σ w ζ y``, ``Σ w ζζᵀ`` and ``Σ w φφᵀ``.
+    """
+    n = order
+    p = n * (1 + m)
+    N, ns = sig.shape
+    # Every cross product comes from one Gram matrix of the lagged signals:
+    # one matrix product instead of 4m small ones. Lag-major layout: column
+    # d*ns + s holds signal s delayed by d samples.
+    G = np.hstack([sig[n - d: N - d] for d in range(n + 1)])
+    C = G.T @ G
+    lag = np.arange(1, n + 1) * ns
+    sign = np.r_[-np.ones(n), np.ones(n)]
+    outer = np.outer(sign, sign)
+    R = np.zeros((p, p))
+    S = np.zeros((p, p))
+    Q = np.zeros((p, p))
+    r = np.zeros(p)
+    for j in range(m):
+        phi = np.r_[lag + j, lag + m]
+        zeta = np.r_[lag + m + 1 + j, lag + 2 * m + 1]
+        idx = np.r_[0:n, n * (1 + j): n * (2 + j)]
+        sw = weights[j] * outer
+        R[np.ix_(idx, idx)] += sw * C[np.ix_(zeta, phi)]
+        S[np.ix_(idx, idx)] += sw * C[np.ix_(zeta, zeta)]
+        Q[np.ix_(idx, idx)] += sw * C[np.ix_(phi, phi)]
+        r[idx] += weights[j] * sign * C[zeta, j]
+    return R, r, S, Q
+
+
+def solve(R: FloatArray, r: FloatArray) -> FloatArray:
+    """Solve the normal equations, refusing a singular system."""
+    cond = np.linalg.cond(R)
+    if not np.isfinite(cond) or cond > 1e14:
+        raise EstimationError(
+            f"normal equations are singular (condition number {cond:.3g}): the input "
+            "does not excite the model, or the order is too high"
+        )
+    return np.asarray(np.linalg.solve(R, r), dtype=np.float64)
+
+
+def to_model(theta: FloatArray, order: int, dt: float, outputs: tuple[str, ...],
+             input_name: str) -> DiscreteTF:
+    """Build the :class:`DiscreteTF` of a parameter vector."""
+    n = order
+    den = np.r_[1.0, theta[:n]]
+    nums = np.zeros((len(outputs), n + 1))
+    for j in range(len(outputs)):
+        nums[j, 1:] = theta[n * (1 + j): n * (2 + j)]
+    return DiscreteTF(den, nums, dt, outputs, input_name)
+
+
+def stabilise(den: FloatArray) -> FloatArray:
+    """Reflect roots outside the unit circle into it (keeps the prefilter stable)."""
+    roots = np.roots(den)
+    mag = np.abs(roots)
+    if np.all(mag < 1.0):
+        return den
+    roots = np.where(mag >= 1.0, 1.0 / np.conj(roots) * 0.999, roots)
+    return np.real(np.poly(roots))
+
+
+def simulate_outputs(theta: FloatArray, order: int, u: FloatArray, m: int) -> FloatArray:
+    """Noise-free outputs ``B_j/A u`` of a parameter vector, shape (N, m)."""
+    n = order
+    x = lfilter([1.0], np.r_[1.0, theta[:n]], u)
+    N = x.size
+    X = np.zeros((N, n))
+    for d in range(1, n + 1):
+        X[d:, d - 1] = x[: N - d]
+    return np.asarray(X @ theta[n:].reshape(m, n).T, dtype=np.float64)

@@ -1,0 +1,210 @@
+"""Reading and validating test records (CSV, Parquet) at the boundary.
+
+Everything a record can get wrong is checked here, once, and reported with the
+file and the column: missing columns, non-numeric or non-finite values, a time
+base that is not increasing or not uniform, mismatched lengths, a record too
+short for the model, an input with no excitation, a saturated drive.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from condmon.errors import DataError, DataWarning
+
+__all__ = ["Record", "read_record", "validate_record", "parse_column_map"]
+
+FloatArray = NDArray[np.float64]
+
+#: Relative tolerance on sample-interval jitter before the time base is refused.
+TIME_JITTER = 1e-3
+#: Share of samples at the input's extreme values above which saturation is flagged.
+SATURATION_SHARE = 0.05
+
+
+@dataclass(frozen=True, eq=False)
+class Record:
+    """A validated record: uniformly sampled, finite, float64 columns.
+
+    Attributes
+    ----------
+    columns : dict of str to ndarray
+        Every validated column (``t`` included), each shape (N,).
+    dt : float
+        Sample time. [s]
+    source : str
+        Where the record came from (file path or a label).
+    """
+
+    columns: dict[str, FloatArray]
+    dt: float
+    source: str
+
+    def __getitem__(self, name: str) -> FloatArray:
+        return self.columns[name]
+
+    def __len__(self) -> int:
+        return int(self.columns["t"].size)
+
+    def stack(self, names: Sequence[str]) -> FloatArray:
+        """Columns side by side, shape (N, len(names))."""
+        return np.column_stack([self.columns[n] for n in names])
+
+
+def parse_column_map(text: str | None) -> dict[str, str]:
+    """``"V=volts,I=amps"`` -> ``{"V": "volts", "I": "amps"}`` (canonical = file column).
+
+    Example
+    -------
+    >>> parse_column_map("V=volts, I=amps")
+    {'V': 'volts', 'I': 'amps'}
+    """
+    if not text:
+        return {}
+    out: dict[str, str] = {}
+    for item in text.split(","):
+        if "=" not in item:
+            raise DataError(f"cannot read column mapping {item.strip()!r}; "
+                            "write CANONICAL=FILE_COLUMN, e.g. V=volts")
+        key, value = (s.strip() for s in item.split("=", 1))
+        if not key or not value:
+            raise DataError(f"empty name in column mapping {item.strip()!r}")
+        out[key] = value
+    return out
+
+
+def read_record(path: str | Path, columns: Mapping[str, str] | None = None) -> pd.DataFrame:
+    """Read a CSV or Parquet record and rename columns to canonical names.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.csv`` (comma-separated, header row) or ``.parquet``/``.pq``.
+    columns : mapping, optional
+        ``{canonical: column in the file}``, e.g. ``{"V": "volts"}``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        With ``attrs["source"]`` set to the path.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise DataError(f"{p}: file not found")
+    suffix = p.suffix.lower()
+    try:
+        if suffix == ".csv":
+            df = pd.read_csv(p)
+        elif suffix in (".parquet", ".pq"):
+            df = pd.read_parquet(p)
+        else:
+            raise DataError(f"{p}: unknown file type {suffix!r}; allowed: .csv, .parquet")
+    except DataError:
+        raise
+    except Exception as err:  # parser errors of every kind become one clear line
+        raise DataError(f"{p}: cannot read: {err}") from None
+    if columns:
+        missing = [f for f in columns.values() if f not in df.columns]
+        if missing:
+            raise DataError(f"{p}: column mapping names {missing} not in the file; "
+                            f"columns are {list(df.columns)}")
+        df = df.rename(columns={v: k for k, v in columns.items()})
+    df.attrs["source"] = str(p)
+    return df
+
+
+def validate_record(df: pd.DataFrame, required: Sequence[str],
+                    optional: Sequence[str] = (), *, input_name: str | None = None,
+                    min_samples: int = 20, source: str | None = None) -> Record:
+    """Check a record and return its columns as float64 arrays.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The record; must hold a time column ``t`` [s].
+    required : sequence of str
+        Columns that must be present (besides ``t``).
+    optional : sequence of str
+        Columns validated and kept when present.
+    input_name : str, optional
+        The excitation input: refused if constant, warned if saturated.
+    min_samples : int
+        Fewest samples accepted.
+    source : str, optional
+        Name used in messages (default ``df.attrs["source"]`` or "record").
+
+    Returns
+    -------
+    Record
+
+    Raises
+    ------
+    DataError
+        Naming the source and the column.
+    """
+    src = source or str(df.attrs.get("source", "record"))
+    names = ["t", *required]
+    missing = [c for c in names if c not in df.columns]
+    if missing:
+        raise DataError(f"{src}: missing column(s) {', '.join(repr(m) for m in missing)}; "
+                        f"the record has {list(map(str, df.columns))} "
+                        "(map names with --columns V=your_name,...)")
+    names += [c for c in optional if c in df.columns and c not in names]
+    n_rows = len(df)
+    cols: dict[str, FloatArray] = {}
+    for name in names:
+        series = df[name]
+        try:
+            if pd.api.types.is_numeric_dtype(series.dtype) and not pd.api.types.is_bool_dtype(series.dtype):
+                arr = series.to_numpy(dtype=np.float64, na_value=np.nan)
+            else:
+                arr = np.asarray(pd.to_numeric(series, errors="raise"), dtype=np.float64)
+        except (ValueError, TypeError):
+            bad = series[pd.to_numeric(series, errors="coerce").isna() & series.notna()]
+            row = bad.index[0] if len(bad) else "?"
+            raise DataError(f"{src}: column {name!r} is not numeric "
+                            f"(row {row}: {series.loc[row]!r})") from None
+        bad_idx = np.flatnonzero(~np.isfinite(arr))
+        if bad_idx.size:
+            last_good = np.flatnonzero(np.isfinite(arr))
+            if last_good.size and np.all(bad_idx > last_good[-1]):
+                raise DataError(f"{src}: column {name!r} has {last_good[-1] + 1} samples "
+                                f"but the record has {n_rows} rows (mismatched lengths)")
+            raise DataError(f"{src}: column {name!r} has {bad_idx.size} NaN/inf value(s), "
+                            f"first at row {bad_idx[0]}")
+        cols[name] = arr
+    if n_rows < min_samples:
+        raise DataError(f"{src}: {n_rows} samples are too few; need at least {min_samples}")
+    t = cols["t"]
+    dts = np.diff(t)
+    if np.any(dts <= 0):
+        k = int(np.flatnonzero(dts <= 0)[0])
+        raise DataError(f"{src}: column 't' is not increasing at row {k + 1} "
+                        f"({t[k]!r} then {t[k + 1]!r})")
+    dt = float(np.median(dts))
+    jitter = np.abs(dts - dt) > TIME_JITTER * dt
+    if np.any(jitter):
+        k = int(np.flatnonzero(jitter)[0])
+        raise DataError(f"{src}: column 't' is not uniformly sampled: interval "
+                        f"{dts[k]:.6g} s at row {k + 1} against {dt:.6g} s elsewhere "
+                        "(resample first)")
+    if input_name is not None:
+        u = cols[input_name]
+        if float(np.std(u)) <= 1e-12 * max(1.0, float(np.max(np.abs(u)))):
+            raise DataError(f"{src}: column {input_name!r} is constant: no excitation, "
+                            "nothing can be estimated")
+        lo, hi = float(np.min(u)), float(np.max(u))
+        span = hi - lo
+        at_limit = np.mean((u >= hi - 1e-9 * span) | (u <= lo + 1e-9 * span))
+        if at_limit > SATURATION_SHARE:
+            warnings.warn(f"{src}: {100 * at_limit:.1f} % of column {input_name!r} sits at "
+                          f"its extreme values ({lo:.4g}, {hi:.4g}): the drive saturates "
+                          "and the linear model may be biased", DataWarning, stacklevel=2)
+    return Record(cols, dt, src)

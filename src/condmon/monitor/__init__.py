@@ -1,0 +1,1 @@
+"""(monitor: see the issues that introduce this stage.)"""

@@ -1,0 +1,1 @@
+"""(store: see the issues that introduce this stage.)"""

@@ -174,7 +174,8 @@ def validate_record(df: pd.DataFrame, required: Sequence[str],
         bad_idx = np.flatnonzero(~np.isfinite(arr))
         if bad_idx.size:
             last_good = np.flatnonzero(np.isfinite(arr))
-            if last_good.size and np.all(bad_idx > last_good[-1]):
+            if (last_good.size and np.all(bad_idx > last_good[-1])
+                    and np.all(np.isnan(arr[bad_idx]))):
                 raise DataError(f"{src}: column {name!r} has {last_good[-1] + 1} samples "
                                 f"but the record has {n_rows} rows (mismatched lengths)")
             raise DataError(f"{src}: column {name!r} has {bad_idx.size} NaN/inf value(s), "

@@ -8,7 +8,7 @@ python-control objects for users who work there.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -20,6 +20,10 @@ from condmon.errors import ModelError
 __all__ = ["DiscreteTF", "ContinuousTF"]
 
 FloatArray = NDArray[np.float64]
+
+
+def _names(outputs: tuple[str, ...], nums: FloatArray) -> tuple[str, ...]:
+    return tuple(outputs) if outputs else tuple(f"y{j}" for j in range(nums.shape[0]))
 
 
 def _check_shapes(den: FloatArray, nums: FloatArray, outputs: tuple[str, ...]) -> None:
@@ -57,13 +61,13 @@ class DiscreteTF:
     dt : float
         Sample time. [s]
     outputs : tuple of str
-        Output names, one per numerator row.
+        Output names, one per numerator row (default ``y0, y1, ...``).
     input : str
         Input name.
 
     Example
     -------
-    >>> g = DiscreteTF(np.array([1.0, -0.5]), np.array([[0.0, 1.0]]), 1e-3, ("y",))
+    >>> g = DiscreteTF(np.array([1.0, -0.5]), np.array([[0.0, 1.0]]), 1e-3)
     >>> g.poles()
     array([0.5+0.j])
     """
@@ -71,13 +75,14 @@ class DiscreteTF:
     den: FloatArray
     nums: FloatArray
     dt: float
-    outputs: tuple[str, ...] = ("y",)
+    outputs: tuple[str, ...] = ()
     input: str = "u"
 
     def __post_init__(self) -> None:
         den = np.asarray(self.den, dtype=np.float64).copy()
         nums = np.atleast_2d(np.asarray(self.nums, dtype=np.float64)).copy()
-        _check_shapes(den, nums, tuple(self.outputs))
+        outputs = _names(self.outputs, nums)
+        _check_shapes(den, nums, outputs)
         if not self.dt > 0:
             raise ModelError(f"sample time must be positive, got {self.dt}")
         nums /= den[0]
@@ -86,7 +91,7 @@ class DiscreteTF:
         nums.flags.writeable = False
         object.__setattr__(self, "den", den)
         object.__setattr__(self, "nums", nums)
-        object.__setattr__(self, "outputs", tuple(self.outputs))
+        object.__setattr__(self, "outputs", outputs)
 
     @property
     def order(self) -> int:
@@ -138,34 +143,34 @@ class ContinuousTF:
     nums : ndarray, shape (n_outputs, n+1)
         Numerator coefficients in descending powers of s.
     outputs : tuple of str
-        Output names.
+        Output names (default ``y0, y1, ...``).
     input : str
         Input name.
 
     Example
     -------
-    >>> g = ContinuousTF(np.array([1.0, 3.0, 2.0]), np.array([[0.0, 0.0, 2.0]]), ("y",))
+    >>> g = ContinuousTF(np.array([1.0, 3.0, 2.0]), np.array([[0.0, 0.0, 2.0]]))
     >>> np.sort(g.poles().real)
     array([-2., -1.])
     """
 
     den: FloatArray
     nums: FloatArray
-    outputs: tuple[str, ...] = ("y",)
+    outputs: tuple[str, ...] = ()
     input: str = "u"
-    meta: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         den = np.asarray(self.den, dtype=np.float64).copy()
         nums = np.atleast_2d(np.asarray(self.nums, dtype=np.float64)).copy()
-        _check_shapes(den, nums, tuple(self.outputs))
+        outputs = _names(self.outputs, nums)
+        _check_shapes(den, nums, outputs)
         nums /= den[0]
         den /= den[0]
         den.flags.writeable = False
         nums.flags.writeable = False
         object.__setattr__(self, "den", den)
         object.__setattr__(self, "nums", nums)
-        object.__setattr__(self, "outputs", tuple(self.outputs))
+        object.__setattr__(self, "outputs", outputs)
 
     @property
     def order(self) -> int:

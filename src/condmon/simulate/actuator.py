@@ -67,6 +67,9 @@ class ActuatorRig:
         Perturbations: demand [m] and voltage [V] standard deviations, bandwidths [Hz].
     noise_I, noise_omega, current_quantisation : float
         Sensor noise standard deviations [A], [rad/s]; current resolution [A].
+    noise_bandwidth : float
+        Bandwidth of the sensor noise (anti-alias filtering) [Hz]; at or above
+        Nyquist the noise is white.
     coulomb_friction, coulomb_smoothing : float
         Coulomb friction torque [N m]; smoothing speed [rad/s].
     saturation : bool
@@ -96,6 +99,7 @@ class ActuatorRig:
     ud_bandwidth: float
     noise_I: float
     noise_omega: float
+    noise_bandwidth: float
     current_quantisation: float
     coulomb_friction: float
     coulomb_smoothing: float
@@ -202,7 +206,7 @@ def band_limited_noise(n: int, std: float, bandwidth: float, sample_rate: float,
     -------
     ndarray, shape (n,)
     """
-    white = rng.standard_normal(n)
+    white = rng.standard_normal(n)  # drawn even for std 0, so seeds stay aligned
     if std == 0.0:
         return np.zeros(n)
     if bandwidth < 0.5 * sample_rate:
@@ -260,8 +264,8 @@ def simulate_actuator(rig: ActuatorRig | None = None, *, seed: int | None = 0,
     n = int(round(rig.duration * fs))
     yd = band_limited_noise(n, rig.yd_std, rig.yd_bandwidth, fs, rng)
     ud = band_limited_noise(n, rig.ud_std, rig.ud_bandwidth, fs, rng)
-    noise_i = rig.noise_I * rng.standard_normal(n)
-    noise_w = rig.noise_omega * rng.standard_normal(n)
+    noise_i = band_limited_noise(n, rig.noise_I, rig.noise_bandwidth, fs, rng)
+    noise_w = band_limited_noise(n, rig.noise_omega, rig.noise_bandwidth, fs, rng)
 
     coulomb = 0.0 if linear else rig.coulomb_friction
     saturate = rig.saturation and not linear
@@ -310,6 +314,9 @@ def simulate_actuator(rig: ActuatorRig | None = None, *, seed: int | None = 0,
                         a10 * i + a11 * w + a12 * th + bv1 * v + bt1 * tf,
                         a20 * i + a21 * w + a22 * th + bv2 * v + bt2 * tf)
 
+    if not (np.all(np.isfinite(V)) and np.all(np.isfinite(w_meas))):
+        raise ConfigError("the simulated loop diverged: the controller gains make it "
+                          "unstable for these plant parameters")
     t = np.arange(n) * dt
     rec = pd.DataFrame({"t": t, "V": V, "I": I_meas, "omega": w_meas, "position": pos,
                         "yd": yd, "ud": ud})

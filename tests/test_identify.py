@@ -1,0 +1,180 @@
+"""Estimators against known truth: noise-free exactness, consistency, calibrated covariance."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy.signal import lfilter
+
+import condmon
+from condmon.errors import DataError, EstimationError, ModelError
+from condmon.identify import arx, estimate, iv, noise_free_input, riv, rls, sriv
+from condmon.models import DCMotorParameters, dc_motor_tf, tf_c2d
+from condmon.simulate import ActuatorRig, simulate_actuator
+
+TRUE_A = [-1.2, 0.5]
+TRUE_B = [[0.5, 0.2], [1.0, -0.3]]
+
+
+def _simo(n: int, noise: tuple[float, float], seed: int) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    x = lfilter([1.0], np.r_[1.0, TRUE_A], u)
+    y = np.column_stack([lfilter(np.r_[0.0, b], [1.0], x) for b in TRUE_B])
+    return u, y + rng.standard_normal((n, 2)) * np.asarray(noise)
+
+
+@pytest.mark.parametrize("method", ["sriv", "iv", "arx"])
+def test_noise_free_closed_loop_recovers_all_six_parameters(
+        method: str, noise_free_record: pd.DataFrame) -> None:
+    res = estimate(noise_free_record, method=method)
+    truth = noise_free_record.attrs["truth"]
+    for k, v in truth.items():
+        assert res.parameters[k] == pytest.approx(v, rel=1e-6), k
+    assert res.fit_percent == pytest.approx(100.0, abs=1e-6)
+    assert res.accepted
+
+
+def test_sriv_is_consistent_for_simo_with_output_noise() -> None:
+    u, y = _simo(20000, (0.5, 0.5), seed=1)
+    est = sriv(u, y, 2)
+    truth = np.r_[TRUE_A, np.ravel(TRUE_B)]
+    z = (est.theta - truth) / est.std_errors
+    assert np.all(np.abs(z) < 4.0), z
+    assert est.converged and est.iterations < 30
+    # least squares is visibly biased by the same output noise
+    ls = arx(u, y, 2)
+    assert abs(ls.theta[0] - TRUE_A[0]) > 10 * est.std_errors[0]
+
+
+def test_sriv_covariance_is_calibrated_by_monte_carlo() -> None:
+    thetas, ses = [], []
+    for seed in range(40):
+        u, y = _simo(3000, (0.3, 0.6), seed=100 + seed)
+        est = sriv(u, y, 2)
+        thetas.append(est.theta)
+        ses.append(est.std_errors)
+    ratio = np.std(thetas, axis=0, ddof=1) / np.mean(ses, axis=0)
+    assert np.all((ratio > 0.6) & (ratio < 1.5)), ratio
+
+
+def test_iv_reports_no_closed_loop_instruments_without_excitation() -> None:
+    u, y = _simo(3000, (0.1, 0.1), seed=2)
+    est = iv(u, y, 2)
+    assert not est.closed_loop_instruments
+    assert any("direct approach" in n for n in est.notes)
+
+
+def test_closed_loop_instruments_remove_feedback_bias(rig: ActuatorRig) -> None:
+    """Coloured sensor noise fed back through the controller biases the direct
+    approach (V taken as noise-free); instruments from yd, ud do not."""
+    loud = dataclasses.replace(rig, noise_bandwidth=100.0, noise_omega=4.0, kp_speed=0.2)
+    direct, closed = [], []
+    for seed in range(12):
+        rec = simulate_actuator(loud, seed=seed, linear=True)
+        closed.append(estimate(rec, excitation="auto").parameters["L"])
+        direct.append(estimate(rec, excitation=None).parameters["L"])
+    truth = rig.L
+    se_closed = np.std(closed, ddof=1) / np.sqrt(len(closed))
+    se_direct = np.std(direct, ddof=1) / np.sqrt(len(direct))
+    assert abs(np.mean(closed) - truth) < 3 * se_closed
+    assert np.mean(direct) - truth > 4 * se_direct
+
+
+def test_estimate_result_flags_and_json_keys(noisy_record: pd.DataFrame) -> None:
+    res = estimate(noisy_record)
+    doc = res.to_dict()
+    for key in ("parameters", "std_errors", "fit_percent", "fits", "accepted", "method",
+                "closed_loop_instruments", "discrete_model", "continuous_model"):
+        assert key in doc
+    assert set(doc["parameters"]) == {"R", "L", "Ke", "Kt", "J", "D"}
+    assert doc["closed_loop_instruments"] is True
+    assert 93.0 < doc["fit_percent"] < 98.0  # the paper's noise level
+    direct = estimate(noisy_record, excitation=None)
+    assert not direct.closed_loop_instruments
+
+
+def test_estimates_within_their_standard_errors(noisy_record: pd.DataFrame) -> None:
+    res = estimate(noisy_record)
+    truth = noisy_record.attrs["truth"]
+    for k in ("R", "L", "Ke", "Kt", "J"):
+        assert abs(res.parameters[k] - truth[k]) < 4 * res.std_errors[k], k
+
+
+def test_estimate_detects_resistance_fault(rig: ActuatorRig) -> None:
+    healthy = estimate(simulate_actuator(rig, seed=21))
+    faulty = estimate(simulate_actuator(rig.with_faults(["R=+40%"]), seed=22))
+    change = {k: faulty.parameters[k] / healthy.parameters[k] - 1 for k in healthy.parameters}
+    assert change["R"] == pytest.approx(0.40, abs=0.04)
+    for k in ("L", "Ke", "Kt", "J"):  # each difference has a spread of about 1.5 %
+        assert abs(change[k]) < 0.06, k
+
+
+def test_rls_converges_to_truth_without_noise() -> None:
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(3000)
+    y = lfilter([0.0, 0.5, 0.2], np.r_[1.0, TRUE_A], u)
+    res = rls(u, y, 2)
+    np.testing.assert_allclose(res.final.theta, [-1.2, 0.5, 0.5, 0.2], atol=1e-6)
+    assert res.history.shape == (3000, 4)
+
+
+def test_riv_holds_a_denominator_with_a_tight_prior() -> None:
+    """The two-step scheme: denominator from SRIV held, numerator estimated."""
+    rng = np.random.default_rng(1)
+    u = rng.standard_normal(4000)
+    y = lfilter([0.0, 0.5, 0.2], np.r_[1.0, TRUE_A], u) + 0.2 * rng.standard_normal(4000)
+    held = np.array([-1.19, 0.49])  # deliberately a little off
+    res = riv(u, y, 2, theta0=np.r_[held, 0.0, 0.0], P0=[1e-12, 1e-12, 1e6, 1e6],
+              auxiliary=np.r_[TRUE_A, 0.5, 0.2])
+    np.testing.assert_allclose(res.final.theta[:2], held, atol=1e-6)
+    np.testing.assert_allclose(res.final.theta[2:], [0.5, 0.2], atol=0.06)
+
+
+def test_riv_and_rls_reject_bad_priors() -> None:
+    u = np.random.default_rng(0).standard_normal(500)
+    with pytest.raises(ModelError, match="theta0 must have 4"):
+        rls(u, u, 2, theta0=[1.0])
+    with pytest.raises(ModelError, match="forgetting"):
+        riv(u, u, 2, forgetting=1.5)
+
+
+def test_noise_free_input_is_independent_of_loop_noise() -> None:
+    rng = np.random.default_rng(0)
+    r = rng.standard_normal((5000, 2))
+    clean = lfilter([1.0, 0.4], [1.0, -0.6], r[:, 0]) + r[:, 1]
+    u = clean + 0.3 * rng.standard_normal(5000)
+    u_hat = noise_free_input(u, r)
+    assert np.std(u_hat - clean) < 0.05 * np.std(clean)
+
+
+def test_unexcited_input_is_refused() -> None:
+    u = np.zeros(500)
+    with pytest.raises(EstimationError, match="singular"):
+        sriv(u, np.random.default_rng(0).standard_normal(500), 2)
+
+
+def test_too_few_samples_for_the_order() -> None:
+    with pytest.raises(DataError, match="too few"):
+        arx(np.ones(20), np.ones(20), 2)
+
+
+def test_physical_parameters_round_trip_through_discrete_model() -> None:
+    p = DCMotorParameters(R=1.3, L=1.5e-3, Ke=0.0475, Kt=0.05, J=6e-5, D=3e-4)
+    gd = tf_c2d(dc_motor_tf(p), 1e-3)
+    from condmon.models import dc_motor_from_discrete
+
+    q, cov = dc_motor_from_discrete(gd, np.eye(6) * 1e-12, 0.95)
+    np.testing.assert_allclose(q.as_array(), p.as_array(), rtol=1e-9)
+    assert cov.shape == (6, 6) and np.all(np.diag(cov) > 0)
+
+
+def test_unknown_method_and_model_are_named() -> None:
+    rec = condmon.simulate_actuator(seed=0)
+    with pytest.raises(ModelError, match="allowed: sriv, iv, arx"):
+        estimate(rec, method="oe")
+    with pytest.raises(ModelError, match="allowed: dc-motor"):
+        estimate(rec, model="pump")

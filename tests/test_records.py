@@ -1,0 +1,128 @@
+"""Bad input is refused at the boundary with the file and the column named."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from condmon.errors import DataError, DataWarning
+from condmon.identify import estimate
+from condmon.io import parse_column_map, read_record, validate_record
+
+
+def _write(df: pd.DataFrame, tmp_path: Path, name: str = "rec.csv") -> Path:
+    p = tmp_path / name
+    df.to_csv(p, index=False)
+    return p
+
+
+def test_missing_column_names_file_and_column(noisy_record: pd.DataFrame, tmp_path: Path) -> None:
+    p = _write(noisy_record.drop(columns=["I"]), tmp_path)
+    with pytest.raises(DataError, match=r"rec\.csv: missing column\(s\) 'I'"):
+        estimate(read_record(p))
+
+
+def test_nan_is_reported_with_its_row(noisy_record: pd.DataFrame) -> None:
+    df = noisy_record.copy()
+    df.loc[100, "omega"] = np.nan
+    with pytest.raises(DataError, match="column 'omega' has 1 NaN/inf value\\(s\\), first at row 100"):
+        estimate(df, source="bench.csv")
+
+
+def test_inf_is_refused(noisy_record: pd.DataFrame) -> None:
+    df = noisy_record.copy()
+    df.loc[len(df) - 1, "V"] = np.inf
+    with pytest.raises(DataError, match="column 'V' has 1 NaN/inf"):
+        estimate(df)
+
+
+def test_mismatched_lengths(noisy_record: pd.DataFrame, tmp_path: Path) -> None:
+    df = noisy_record.copy()
+    df.loc[3000:, "I"] = np.nan  # a shorter column in the file leaves empty cells
+    p = _write(df, tmp_path)
+    with pytest.raises(DataError, match="column 'I' has 3000 samples but the record has 4000 rows"):
+        estimate(read_record(p))
+
+
+def test_non_increasing_time(noisy_record: pd.DataFrame) -> None:
+    df = noisy_record.copy()
+    df.loc[10, "t"] = df.loc[9, "t"]
+    with pytest.raises(DataError, match="column 't' is not increasing at row 10"):
+        estimate(df)
+
+
+def test_non_uniform_time(noisy_record: pd.DataFrame) -> None:
+    df = noisy_record.copy()
+    df.loc[2000:, "t"] += 0.0005
+    with pytest.raises(DataError, match="not uniformly sampled"):
+        estimate(df)
+
+
+def test_non_numeric_column(noisy_record: pd.DataFrame) -> None:
+    df = noisy_record.copy().astype({"V": object})
+    df.loc[5, "V"] = "n/a"
+    with pytest.raises(DataError, match="column 'V' is not numeric \\(row 5: 'n/a'\\)"):
+        estimate(df)
+
+
+def test_too_few_samples(noisy_record: pd.DataFrame) -> None:
+    with pytest.raises(DataError, match="too few"):
+        estimate(noisy_record.iloc[:40])
+
+
+def test_constant_input_has_no_excitation(noisy_record: pd.DataFrame) -> None:
+    df = noisy_record.copy()
+    df["V"] = 3.0
+    with pytest.raises(DataError, match="column 'V' is constant: no excitation"):
+        estimate(df)
+
+
+def test_saturated_input_warns(noisy_record: pd.DataFrame) -> None:
+    df = noisy_record.copy()
+    df["V"] = df["V"].clip(-1.0, 1.0)
+    with pytest.warns(DataWarning, match="sits at its extreme values"):
+        estimate(df)
+
+
+def test_healthy_record_does_not_warn(noisy_record: pd.DataFrame) -> None:
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        estimate(noisy_record)
+
+
+def test_column_mapping_round_trip(noisy_record: pd.DataFrame, tmp_path: Path) -> None:
+    df = noisy_record.rename(columns={"V": "volts", "I": "amps"})
+    p = _write(df, tmp_path, "mapped.parquet".replace("parquet", "csv"))
+    rec = read_record(p, parse_column_map("V=volts,I=amps"))
+    assert estimate(rec).accepted
+    with pytest.raises(DataError, match=r"column mapping names \['watts'\] not in the file"):
+        read_record(p, {"V": "watts"})
+
+
+def test_parquet_records(noisy_record: pd.DataFrame, tmp_path: Path) -> None:
+    p = tmp_path / "rec.parquet"
+    noisy_record.to_parquet(p, index=False)
+    assert estimate(read_record(p)).accepted
+
+
+def test_unknown_file_type(tmp_path: Path) -> None:
+    p = tmp_path / "rec.xlsx"
+    p.write_text("x")
+    with pytest.raises(DataError, match="unknown file type '.xlsx'; allowed: .csv, .parquet"):
+        read_record(p)
+
+
+def test_bad_column_map() -> None:
+    with pytest.raises(DataError, match="CANONICAL=FILE_COLUMN"):
+        parse_column_map("V:volts")
+
+
+def test_validate_record_returns_float64_columns(noisy_record: pd.DataFrame) -> None:
+    rec = validate_record(noisy_record, ("V", "I"))
+    assert rec.dt == pytest.approx(1e-3)
+    assert rec["V"].dtype == np.float64 and len(rec) == 4000

@@ -73,7 +73,7 @@ def estimate_cmd(
         table.add_row(k, _fmt(v), _fmt(res.std_errors[k]), res.units[k])
     out.print(table)
     fits = ", ".join(f"{k} {v:.1f} %" for k, v in res.fit.fits_percent.items())
-    verdict = "[green]accepted[/green]" if res.accepted else "[red]rejected[/red]"
+    verdict = "[green]accepted[/green]" if res.accepted else f"[red]rejected[/red]: {res.reason}"
     out.print(f"fit {res.fit_percent:.1f} % ({fits}) — {verdict} "
               f"(threshold {res.fit.threshold:g} %)")
     for note in res.discrete.notes:

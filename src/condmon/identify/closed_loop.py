@@ -80,10 +80,14 @@ def noise_free_input(u: ArrayLike, r: ArrayLike, order: int = 8) -> FloatArray:
         raise DataError("an excitation signal is constant: it cannot build instruments")
     N = u_arr.size
     n = order
-    U = np.column_stack([np.r_[np.zeros(d), u_arr[: N - d]] for d in range(1, n + 1)])
-    X = np.hstack([-U, _lagged(r_arr, n + 1, 0)])[n:]
+    # Rows k = n..N-1 of [-u(k-1..k-n), r_i(k..k-n)], built by slicing (lag-major).
+    X = np.hstack([-u_arr[n - d: N - d, None] for d in range(1, n + 1)]
+                  + [r_arr[n - d: N - d] for d in range(n + 1)])
     # Normal equations (well conditioned here, 10x faster than an SVD solve).
-    theta = np.linalg.solve(X.T @ X, X.T @ u_arr[n:])
+    sol = np.linalg.solve(X.T @ X, X.T @ u_arr[n:])
+    nr = r_arr.shape[1]
+    # back to per-input blocks: theta = [c_1..c_n, d_1(0..n), d_2(0..n), ...]
+    theta = np.r_[sol[:n], sol[n:].reshape(n + 1, nr).T.ravel()]
     c = np.r_[1.0, theta[:n]]
     if np.all(np.abs(np.roots(c)) < 0.999):
         out = np.zeros(N)

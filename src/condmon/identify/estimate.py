@@ -65,8 +65,8 @@ class EstimateResult:
         R_T² per output, percentage fit, accepted or not.
     discrete : TFEstimate
         The discrete estimate (with its own covariance and notes).
-    continuous : ContinuousTF
-        Its zero-order-hold continuous equivalent.
+    continuous : ContinuousTF or None
+        Its zero-order-hold continuous equivalent (None when it has none).
     model : str
         Physical model name.
     gamma : float
@@ -75,6 +75,10 @@ class EstimateResult:
         Record's source.
     units : dict of str to str
         Unit of each parameter.
+    rejection : str or None
+        Why no physical parameters could be read (e.g. a discrete pole on the
+        negative real axis); the parameters are then NaN, ``accepted`` is False
+        and the JSON holds ``null``.
     """
 
     parameters: dict[str, float]
@@ -82,16 +86,27 @@ class EstimateResult:
     covariance: FloatArray
     fit: FitCheck
     discrete: TFEstimate
-    continuous: ContinuousTF
+    continuous: ContinuousTF | None
     model: str
     gamma: float
     source: str
     units: dict[str, str]
+    rejection: str | None = None
 
     @property
     def accepted(self) -> bool:
-        """Whether the fit passed the threshold."""
-        return self.fit.accepted
+        """Whether the test is usable: the fit passed and physical parameters exist."""
+        return self.fit.accepted and self.rejection is None
+
+    @property
+    def reason(self) -> str | None:
+        """Why the test was rejected (None when accepted)."""
+        if self.rejection is not None:
+            return self.rejection
+        if not self.fit.accepted:
+            return (f"fit {self.fit.fit_percent:.1f} % below the threshold "
+                    f"{self.fit.threshold:g} %")
+        return None
 
     @property
     def fit_percent(self) -> float:
@@ -110,16 +125,21 @@ class EstimateResult:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready result (the ``condmon estimate --json`` document)."""
+        def clean(d: dict[str, float]) -> dict[str, float | None]:
+            return {k: (v if np.isfinite(v) else None) for k, v in d.items()}
+
+        fit = self.fit.fit_percent
         return {
             "source": self.source,
             "model": self.model,
-            "parameters": self.parameters,
-            "std_errors": self.std_errors,
+            "parameters": clean(self.parameters),
+            "std_errors": clean(self.std_errors),
             "units": self.units,
-            "fit_percent": self.fit.fit_percent,
-            "fits": self.fit.fits_percent,
+            "fit_percent": fit if np.isfinite(fit) else None,
+            "fits": clean(self.fit.fits_percent),
             "fit_threshold": self.fit.threshold,
-            "accepted": self.fit.accepted,
+            "accepted": self.accepted,
+            "reason": self.reason,
             "method": self.discrete.method,
             "closed_loop_instruments": self.discrete.closed_loop_instruments,
             "iterations": self.discrete.iterations,
@@ -127,7 +147,7 @@ class EstimateResult:
             "gamma": self.gamma,
             "notes": list(self.discrete.notes),
             "discrete_model": self.discrete.to_dict(),
-            "continuous_model": self.continuous.to_dict(),
+            "continuous_model": None if self.continuous is None else self.continuous.to_dict(),
         }
 
     def to_frame(self) -> pd.DataFrame:
@@ -209,12 +229,19 @@ def estimate_record(rec: Record, model: str = "dc-motor", *, method: str = "sriv
     est = _ESTIMATORS[method](u, y, spec.order, dt=rec.dt, excitation=r,
                               outputs=spec.outputs, input_name=spec.input)
     fit = fit_check(est.model, u, y, fit_threshold)
-    cont = tf_d2c(est.model)
-    values, pcov = spec.from_discrete(est.model, est.covariance, g)
-    se = np.sqrt(np.clip(np.diag(pcov), 0.0, None))
     names = spec.parameters
+    cont: ContinuousTF | None = None
+    rejection = None
+    try:
+        cont = tf_d2c(est.model)
+        values, pcov = spec.from_discrete(est.model, est.covariance, g)
+    except ModelError as err:  # ConversionError included: no physical reading exists
+        rejection = f"no physical parameters: {err}"
+        values = np.full(len(names), np.nan)
+        pcov = np.full((len(names), len(names)), np.nan)
+    se = np.sqrt(np.clip(np.diag(pcov), 0.0, None))
     return EstimateResult(
         parameters={k: float(v) for k, v in zip(names, values)},
         std_errors={k: float(v) for k, v in zip(names, se)},
         covariance=pcov, fit=fit, discrete=est, continuous=cont, model=spec.name,
-        gamma=g, source=rec.source, units=dict(spec.units))
+        gamma=g, source=rec.source, units=dict(spec.units), rejection=rejection)

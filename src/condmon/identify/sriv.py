@@ -40,7 +40,7 @@ __all__ = ["sriv"]
 
 def sriv(u: ArrayLike, y: ArrayLike, order: int, *, dt: float = 1.0,
          excitation: ArrayLike | None = None, outputs: tuple[str, ...] | None = None,
-         input_name: str = "u", tol: float = 1e-7, max_iter: int = 30,
+         input_name: str = "u", tol: float = 1e-6, max_iter: int = 30,
          warn: bool = True) -> TFEstimate:
     """SRIV estimate of a common-denominator transfer function.
 

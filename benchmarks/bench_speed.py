@@ -1,0 +1,61 @@
+"""Time to estimate one 4 s, 1 kHz actuator record (two outputs) on one core.
+
+    python benchmarks/bench_speed.py [--records 20] [--repeat 10]
+
+Prints a table and writes results/speed.json. Single-threaded BLAS is forced
+before numpy loads, so the figure is per core.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import statistics  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+
+from _common import table, write_json  # noqa: E402
+from condmon.identify import estimate  # noqa: E402
+from condmon.simulate import simulate_actuator  # noqa: E402
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--records", type=int, default=20)
+    ap.add_argument("--repeat", type=int, default=10)
+    args = ap.parse_args()
+    records = [simulate_actuator(seed=s) for s in range(args.records)]
+    rows = []
+    doc = {}
+    for method, exc in (("sriv", "auto"), ("sriv", None), ("iv", "auto"), ("arx", "auto")):
+        label = f"{method} ({'closed-loop instruments' if exc else 'direct'})"
+        estimate(records[0], method=method, excitation=exc)  # warm-up
+        times = []
+        iters = []
+        for rec in records:
+            for _ in range(args.repeat):
+                t0 = time.perf_counter()
+                res = estimate(rec, method=method, excitation=exc)
+                times.append(time.perf_counter() - t0)
+            iters.append(res.discrete.iterations)
+        med = statistics.median(times) * 1e3
+        p90 = sorted(times)[int(0.9 * len(times))] * 1e3
+        rows.append({"estimator": label, "median ms": med, "p90 ms": p90,
+                     "iterations (mean)": sum(iters) / len(iters)})
+        doc[label] = {"median_ms": med, "p90_ms": p90, "n": len(times)}
+    print(table(rows, f"Time per record (4000 samples, outputs I and omega, full pipeline: "
+                      f"validation, estimate, fit, d2c, physical parameters with covariance); "
+                      f"{args.records} records x {args.repeat}"))
+    target = doc["sriv (closed-loop instruments)"]["median_ms"] <= 10.0
+    print(f"\nmedian <= 10 ms (SRIV, closed-loop instruments): {target}")
+    path = write_json("speed", {"results": doc, "target_met": target})
+    print(f"wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -16,6 +16,11 @@ results/peers.json.
 
 from __future__ import annotations
 
+import os
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"  # both tools on one core
+
 import argparse
 import contextlib
 import io
@@ -72,6 +77,8 @@ def main() -> int:
     truth = np.array([rig.physical()[p] for p in PARAMETER_NAMES])
     est: dict[str, list[np.ndarray]] = {"condmon SRIV": [], "SIPPY OE": [], "SIPPY ARX": []}
     times: dict[str, list[float]] = {k: [] for k in est}
+    failures: dict[str, list[str]] = {k: [] for k in est}
+    estimate(simulate_actuator(rig, seed=1))  # warm-up
     for s in range(args.records):
         rec = simulate_actuator(rig, seed=2000 + s)
         t0 = time.perf_counter()
@@ -82,20 +89,28 @@ def main() -> int:
             try:
                 vals, el = sippy_physical(rec, method, rig.gamma)
             except Exception as err:  # a peer failing is a result too
-                print(f"SIPPY {method} failed on record {s}: {err}")
+                failures[f"SIPPY {method}"].append(f"record {s}: {err}")
                 continue
             est[f"SIPPY {method}"].append(vals)
             times[f"SIPPY {method}"].append(el)
     rms = {k: np.sqrt(np.mean((np.array(v) / truth - 1) ** 2, axis=0)) * 100 for k, v in est.items() if v}
     tmed = {k: statistics.median(v) * 1e3 for k, v in times.items() if v}
     rows = []
-    for k in rms:
+    for k in est:
+        if k not in rms:
+            rows.append({"tool": k, "records": 0, **{f"{p} rms%": float("nan") for p in PARAMETER_NAMES},
+                         "ms/record": float("nan")})
+            continue
         row: dict[str, object] = {"tool": k, "records": len(est[k])}
         for i, p in enumerate(PARAMETER_NAMES):
             row[f"{p} rms%"] = float(rms[k][i])
         row["ms/record"] = tmed[k]
         rows.append(row)
     print(table(rows, f"Accuracy (RMS relative error, %) and time, {args.records} paper-level records"))
+    for k, fails in failures.items():
+        if fails:
+            print(f"{k}: no physical parameters on {len(fails)}/{args.records} records "
+                  f"(first: {fails[0]})")
     ratio_rows = []
     base = "condmon SRIV"
     for k in rms:
@@ -111,7 +126,9 @@ def main() -> int:
     path = write_json("peers", {
         "records": args.records,
         "rms_percent": {k: dict(zip(PARAMETER_NAMES, map(float, v))) for k, v in rms.items()},
-        "median_ms": tmed, "ratios": ratio_rows})
+        "median_ms": tmed, "ratios": ratio_rows,
+        "failures": {k: len(v) for k, v in failures.items()},
+        "failure_examples": {k: v[:3] for k, v in failures.items()}})
     print(f"\nwrote {path}")
     return 0
 

@@ -186,13 +186,7 @@ def test_model_without_continuous_equivalent_is_rejected_with_reason(
     test is rejected with the reason, parameters null in JSON, never a crash."""
     import json
 
-    for seed in range(20):
-        rec = simulate_actuator(seed=seed)
-        res = estimate(rec, method="arx")
-        if res.rejection is not None:
-            break
-    else:
-        pytest.skip("no ARX estimate with a negative real pole in 20 seeds")
+    res = estimate(noisy_record, method="arx")  # LS bias puts a pole near z = -0.4
     assert not res.accepted and "negative real axis" in (res.reason or "")
     doc = json.loads(json.dumps(res.to_dict(), allow_nan=False))
     assert doc["parameters"]["R"] is None and doc["accepted"] is False

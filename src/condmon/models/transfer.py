@@ -43,6 +43,36 @@ def _check_shapes(den: FloatArray, nums: FloatArray, outputs: tuple[str, ...]) -
         raise ModelError("transfer-function coefficients contain NaN or inf")
 
 
+def _freeze(obj: Any) -> None:
+    """Validate, normalise to a monic denominator and freeze a TF's arrays."""
+    den = np.asarray(obj.den, dtype=np.float64).copy()
+    nums = np.atleast_2d(np.asarray(obj.nums, dtype=np.float64)).copy()
+    outputs = _names(obj.outputs, nums)
+    _check_shapes(den, nums, outputs)
+    nums /= den[0]
+    den /= den[0]
+    den.flags.writeable = False
+    nums.flags.writeable = False
+    object.__setattr__(obj, "den", den)
+    object.__setattr__(obj, "nums", nums)
+    object.__setattr__(obj, "outputs", outputs)
+
+
+def _describe(obj: Any, **head: Any) -> dict[str, Any]:
+    return {**head, "input": obj.input, "den": obj.den.tolist(),
+            "nums": {name: row.tolist() for name, row in zip(obj.outputs, obj.nums)}}
+
+
+def _control_tf(obj: Any, *dt: float) -> Any:
+    import control
+
+    # Numerators and denominator have equal length n+1; in discrete time multiplying
+    # both by z^n turns q^-1 coefficient arrays into z arrays unchanged.
+    num = [[list(row)] for row in obj.nums]
+    den = [[list(obj.den)] for _ in obj.nums]
+    return control.tf(num, den, *dt, inputs=[obj.input], outputs=list(obj.outputs))
+
+
 @dataclass(frozen=True, eq=False)
 class DiscreteTF:
     """Discrete single-input multi-output transfer function, common denominator.
@@ -79,19 +109,9 @@ class DiscreteTF:
     input: str = "u"
 
     def __post_init__(self) -> None:
-        den = np.asarray(self.den, dtype=np.float64).copy()
-        nums = np.atleast_2d(np.asarray(self.nums, dtype=np.float64)).copy()
-        outputs = _names(self.outputs, nums)
-        _check_shapes(den, nums, outputs)
         if not self.dt > 0:
             raise ModelError(f"sample time must be positive, got {self.dt}")
-        nums /= den[0]
-        den /= den[0]
-        den.flags.writeable = False
-        nums.flags.writeable = False
-        object.__setattr__(self, "den", den)
-        object.__setattr__(self, "nums", nums)
-        object.__setattr__(self, "outputs", outputs)
+        _freeze(self)
 
     @property
     def order(self) -> int:
@@ -110,24 +130,11 @@ class DiscreteTF:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
-        return {
-            "domain": "discrete",
-            "variable": "q^-1",
-            "dt": self.dt,
-            "input": self.input,
-            "den": self.den.tolist(),
-            "nums": {name: row.tolist() for name, row in zip(self.outputs, self.nums)},
-        }
+        return _describe(self, domain="discrete", variable="q^-1", dt=self.dt)
 
     def to_control(self) -> Any:
         """python-control ``TransferFunction`` (outputs x 1), sample time ``dt``."""
-        import control
-
-        # Numerator and denominator have equal length n+1, so multiplying both by
-        # z^n turns the q^-1 coefficient arrays into z coefficient arrays unchanged.
-        num = [[list(row)] for row in self.nums]
-        den = [[list(self.den)] for _ in self.nums]
-        return control.tf(num, den, self.dt, inputs=[self.input], outputs=list(self.outputs))
+        return _control_tf(self, self.dt)
 
 
 @dataclass(frozen=True, eq=False)
@@ -160,17 +167,7 @@ class ContinuousTF:
     input: str = "u"
 
     def __post_init__(self) -> None:
-        den = np.asarray(self.den, dtype=np.float64).copy()
-        nums = np.atleast_2d(np.asarray(self.nums, dtype=np.float64)).copy()
-        outputs = _names(self.outputs, nums)
-        _check_shapes(den, nums, outputs)
-        nums /= den[0]
-        den /= den[0]
-        den.flags.writeable = False
-        nums.flags.writeable = False
-        object.__setattr__(self, "den", den)
-        object.__setattr__(self, "nums", nums)
-        object.__setattr__(self, "outputs", outputs)
+        _freeze(self)
 
     @property
     def order(self) -> int:
@@ -183,18 +180,8 @@ class ContinuousTF:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""
-        return {
-            "domain": "continuous",
-            "variable": "s",
-            "input": self.input,
-            "den": self.den.tolist(),
-            "nums": {name: row.tolist() for name, row in zip(self.outputs, self.nums)},
-        }
+        return _describe(self, domain="continuous", variable="s")
 
     def to_control(self) -> Any:
         """python-control ``TransferFunction`` (outputs x 1)."""
-        import control
-
-        num = [[list(row)] for row in self.nums]
-        den = [[list(self.den)] for _ in self.nums]
-        return control.tf(num, den, inputs=[self.input], outputs=list(self.outputs))
+        return _control_tf(self)

@@ -39,13 +39,14 @@ def monte_carlo(rig, runs: int, seed0: int) -> dict[str, object]:  # type: ignor
     gd = tf_c2d(dc_motor_tf(truth_p), rig.dt)
     theta_true = np.r_[gd.den[1:], gd.nums[0, 1:], gd.nums[1, 1:]]
     # Jacobian of the physical map at the truth (delta method with unit covariance columns)
-    closed, direct, crb, fits = [], [], [], []
+    closed, direct, crb, fits, reported = [], [], [], [], []
     sigma = np.array([rig.noise_I, rig.noise_omega])
     for k in range(runs):
         rec = simulate_actuator(rig, seed=seed0 + k)
         rc = estimate(rec)
         rd = estimate(rec, excitation=None)
         closed.append([rc.parameters[p] for p in PARAMETER_NAMES])
+        reported.append([rc.std_errors[p] for p in PARAMETER_NAMES])
         direct.append([rd.parameters[p] for p in PARAMETER_NAMES])
         fits.append([rc.fit.fits_percent["I"], rc.fit.fits_percent["omega"]])
         info = oe_information(theta_true, rec["V"].to_numpy(), sigma)
@@ -64,11 +65,13 @@ def monte_carlo(rig, runs: int, seed0: int) -> dict[str, object]:  # type: ignor
                             "std_over_crb": sd / crb_sd[i], "rel_bias_percent": 100 * bias / truth[i],
                             "rel_std_percent": 100 * sd / truth[i]}
         entry["crb_std"] = float(crb_sd[i])
+        entry["reported_se_over_std"] = float(np.mean(np.array(reported)[:, i]) / entry["closed"]["std"])
         per[p] = entry
         rows.append({"param": p, "true": float(truth[i]),
                      "bias% CL": entry["closed"]["rel_bias_percent"],
                      "|bias|/sd CL": entry["closed"]["bias_over_std"],
                      "sd/CRB CL": entry["closed"]["std_over_crb"],
+                     "reported se/sd CL": entry["reported_se_over_std"],
                      "bias% direct": entry["direct"]["rel_bias_percent"],
                      "|bias|/sd direct": entry["direct"]["bias_over_std"],
                      "sd/CRB direct": entry["direct"]["std_over_crb"]})

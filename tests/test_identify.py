@@ -190,3 +190,15 @@ def test_model_without_continuous_equivalent_is_rejected_with_reason(
     assert not res.accepted and "negative real axis" in (res.reason or "")
     doc = json.loads(json.dumps(res.to_dict(), allow_nan=False))
     assert doc["parameters"]["R"] is None and doc["accepted"] is False
+
+
+def test_physical_standard_errors_match_monte_carlo_spread(rig: ActuatorRig) -> None:
+    """Delta-method standard errors of R, L, Kt, J agree with the spread of the
+    estimates over repeated closed-loop tests at the paper's noise level."""
+    values, ses = [], []
+    for seed in range(30):
+        res = estimate(simulate_actuator(rig, seed=300 + seed))
+        values.append([res.parameters[k] for k in ("R", "L", "Kt", "J")])
+        ses.append([res.std_errors[k] for k in ("R", "L", "Kt", "J")])
+    ratio = np.std(values, axis=0, ddof=1) / np.mean(ses, axis=0)
+    assert np.all((ratio > 0.65) & (ratio < 1.5)), ratio

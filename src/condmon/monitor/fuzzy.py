@@ -1,0 +1,193 @@
+"""Fuzzy significant-change detection: the parameter monitor (SPEC A6.3-5).
+
+For each parameter, HIGH rises linearly from 0 at ``r1`` to 1 at ``r2`` on the
+percent change r; LOW mirrors it. The measured change is blurred into a
+triangular symptom set S centred on r with half-width ``w = k σ/θ̄ × 100``
+(the true change may differ from the measured one), and
+
+    SymH = sup_x min(μ_S(x), μ_HIGH(x)),   SymL likewise with LOW
+
+(max-min composition): a worst-case degree of "high"/"low" in [0, 1].
+
+For a triangle and a monotone ramp the supremum has a closed form, used here
+because it is exact and vectorises over parameters and tests:
+the right flank of S meets the ramp at height ``(r + w - r1) / (w + r2 - r1)``,
+clipped to [0, 1]. The tests check it against a grid max-min composition
+built from scikit-fuzzy membership functions.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from condmon.errors import ConfigError
+from condmon.io.config import load_default, load_toml
+from condmon.monitor.baseline import Baseline, percent_change
+
+__all__ = ["MonitorConfig", "load_monitor_config", "symptom_degree", "Symptoms",
+           "compute_symptoms"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class MonitorConfig:
+    """Breakpoints and confidence factor of the parameter monitor.
+
+    Attributes
+    ----------
+    r1, r2 : dict of str to float
+        Per parameter: change where HIGH starts rising and where it reaches 1. [%]
+    k : float
+        Symptom half-width in baseline standard deviations. [-]
+    source : str
+        File the configuration came from.
+    """
+
+    r1: dict[str, float]
+    r2: dict[str, float]
+    k: float = 2.0
+    source: str = "condmon/data/monitor.toml"
+
+    def arrays(self, parameters: Sequence[str]) -> tuple[FloatArray, FloatArray]:
+        """``r1`` and ``r2`` in the order of ``parameters``."""
+        missing = [p for p in parameters if p not in self.r1]
+        if missing:
+            raise ConfigError(f"{self.source}: no breakpoints for {missing}; "
+                              f"configured: {sorted(self.r1)}")
+        return (np.array([self.r1[p] for p in parameters]),
+                np.array([self.r2[p] for p in parameters]))
+
+
+def load_monitor_config(path: str | Path | None = None, k: float | None = None) -> MonitorConfig:
+    """Monitor configuration: shipped defaults (the reference rig's Table 1) or a file.
+
+    Example
+    -------
+    >>> cfg = load_monitor_config()
+    >>> cfg.r1["D"], cfg.r2["D"], cfg.k
+    (300.0, 600.0, 2.0)
+    """
+    src = str(path) if path is not None else "condmon/data/monitor.toml"
+    raw = load_toml(path) if path is not None else load_default("monitor.toml")
+    try:
+        bp = raw["breakpoints"]
+        r1 = {p: float(v["r1"]) for p, v in bp.items()}
+        r2 = {p: float(v["r2"]) for p, v in bp.items()}
+        kk = float(raw.get("k", 2.0)) if k is None else float(k)
+    except (KeyError, TypeError, ValueError) as err:
+        raise ConfigError(f"{src}: expected [breakpoints] P = {{ r1 = .., r2 = .. }} "
+                          f"and k = number ({err})") from None
+    for p in r1:
+        if not 0 <= r1[p] < r2[p]:
+            raise ConfigError(f"{src}: breakpoints of {p} must satisfy 0 <= r1 < r2, "
+                              f"got r1={r1[p]}, r2={r2[p]}")
+    if kk < 0:
+        raise ConfigError(f"{src}: k must be >= 0, got {kk}")
+    return MonitorConfig(r1, r2, kk, src)
+
+
+def symptom_degree(r: ArrayLike, width: ArrayLike, r1: ArrayLike, r2: ArrayLike
+                   ) -> tuple[FloatArray, FloatArray]:
+    """SymH and SymL of percent changes ``r`` with symptom half-widths ``width``.
+
+    Parameters
+    ----------
+    r : array_like
+        Percent change. [%]
+    width : array_like
+        Half-width of the triangular symptom set (0: a crisp change). [%]
+    r1, r2 : array_like
+        Breakpoints of HIGH (LOW uses -r1, -r2). [%]
+
+    Returns
+    -------
+    high, low : ndarray
+        Degrees in [0, 1], broadcast shape of the inputs.
+
+    Example
+    -------
+    >>> h, l = symptom_degree([0.0, 30.0, 45.0], 2.0, 20.0, 40.0)
+    >>> h.round(4), l
+    (array([0.    , 0.5455, 1.    ]), array([0., 0., 0.]))
+    """
+    r_a = np.asarray(r, dtype=np.float64)
+    w = np.asarray(width, dtype=np.float64)
+    a = np.asarray(r1, dtype=np.float64)
+    d = np.asarray(r2, dtype=np.float64) - a
+    # Rounded to 12 decimals so that a change landing on a breakpoint up to
+    # floating-point error (1.4/1.0 - 1 = 0.39999999999999991) reads as exactly 1.
+    high = np.round(np.clip((r_a + w - a) / (w + d), 0.0, 1.0), 12)
+    low = np.round(np.clip((-r_a + w - a) / (w + d), 0.0, 1.0), 12)
+    return high, low
+
+
+@dataclass(frozen=True, eq=False)
+class Symptoms:
+    """Percent changes and fuzzy symptoms of one or more tests.
+
+    Attributes
+    ----------
+    parameters : tuple of str
+        Column order.
+    percent_change : ndarray, shape (n_tests, n_params)
+        Change against the baseline mean. [%]
+    width : ndarray, shape (n_params,)
+        Symptom-set half-width ``k σ/θ̄ × 100``. [%]
+    high, low : ndarray, shape (n_tests, n_params)
+        SymH and SymL in [0, 1].
+    """
+
+    parameters: tuple[str, ...]
+    percent_change: FloatArray
+    width: FloatArray
+    high: FloatArray
+    low: FloatArray
+
+    def row(self, i: int = 0) -> dict[str, dict[str, float]]:
+        """``{param: {"high": .., "low": .., "percent_change": ..}}`` of test ``i``."""
+        return {p: {"high": float(self.high[i, j]), "low": float(self.low[i, j]),
+                    "percent_change": float(self.percent_change[i, j])}
+                for j, p in enumerate(self.parameters)}
+
+    def to_dict(self, i: int = 0) -> dict[str, Any]:
+        """JSON-ready symptoms of test ``i``."""
+        return {p: {"high": v["high"], "low": v["low"]} for p, v in self.row(i).items()}
+
+
+def compute_symptoms(values: ArrayLike, baseline: Baseline,
+                     config: MonitorConfig | None = None) -> Symptoms:
+    """Symptoms of tests against a baseline, vectorised over tests and parameters.
+
+    Parameters
+    ----------
+    values : array_like, shape (n_tests, n_params) or (n_params,)
+        Estimates in the order of ``baseline.parameters``.
+    baseline : Baseline
+    config : MonitorConfig, optional
+        Breakpoints and k (shipped defaults if omitted).
+
+    Returns
+    -------
+    Symptoms
+
+    Example
+    -------
+    >>> b = Baseline(("R", "L"), (1.0, 1e-3), (0.005, 1e-5), 5)
+    >>> s = compute_symptoms([1.4, 1.0e-3], b)
+    >>> s.to_dict()["R"]
+    {'high': 1.0, 'low': 0.0}
+    """
+    cfg = config if config is not None else load_monitor_config()
+    v = np.atleast_2d(np.asarray(values, dtype=np.float64))
+    r = percent_change(v, baseline)
+    r1, r2 = cfg.arrays(baseline.parameters)
+    width = cfg.k * baseline.relative_std_percent
+    high, low = symptom_degree(r, width, r1, r2)
+    return Symptoms(baseline.parameters, r, width, high, low)

@@ -87,10 +87,10 @@ def make_baseline(values: ArrayLike | Sequence[Mapping[str, float]],
     >>> b.mean, round(b.std[0], 3), b.n
     ((1.0,), 0.1, 3)
     """
-    rows = list(values) if not isinstance(values, np.ndarray) else values
+    rows: Any = list(values) if not isinstance(values, np.ndarray) else values  # type: ignore[arg-type]
     if len(rows) and isinstance(rows[0], Mapping):
         names = tuple(parameters) if parameters is not None else tuple(rows[0])
-        arr = np.array([[float(r[k]) for k in names] for r in rows])  # type: ignore[index]
+        arr = np.array([[float(r[k]) for k in names] for r in rows])
     else:
         arr = np.atleast_2d(np.asarray(rows, dtype=np.float64))
         if parameters is None:

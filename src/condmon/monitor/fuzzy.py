@@ -123,8 +123,8 @@ def symptom_degree(r: ArrayLike, width: ArrayLike, r1: ArrayLike, r2: ArrayLike
     d = np.asarray(r2, dtype=np.float64) - a
     # Rounded to 12 decimals so that a change landing on a breakpoint up to
     # floating-point error (1.4/1.0 - 1 = 0.39999999999999991) reads as exactly 1.
-    high = np.round(np.clip((r_a + w - a) / (w + d), 0.0, 1.0), 12)
-    low = np.round(np.clip((-r_a + w - a) / (w + d), 0.0, 1.0), 12)
+    high = np.round(np.clip((r_a + w - a) / (w + d), 0.0, 1.0), 12).astype(np.float64)
+    low = np.round(np.clip((-r_a + w - a) / (w + d), 0.0, 1.0), 12).astype(np.float64)
     return high, low
 
 

@@ -1,0 +1,170 @@
+"""Fuzzy fault diagnosis of one test's symptoms (SPEC A7).
+
+symptoms -> preprocessing rules (e.g. bias compensation) -> fault rules (fuzzy
+and/or/not) -> Mamdani inference on the output variable "condition" with
+centroid defuzzification -> go / advisory / no-go, and each fault's degree.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import skfuzzy as fuzz
+from numpy.typing import NDArray
+
+from condmon.diagnose.rules import RuleBase, evaluate, load_rules
+
+__all__ = ["FaultDegree", "Diagnosis", "diagnose", "STATUSES"]
+
+FloatArray = NDArray[np.float64]
+STATUSES = ("go", "advisory", "no-go")
+_UNIVERSE = np.linspace(0.0, 1.0, 1001)
+
+
+@dataclass(frozen=True)
+class FaultDegree:
+    """One diagnosed fault.
+
+    Attributes
+    ----------
+    name : str
+    degree : float
+        Degree of the rule's condition, in [0, 1].
+    severity : str
+        "major" or "minor".
+    advice : str
+    """
+
+    name: str
+    degree: float
+    severity: str
+    advice: str
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return {"name": self.name, "degree": self.degree, "severity": self.severity,
+                "advice": self.advice}
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """Outcome of the fault diagnoser for one test.
+
+    Attributes
+    ----------
+    status : {"go", "advisory", "no-go"}
+        Overall condition for the operator.
+    condition : float
+        Defuzzified condition index in [0, 1] (0 healthy, 1 failed).
+    faults : tuple of FaultDegree
+        Faults with a non-zero degree, largest first; empty means "no fault".
+    symptoms : dict
+        ``{param: {"high": .., "low": ..}}`` after preprocessing.
+    applied : tuple of str
+        Preprocessing rules that fired.
+    """
+
+    status: str
+    condition: float
+    faults: tuple[FaultDegree, ...]
+    symptoms: dict[str, dict[str, float]] = field(default_factory=dict)
+    applied: tuple[str, ...] = ()
+
+    @property
+    def no_fault(self) -> bool:
+        """True when no fault rule fired."""
+        return not self.faults
+
+    @property
+    def summary(self) -> str:
+        """One line for the operator."""
+        if self.no_fault:
+            return f"{self.status}: no fault"
+        top = ", ".join(f"{f.name} ({f.degree:.2f})" for f in self.faults)
+        return f"{self.status}: {top}"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return {"status": self.status, "condition": self.condition,
+                "faults": [f.to_dict() for f in self.faults],
+                "no_fault": self.no_fault, "summary": self.summary,
+                "preprocessing_applied": list(self.applied)}
+
+
+def _mf(points: tuple[float, ...]) -> FloatArray:
+    if len(points) == 3:
+        return np.asarray(fuzz.trimf(_UNIVERSE, list(points)), dtype=np.float64)
+    return np.asarray(fuzz.trapmf(_UNIVERSE, list(points)), dtype=np.float64)
+
+
+def _preprocess(high: dict[str, float], low: dict[str, float], rules: RuleBase
+                ) -> tuple[dict[str, float], dict[str, float], list[str]]:
+    applied = []
+    high, low = dict(high), dict(low)
+    for p in rules.preprocess:
+        src = high if p.dominant.kind == "high" else low
+        value = src[p.dominant.parameter]
+        others = [v for k, v in high.items() if not (p.dominant.kind == "high"
+                                                     and k == p.dominant.parameter)]
+        if value > 0 and all(value > v for v in others):
+            for a in p.clear:
+                (high if a.kind == "high" else low)[a.parameter] = 0.0
+            applied.append(p.name)
+    return high, low, applied
+
+
+def diagnose(symptoms: Mapping[str, Mapping[str, float]], rules: RuleBase | None = None
+             ) -> Diagnosis:
+    """Diagnose one test from its symptoms.
+
+    Parameters
+    ----------
+    symptoms : mapping
+        ``{param: {"high": SymH, "low": SymL}}`` (e.g. ``Symptoms.to_dict()``).
+    rules : RuleBase, optional
+        The shipped rule base if omitted.
+
+    Returns
+    -------
+    Diagnosis
+        Never NaN: when no rule fires the answer is ``go`` with no faults.
+
+    Example
+    -------
+    >>> zero = {"high": 0.0, "low": 0.0}
+    >>> s = {p: dict(zero) for p in ("R", "L", "Ke", "Kt", "J", "D")}
+    >>> diagnose(s).summary
+    'go: no fault'
+    >>> s["R"]["high"] = 1.0
+    >>> diagnose(s).summary
+    'no-go: winding resistance increase (1.00)'
+    """
+    rb = rules if rules is not None else load_rules()
+    rb.check_parameters(list(symptoms))
+    high = {p: float(v["high"]) for p, v in symptoms.items()}
+    low = {p: float(v["low"]) for p, v in symptoms.items()}
+    high, low, applied = _preprocess(high, low, rb)
+    degrees: dict[str, float] = {}
+    meta: dict[str, tuple[str, str]] = {}
+    for rule in rb.faults:
+        d = float(evaluate(rule.condition, high, low))
+        degrees[rule.name] = max(degrees.get(rule.name, 0.0), d)
+        meta[rule.name] = (rule.severity, rule.advice)
+    faults = tuple(sorted((FaultDegree(n, round(d, 12), *meta[n])
+                           for n, d in degrees.items() if d > 0.0),
+                          key=lambda f: -f.degree))
+    go_mf, adv_mf, nogo_mf = (_mf(rb.status.go), _mf(rb.status.advisory),
+                              _mf(rb.status.no_go))
+    worst = max((f.degree for f in faults), default=0.0)
+    major = max((f.degree for f in faults if f.severity == "major"), default=0.0)
+    minor = max((f.degree for f in faults if f.severity == "minor"), default=0.0)
+    agg = np.maximum.reduce([np.minimum(go_mf, 1.0 - worst), np.minimum(adv_mf, minor),
+                             np.minimum(nogo_mf, major)])
+    condition = float(fuzz.defuzz(_UNIVERSE, agg, "centroid"))
+    memberships = [float(np.interp(condition, _UNIVERSE, m)) for m in (go_mf, adv_mf, nogo_mf)]
+    status = STATUSES[int(np.argmax(memberships))]
+    sym = {p: {"high": high[p], "low": low[p]} for p in symptoms}
+    return Diagnosis(status, condition, faults, sym, tuple(applied))

@@ -1,0 +1,229 @@
+"""The flow of one test (SPEC A8), as library functions the CLI calls.
+
+run test -> estimate -> fit >= threshold? (else store as rejected and report)
+-> physical parameters -> store in history -> symptoms against the baseline
+-> diagnose -> go / advisory / no-go for the operator, faults for maintenance.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from condmon.diagnose.diagnoser import Diagnosis, diagnose
+from condmon.diagnose.rules import RuleBase, load_rules
+from condmon.errors import DataError
+from condmon.identify.estimate import EstimateResult, estimate
+from condmon.identify.fit import DEFAULT_FIT_THRESHOLD
+from condmon.io.records import read_record
+from condmon.monitor.baseline import MIN_BASELINE_TESTS, Baseline, make_baseline
+from condmon.monitor.fuzzy import MonitorConfig, compute_symptoms, load_monitor_config
+from condmon.store.db import DuplicateTestError, HistoryStore, file_hash, frame_hash
+
+__all__ = ["EstimateOptions", "AddedTest", "BaselineAddResult", "CheckResult",
+           "add_baseline_tests", "current_baseline", "check_test", "RecordLike"]
+
+RecordLike = str | Path | pd.DataFrame
+Progress = Callable[[int, int, str], None]
+
+
+@dataclass(frozen=True)
+class EstimateOptions:
+    """How each record is estimated (see :func:`condmon.estimate`)."""
+
+    model: str = "dc-motor"
+    method: str = "sriv"
+    gamma: float | None = None
+    excitation: Sequence[str] | str | None = "auto"
+    fit_threshold: float = DEFAULT_FIT_THRESHOLD
+    columns: dict[str, str] | None = None
+
+    def run(self, record: RecordLike) -> tuple[EstimateResult, str]:
+        """Read (if a path), estimate; returns the result and the record's SHA-256."""
+        if isinstance(record, pd.DataFrame):
+            df, digest = record, frame_hash(record)
+            source = str(record.attrs.get("source", "record"))
+        else:
+            df, digest, source = read_record(record, self.columns), file_hash(record), str(record)
+        res = estimate(df, self.model, method=self.method, gamma=self.gamma,
+                       excitation=self.excitation, fit_threshold=self.fit_threshold,
+                       columns=self.columns if isinstance(record, pd.DataFrame) else None,
+                       source=source)
+        return res, digest
+
+
+@dataclass(frozen=True)
+class AddedTest:
+    """One record offered to the baseline: stored, rejected or a duplicate."""
+
+    source: str
+    test_id: int
+    accepted: bool
+    duplicate: bool
+    reason: str | None = None
+
+
+@dataclass(frozen=True)
+class BaselineAddResult:
+    """Outcome of adding healthy tests.
+
+    Attributes
+    ----------
+    tests : tuple of AddedTest
+    baseline : Baseline or None
+        The unit's baseline after the additions (None while fewer than 3
+        accepted healthy tests exist).
+    baseline_id : int or None
+    message : str
+    """
+
+    tests: tuple[AddedTest, ...]
+    baseline: Baseline | None
+    baseline_id: int | None
+    message: str
+
+
+def current_baseline(store: HistoryStore, unit: str) -> tuple[Baseline, list[int]]:
+    """Baseline of a unit from its accepted healthy tests (and their ids).
+
+    Raises
+    ------
+    DataError
+        Fewer than 3 accepted healthy tests.
+    """
+    ids, table = store.accepted_estimates(unit, role="baseline")
+    if len(ids) < MIN_BASELINE_TESTS:
+        raise DataError(f"unit {unit!r} has {len(ids)} accepted healthy test(s); a baseline "
+                        f"needs at least {MIN_BASELINE_TESTS}: add them with "
+                        f"`condmon baseline add REC... --unit {unit}`")
+    return make_baseline(table.to_numpy(), list(table.columns)), ids
+
+
+def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordLike],
+                       options: EstimateOptions | None = None,
+                       progress: Progress | None = None) -> BaselineAddResult:
+    """Estimate healthy records and store them as the unit's baseline tests.
+
+    Each record is committed on its own, so an interruption keeps every record
+    finished before it. A record already in the unit's history is skipped. The
+    baseline (mean, sample standard deviation) is recomputed from every
+    accepted healthy test once at least 3 exist.
+    """
+    opts = options or EstimateOptions()
+    added = []
+    for i, rec in enumerate(records):
+        name = str(rec) if not isinstance(rec, pd.DataFrame) else rec.attrs.get("source", f"record {i}")
+        if progress is not None:
+            progress(i, len(records), str(name))
+        res, digest = opts.run(rec)
+        try:
+            tid = store.add_test(unit, res, role="baseline", digest=digest)
+            added.append(AddedTest(res.source, tid, res.accepted, False, res.reason))
+        except DuplicateTestError as dup:
+            added.append(AddedTest(res.source, dup.test_id, res.accepted, True,
+                                   "already in the history"))
+    if progress is not None:
+        progress(len(records), len(records), "")
+    try:
+        baseline, ids = current_baseline(store, unit)
+    except DataError as err:
+        return BaselineAddResult(tuple(added), None, None, str(err))
+    bid = store.save_baseline(unit, baseline, ids)
+    return BaselineAddResult(tuple(added), baseline, bid,
+                             f"baseline of {unit!r} from {baseline.n} accepted healthy tests")
+
+
+@dataclass(frozen=True)
+class CheckResult:
+    """Outcome of checking one test against the unit's baseline.
+
+    Attributes
+    ----------
+    unit : str
+    test_id : int
+    estimate : EstimateResult
+    status : {"go", "advisory", "no-go", "retest"}
+        "retest" when the test was rejected (fit below threshold): it is stored
+        as rejected and changes no symptom or trend.
+    baseline : Baseline or None
+    percent_change : dict of str to float
+        Against the baseline mean. [%]
+    symptoms : dict
+        ``{param: {"high", "low"}}`` before preprocessing.
+    diagnosis : Diagnosis or None
+    """
+
+    unit: str
+    test_id: int
+    estimate: EstimateResult
+    status: str
+    baseline: Baseline | None = None
+    percent_change: dict[str, float] = field(default_factory=dict)
+    symptoms: dict[str, dict[str, float]] = field(default_factory=dict)
+    diagnosis: Diagnosis | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready result (the ``condmon check --json`` document)."""
+        est = self.estimate.to_dict()
+        return {
+            "unit": self.unit,
+            "test_id": self.test_id,
+            "source": self.estimate.source,
+            "status": self.status,
+            "accepted": self.estimate.accepted,
+            "reason": self.estimate.reason,
+            "fit_percent": est["fit_percent"],
+            "fits": est["fits"],
+            "parameters": est["parameters"],
+            "std_errors": est["std_errors"],
+            "percent_change": self.percent_change,
+            "symptoms": self.symptoms,
+            "faults": ([] if self.diagnosis is None else
+                       [f.to_dict() for f in self.diagnosis.faults]),
+            "summary": (self.diagnosis.summary if self.diagnosis is not None else
+                        f"retest: {self.estimate.reason}"),
+            "condition": None if self.diagnosis is None else self.diagnosis.condition,
+            "preprocessing_applied": ([] if self.diagnosis is None
+                                      else list(self.diagnosis.applied)),
+            "baseline": None if self.baseline is None else self.baseline.to_dict(),
+            "method": est["method"],
+            "closed_loop_instruments": est["closed_loop_instruments"],
+        }
+
+
+def check_test(store: HistoryStore, unit: str, record: RecordLike,
+               options: EstimateOptions | None = None, monitor: MonitorConfig | None = None,
+               rules: RuleBase | None = None) -> CheckResult:
+    """Estimate a test, store it, compute symptoms against the baseline and diagnose.
+
+    Raises
+    ------
+    DataError
+        The unit has no baseline yet (fewer than 3 accepted healthy tests).
+    DuplicateTestError
+        The record is already in the unit's history.
+    """
+    opts = options or EstimateOptions()
+    cfg = monitor or load_monitor_config()
+    rb = rules or load_rules()
+    baseline, ids = current_baseline(store, unit)
+    rb.check_parameters(baseline.parameters)
+    res, digest = opts.run(record)
+    if not res.accepted:
+        tid = store.add_test(unit, res, role="check", digest=digest)
+        return CheckResult(unit, tid, res, "retest", baseline)
+    values = np.array([res.parameters[p] for p in baseline.parameters])
+    sym = compute_symptoms(values, baseline, cfg)
+    row = sym.row(0)
+    diag = diagnose(sym.to_dict(0), rb)
+    bid = store.save_baseline(unit, baseline, ids)
+    tid = store.add_test(unit, res, role="check", digest=digest, symptoms=row,
+                         baseline_id=bid, diagnosis=diag)
+    return CheckResult(unit, tid, res, diag.status, baseline,
+                       {p: v["percent_change"] for p, v in row.items()},
+                       sym.to_dict(0), diag)

@@ -12,19 +12,24 @@ import warnings
 from pathlib import Path
 from typing import Annotated, Any, Optional
 
+import pandas as pd
 import typer
 from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from condmon.errors import CondmonError
-from condmon.identify.estimate import estimate, list_estimators
+from condmon.identify.estimate import list_estimators
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD
-from condmon.io.records import parse_column_map, read_record
+from condmon.io.records import parse_column_map
+from condmon.monitor.workflow import EstimateOptions
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="Model-based condition monitoring: estimate, trend, diagnose.")
 simulate_app = typer.Typer(no_args_is_help=True, help="Simulate test-beds with known parameters.")
 app.add_typer(simulate_app, name="simulate")
+baseline_app = typer.Typer(no_args_is_help=True, help="Build a unit's healthy baseline.")
+app.add_typer(baseline_app, name="baseline")
 
 out = Console()
 err = Console(stderr=True)
@@ -50,18 +55,7 @@ def estimate_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
 ) -> None:
     """Estimate the physical parameters of one test record."""
-    if method not in list_estimators():
-        raise CondmonError(f"unknown --method {method!r}; allowed: {', '.join(list_estimators())}")
-    df = read_record(record, parse_column_map(columns))
-    exc: str | tuple[str, ...] | None
-    if excitation == "auto":
-        exc = "auto"
-    elif excitation.lower() == "none":
-        exc = None
-    else:
-        exc = tuple(c.strip() for c in excitation.split(",") if c.strip())
-    res = estimate(df, model, method=method, gamma=gamma, excitation=exc,
-                   fit_threshold=fit_threshold, source=str(record))
+    res, _ = _options(method, gamma, excitation, columns, fit_threshold, model).run(record)
     if as_json:
         _write_json(res.to_dict())
         return
@@ -106,28 +100,208 @@ def simulate_actuator_cmd(
 
 @app.command("demo")
 def demo_cmd(
-    fault: Annotated[Optional[list[str]], typer.Option(help="Fault of the second test (repeatable).")] = None,
-    seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+    out_dir: Annotated[Path, typer.Option("--out", help="Folder for the demo database and report.")] = Path("condmon-demo"),
+    config: Annotated[Optional[Path], typer.Option(help="Experiments file (default: the shipped demo.toml).")] = None,
 ) -> None:
-    """Simulate a healthy and a faulty test, estimate both, show the changes."""
+    """Reproduce the reference experiments on the simulated test-bed and write a report."""
     from condmon.demo import run_demo
 
-    res = run_demo(tuple(fault) if fault else ("R=+40%",), seed)
-    tab = res.table()
-    table = Table(title=f"Built-in test, healthy vs faulty ({', '.join(res.faults)})")
-    for col in ("", "unit", "true", "healthy", "± σ", "faulty", "Δ est%", "Δ true%"):
-        table.add_column(col, justify="left" if col in ("", "unit") else "right",
-                         no_wrap=True)
-    for k, row in tab.iterrows():
-        table.add_row(str(k), row["unit"], f"{row['true_healthy']:.4g}",
-                      f"{row['estimated_healthy']:.4g}", f"{row['std_error_healthy']:.2g}",
-                      f"{row['estimated_faulty']:.4g}", f"{row['change_estimated_percent']:+.1f}",
-                      f"{row['change_true_percent']:+.1f}")
+    with _progress() as prog:
+        task = prog.add_task("simulating and checking tests", total=None)
+
+        def tick(done: int, total: int, label: str) -> None:
+            prog.update(task, completed=done, total=total, description=label)
+
+        res = run_demo(out_dir, config, tick)
+    out.print("[bold]Reference experiments on the simulated test-bed[/] "
+              "(paper-level noise, nonlinear effects on)")
+    for unit in dict.fromkeys(c.unit for c in res.checks):
+        rows = [c for c in res.checks if c.unit == unit]
+        table = Table(title=f"{unit}: {rows[0].title}", title_justify="left")
+        for col in ("test", "status", "diagnosis (degree)", "R Δ%", "L Δ%", "D Δ%"):
+            table.add_column(col, justify="right" if "%" in col else "left",
+                             no_wrap=col != "diagnosis (degree)")
+        for c in rows:
+            r = c.result
+            d = r.diagnosis
+            table.add_row(c.label, _status_text(r.status),
+                          d.summary.split(": ", 1)[1] if d is not None else str(r.estimate.reason),
+                          *(f"{r.percent_change.get(p, float('nan')):+.0f}" for p in ("R", "L", "D")))
+        out.print(table)
+    out.print(f"history: {res.database}")
+    out.print(f"report:  {res.report}  (open it in a browser)")
+
+
+def _progress() -> Progress:
+    return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                    TimeElapsedColumn(), console=err, transient=True)
+
+
+def _status_text(status: str) -> str:
+    color = {"go": "green", "advisory": "yellow", "no-go": "red", "retest": "blue"}.get(status, "white")
+    return f"[bold {color}]{status}[/]"
+
+
+def _options(method: str, gamma: float | None, excitation: str, columns: str | None,
+             fit_threshold: float, model: str = "dc-motor") -> EstimateOptions:
+    if method not in list_estimators():
+        raise CondmonError(f"unknown --method {method!r}; allowed: {', '.join(list_estimators())}")
+    exc: str | tuple[str, ...] | None
+    if excitation == "auto":
+        exc = "auto"
+    elif excitation.lower() == "none":
+        exc = None
+    else:
+        exc = tuple(c.strip() for c in excitation.split(",") if c.strip())
+    return EstimateOptions(model, method, gamma, exc, fit_threshold,
+                           parse_column_map(columns) or None)
+
+
+DbOpt = Annotated[str, typer.Option("--db", help="History database: a SQLite file or a postgresql:// URL.")]
+UnitOpt = Annotated[str, typer.Option("--unit", help="Unit (machine) name.")]
+MethodOpt = Annotated[str, typer.Option(help="Estimator: sriv, iv, arx.")]
+GammaOpt = Annotated[Optional[float], typer.Option(help="Ke/Kt of the motor (default 0.95).")]
+ExcOpt = Annotated[str, typer.Option(help="Excitation columns ('auto', 'none' or a,b).")]
+ColOpt = Annotated[Optional[str], typer.Option(help="Column mapping CANONICAL=FILE_COLUMN,...")]
+FitOpt = Annotated[float, typer.Option(help="Reject below this percentage fit [%].")]
+
+
+@baseline_app.command("add")
+def baseline_add_cmd(
+    records: Annotated[list[Path], typer.Argument(help="Healthy test records (.csv or .parquet).")],
+    unit: UnitOpt,
+    db: DbOpt = "condmon.db",
+    method: MethodOpt = "sriv",
+    gamma: GammaOpt = None,
+    excitation: ExcOpt = "auto",
+    columns: ColOpt = None,
+    fit_threshold: FitOpt = DEFAULT_FIT_THRESHOLD,
+) -> None:
+    """Estimate healthy tests and store them as the unit's baseline."""
+    from condmon.monitor.workflow import add_baseline_tests
+    from condmon.store.db import open_store
+
+    store = open_store(db)
+    opts = _options(method, gamma, excitation, columns, fit_threshold)
+    if len(records) > 1:
+        with _progress() as prog:
+            task = prog.add_task("estimating", total=len(records))
+
+            def tick(done: int, total: int, label: str) -> None:
+                prog.update(task, completed=done, description=Path(label).name or "done")
+
+            res = add_baseline_tests(store, unit, records, opts, tick)
+    else:
+        res = add_baseline_tests(store, unit, records, opts)
+    for t in res.tests:
+        if t.duplicate:
+            err.print(f"skipped {t.source}: already in the history (test #{t.test_id})", highlight=False)
+        elif not t.accepted:
+            err.print(f"stored {t.source} as rejected: {t.reason}", highlight=False)
+    n_new = sum(1 for t in res.tests if not t.duplicate)
+    out.print(f"{n_new} test(s) added to {unit!r}; {res.message}")
+    if res.baseline is not None:
+        table = Table(title=f"Baseline of {unit} (N = {res.baseline.n})")
+        for col in ("parameter", "mean", "std", "std %"):
+            table.add_column(col, justify="left" if col == "parameter" else "right")
+        for p, m, sd in zip(res.baseline.parameters, res.baseline.mean, res.baseline.std):
+            table.add_row(p, _fmt(m), _fmt(sd), f"{100 * sd / abs(m):.2f}")
+        out.print(table)
+
+
+@app.command("check")
+def check_cmd(
+    record: Annotated[Path, typer.Argument(help="Test record (.csv or .parquet).")],
+    unit: UnitOpt,
+    db: DbOpt = "condmon.db",
+    method: MethodOpt = "sriv",
+    gamma: GammaOpt = None,
+    excitation: ExcOpt = "auto",
+    columns: ColOpt = None,
+    fit_threshold: FitOpt = DEFAULT_FIT_THRESHOLD,
+    rules: Annotated[Optional[Path], typer.Option(help="Rule base TOML (default: the shipped one).")] = None,
+    monitor: Annotated[Optional[Path], typer.Option(help="Monitor breakpoints TOML (default: the shipped one).")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
+) -> None:
+    """Check one test against the unit's baseline: go / advisory / no-go and faults."""
+    from condmon.diagnose.rules import load_rules
+    from condmon.monitor.fuzzy import load_monitor_config
+    from condmon.monitor.workflow import check_test
+    from condmon.store.db import open_store
+
+    store = open_store(db)
+    res = check_test(store, unit, record, _options(method, gamma, excitation, columns, fit_threshold),
+                     load_monitor_config(monitor), load_rules(rules))
+    if as_json:
+        _write_json(res.to_dict())
+        return
+    out.print(f"{unit} — {record}: {_status_text(res.status)}  "
+              f"(fit {res.estimate.fit_percent:.1f} %, test #{res.test_id})")
+    if res.diagnosis is None:
+        out.print(f"rejected: {res.estimate.reason}; the test is stored but changes no trend. Retest.")
+        return
+    table = Table()
+    for col in ("parameter", "value", "change %", "SymH", "SymL"):
+        table.add_column(col, justify="left" if col == "parameter" else "right")
+    for p, v in res.estimate.parameters.items():
+        sym = res.symptoms.get(p, {"high": 0.0, "low": 0.0})
+        table.add_row(p, _fmt(v), f"{res.percent_change[p]:+.1f}", f"{sym['high']:.2f}", f"{sym['low']:.2f}")
     out.print(table)
-    for name, r in (("healthy", res.healthy), ("faulty", res.faulty)):
-        out.print(f"{name} test: fit {r.fit_percent:.1f} % "
-                  f"({'accepted' if r.accepted else 'rejected'}), {r.method.upper()} "
-                  f"with {'closed-loop instruments' if r.closed_loop_instruments else 'direct approach'}")
+    if res.diagnosis.no_fault:
+        out.print("no fault")
+    for f in res.diagnosis.faults:
+        out.print(f"[bold]{f.name}[/] — degree {f.degree:.2f} ({f.severity}): {f.advice}")
+
+
+@app.command("history")
+def history_cmd(
+    unit: UnitOpt,
+    db: DbOpt = "condmon.db",
+    as_json: Annotated[bool, typer.Option("--json", help="Print the history as JSON records.")] = False,
+) -> None:
+    """Show the unit's tests: fit, status and parameter changes."""
+    from condmon.store.db import open_store
+
+    hist = open_store(db).history(unit)
+    params = [p for p in ("R", "L", "Kt", "J", "D") if p in hist.columns]  # Ke = gamma Kt
+    if as_json:
+        sys.stdout.write(hist.reset_index().to_json(orient="records", date_format="iso", indent=2) + "\n")
+        return
+    table = Table(title=f"History of {unit} (changes against the baseline; Ke moves with Kt)")
+    for col in ("#", "source", "fit %", "status", *(f"{p} Δ%" for p in params), "top fault"):
+        table.add_column(col, justify="right" if col in ("#", "fit %") or "Δ" in col else "left",
+                         no_wrap=col != "top fault")
+    for tid, r in hist.iterrows():
+        if r["role"] == "check":
+            status = _status_text(r["status"] if r["accepted"] else "retest")
+        else:
+            status = "baseline" if r["accepted"] else "[red]rejected[/]"
+        changes = [f"{r[f'{p}_change']:+.1f}" if f"{p}_change" in r and pd.notna(r[f"{p}_change"])
+                   else "" for p in params]
+        fit = f"{r['fit_percent']:.1f}" if pd.notna(r["fit_percent"]) else "—"
+        top = ""
+        if isinstance(r["summary"], str):
+            top = r["summary"].split(": ", 1)[-1].split(", ")[0]
+        elif not r["accepted"]:
+            top = str(r["reason"])
+        table.add_row(str(tid), Path(str(r["source"])).name, fit, status, *changes, top)
+    out.print(table)
+
+
+@app.command("report")
+def report_cmd(
+    unit: UnitOpt,
+    out_dir: Annotated[Path, typer.Option("--out", help="Folder for the HTML page and PNG figures.")],
+    db: DbOpt = "condmon.db",
+    monitor: Annotated[Optional[Path], typer.Option(help="Monitor breakpoints TOML.")] = None,
+) -> None:
+    """Write an HTML report with trend, fit and symptom figures."""
+    from condmon.monitor.fuzzy import load_monitor_config
+    from condmon.report.html import write_report
+    from condmon.store.db import open_store
+
+    files = write_report(open_store(db), unit, out_dir, load_monitor_config(monitor))
+    out.print(f"wrote {files.html} and {len(files.figures)} figures")
 
 
 def _show_warning(message: Warning | str, category: type[Warning], filename: str,

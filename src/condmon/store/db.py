@@ -237,7 +237,20 @@ class HistoryStore:
             return [], pd.DataFrame()
         df = pd.DataFrame(rows, columns=["test_id", "parameter", "value"])
         wide = df.pivot(index="test_id", columns="parameter", values="value")
-        return [int(i) for i in wide.index], wide
+        return [int(i) for i in wide.index], wide[self._ordered(unit, list(wide.columns))]
+
+    def _ordered(self, unit: str, names: list[str]) -> list[str]:
+        """Parameter names in the unit's model order (unknown ones last, sorted)."""
+        from condmon.errors import ModelError
+        from condmon.models.registry import get_model
+
+        with self.engine.connect() as conn:
+            model = conn.execute(sa.select(S.units.c.model).where(S.units.c.name == unit)).scalar()
+        try:
+            order = list(get_model(str(model)).parameters)
+        except ModelError:
+            order = []
+        return [p for p in order if p in names] + sorted(p for p in names if p not in order)
 
     # -- baselines ----------------------------------------------------------------------
     def save_baseline(self, unit: str, baseline: Any, test_ids: Sequence[int]) -> int:
@@ -291,7 +304,7 @@ class HistoryStore:
         if est:
             e = pd.DataFrame(est, columns=["test_id", "parameter", "value"]).pivot(
                 index="test_id", columns="parameter", values="value")
-            df = df.join(e)
+            df = df.join(e[self._ordered(unit, list(e.columns))])
         if sym:
             s = pd.DataFrame(sym, columns=["test_id", "parameter", "change", "high", "low"])
             for col in ("change", "high", "low"):

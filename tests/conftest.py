@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterator
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -24,3 +26,42 @@ def noise_free_record(rig: ActuatorRig) -> pd.DataFrame:
 @pytest.fixture(scope="session")
 def noisy_record(rig: ActuatorRig) -> pd.DataFrame:
     return simulate_actuator(rig, seed=5)
+
+
+@pytest.fixture(scope="session")
+def demo_rig(rig: ActuatorRig) -> ActuatorRig:
+    """The rig of `condmon demo`: nonlinear effects on."""
+    from condmon.demo import load_demo_config
+
+    return dataclasses.replace(rig, **load_demo_config().get("rig", {}))
+
+
+def _postgres_url() -> str | None:
+    import os
+
+    url = os.environ.get("CONDMON_TEST_POSTGRES_URL")
+    if url is None and os.environ.get("CONDMON_REQUIRE_POSTGRES") == "1":
+        pytest.fail("CONDMON_REQUIRE_POSTGRES=1 but CONDMON_TEST_POSTGRES_URL is not set")
+    return url
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def store_url(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
+    """A fresh, empty history database URL on each back-end."""
+    import sqlalchemy as sa
+
+    from condmon.store import schema
+
+    if request.param == "sqlite":
+        yield str(tmp_path / "history.db")
+        return
+    url = _postgres_url()
+    if url is None:
+        pytest.skip("no PostgreSQL server (set CONDMON_TEST_POSTGRES_URL; .ci/run starts one)")
+    engine = sa.create_engine(url.replace("postgresql://", "postgresql+psycopg://", 1))
+    schema.metadata.drop_all(engine)
+    engine.dispose()
+    yield url
+    engine = sa.create_engine(url.replace("postgresql://", "postgresql+psycopg://", 1))
+    schema.metadata.drop_all(engine)
+    engine.dispose()

@@ -9,13 +9,62 @@ from pathlib import Path
 import pytest
 
 from condmon.cli.main import main
-from condmon.simulate import ActuatorRig, simulate_actuator
+from condmon.simulate import ActuatorRig, load_actuator_rig, simulate_actuator
 
 
-def test_demo_runs(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["demo"]) == 0
+def test_demo_writes_history_and_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["demo", "--out", str(tmp_path / "demo")]) == 0
     out = capsys.readouterr().out
-    assert "R=+40%" in out and "accepted" in out
+    assert "friction increase" in out and "winding fault" in out
+    assert (tmp_path / "demo" / "index.html").exists()
+    assert (tmp_path / "demo" / "EMA-friction-trends.png").stat().st_size > 10_000
+    assert main(["history", "--unit", "EMA-resistance", "--db", str(tmp_path / "demo" / "condmon.db")]) == 0
+    assert "winding resistance" in capsys.readouterr().out
+
+
+def _healthy_files(tmp_path: Path, n: int, seed0: int = 0) -> list[str]:
+    files = []
+    for s in range(n):
+        p = tmp_path / f"h{seed0 + s}.csv"
+        simulate_actuator(seed=seed0 + s).to_csv(p, index=False)
+        files.append(str(p))
+    return files
+
+
+def test_baseline_check_history_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    db = str(tmp_path / "h.db")
+    files = _healthy_files(tmp_path, 5)
+    assert main(["baseline", "add", *files[:2], "--unit", "U1", "--db", db]) == 0
+    assert "needs at least 3" in capsys.readouterr().out
+    assert main(["baseline", "add", *files, "--unit", "U1", "--db", db]) == 0
+    captured = capsys.readouterr()
+    assert "baseline of 'U1' from 5 accepted healthy tests" in captured.out.replace("\n", " ")
+    assert captured.err.count("already in the history") == 2
+    faulty = tmp_path / "f.csv"
+    simulate_actuator(load_actuator_rig(faults=["R=+40%"]), seed=77).to_csv(faulty, index=False)
+    assert main(["check", str(faulty), "--unit", "U1", "--db", db, "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    for key in ("status", "fit_percent", "accepted", "parameters", "percent_change", "symptoms", "faults"):
+        assert key in doc
+    assert doc["status"] == "no-go" and doc["accepted"] is True
+    assert doc["faults"][0]["name"] == "winding resistance increase"
+    assert set(doc["faults"][0]) >= {"name", "degree", "advice"}
+    assert set(doc["symptoms"]["R"]) == {"high", "low"} and doc["symptoms"]["R"]["high"] > 0.8
+    assert doc["percent_change"]["R"] == pytest.approx(40, abs=4)
+    assert main(["check", str(faulty), "--unit", "U1", "--db", db]) == 2
+    assert "already in the history" in capsys.readouterr().err
+    assert main(["history", "--unit", "U1", "--db", db]) == 0
+    assert "no-go" in capsys.readouterr().out
+    assert main(["report", "--unit", "U1", "--db", db, "--out", str(tmp_path / "rep")]) == 0
+    page = (tmp_path / "rep" / "U1.html").read_text()
+    assert "winding resistance increase" in page and "U1-trends.png" in page
+
+
+def test_check_without_baseline_is_explained(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    f = _healthy_files(tmp_path, 1)[0]
+    assert main(["check", f, "--unit", "new", "--db", str(tmp_path / "x.db")]) == 2
+    err = capsys.readouterr().err
+    assert "has 0 accepted healthy test(s); a baseline needs at least 3" in err.replace("\n", " ")
 
 
 def test_simulate_then_estimate_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

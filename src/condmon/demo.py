@@ -23,7 +23,7 @@ from condmon.monitor.workflow import CheckResult, add_baseline_tests, check_test
 from condmon.report.html import write_report
 from condmon.simulate.actuator import ActuatorRig, load_actuator_rig, simulate_actuator
 from condmon.simulate.faults import parse_fault
-from condmon.store.db import open_store
+from condmon.store.db import HistoryStore, open_store
 
 __all__ = ["DemoCheck", "DemoResult", "run_demo", "load_demo_config"]
 
@@ -125,7 +125,12 @@ def run_demo(out_dir: str | Path = "condmon-demo", config: str | Path | None = N
     db = out / "condmon.db"
     if db.exists():
         db.unlink()  # the demo always starts from an empty history
-    store = open_store(db)
+    with open_store(db) as store:
+        return _run(store, cfg, out, db, progress)
+
+
+def _run(store: HistoryStore, cfg: dict[str, Any], out: Path, db: Path,
+         progress: Progress | None) -> DemoResult:
     base_rig = dataclasses.replace(load_actuator_rig(), **cfg.get("rig", {}))
     n_base = int(cfg.get("baseline_tests", 5))
     seed = int(cfg.get("seed", 1))

@@ -14,6 +14,7 @@ from typing import Annotated, Any, Optional
 
 import pandas as pd
 import typer
+from rich import box
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
@@ -181,18 +182,18 @@ def baseline_add_cmd(
     from condmon.monitor.workflow import add_baseline_tests
     from condmon.store.db import open_store
 
-    store = open_store(db)
     opts = _options(method, gamma, excitation, columns, fit_threshold)
-    if len(records) > 1:
-        with _progress() as prog:
-            task = prog.add_task("estimating", total=len(records))
+    with open_store(db) as store:
+        if len(records) > 1:
+            with _progress() as prog:
+                task = prog.add_task("estimating", total=len(records))
 
-            def tick(done: int, total: int, label: str) -> None:
-                prog.update(task, completed=done, description=Path(label).name or "done")
+                def tick(done: int, total: int, label: str) -> None:
+                    prog.update(task, completed=done, description=Path(label).name or "done")
 
-            res = add_baseline_tests(store, unit, records, opts, tick)
-    else:
-        res = add_baseline_tests(store, unit, records, opts)
+                res = add_baseline_tests(store, unit, records, opts, tick)
+        else:
+            res = add_baseline_tests(store, unit, records, opts)
     for t in res.tests:
         if t.duplicate:
             err.print(f"skipped {t.source}: already in the history (test #{t.test_id})", highlight=False)
@@ -229,9 +230,10 @@ def check_cmd(
     from condmon.monitor.workflow import check_test
     from condmon.store.db import open_store
 
-    store = open_store(db)
-    res = check_test(store, unit, record, _options(method, gamma, excitation, columns, fit_threshold),
-                     load_monitor_config(monitor), load_rules(rules))
+    opts = _options(method, gamma, excitation, columns, fit_threshold)
+    cfg, rb = load_monitor_config(monitor), load_rules(rules)
+    with open_store(db) as store:
+        res = check_test(store, unit, record, opts, cfg, rb)
     if as_json:
         _write_json(res.to_dict())
         return
@@ -262,15 +264,21 @@ def history_cmd(
     """Show the unit's tests: fit, status and parameter changes."""
     from condmon.store.db import open_store
 
-    hist = open_store(db).history(unit)
+    with open_store(db) as store:
+        hist = store.history(unit)
     params = [p for p in ("R", "L", "Kt", "J", "D") if p in hist.columns]  # Ke = gamma Kt
     if as_json:
         sys.stdout.write(hist.reset_index().to_json(orient="records", date_format="iso", indent=2) + "\n")
         return
-    table = Table(title=f"History of {unit} (changes against the baseline; Ke moves with Kt)")
-    for col in ("#", "source", "fit %", "status", *(f"{p} Δ%" for p in params), "top fault"):
-        table.add_column(col, justify="right" if col in ("#", "fit %") or "Δ" in col else "left",
-                         no_wrap=col != "top fault")
+    table = Table(title=f"History of {unit}: change against the baseline [%] (Ke moves with Kt)",
+                  box=box.SIMPLE_HEAD, padding=(0, 1))
+    widths = {"#": 3, "fit": 4, "status": 8}  # fits 80 columns with five parameters
+    for col in ("#", "source", "fit", "status", *params):
+        table.add_column(col, justify="left" if col in ("source", "status") else "right",
+                         no_wrap=True, overflow="ellipsis",
+                         min_width=widths.get(col, 5) if col != "source" else 8,
+                         max_width=14 if col == "source" else None)
+    notes = []
     for tid, r in hist.iterrows():
         if r["role"] == "check":
             status = _status_text(r["status"] if r["accepted"] else "retest")
@@ -279,13 +287,14 @@ def history_cmd(
         changes = [f"{r[f'{p}_change']:+.1f}" if f"{p}_change" in r and pd.notna(r[f"{p}_change"])
                    else "" for p in params]
         fit = f"{r['fit_percent']:.1f}" if pd.notna(r["fit_percent"]) else "—"
-        top = ""
-        if isinstance(r["summary"], str):
-            top = r["summary"].split(": ", 1)[-1].split(", ")[0]
+        table.add_row(str(tid), Path(str(r["source"])).name, fit, status, *changes)
+        if isinstance(r["summary"], str) and r["role"] == "check":
+            notes.append(f"#{tid} {r['summary']}")
         elif not r["accepted"]:
-            top = str(r["reason"])
-        table.add_row(str(tid), Path(str(r["source"])).name, fit, status, *changes, top)
+            notes.append(f"#{tid} rejected: {r['reason']}")
     out.print(table)
+    for line in notes:
+        out.print(line, highlight=False)
 
 
 @app.command("report")
@@ -300,7 +309,9 @@ def report_cmd(
     from condmon.report.html import write_report
     from condmon.store.db import open_store
 
-    files = write_report(open_store(db), unit, out_dir, load_monitor_config(monitor))
+    cfg = load_monitor_config(monitor)
+    with open_store(db) as store:
+        files = write_report(store, unit, out_dir, cfg)
     out.print(f"wrote {files.html} and {len(files.figures)} figures")
 
 

@@ -85,16 +85,29 @@ class StoredTest:
 class HistoryStore:
     """A history database. Open with :func:`open_store`.
 
+    Use it as a context manager (or call :meth:`close`) so that its connections
+    are released.
+
     Example
     -------
-    >>> store = open_store("sqlite://")        # in memory
-    >>> store.unit_id("EMA-1", create=True)
+    >>> with open_store("sqlite://") as store:        # in memory
+    ...     store.unit_id("EMA-1", create=True)
     1
     """
 
     def __init__(self, engine: sa.Engine, url: str) -> None:
         self.engine = engine
         self.url = url
+
+    def close(self) -> None:
+        """Release every pooled connection."""
+        self.engine.dispose()
+
+    def __enter__(self) -> HistoryStore:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
     # -- schema -------------------------------------------------------------------------
     def _init_schema(self) -> None:
@@ -337,7 +350,11 @@ def open_store(db: str | Path) -> HistoryStore:
                 cur.execute("PRAGMA foreign_keys=ON")
                 cur.close()
         store = HistoryStore(engine, str(db))
-        store._init_schema()
+        try:
+            store._init_schema()
+        except BaseException:
+            engine.dispose()
+            raise
     except sa.exc.SQLAlchemyError as err:
         raise StoreError(f"{db}: cannot open the history database: "
                          f"{str(err).splitlines()[0]}") from None

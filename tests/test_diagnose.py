@@ -1,0 +1,129 @@
+"""Fuzzy fault diagnoser: rule parsing, preprocessing, inference, status."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from condmon.diagnose import diagnose, load_rules, parse_condition
+from condmon.errors import ConfigError
+
+PARAMS = ("R", "L", "Ke", "Kt", "J", "D")
+
+
+def sym(**high_low: tuple[float, float]) -> dict[str, dict[str, float]]:
+    out = {p: {"high": 0.0, "low": 0.0} for p in PARAMS}
+    for p, (h, lo) in high_low.items():
+        out[p] = {"high": h, "low": lo}
+    return out
+
+
+def test_no_rule_fires_means_go_and_no_fault() -> None:
+    d = diagnose(sym())
+    assert d.status == "go" and d.no_fault and d.faults == ()
+    assert d.summary == "go: no fault" and np.isfinite(d.condition)
+
+
+@pytest.mark.parametrize("symptoms,fault", [
+    (sym(D=(1.0, 0.0)), "friction increase"),
+    (sym(R=(1.0, 0.0)), "winding resistance increase"),
+    (sym(R=(1.0, 0.0), L=(1.0, 0.0)), "winding fault"),
+    (sym(L=(0.0, 1.0), R=(0.0, 1.0)), "shorted winding"),
+    (sym(Ke=(0.0, 1.0), Kt=(0.0, 1.0)), "magnet weakening"),
+    (sym(J=(1.0, 0.0)), "mechanical inertia change"),
+])
+def test_each_initial_rule(symptoms: dict[str, dict[str, float]], fault: str) -> None:
+    d = diagnose(symptoms)
+    assert d.faults[0].name == fault and d.faults[0].degree == 1.0
+    assert d.faults[0].advice
+
+
+def test_major_fault_at_full_degree_is_no_go_minor_is_advisory() -> None:
+    assert diagnose(sym(R=(1.0, 0.0))).status == "no-go"
+    assert diagnose(sym(J=(1.0, 0.0))).status == "advisory"
+
+
+def test_status_rises_monotonically_with_fault_degree() -> None:
+    order = {"go": 0, "advisory": 1, "no-go": 2}
+    levels = [order[diagnose(sym(D=(d, 0.0))).status] for d in np.linspace(0, 1, 21)]
+    assert levels == sorted(levels) and levels[0] == 0 and levels[-1] == 2
+    conds = [diagnose(sym(D=(d, 0.0))).condition for d in np.linspace(0, 1, 21)]
+    assert all(b >= a for a, b in zip(conds, conds[1:]))
+
+
+def test_bias_compensation_clears_ke_kt_j_when_friction_dominates() -> None:
+    """The reference's friction case: SymH(D)=1, SymH(J)=0.94354, SymH(Ke,Kt)=0.069729."""
+    d = diagnose(sym(D=(1.0, 0.0), J=(0.94354, 0.0), Ke=(0.069729, 0.0), Kt=(0.069729, 0.0)))
+    assert d.applied == ("bias compensation",)
+    assert [f.name for f in d.faults] == ["friction increase"]
+    assert d.symptoms["J"]["high"] == 0.0 and d.symptoms["Ke"]["high"] == 0.0
+
+
+def test_bias_compensation_does_not_fire_when_another_symptom_dominates() -> None:
+    d = diagnose(sym(D=(0.5, 0.0), J=(0.9, 0.0)))
+    assert d.applied == ()
+    assert {f.name for f in d.faults} == {"friction increase", "mechanical inertia change"}
+
+
+def test_condition_parser() -> None:
+    e = parse_condition("(high(R) or low(L)) and not high(J)")
+    from condmon.diagnose.rules import evaluate
+
+    v = evaluate(e, {"R": np.array([0.7]), "L": np.array([0.0]), "J": np.array([0.2])},
+                 {"R": np.array([0.0]), "L": np.array([0.4]), "J": np.array([0.0])})
+    assert float(v[0]) == pytest.approx(0.7)
+
+
+@pytest.mark.parametrize("text,message", [
+    ("high(R) and", "ends early"),
+    ("higher(R)", "expected high\\(P\\), low\\(P\\)"),
+    ("high(R) high(L)", "unexpected 'high'"),
+    ("high R", "expected '\\('"),
+    ("high(R) & low(L)", "cannot read condition"),
+])
+def test_bad_conditions_are_explained(text: str, message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        parse_condition(text)
+
+
+def test_user_rule_file(tmp_path: Path) -> None:
+    p = tmp_path / "rules.toml"
+    p.write_text('''
+[[fault]]
+name = "overheating"
+if = "high(R) and low(Ke)"
+severity = "minor"
+advice = "Let it cool."
+[status]
+go = [0.0, 0.0, 0.25, 0.5]
+advisory = [0.25, 0.5, 0.75]
+no_go = [0.5, 0.75, 1.0, 1.0]
+''')
+    rb = load_rules(p)
+    d = diagnose(sym(R=(0.8, 0.0), Ke=(0.0, 0.6)), rb)
+    assert d.faults[0].name == "overheating" and d.faults[0].degree == pytest.approx(0.6)
+    assert d.status == "go"  # a minor fault raises an advisory only once well established
+    assert diagnose(sym(R=(0.9, 0.0), Ke=(0.0, 0.8)), rb).status == "advisory"
+
+
+@pytest.mark.parametrize("body,message", [
+    ('[[fault]]\nname="x"\nif="high(R)"\nseverity="huge"\nadvice="a"\n', "severity 'huge'; allowed: major, minor"),
+    ('[[fault]]\nname="x"\nif="high(R"\nseverity="major"\nadvice="a"\n', r"\(x\).*ends early"),
+    ('[[fault]]\nname="x"\nseverity="major"\nadvice="a"\n', "has no 'if'"),
+    ('', "no \\[\\[fault\\]\\] rules"),
+])
+def test_bad_rule_files_are_explained(tmp_path: Path, body: str, message: str) -> None:
+    p = tmp_path / "r.toml"
+    p.write_text(body + '[status]\ngo=[0,0,0.25,0.5]\nadvisory=[0.25,0.5,0.75]\nno_go=[0.5,0.75,1,1]\n')
+    with pytest.raises(ConfigError, match=message):
+        load_rules(p)
+
+
+def test_rules_about_unknown_parameters_are_refused(tmp_path: Path) -> None:
+    p = tmp_path / "r.toml"
+    p.write_text('[[fault]]\nname="x"\nif="high(Q)"\nseverity="major"\nadvice="a"\n'
+                 '[status]\ngo=[0,0,0.25,0.5]\nadvisory=[0.25,0.5,0.75]\nno_go=[0.5,0.75,1,1]\n')
+    with pytest.raises(ConfigError, match=r"unknown parameter\(s\) \['Q'\]"):
+        diagnose(sym(), load_rules(p))

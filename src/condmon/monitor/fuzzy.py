@@ -9,6 +9,12 @@ triangular symptom set S centred on r with half-width ``w = k σ/θ̄ × 100``
 
 (max-min composition): a worst-case degree of "high"/"low" in [0, 1].
 
+Choice made here: σ in the width is the larger of the baseline's sample standard
+deviation and the new estimate's own standard error. With few baseline tests
+(3 to 5) the sample standard deviation often underestimates the estimation
+noise, and the width is there to cover how far the true change may be from the
+measured one, which is at least the new estimate's uncertainty.
+
 For a triangle and a monotone ramp the supremum has a closed form, used here
 because it is exact and vectorises over parameters and tests:
 the right flank of S meets the ramp at height ``(r + w - r1) / (w + r2 - r1)``,
@@ -138,7 +144,7 @@ class Symptoms:
         Column order.
     percent_change : ndarray, shape (n_tests, n_params)
         Change against the baseline mean. [%]
-    width : ndarray, shape (n_params,)
+    width : ndarray, shape (n_params,) or (n_tests, n_params)
         Symptom-set half-width ``k σ/θ̄ × 100``. [%]
     high, low : ndarray, shape (n_tests, n_params)
         SymH and SymL in [0, 1].
@@ -162,7 +168,8 @@ class Symptoms:
 
 
 def compute_symptoms(values: ArrayLike, baseline: Baseline,
-                     config: MonitorConfig | None = None) -> Symptoms:
+                     config: MonitorConfig | None = None,
+                     std_errors: ArrayLike | None = None) -> Symptoms:
     """Symptoms of tests against a baseline, vectorised over tests and parameters.
 
     Parameters
@@ -172,6 +179,9 @@ def compute_symptoms(values: ArrayLike, baseline: Baseline,
     baseline : Baseline
     config : MonitorConfig, optional
         Breakpoints and k (shipped defaults if omitted).
+    std_errors : array_like, optional
+        Standard errors of ``values`` (same shape); σ of the width is then
+        ``max(baseline std, standard error)``. [parameter units]
 
     Returns
     -------
@@ -188,6 +198,10 @@ def compute_symptoms(values: ArrayLike, baseline: Baseline,
     v = np.atleast_2d(np.asarray(values, dtype=np.float64))
     r = percent_change(v, baseline)
     r1, r2 = cfg.arrays(baseline.parameters)
-    width = cfg.k * baseline.relative_std_percent
+    sigma = baseline.std_array
+    if std_errors is not None:
+        se = np.atleast_2d(np.asarray(std_errors, dtype=np.float64))
+        sigma = np.maximum(sigma, np.where(np.isfinite(se), se, 0.0))
+    width = cfg.k * 100.0 * sigma / np.abs(baseline.mean_array)
     high, low = symptom_degree(r, width, r1, r2)
     return Symptoms(baseline.parameters, r, width, high, low)

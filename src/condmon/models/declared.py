@@ -1,0 +1,461 @@
+"""Plant models declared as data: parameters, inputs, states, sensors, equations.
+
+A declaration (``condmon/data/hst.toml`` is the shipped example) is read once,
+validated (every name known, every equation parsed, every sensor's noise
+positive) and kept as a frozen :class:`PlantModel`. From it condmon derives, with
+no code per machine, the simulator (:meth:`PlantModel.compile`), the steady-state
+equations (derivatives set to zero) and the structure used by the fault
+signature matrix (:mod:`condmon.diagnose.structure`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+import re
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import sympy as sp
+from numpy.typing import NDArray
+
+from condmon.errors import ConfigError
+from condmon.io.config import load_default, load_toml
+from condmon.models.expressions import parse_expression
+
+__all__ = ["Parameter", "Input", "Variable", "State", "Sensor", "InputStep", "TestProfile",
+           "PlantModel", "CompiledModel", "load_plant_model", "list_plant_models"]
+
+FloatArray = NDArray[np.float64]
+
+_SHIPPED = {"hst": "hst.toml"}
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A model parameter: ``value`` [unit]; ``fault`` marks a candidate fault."""
+
+    name: str
+    value: float
+    unit: str = ""
+    description: str = ""
+    fault: bool = False
+
+
+@dataclass(frozen=True)
+class Input:
+    """A known input signal; ``nominal`` is a parameter's name or a number [unit]."""
+
+    name: str
+    nominal: str | float
+    unit: str = ""
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class Variable:
+    """An algebraic variable: ``name = equation`` [unit]."""
+
+    name: str
+    equation: str
+    unit: str = ""
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class State:
+    """A state: ``d(name)/dt = derivative``, starting at ``initial`` [unit]."""
+
+    name: str
+    derivative: str
+    unit: str = ""
+    initial: float = 0.0
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """A measured signal: record column ``name`` = ``measures`` + noise.
+
+    ``noise`` is the standard deviation of the measurement noise [unit];
+    ``range`` the sensor's span [unit].
+    """
+
+    name: str
+    measures: str
+    noise: float
+    unit: str = ""
+    range: tuple[float, float] = (-math.inf, math.inf)
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class InputStep:
+    """A known change of an input at ``at`` [s]: to ``factor`` x nominal or to ``value``."""
+
+    input: str
+    at: float
+    factor: float | None = None
+    value: float | None = None
+
+
+@dataclass(frozen=True)
+class TestProfile:
+    """The built-in test: ``duration`` [s] at ``sample_rate`` [Hz], known input steps."""
+
+    duration: float
+    sample_rate: float
+    schedule: tuple[InputStep, ...] = ()
+
+
+@dataclass(frozen=True)
+class PlantModel:
+    """A declared plant model (immutable; see :func:`load_plant_model`).
+
+    Example
+    -------
+    >>> m = load_plant_model("hst")
+    >>> m.state_names, m.sensor_names
+    (('Ps', 'Pm', 'omega_m'), ('Ps', 'omega_m'))
+    >>> m.fault_candidates
+    ('Dp', 'Rlkgp', 'Dm', 'Rlkgm', 'Rv', 'Tld')
+    """
+
+    name: str
+    description: str
+    parameters: tuple[Parameter, ...]
+    inputs: tuple[Input, ...]
+    variables: tuple[Variable, ...]
+    states: tuple[State, ...]
+    sensors: tuple[Sensor, ...]
+    test: TestProfile
+    source: str = ""
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.parameters)
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.states)
+
+    @property
+    def input_names(self) -> tuple[str, ...]:
+        return tuple(u.name for u in self.inputs)
+
+    @property
+    def sensor_names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.sensors)
+
+    @property
+    def fault_candidates(self) -> tuple[str, ...]:
+        """Parameters marked ``fault = true``, in declaration order."""
+        return tuple(p.name for p in self.parameters if p.fault)
+
+    def parameter_values(self) -> dict[str, float]:
+        """Nominal value of every parameter [SI]."""
+        return {p.name: p.value for p in self.parameters}
+
+    def parameter(self, name: str) -> Parameter:
+        """The parameter ``name``; :class:`ConfigError` naming the allowed ones."""
+        for p in self.parameters:
+            if p.name == name:
+                return p
+        raise ConfigError(f"model {self.name!r} has no parameter {name!r}; "
+                          f"allowed: {', '.join(self.parameter_names)}")
+
+    def input_nominal(self, name: str, params: Mapping[str, float] | None = None) -> float:
+        """Nominal value of input ``name`` [unit]."""
+        u = next(u for u in self.inputs if u.name == name)
+        if isinstance(u.nominal, str):
+            return float((params or self.parameter_values())[u.nominal])
+        return float(u.nominal)
+
+    def with_parameters(self, values: Mapping[str, float], source: str = "") -> PlantModel:
+        """A copy with new nominal values for some parameters."""
+        for k in values:
+            self.parameter(k)
+        params = tuple(dataclasses.replace(p, value=float(values[p.name]))
+                       if p.name in values else p for p in self.parameters)
+        return _validated(dataclasses.replace(self, parameters=params), source or self.source)
+
+    def compile(self) -> CompiledModel:
+        """Numerical functions of the model (cached per declaration)."""
+        return _compile(self)
+
+
+@dataclass(frozen=True)
+class CompiledModel:
+    """Numerical form of a :class:`PlantModel`.
+
+    Attributes
+    ----------
+    model : PlantModel
+    rhs : callable
+        ``rhs(x, u, p) -> dx/dt`` with states ``x``, inputs ``u`` and parameters
+        ``p`` as arrays in declaration order.
+    outputs : callable
+        ``outputs(x, u, p) -> y``: the noise-free sensor readings.
+    variables : callable
+        ``variables(x, u, p) -> v``: the algebraic variables.
+    """
+
+    model: PlantModel
+    rhs: Callable[[FloatArray, FloatArray, FloatArray], FloatArray]
+    outputs: Callable[[FloatArray, FloatArray, FloatArray], FloatArray]
+    variables: Callable[[FloatArray, FloatArray, FloatArray], FloatArray]
+    _outputs_raw: Callable[..., Any] = dataclasses.field(repr=False, compare=False,
+                                                          default=lambda x, u, p: [])
+    _variables_raw: Callable[..., Any] = dataclasses.field(repr=False, compare=False,
+                                                            default=lambda x, u, p: [])
+
+    def outputs_on(self, x: FloatArray, u: FloatArray, p: FloatArray) -> FloatArray:
+        """Sensor readings for many samples: ``x`` (n, n_states), ``u`` (n, n_inputs)."""
+        return self._vectorised(self._outputs_raw, x, u, p)
+
+    def variables_on(self, x: FloatArray, u: FloatArray, p: FloatArray) -> FloatArray:
+        """Algebraic variables for many samples, shape (n, n_variables)."""
+        return self._vectorised(self._variables_raw, x, u, p)
+
+    @staticmethod
+    def _vectorised(fn: Callable[..., Any], x: FloatArray, u: FloatArray, p: FloatArray
+                    ) -> FloatArray:
+        vals = fn(x.T, u.T, p)
+        return np.column_stack([np.broadcast_to(np.asarray(v, dtype=np.float64), (len(x),))
+                                for v in vals]) if len(vals) else np.empty((len(x), 0))
+
+    def parameter_vector(self, values: Mapping[str, float] | None = None) -> FloatArray:
+        """Nominal parameters with ``values`` overriding some, as an array."""
+        base = self.model.parameter_values()
+        if values:
+            base.update(values)
+        return np.array([base[n] for n in self.model.parameter_names], dtype=np.float64)
+
+
+def symbols_of(model: PlantModel) -> dict[str, sp.Symbol]:
+    """One real sympy symbol per declared name."""
+    names = (*model.parameter_names, *model.input_names,
+             *(v.name for v in model.variables), *model.state_names)
+    return {n: sp.Symbol(n, real=True) for n in names}
+
+
+@functools.lru_cache(maxsize=32)
+def equations_of(model: PlantModel) -> tuple[dict[str, sp.Expr], dict[str, sp.Expr],
+                                             dict[str, sp.Expr]]:
+    """Parsed equations: (variables, state derivatives, sensor readings), as written."""
+    sym = symbols_of(model)
+    allowed_v = {k: s for k, s in sym.items()}
+    variables: dict[str, sp.Expr] = {}
+    for i, v in enumerate(model.variables):  # a variable may use the ones before it
+        later = {w.name for w in model.variables[i:]}
+        allowed = {k: s for k, s in allowed_v.items() if k not in later}
+        variables[v.name] = parse_expression(v.equation, allowed,
+                                             f"{model.source}[variables.{v.name}]")
+    derivs = {s.name: parse_expression(s.derivative, sym, f"{model.source}[states.{s.name}]")
+              for s in model.states}
+    readings = {s.name: parse_expression(s.measures, sym, f"{model.source}[sensors.{s.name}]")
+                for s in model.sensors}
+    return variables, derivs, readings
+
+
+def _substituted(model: PlantModel) -> tuple[list[sp.Expr], list[sp.Expr], list[sp.Expr]]:
+    variables, derivs, readings = equations_of(model)
+    sym = symbols_of(model)
+    resolved: dict[sp.Symbol, sp.Expr] = {}
+    for name, expr in variables.items():
+        resolved[sym[name]] = expr.xreplace(resolved)
+    return ([resolved[sym[v.name]] for v in model.variables],
+            [e.xreplace(resolved) for e in derivs.values()],
+            [e.xreplace(resolved) for e in readings.values()])
+
+
+@functools.lru_cache(maxsize=32)
+def _compile(model: PlantModel) -> CompiledModel:
+    sym = symbols_of(model)
+    xs = [sym[n] for n in model.state_names]
+    us = [sym[n] for n in model.input_names]
+    ps = [sym[n] for n in model.parameter_names]
+    var_exprs, deriv_exprs, out_exprs = _substituted(model)
+
+    def raw(exprs: list[sp.Expr]) -> Callable[..., Any]:
+        return sp.lambdify((xs, us, ps), exprs, modules="numpy", cse=True)  # type: ignore[no-any-return]
+
+    def make(exprs: list[sp.Expr]) -> Callable[[FloatArray, FloatArray, FloatArray], FloatArray]:
+        fn = raw(exprs)
+
+        def call(x: FloatArray, u: FloatArray, p: FloatArray) -> FloatArray:
+            return np.array(fn(x, u, p), dtype=np.float64)
+        return call
+
+    return CompiledModel(model, make(deriv_exprs), make(out_exprs), make(var_exprs),
+                         raw(out_exprs), raw(var_exprs))
+
+
+# -- loading and validation ------------------------------------------------------------
+
+
+def list_plant_models() -> list[str]:
+    """Names of the shipped model declarations."""
+    return sorted(_SHIPPED)
+
+
+def load_plant_model(model: str | Path = "hst", params: str | Path | Mapping[str, float] | None = None
+                     ) -> PlantModel:
+    """Read and validate a model declaration.
+
+    Parameters
+    ----------
+    model : str or Path
+        A shipped model's name (``"hst"``) or the path of a declaration file.
+    params : str, Path or mapping, optional
+        Parameter values overriding the declaration's: a TOML file with
+        ``name = value`` lines (top level or under ``[parameters]``), or a mapping.
+
+    Returns
+    -------
+    PlantModel
+
+    Example
+    -------
+    >>> m = load_plant_model("hst", {"Rv": 12.0})
+    >>> m.parameter("Rv").value
+    12.0
+    """
+    if isinstance(model, str) and model in _SHIPPED:
+        doc, source = load_default(_SHIPPED[model]), _SHIPPED[model]
+    elif Path(model).suffix.lower() == ".toml" or Path(model).exists():
+        doc, source = load_toml(model), str(model)
+    else:
+        raise ConfigError(f"unknown model {str(model)!r}; give a declaration file (.toml) "
+                          f"or one of: {', '.join(list_plant_models())}")
+    plant = _validated(_from_doc(doc, source), source)
+    if params is None:
+        return plant
+    if isinstance(params, Mapping):
+        return plant.with_parameters(params)
+    pdoc = load_toml(params)
+    values = pdoc.get("parameters", pdoc)
+    bad = {k: v for k, v in values.items()
+           if isinstance(v, bool) or not isinstance(v, (int, float))}
+    if bad:
+        k = next(iter(bad))
+        raise ConfigError(f"{params}: parameter {k!r} must be a number, not {bad[k]!r}")
+    try:
+        return plant.with_parameters(values, str(params))
+    except ConfigError as err:
+        raise ConfigError(f"{params}: {err}") from None
+
+
+def _table(doc: Mapping[str, Any], key: str, source: str) -> dict[str, Any]:
+    value = doc.get(key, {})
+    if not isinstance(value, dict):
+        raise ConfigError(f"{source}: [{key}] must be a table")
+    return value
+
+
+def _fields(entry: Any, where: str, required: tuple[str, ...], optional: tuple[str, ...]
+            ) -> dict[str, Any]:
+    if not isinstance(entry, dict):
+        raise ConfigError(f"{where} must be a table with {', '.join(required)}")
+    unknown = set(entry) - set(required) - set(optional)
+    if unknown:
+        raise ConfigError(f"{where}: unknown key {sorted(unknown)[0]!r}; "
+                          f"allowed: {', '.join((*required, *optional))}")
+    missing = [k for k in required if k not in entry]
+    if missing:
+        raise ConfigError(f"{where}: missing {missing[0]!r}")
+    return entry
+
+
+def _number(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ConfigError(f"{where} must be a finite number, not {value!r}")
+    return float(value)
+
+
+def _from_doc(doc: Mapping[str, Any], src: str) -> PlantModel:
+    text = ("unit", "description")
+    params = []
+    for k, e in _table(doc, "parameters", src).items():
+        f = _fields(e, f"{src}[parameters.{k}]", ("value",), (*text, "fault"))
+        params.append(Parameter(k, _number(f["value"], f"{src}[parameters.{k}].value"),
+                                f.get("unit", ""), f.get("description", ""),
+                                bool(f.get("fault", False))))
+    inputs = []
+    for k, e in _table(doc, "inputs", src).items():
+        f = _fields(e, f"{src}[inputs.{k}]", ("nominal",), text)
+        nominal = f["nominal"] if isinstance(f["nominal"], str) else \
+            _number(f["nominal"], f"{src}[inputs.{k}].nominal")
+        inputs.append(Input(k, nominal, f.get("unit", ""), f.get("description", "")))
+    variables = [Variable(k, str(_fields(e, f"{src}[variables.{k}]", ("equation",), text)["equation"]),
+                          e.get("unit", ""), e.get("description", ""))
+                 for k, e in _table(doc, "variables", src).items()]
+    states = []
+    for k, e in _table(doc, "states", src).items():
+        f = _fields(e, f"{src}[states.{k}]", ("derivative",), (*text, "initial"))
+        states.append(State(k, str(f["derivative"]), f.get("unit", ""),
+                            _number(f.get("initial", 0.0), f"{src}[states.{k}].initial"),
+                            f.get("description", "")))
+    sensors = []
+    for k, e in _table(doc, "sensors", src).items():
+        f = _fields(e, f"{src}[sensors.{k}]", ("measures", "noise"), (*text, "range"))
+        rng = f.get("range", [-math.inf, math.inf])
+        if not isinstance(rng, list) or len(rng) != 2:
+            raise ConfigError(f"{src}[sensors.{k}].range must be [low, high]")
+        sensors.append(Sensor(k, str(f["measures"]), _number(f["noise"], f"{src}[sensors.{k}].noise"),
+                              f.get("unit", ""), (float(rng[0]), float(rng[1])),
+                              f.get("description", "")))
+    t = _fields(_table(doc, "test", src), f"{src}[test]", ("duration", "sample_rate"), ("schedule",))
+    steps = []
+    for i, s in enumerate(t.get("schedule", [])):
+        where = f"{src}[test].schedule[{i}]"
+        f = _fields(s, where, ("input", "at"), ("factor", "value"))
+        if ("factor" in f) == ("value" in f):
+            raise ConfigError(f"{where}: give exactly one of 'factor' and 'value'")
+        steps.append(InputStep(str(f["input"]), _number(f["at"], f"{where}.at"),
+                               _number(f["factor"], where) if "factor" in f else None,
+                               _number(f["value"], where) if "value" in f else None))
+    test = TestProfile(_number(t["duration"], f"{src}[test].duration"),
+                       _number(t["sample_rate"], f"{src}[test].sample_rate"),
+                       tuple(sorted(steps, key=lambda s: s.at)))
+    return PlantModel(str(doc.get("name", Path(src).stem)), str(doc.get("description", "")),
+                      tuple(params), tuple(inputs), tuple(variables), tuple(states),
+                      tuple(sensors), test, src)
+
+
+def _validated(m: PlantModel, src: str) -> PlantModel:
+    m = dataclasses.replace(m, source=src)
+    names = [*m.parameter_names, *m.input_names, *(v.name for v in m.variables), *m.state_names]
+    seen: set[str] = set()
+    for n in names:
+        if not _NAME.match(n):
+            raise ConfigError(f"{src}: {n!r} is not a valid name (letters, digits, _)")
+        if n in seen:
+            raise ConfigError(f"{src}: the name {n!r} is declared twice")
+        if n.startswith(("d_", "y_")):
+            raise ConfigError(f"{src}: names starting with d_ or y_ are reserved ({n!r})")
+        seen.add(n)
+    if not m.states:
+        raise ConfigError(f"{src}: the model declares no [states]")
+    if not m.sensors:
+        raise ConfigError(f"{src}: the model declares no [sensors]")
+    for u in m.inputs:
+        if isinstance(u.nominal, str) and u.nominal not in m.parameter_names:
+            raise ConfigError(f"{src}[inputs.{u.name}].nominal: unknown parameter {u.nominal!r}; "
+                              f"allowed: {', '.join(m.parameter_names)}")
+    for s in m.sensors:
+        if not s.noise > 0:
+            raise ConfigError(f"{src}[sensors.{s.name}].noise must be > 0, not {s.noise!r}")
+    if not (m.test.duration > 0 and m.test.sample_rate > 0):
+        raise ConfigError(f"{src}[test]: duration and sample_rate must be > 0")
+    for step in m.test.schedule:
+        if step.input not in m.input_names:
+            raise ConfigError(f"{src}[test].schedule: unknown input {step.input!r}; "
+                              f"allowed: {', '.join(m.input_names) or '(none declared)'}")
+    equations_of(m)  # every equation parses, with known names only
+    return m

@@ -22,7 +22,7 @@ from condmon.errors import ConfigError, DataError, EstimationError
 from condmon.models.declared import CompiledModel, PlantModel
 from condmon.simulate.faults import Fault, apply_fault, parse_fault
 
-__all__ = ["ParameterStep", "parameter_steps", "input_signals", "integrate",
+__all__ = ["ParameterStep", "parameter_steps", "input_signals", "integrate", "sensor_readings",
            "simulate_plant", "time_grid"]
 
 FloatArray = NDArray[np.float64]

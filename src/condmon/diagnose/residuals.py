@@ -1,0 +1,318 @@
+"""Residuals of a declared model run beside the plant, their normalisation and
+debounced detection.
+
+r = measured − predicted, the prediction coming from the model simulated from
+zero initial conditions (and, for structured residuals, from the sensors used as
+inputs). Each residual is smoothed by a trailing moving average of ``window``
+seconds and normalised, ``(r̄ − mean)/(z·std)``, with the mean and spread learned
+from healthy records (or, lacking those, from the sensors' declared noise). A
+residual *fires* when its normalised value stays outside ±1 for ``persistence``
+seconds: a single noisy sample never raises an alarm.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from condmon.errors import ConfigError, DataError
+from condmon.io.config import load_default, load_toml, merge
+from condmon.models.declared import PlantModel
+from condmon.simulate.plant import ParameterStep, input_signals, integrate, sensor_readings
+
+__all__ = ["DetectionSettings", "Residuals", "Normalisation", "Detection", "load_settings",
+           "validate_plant_record", "compute_residuals", "learn_normalisation",
+           "noise_normalisation", "detect", "moving_average"]
+
+FloatArray = NDArray[np.float64]
+
+
+def load_settings(path: str | Path | None = None) -> dict[str, Any]:
+    """Detection, estimation and isolation settings (shipped ``isolation.toml``,
+    overridden key by key by the file ``path``)."""
+    base = load_default("isolation.toml")
+    return base if path is None else merge(base, load_toml(path), str(path))
+
+
+@dataclass(frozen=True)
+class DetectionSettings:
+    """Detection settings (defaults from ``condmon/data/isolation.toml``).
+
+    Attributes
+    ----------
+    window : float
+        Moving-average window of the residuals. [s]
+    z : float
+        Confidence coefficient: the threshold is z standard deviations. [-]
+    persistence : float
+        Time a normalised residual must stay outside ±1 to fire. [s]
+    startup : float
+        Residuals are not judged before this time. [s]
+    """
+
+    window: float = 0.2
+    z: float = 4.0
+    persistence: float = 0.5
+    startup: float = 1.0
+
+    @classmethod
+    def from_config(cls, cfg: Mapping[str, Any] | None = None) -> DetectionSettings:
+        d = (cfg or load_settings())["detection"]
+        out = cls(float(d["window"]), float(d["z"]), float(d["persistence"]), float(d["startup"]))
+        if not (out.window >= 0 and out.z > 0 and out.persistence >= 0 and out.startup >= 0):
+            raise ConfigError(f"[detection]: window, persistence, startup must be >= 0 and z > 0 "
+                              f"(got {out})")
+        return out
+
+
+@dataclass(frozen=True)
+class Residuals:
+    """Residuals on the record's time grid.
+
+    Attributes
+    ----------
+    t : ndarray
+        Time. [s]
+    names : tuple of str
+        Residual names.
+    sensors : tuple of str
+        The sensor each residual compares.
+    values : ndarray, shape (n, n_residuals)
+        Measured − predicted. [sensor unit]
+    predicted : ndarray, shape (n, n_residuals)
+        The model's prediction. [sensor unit]
+    """
+
+    t: FloatArray
+    names: tuple[str, ...]
+    sensors: tuple[str, ...]
+    values: FloatArray
+    predicted: FloatArray
+
+
+@dataclass(frozen=True)
+class Normalisation:
+    """Mean and spread of each smoothed residual on healthy data.
+
+    Attributes
+    ----------
+    names : tuple of str
+    mean, std : ndarray
+        Of the smoothed residual. [sensor unit]
+    raw_std : ndarray
+        Of the unsmoothed residual (the noise of one sample). [sensor unit]
+    window : float
+        Smoothing window the figures belong to. [s]
+    source : str
+        "healthy records (N)" or "declared sensor noise".
+    """
+
+    names: tuple[str, ...]
+    mean: FloatArray
+    std: FloatArray
+    raw_std: FloatArray
+    window: float
+    source: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"source": self.source, "window": self.window,
+                "residuals": {n: {"mean": float(m), "std": float(s), "raw_std": float(r)}
+                              for n, m, s, r in zip(self.names, self.mean, self.std, self.raw_std)}}
+
+
+@dataclass(frozen=True)
+class Detection:
+    """Outcome of the threshold test.
+
+    Attributes
+    ----------
+    detected : bool
+    time : float or None
+        When the first residual had stayed outside ±1 for the persistence time. [s]
+    onset : float or None
+        When that residual left the band. [s]
+    fired : tuple of str
+        Residuals that fired anywhere in the record.
+    normalised : ndarray, shape (n, n_residuals)
+        Smoothed, normalised residuals (±1 is the threshold). [-]
+    """
+
+    detected: bool
+    time: float | None
+    onset: float | None
+    fired: tuple[str, ...]
+    normalised: FloatArray
+
+
+def validate_plant_record(model: PlantModel, record: pd.DataFrame, source: str = "record"
+                          ) -> pd.DataFrame:
+    """Check a record against a model: ``t`` and every sensor column, finite,
+    uniformly sampled. Raises :class:`DataError` naming the file and column."""
+    missing = [c for c in ("t", *model.sensor_names) if c not in record.columns]
+    if missing:
+        raise DataError(f"{source}: missing column {missing[0]!r}; model {model.name!r} needs "
+                        f"t, {', '.join(model.sensor_names)}")
+    cols = ["t", *model.sensor_names, *(u for u in model.input_names if u in record.columns)]
+    for c in cols:
+        values = pd.to_numeric(record[c], errors="coerce").to_numpy(dtype=np.float64)
+        if not np.all(np.isfinite(values)):
+            k = int(np.flatnonzero(~np.isfinite(values))[0])
+            raise DataError(f"{source}: column {c!r} has a missing or non-numeric value at row {k}")
+    t = record["t"].to_numpy(dtype=np.float64)
+    if len(t) < 10:
+        raise DataError(f"{source}: {len(t)} samples; at least 10 are needed")
+    dt = np.diff(t)
+    if not (np.all(dt > 0) and np.ptp(dt) <= 1e-6 * np.mean(dt) + 1e-12):
+        raise DataError(f"{source}: column 't' is not uniformly sampled and increasing")
+    return record.reset_index(drop=True)
+
+
+def compute_residuals(model: PlantModel, record: pd.DataFrame, generators: Sequence[Any],
+                      steps: Sequence[ParameterStep] = (),
+                      params: Mapping[str, float] | None = None) -> Residuals:
+    """Run the model beside the record and return every generator's residual.
+
+    Parameters
+    ----------
+    model : PlantModel
+    record : DataFrame
+        ``t``, the sensor columns and, optionally, the input columns.
+    generators : sequence of ResidualGenerator
+        From :func:`condmon.diagnose.structure.residual_generators`.
+    steps : sequence of ParameterStep
+        Parameter changes applied to the model (a suspect's fault).
+    params : mapping, optional
+        Parameter values replacing the nominal ones.
+    """
+    compiled = model.compile()
+    t = record["t"].to_numpy(dtype=np.float64)
+    u = input_signals(model, t, record, params)
+    values = np.empty((len(t), len(generators)))
+    predicted = np.empty_like(values)
+    runs: dict[tuple[tuple[str, ...], tuple[str, ...]], FloatArray] = {}
+    for j, g in enumerate(generators):
+        key = (g.integrated, g.inputs)
+        if key not in runs:
+            measured = {_measured_state(model, s): record[s].to_numpy(dtype=np.float64)
+                        for s in g.inputs}
+            x = integrate(compiled, t, u, steps, params, measured, g.integrated)
+            runs[key] = sensor_readings(compiled, x, u, steps, t, params)
+        k = model.sensor_names.index(g.sensor)
+        predicted[:, j] = runs[key][:, k]
+        values[:, j] = record[g.sensor].to_numpy(dtype=np.float64) - predicted[:, j]
+    return Residuals(t, tuple(g.name for g in generators), tuple(g.sensor for g in generators),
+                     values, predicted)
+
+
+def _measured_state(model: PlantModel, sensor: str) -> str:
+    return next(s.measures.strip() for s in model.sensors if s.name == sensor)
+
+
+def moving_average(values: FloatArray, n: int) -> FloatArray:
+    """Trailing moving average over ``n`` samples along axis 0 (shorter at the start)."""
+    if n <= 1:
+        return np.asarray(values, dtype=np.float64)
+    c = np.cumsum(np.vstack([np.zeros((1, values.shape[1])), values]), axis=0)
+    k = np.arange(1, len(values) + 1)
+    lo = np.maximum(k - n, 0)
+    return (c[k] - c[lo]) / (k - lo)[:, None]  # type: ignore[no-any-return]
+
+
+def _samples(seconds: float, t: FloatArray) -> int:
+    return max(1, int(round(seconds / float(t[1] - t[0]))))
+
+
+def learn_normalisation(residual_sets: Sequence[Residuals], settings: DetectionSettings
+                        ) -> Normalisation:
+    """Mean and spread of each smoothed residual over healthy records.
+
+    Example
+    -------
+    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.simulate.plant import simulate_plant
+    >>> from condmon.diagnose.structure import residual_generators
+    >>> m = load_plant_model("hst")
+    >>> gens = residual_generators(m)
+    >>> sets = [compute_residuals(m, simulate_plant(m, seed=s), gens) for s in range(3)]
+    >>> norm = learn_normalisation(sets, DetectionSettings())
+    >>> round(float(norm.raw_std[0]) / 2.5e4, 1)   # the pressure sensor's noise
+    1.0
+    """
+    if not residual_sets:
+        raise DataError("no healthy record to learn the residuals' normalisation from")
+    smooth, raw = [], []
+    for r in residual_sets:
+        keep = r.t >= r.t[0] + settings.startup
+        smooth.append(moving_average(r.values, _samples(settings.window, r.t))[keep])
+        raw.append(r.values[keep])
+    s, w = np.vstack(smooth), np.vstack(raw)
+    std = s.std(axis=0, ddof=1)
+    if np.any(std <= 0):
+        raise DataError("the healthy residuals have no spread (noise-free records?)")
+    names = residual_sets[0].names
+    return Normalisation(names, s.mean(axis=0), std, w.std(axis=0, ddof=1), settings.window,
+                         f"healthy records ({len(residual_sets)})")
+
+
+def noise_normalisation(model: PlantModel, residuals: Residuals, settings: DetectionSettings
+                        ) -> Normalisation:
+    """Normalisation from the sensors' declared noise (white, zero mean): the
+    fallback when no healthy record is given."""
+    n = _samples(settings.window, residuals.t)
+    noise = {s.name: s.noise for s in model.sensors}
+    raw = np.array([noise[s] for s in residuals.sensors], dtype=np.float64)
+    return Normalisation(residuals.names, np.zeros(len(raw)), raw / np.sqrt(n), raw,
+                         settings.window, "declared sensor noise")
+
+
+def detect(residuals: Residuals, norm: Normalisation, settings: DetectionSettings
+           ) -> Detection:
+    """Debounced threshold test of the normalised residuals.
+
+    Example
+    -------
+    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.simulate.plant import simulate_plant
+    >>> from condmon.diagnose.structure import residual_generators
+    >>> m = load_plant_model("hst")
+    >>> gens = residual_generators(m)
+    >>> r = compute_residuals(m, simulate_plant(m, ["Rv=+25%@10s"], seed=3), gens)
+    >>> d = detect(r, noise_normalisation(m, r, DetectionSettings()), DetectionSettings())
+    >>> d.detected, d.fired, 10.0 < d.time < 11.0
+    (True, ('r_Ps',), True)
+    """
+    if norm.names != residuals.names:
+        raise ConfigError(f"the normalisation is for residuals {list(norm.names)}, "
+                          f"not {list(residuals.names)}")
+    t = residuals.t
+    smooth = moving_average(residuals.values, _samples(norm.window, t))
+    normalised = (smooth - norm.mean) / (settings.z * norm.std)
+    need = _samples(settings.persistence, t) if settings.persistence > 0 else 1
+    outside = (np.abs(normalised) > 1.0) & (t >= t[0] + settings.startup)[:, None]
+    fired, first = [], (np.inf, np.inf)
+    for j, name in enumerate(residuals.names):
+        start = _first_run(outside[:, j], need)
+        if start is not None:
+            fired.append(name)
+            first = min(first, (float(t[start + need - 1]), float(t[start])))
+    if not fired:
+        return Detection(False, None, None, (), normalised)
+    return Detection(True, first[0], first[1], tuple(fired), normalised)
+
+
+def _first_run(flags: NDArray[np.bool_], length: int) -> int | None:
+    """Index where the first run of at least ``length`` True values starts."""
+    if length <= 1:
+        idx = np.flatnonzero(flags)
+        return int(idx[0]) if len(idx) else None
+    padded = np.concatenate([[False], flags, [False]])
+    edges = np.flatnonzero(np.diff(padded.astype(np.int8)))
+    starts, ends = edges[::2], edges[1::2]
+    long = np.flatnonzero(ends - starts >= length)
+    return int(starts[long[0]]) if len(long) else None

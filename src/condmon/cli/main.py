@@ -6,7 +6,6 @@ on stderr and exit with status 2; no traceback.
 
 from __future__ import annotations
 
-import json
 import sys
 import warnings
 from pathlib import Path
@@ -15,10 +14,10 @@ from typing import Annotated, Any, Optional
 import pandas as pd
 import typer
 from rich import box
-from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
+from condmon.cli._console import err, fmt, out, progress, write_json
+from condmon.cli.plant import register as register_plant_commands
 from condmon.errors import CondmonError
 from condmon.identify.estimate import list_estimators
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD
@@ -31,17 +30,9 @@ simulate_app = typer.Typer(no_args_is_help=True, help="Simulate test-beds with k
 app.add_typer(simulate_app, name="simulate")
 baseline_app = typer.Typer(no_args_is_help=True, help="Build a unit's healthy baseline.")
 app.add_typer(baseline_app, name="baseline")
+register_plant_commands(app, simulate_app)
 
-out = Console()
-err = Console(stderr=True)
-
-
-def _fmt(value: float) -> str:
-    return f"{value:.5g}"
-
-
-def _write_json(doc: dict[str, Any]) -> None:
-    sys.stdout.write(json.dumps(doc, indent=2, allow_nan=False) + "\n")
+_fmt, _write_json, _progress = fmt, write_json, progress
 
 
 @app.command("estimate")
@@ -86,15 +77,11 @@ def simulate_actuator_cmd(
     """Simulate one closed-loop built-in test of the actuator rig."""
     from condmon.simulate.actuator import load_actuator_rig, simulate_actuator
 
+    from condmon.io.records import write_record
+
     rig = load_actuator_rig(params, fault or ())
     rec = simulate_actuator(rig, seed=seed, linear=linear)
-    suffix = out_path.suffix.lower()
-    if suffix == ".csv":
-        rec.to_csv(out_path, index=False)
-    elif suffix in (".parquet", ".pq"):
-        rec.to_parquet(out_path, index=False)
-    else:
-        raise CondmonError(f"{out_path}: unknown file type {suffix!r}; allowed: .csv, .parquet")
+    write_record(rec, out_path)
     truth = ", ".join(f"{k}={_fmt(v)}" for k, v in rig.physical().items())
     err.print(f"wrote {len(rec)} samples to {out_path} ({truth})")
 
@@ -131,11 +118,6 @@ def demo_cmd(
         out.print(table)
     out.print(f"history: {res.database}")
     out.print(f"report:  {res.report}  (open it in a browser)")
-
-
-def _progress() -> Progress:
-    return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                    TimeElapsedColumn(), console=err, transient=True)
 
 
 def _status_text(status: str) -> str:

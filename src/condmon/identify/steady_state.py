@@ -26,6 +26,7 @@ from condmon.models.declared import CompiledModel, PlantModel
 __all__ = ["SteadyWindow", "SteadyStateEstimate", "steady_windows", "estimate_steady_state"]
 
 FloatArray = NDArray[np.float64]
+_RUNAWAY = 8.0  # |log(value/nominal)| beyond which the search ran away (factor ~3000)
 
 
 @dataclass(frozen=True)
@@ -169,7 +170,8 @@ def estimate_steady_state(model: PlantModel, parameter: str, windows: Sequence[S
     dof = len(resid) - 1
     chi2 = float(resid @ resid)
     moves = bool(np.any(np.abs(sol.jac) > 1e-9))
-    ok = bool(sol.success) and moves and chi2 < 1e11
+    # a value that runs off by orders of magnitude means no finite value explains the data
+    ok = bool(sol.success) and moves and chi2 < 1e11 and (not positive or abs(float(sol.x[0])) < _RUNAWAY)
     consistency = math.sqrt(chi2 / dof) if dof > 0 else None
     return SteadyStateEstimate(parameter, value, nominal, consistency, ok)
 

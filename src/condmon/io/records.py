@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from condmon.errors import DataError, DataWarning
 
-__all__ = ["Record", "read_record", "validate_record", "parse_column_map"]
+__all__ = ["Record", "read_record", "validate_record", "parse_column_map", "write_record"]
 
 FloatArray = NDArray[np.float64]
 
@@ -209,3 +209,24 @@ def validate_record(df: pd.DataFrame, required: Sequence[str],
                           f"its extreme values ({lo:.4g}, {hi:.4g}): the drive saturates "
                           "and the linear model may be biased", DataWarning, stacklevel=2)
     return Record(cols, dt, src)
+
+
+def write_record(df: pd.DataFrame, path: str | Path) -> Path:
+    """Write a record as CSV or Parquet, chosen by the file's suffix.
+
+    Example
+    -------
+    >>> import tempfile
+    >>> p = write_record(pd.DataFrame({"t": [0.0, 0.1]}), Path(tempfile.mkdtemp()) / "r.csv")
+    >>> p.suffix
+    '.csv'
+    """
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix == ".csv":
+        df.to_csv(p, index=False)
+    elif suffix in (".parquet", ".pq"):
+        df.to_parquet(p, index=False)
+    else:
+        raise DataError(f"{p}: unknown file type {suffix!r}; allowed: .csv, .parquet")
+    return p

@@ -1,0 +1,31 @@
+"""Consoles and small output helpers shared by the command modules."""
+
+from __future__ import annotations
+
+import json
+import sys
+from typing import Any
+
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+__all__ = ["out", "err", "fmt", "write_json", "progress"]
+
+out = Console()
+err = Console(stderr=True)
+
+
+def fmt(value: float) -> str:
+    """A number with 5 significant digits."""
+    return f"{value:.5g}"
+
+
+def write_json(doc: dict[str, Any]) -> None:
+    """Print ``doc`` as JSON (no NaN: a missing value is null)."""
+    sys.stdout.write(json.dumps(doc, indent=2, allow_nan=False) + "\n")
+
+
+def progress() -> Progress:
+    """A progress bar on stderr that disappears when done."""
+    return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                    TimeElapsedColumn(), console=err, transient=True)

@@ -1,0 +1,121 @@
+"""Commands for declared plant models: ``simulate hst`` and ``isolate``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Optional
+
+import typer
+from rich.table import Table
+
+from condmon.cli._console import err, fmt, out, progress, write_json
+
+if TYPE_CHECKING:
+    from condmon.diagnose.isolation import IsolationResult
+
+__all__ = ["register"]
+
+ModelArg = Annotated[str, typer.Argument(help="Shipped model name (hst) or a declaration file (.toml).")]
+ParamsOpt = Annotated[Optional[Path], typer.Option(help="TOML file of parameter values overriding the declaration's.")]
+
+
+def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
+    """Add the plant-model commands to the ``condmon`` application."""
+
+    @simulate_app.command("hst")
+    def simulate_hst_cmd(
+        out_path: Annotated[Path, typer.Option("--out", help="Output file (.csv or .parquet).")],
+        fault: Annotated[Optional[list[str]], typer.Option(help="Parameter fault, e.g. Rv=+40%@10s, Dm=-25%@10s, Tld=+20@10s (repeatable).")] = None,
+        params: ParamsOpt = None,
+        seed: Annotated[int, typer.Option(help="Random seed of the sensor noise.")] = 0,
+        model: Annotated[str, typer.Option(help="Model declaration (.toml) instead of the shipped HST.")] = "hst",
+        duration: Annotated[Optional[float], typer.Option(help="Record length [s] (default: the declared test's).")] = None,
+    ) -> None:
+        """Simulate the hydrostatic transmission's test (columns t, Ps, omega_m, omega_p)."""
+        from condmon.io.records import write_record
+        from condmon.models.declared import load_plant_model
+        from condmon.simulate.plant import parameter_steps, simulate_plant
+
+        plant = load_plant_model(model, params)
+        steps = parameter_steps(plant, fault or ())
+        rec = simulate_plant(plant, fault or (), seed=seed, duration=duration)
+        write_record(rec, out_path)
+        faults = ", ".join(f"{s.name}={fmt(s.value)}@{s.at:g}s" for s in steps) or "none"
+        err.print(f"wrote {len(rec)} samples to {out_path} (model {plant.name}, faults: {faults})",
+                  highlight=False)
+
+    @app.command("isolate")
+    def isolate_cmd(
+        model: ModelArg,
+        record: Annotated[Path, typer.Argument(help="Record (.csv or .parquet) with t and the sensor columns.")],
+        params: ParamsOpt = None,
+        healthy: Annotated[Optional[list[Path]], typer.Option(help="Healthy record to learn the residuals' normalisation from (repeatable; default: the sensors' declared noise).")] = None,
+        residuals: Annotated[str, typer.Option(help="Residual set: simulation (one per sensor, the model from its inputs) or structured (every MSO computable by integration).")] = "simulation",
+        settings: Annotated[Optional[Path], typer.Option(help="Detection/estimation/isolation settings TOML (default: the shipped isolation.toml).")] = None,
+        workers: Annotated[Optional[int], typer.Option(help="Processes for the suspects' models (1: one after the other).")] = None,
+        plots: Annotated[Optional[Path], typer.Option(help="Folder for the residual and model-error figures.")] = None,
+        as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
+    ) -> None:
+        """Detect a fault, estimate each suspect at steady state and isolate it by
+        parallel multi-model simulation."""
+        from condmon.diagnose.isolation import IsolationSettings, healthy_normalisation, isolate
+        from condmon.diagnose.structure import RESIDUAL_KINDS
+        from condmon.errors import ConfigError
+        from condmon.io.records import read_record
+        from condmon.models.declared import load_plant_model
+
+        if residuals not in RESIDUAL_KINDS:
+            raise ConfigError(f"unknown --residuals {residuals!r}; allowed: {', '.join(RESIDUAL_KINDS)}")
+        plant = load_plant_model(model, params)
+        cfg = IsolationSettings.load(settings)
+        rec = read_record(record)
+        norm = None
+        with progress() as prog:
+            if healthy:
+                task = prog.add_task("learning the normalisation", total=None)
+                norm = healthy_normalisation(plant, [read_record(h) for h in healthy],
+                                             residuals, cfg.detection)  # type: ignore[arg-type]
+                prog.update(task, visible=False)
+            task = prog.add_task("isolating", total=4)
+
+            def tick(done: int, total: int, label: str) -> None:
+                prog.update(task, completed=done, total=total, description=label)
+
+            res = isolate(rec, plant, normalisation=norm, kind=residuals,  # type: ignore[arg-type]
+                          settings=cfg, workers=workers, progress=tick, source=str(record))
+        if plots is not None:
+            from condmon.report.isolation_figures import write_isolation_figures
+
+            measured = rec[list(plant.sensor_names)].to_numpy(dtype=float)
+            files = write_isolation_figures(res, plant, measured, plots)
+            err.print(f"wrote {', '.join(str(f) for f in files)}", highlight=False)
+        if as_json:
+            write_json(res.to_dict())
+            return
+        _print_isolation(res)
+
+
+def _print_isolation(res: IsolationResult) -> None:
+    out.print(f"[bold]{res.model}[/]: residuals normalised from {res.normalisation.source}")
+    out.print(res.fsm.table(), highlight=False)
+    if not res.detected:
+        out.print("[green]no fault detected[/]")
+        return
+    out.print(f"detected at {res.detection_time:.2f} s (onset {res.onset_time:.2f} s); "
+              f"fired: {', '.join(res.fired_residuals)}; suspects: {', '.join(res.suspects)}",
+              highlight=False)
+    table = Table(title="Suspects: steady-state estimate and model output error")
+    for col in ("suspect", "estimate", "nominal", "change %", "consistency", "error [σ]"):
+        table.add_column(col, justify="left" if col == "suspect" else "right")
+    for p in sorted(res.suspects, key=lambda p: res.errors.get(p, float("inf"))):
+        e = res.estimates[p]
+        change = "" if e.change_percent is None else (
+            f"{e.change_percent:+.1f}" if abs(e.change_percent) < 1e4 else "ran away")
+        cons = "" if e.consistency is None else f"{e.consistency:.2f}"
+        error = f"{res.errors[p]:.2f}" if p in res.errors else "—"
+        name = f"[bold]{p}[/]" if p in res.isolated else p
+        table.add_row(name, fmt(e.value), fmt(e.nominal), change, cons,
+                      error if e.converged else f"{error} (not estimable)")
+    out.print(table)
+    color = "red" if len(res.isolated) == 1 else "yellow"
+    out.print(f"[bold {color}]{res.statement}[/]", highlight=False)

@@ -20,6 +20,7 @@ import os
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -71,7 +72,7 @@ class IsolationSettings:
     significance: float = 0.01
 
     @classmethod
-    def load(cls, path: str | os.PathLike[str] | None = None) -> IsolationSettings:
+    def load(cls, path: str | Path | None = None) -> IsolationSettings:
         """Settings from the shipped file, overridden by ``path``."""
         cfg = load_settings(path)
         out = cls(DetectionSettings.from_config(cfg), float(cfg["estimation"]["settle"]),

@@ -285,7 +285,7 @@ def detect(residuals: Residuals, norm: Normalisation, settings: DetectionSetting
     >>> r = compute_residuals(m, simulate_plant(m, ["Rv=+25%@10s"], seed=3), gens)
     >>> d = detect(r, noise_normalisation(m, r, DetectionSettings()), DetectionSettings())
     >>> d.detected, d.fired, 10.0 < d.time < 11.0
-    (True, ('r_Ps',), True)
+    (True, ('r_Ps', 'r_omega_m'), True)
     """
     if norm.names != residuals.names:
         raise ConfigError(f"the normalisation is for residuals {list(norm.names)}, "

@@ -184,9 +184,11 @@ def _steady_state(compiled: CompiledModel, w: SteadyWindow, p: FloatArray, guess
     def f(z: FloatArray) -> FloatArray:
         x = z * scale
         # derivatives scaled by the state size: a relative rate [1/s]
-        return compiled.rhs(x, w.inputs, p) / scale
+        rate: FloatArray = compiled.rhs(x, w.inputs, p) / scale
+        return rate
 
     sol = optimize.root(f, guess / scale, method="hybr", options={"xtol": 1e-12})
     if not sol.success or not np.all(np.isfinite(sol.x)):
         return None
-    return np.asarray(sol.x * scale, dtype=np.float64)
+    out: FloatArray = np.asarray(sol.x * scale, dtype=np.float64)
+    return out

@@ -27,7 +27,7 @@ from condmon.errors import ConfigError
 from condmon.io.config import load_default, load_toml
 from condmon.models.expressions import parse_expression
 
-__all__ = ["Parameter", "Input", "Variable", "State", "Sensor", "InputStep", "TestProfile",
+__all__ = ["Parameter", "Input", "Variable", "State", "Sensor", "InputStep", "BuiltInTest",
            "PlantModel", "CompiledModel", "load_plant_model", "list_plant_models"]
 
 FloatArray = NDArray[np.float64]
@@ -105,7 +105,7 @@ class InputStep:
 
 
 @dataclass(frozen=True)
-class TestProfile:
+class BuiltInTest:
     """The built-in test: ``duration`` [s] at ``sample_rate`` [Hz], known input steps."""
 
     duration: float
@@ -133,7 +133,7 @@ class PlantModel:
     variables: tuple[Variable, ...]
     states: tuple[State, ...]
     sensors: tuple[Sensor, ...]
-    test: TestProfile
+    test: BuiltInTest
     source: str = ""
 
     @property
@@ -420,7 +420,7 @@ def _from_doc(doc: Mapping[str, Any], src: str) -> PlantModel:
         steps.append(InputStep(str(f["input"]), _number(f["at"], f"{where}.at"),
                                _number(f["factor"], where) if "factor" in f else None,
                                _number(f["value"], where) if "value" in f else None))
-    test = TestProfile(_number(t["duration"], f"{src}[test].duration"),
+    test = BuiltInTest(_number(t["duration"], f"{src}[test].duration"),
                        _number(t["sample_rate"], f"{src}[test].sample_rate"),
                        tuple(sorted(steps, key=lambda s: s.at)))
     return PlantModel(str(doc.get("name", Path(src).stem)), str(doc.get("description", "")),

@@ -12,6 +12,7 @@ matplotlib.use("Agg")  # files only; never needs a display
 
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.axes import Axes  # noqa: E402
 
 from condmon.diagnose.isolation import IsolationResult  # noqa: E402
 from condmon.diagnose.residuals import moving_average  # noqa: E402
@@ -20,7 +21,7 @@ from condmon.models.declared import PlantModel  # noqa: E402
 __all__ = ["plot_residuals", "plot_model_errors", "write_isolation_figures"]
 
 
-def _mark(ax: plt.Axes, res: IsolationResult) -> None:
+def _mark(ax: Axes, res: IsolationResult) -> None:
     if res.detection_time is not None:
         ax.axvline(res.detection_time, color="#c0392b", lw=1.0, ls="--", label="detection")
     if res.compare_from is not None:

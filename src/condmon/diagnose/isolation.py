@@ -14,6 +14,7 @@ to a distributed engine.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import multiprocessing
 import os
@@ -40,7 +41,9 @@ from condmon.identify.steady_state import (
     SteadyStateEstimate, estimate_steady_state, steady_windows,
 )
 from condmon.models.declared import PlantModel
-from condmon.simulate.plant import ParameterStep, input_signals, integrate, sensor_readings
+from condmon.simulate.plant import (
+    ParameterStep, input_signals, integrate, sensor_readings, simulate_plant,
+)
 
 __all__ = ["IsolationSettings", "SuspectTask", "IsolationResult", "simulate_suspect",
            "isolate", "healthy_normalisation"]
@@ -213,8 +216,10 @@ def isolate(record: pd.DataFrame, model: PlantModel, *,
     model : PlantModel
         The declared healthy plant.
     normalisation : Normalisation, optional
-        Learned from healthy records (:func:`healthy_normalisation`); default:
-        from the sensors' declared noise.
+        Learned from healthy records (:func:`healthy_normalisation`). Default:
+        from the sensors' declared noise for simulation residuals; for structured
+        ones (whose measured inputs carry noise through the dynamics) learned
+        from three healthy records simulated with the declared noise.
     kind : {"simulation", "structured"}
         Residual set (see :mod:`condmon.diagnose.structure`).
     settings : IsolationSettings, optional
@@ -245,7 +250,14 @@ def isolate(record: pd.DataFrame, model: PlantModel, *,
     gens = residual_generators(model, kind)
     fsm = fault_signature(model, kind)
     res = compute_residuals(model, record, gens)
-    norm = normalisation or noise_normalisation(model, res, settings.detection)
+    if normalisation is not None:
+        norm = normalisation
+    elif kind == "simulation":
+        norm = noise_normalisation(model, res, settings.detection)
+    else:
+        norm = healthy_normalisation(model, [simulate_plant(model, seed=s) for s in range(3)],
+                                     kind, settings.detection)
+        norm = dataclasses.replace(norm, source="simulated healthy records (3)")
     det = detect(res, norm, settings.detection)
     tick(1, 4, "residuals")
     empty: dict[str, Any] = {}

@@ -13,7 +13,7 @@ seconds: a single noisy sample never raises an alarm.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -54,21 +54,43 @@ class DetectionSettings:
         Time a normalised residual must stay outside ±1 to fire. [s]
     startup : float
         Residuals are not judged before this time. [s]
+    by_operating_point : bool
+        Learn the mean and spread separately at each operating point (level of
+        the known inputs) of the healthy records.
+    min_point_time : float
+        Shortest time at an operating point for figures of its own. [s]
+    input_settle : float
+        Residuals are not judged this long after a step of a known input (the
+        model's transient may differ from the plant's). [s]
     """
 
     window: float = 0.2
     z: float = 4.0
     persistence: float = 0.5
     startup: float = 1.0
+    by_operating_point: bool = True
+    min_point_time: float = 2.0
+    input_settle: float = 0.0
 
     @classmethod
     def from_config(cls, cfg: Mapping[str, Any] | None = None) -> DetectionSettings:
         d = (cfg or load_settings())["detection"]
-        out = cls(float(d["window"]), float(d["z"]), float(d["persistence"]), float(d["startup"]))
-        if not (out.window >= 0 and out.z > 0 and out.persistence >= 0 and out.startup >= 0):
-            raise ConfigError(f"[detection]: window, persistence, startup must be >= 0 and z > 0 "
-                              f"(got {out})")
+        out = cls(float(d["window"]), float(d["z"]), float(d["persistence"]), float(d["startup"]),
+                  bool(d["by_operating_point"]), float(d["min_point_time"]),
+                  float(d["input_settle"]))
+        if not (out.window >= 0 and out.z > 0 and out.persistence >= 0 and out.startup >= 0
+                and out.input_settle >= 0):
+            raise ConfigError(f"[detection]: window, persistence, startup, input_settle must be "
+                              f">= 0 and z > 0 (got {out})")
         return out
+
+    def judged(self, t: FloatArray, inputs: FloatArray) -> NDArray[np.bool_]:
+        """Samples whose residuals are judged: after start-up, away from input steps."""
+        ok = t >= t[0] + self.startup
+        if self.input_settle > 0 and len(t) > 1:
+            for i in np.flatnonzero(np.any(np.diff(inputs, axis=0) != 0, axis=1)) + 1:
+                ok &= ~((t >= t[i]) & (t < t[i] + self.input_settle))
+        return ok  # type: ignore[no-any-return]
 
 
 @dataclass(frozen=True)
@@ -87,6 +109,8 @@ class Residuals:
         Measured − predicted. [sensor unit]
     predicted : ndarray, shape (n, n_residuals)
         The model's prediction. [sensor unit]
+    inputs : ndarray, shape (n, n_inputs)
+        The known inputs: they define the operating point. [input units]
     """
 
     t: FloatArray
@@ -94,6 +118,7 @@ class Residuals:
     sensors: tuple[str, ...]
     values: FloatArray
     predicted: FloatArray
+    inputs: FloatArray
 
 
 @dataclass(frozen=True)
@@ -111,6 +136,11 @@ class Normalisation:
         Smoothing window the figures belong to. [s]
     source : str
         "healthy records (N)" or "declared sensor noise".
+    points : ndarray, shape (n_points, n_inputs)
+        Operating points (levels of the known inputs) with figures of their own;
+        a sample at any other operating point gets the pooled ``mean``/``std``.
+    point_mean, point_std : ndarray, shape (n_points, n_residuals)
+        Mean and spread of the smoothed residuals at each operating point. [sensor unit]
     """
 
     names: tuple[str, ...]
@@ -119,11 +149,27 @@ class Normalisation:
     raw_std: FloatArray
     window: float
     source: str
+    points: FloatArray = field(default_factory=lambda: np.empty((0, 0)))
+    point_mean: FloatArray = field(default_factory=lambda: np.empty((0, 0)))
+    point_std: FloatArray = field(default_factory=lambda: np.empty((0, 0)))
+
+    def figures(self, inputs: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Mean and spread for every sample, by its operating point, shape (n, n_residuals)."""
+        n = len(inputs)
+        mean = np.tile(self.mean, (n, 1))
+        std = np.tile(self.std, (n, 1))
+        for k, point in enumerate(self.points):
+            at = np.all(np.isclose(inputs, point, rtol=1e-9, atol=0.0), axis=1)
+            mean[at], std[at] = self.point_mean[k], self.point_std[k]
+        return mean, std
 
     def to_dict(self) -> dict[str, Any]:
         return {"source": self.source, "window": self.window,
                 "residuals": {n: {"mean": float(m), "std": float(s), "raw_std": float(r)}
-                              for n, m, s, r in zip(self.names, self.mean, self.std, self.raw_std)}}
+                              for n, m, s, r in zip(self.names, self.mean, self.std, self.raw_std)},
+                "operating_points": [{"inputs": p.tolist(), "mean": m.tolist(), "std": sd.tolist()}
+                                     for p, m, sd in zip(self.points, self.point_mean,
+                                                         self.point_std)]}
 
 
 @dataclass(frozen=True)
@@ -207,7 +253,7 @@ def compute_residuals(model: PlantModel, record: pd.DataFrame, generators: Seque
         predicted[:, j] = runs[key][:, k]
         values[:, j] = record[g.sensor].to_numpy(dtype=np.float64) - predicted[:, j]
     return Residuals(t, tuple(g.name for g in generators), tuple(g.sensor for g in generators),
-                     values, predicted)
+                     values, predicted, u)
 
 
 def _measured_state(model: PlantModel, sensor: str) -> str:
@@ -246,18 +292,33 @@ def learn_normalisation(residual_sets: Sequence[Residuals], settings: DetectionS
     """
     if not residual_sets:
         raise DataError("no healthy record to learn the residuals' normalisation from")
-    smooth, raw = [], []
+    smooth, raw, inputs = [], [], []
     for r in residual_sets:
-        keep = r.t >= r.t[0] + settings.startup
+        keep = settings.judged(r.t, r.inputs)
         smooth.append(moving_average(r.values, _samples(settings.window, r.t))[keep])
         raw.append(r.values[keep])
-    s, w = np.vstack(smooth), np.vstack(raw)
+        inputs.append(r.inputs[keep])
+    s, w, u = np.vstack(smooth), np.vstack(raw), np.vstack(inputs)
     std = s.std(axis=0, ddof=1)
     if np.any(std <= 0):
         raise DataError("the healthy residuals have no spread (noise-free records?)")
     names = residual_sets[0].names
+    points, pmean, pstd = [], [], []
+    levels, counts = np.unique(u, axis=0, return_counts=True)
+    if settings.by_operating_point and len(levels) > 1:
+        enough = _samples(settings.min_point_time, residual_sets[0].t)
+        for level, count in zip(levels, counts):
+            at = np.all(u == level, axis=1)
+            if count >= enough:
+                points.append(level)
+                pmean.append(s[at].mean(axis=0))
+                pstd.append(np.maximum(s[at].std(axis=0, ddof=1), 1e-12 * std))
+    n_u = u.shape[1]
     return Normalisation(names, s.mean(axis=0), std, w.std(axis=0, ddof=1), settings.window,
-                         f"healthy records ({len(residual_sets)})")
+                         f"healthy records ({len(residual_sets)})",
+                         np.array(points).reshape(len(points), n_u),
+                         np.array(pmean).reshape(len(points), len(names)),
+                         np.array(pstd).reshape(len(points), len(names)))
 
 
 def noise_normalisation(model: PlantModel, residuals: Residuals, settings: DetectionSettings
@@ -292,9 +353,10 @@ def detect(residuals: Residuals, norm: Normalisation, settings: DetectionSetting
                           f"not {list(residuals.names)}")
     t = residuals.t
     smooth = moving_average(residuals.values, _samples(norm.window, t))
-    normalised = (smooth - norm.mean) / (settings.z * norm.std)
+    mean, std = norm.figures(residuals.inputs)
+    normalised = (smooth - mean) / (settings.z * std)
     need = _samples(settings.persistence, t) if settings.persistence > 0 else 1
-    outside = (np.abs(normalised) > 1.0) & (t >= t[0] + settings.startup)[:, None]
+    outside = (np.abs(normalised) > 1.0) & settings.judged(t, residuals.inputs)[:, None]
     fired, first = [], (np.inf, np.inf)
     for j, name in enumerate(residuals.names):
         start = _first_run(outside[:, j], need)

@@ -153,3 +153,18 @@ def test_demo_files_are_a_report_a_person_can_open(demo: DemoResult) -> None:
         page = (demo.report.parent / f"{unit}.html").read_text()
         assert "<img src=" in page and "Latest check" in page
         assert Path(demo.report.parent / f"{unit}-symptoms.png").exists()
+
+
+def test_demo_isolates_the_hydrostatic_transmission_faults(demo: DemoResult) -> None:
+    by_fault = {d.fault: d for d in demo.isolations}
+    assert set(by_fault) == {"Rv=+25%@10s", "Dm=-25%@10s", "Dp=-10%@10s", "Rlkgm=-50%@10s",
+                             "Tld=+20@10s", "Rlkgp=+50%@10s"}
+    for fault, d in by_fault.items():
+        if d.parameter == "Rlkgp":  # too small to move the outputs beyond the noise
+            assert not d.result.detected and d.result.isolated == ()
+            continue
+        assert d.result.isolated == (d.parameter,), fault
+        assert d.result.estimates[d.parameter].value == pytest.approx(d.true_value, rel=0.03)
+    index = demo.report.read_text()
+    assert "Hydrostatic transmission" in index and "hst/1-Rv/residuals.png" in index
+    assert (demo.report.parent / "hst" / "2-Dm" / "model-errors.png").stat().st_size > 20_000

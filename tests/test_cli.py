@@ -15,7 +15,7 @@ from condmon.simulate import ActuatorRig, load_actuator_rig, simulate_actuator
 def test_demo_writes_history_and_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["demo", "--out", str(tmp_path / "demo")]) == 0
     out = capsys.readouterr().out
-    assert "friction increase" in out and "winding fault" in out
+    assert "friction increase" in out and "winding fault" in out and "Rlkgm=-50%@10s" in out
     assert (tmp_path / "demo" / "index.html").exists()
     assert (tmp_path / "demo" / "EMA-friction-trends.png").stat().st_size > 10_000
     assert main(["history", "--unit", "EMA-resistance", "--db", str(tmp_path / "demo" / "condmon.db")]) == 0

@@ -1,11 +1,12 @@
-"""The built-in demonstration: the reference paper's experiments, end to end.
+"""The built-in demonstration: the reference papers' experiments, end to end.
 
-For each experiment of ``condmon/data/demo.toml`` (friction, resistance,
-inductance-and-resistance): simulate healthy baseline tests and the faulty
-tests on the test-bed with its nonlinear effects on, store them in a local
-SQLite history, check each test against the baseline (symptoms, diagnosis) and
-write an HTML report with figures. Everything ``condmon demo`` prints comes
-from :func:`run_demo`.
+For each actuator experiment of ``condmon/data/demo.toml`` (friction,
+resistance, inductance-and-resistance): simulate healthy baseline tests and the
+faulty tests on the test-bed with its nonlinear effects on, store them in a
+local SQLite history, check each test against the baseline (symptoms,
+diagnosis) and write an HTML report with figures. Then, for the hydrostatic
+transmission, isolate each listed fault and write the residual and model-error
+figures. Everything ``condmon demo`` prints comes from :func:`run_demo`.
 """
 
 from __future__ import annotations
@@ -17,15 +18,19 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from condmon.diagnose.isolation import IsolationResult, healthy_normalisation, isolate
 from condmon.errors import ConfigError
+from condmon.models.declared import load_plant_model
 from condmon.io.config import load_default, load_toml
 from condmon.monitor.workflow import CheckResult, add_baseline_tests, check_test
 from condmon.report.html import write_report
+from condmon.report.isolation_figures import write_isolation_figures
 from condmon.simulate.actuator import ActuatorRig, load_actuator_rig, simulate_actuator
 from condmon.simulate.faults import parse_fault
+from condmon.simulate.plant import parameter_steps, simulate_plant
 from condmon.store.db import HistoryStore, open_store
 
-__all__ = ["DemoCheck", "DemoResult", "run_demo", "load_demo_config"]
+__all__ = ["DemoCheck", "DemoIsolation", "DemoResult", "run_demo", "load_demo_config"]
 
 Progress = Callable[[int, int, str], None]
 
@@ -73,6 +78,29 @@ class DemoCheck:
 
 
 @dataclass(frozen=True)
+class DemoIsolation:
+    """One hydrostatic-transmission fault of the demo.
+
+    Attributes
+    ----------
+    fault : str
+        The injected fault, e.g. ``Rv=+25%@10s``.
+    parameter : str
+        The truly faulty parameter.
+    true_value : float
+        Its faulty value. [parameter unit]
+    result : IsolationResult
+    figures : tuple of Path
+    """
+
+    fault: str
+    parameter: str
+    true_value: float
+    result: IsolationResult
+    figures: tuple[Path, ...]
+
+
+@dataclass(frozen=True)
 class DemoResult:
     """Everything the demo produced.
 
@@ -82,11 +110,14 @@ class DemoResult:
     database : Path
     report : Path
         The index page linking each unit's report.
+    isolations : tuple of DemoIsolation
+        The hydrostatic transmission's faults.
     """
 
     checks: tuple[DemoCheck, ...]
     database: Path
     report: Path
+    isolations: tuple[DemoIsolation, ...] = ()
 
 
 def load_demo_config(path: str | Path | None = None) -> dict[str, Any]:
@@ -167,11 +198,59 @@ def _run(store: HistoryStore, cfg: dict[str, Any], out: Path, db: Path,
                 progress(done, total, unit)
         files = write_report(store, unit, out)
         pages.append((unit, str(exp.get("title", "")), files.html.name))
+    isolations = _run_hst(cfg.get("hst"), out, progress)
     index = out / "index.html"
     links = "".join(f"<li><a href='{html.escape(p)}'>{html.escape(u)}</a> — {html.escape(t)}</li>"
                     for u, t, p in pages)
     index.write_text("<!doctype html><html><head><meta charset='utf-8'><title>condmon demo</title>"
-                     "<style>body{font-family:system-ui,sans-serif;margin:2em}</style></head><body>"
+                     "<style>body{font-family:system-ui,sans-serif;margin:2em}"
+                     "td,th{padding:2px 10px;text-align:left}</style></head><body>"
                      "<h1>condmon demo: the reference experiments</h1>"
-                     f"<ul>{links}</ul></body></html>", encoding="utf-8")
-    return DemoResult(tuple(checks), db, index)
+                     "<h2>Electromechanical actuator: parameter estimation and fuzzy diagnosis</h2>"
+                     f"<ul>{links}</ul>{_hst_section(isolations)}</body></html>", encoding="utf-8")
+    return DemoResult(tuple(checks), db, index, isolations)
+
+
+def _run_hst(cfg: dict[str, Any] | None, out: Path, progress: Progress | None
+             ) -> tuple[DemoIsolation, ...]:
+    if not cfg:
+        return ()
+    model = load_plant_model(str(cfg.get("model", "hst")))
+    faults = [str(f) for f in cfg.get("faults", [])]
+    steps = [parameter_steps(model, [f])[0] for f in faults]  # refuse a bad fault first
+    n = int(cfg.get("healthy", 5))
+    total = n + len(faults)
+    norm = healthy_normalisation(model, [simulate_plant(model, seed=9000 + i) for i in range(n)])
+    if progress is not None:
+        progress(n, total, "HST healthy records")
+    done = []
+    for k, (fault, step) in enumerate(zip(faults, steps)):
+        rec = simulate_plant(model, [fault], seed=9100 + k)
+        res = isolate(rec, model, normalisation=norm, source=fault)
+        folder = out / "hst" / f"{k + 1}-{step.name}"
+        figs = write_isolation_figures(res, model, rec[list(model.sensor_names)].to_numpy(),
+                                       folder)
+        done.append(DemoIsolation(fault, step.name, step.value, res, tuple(figs)))
+        if progress is not None:
+            progress(n + k + 1, total, f"HST {fault}")
+    return tuple(done)
+
+
+def _hst_section(isolations: tuple[DemoIsolation, ...]) -> str:
+    if not isolations:
+        return ""
+    rows = []
+    for d in isolations:
+        r = d.result
+        est = r.estimates.get(d.parameter)
+        estimate = f"{est.value:.5g} (true {d.true_value:.5g})" if est is not None else "—"
+        when = f"{r.detection_time:.2f} s" if r.detection_time is not None else "not detected"
+        figs = " ".join(f"<a href='{html.escape(str(f.relative_to(f.parents[2])))}'>"
+                        f"{html.escape(f.stem)}</a>" for f in d.figures)
+        rows.append(f"<tr><td>{html.escape(d.fault)}</td><td>{when}</td>"
+                    f"<td>{html.escape(', '.join(r.isolated) or '—')}</td>"
+                    f"<td>{html.escape(estimate)}</td><td>{html.escape(r.statement)}</td>"
+                    f"<td>{figs}</td></tr>")
+    return ("<h2>Hydrostatic transmission: residuals and parallel multi-model isolation</h2>"
+            "<table><tr><th>fault</th><th>detected</th><th>isolated</th><th>estimate</th>"
+            f"<th>conclusion</th><th>figures</th></tr>{''.join(rows)}</table>")

@@ -116,6 +116,17 @@ def demo_cmd(
                           d.summary.split(": ", 1)[1] if d is not None else str(r.estimate.reason),
                           *(f"{r.percent_change.get(p, float('nan')):+.0f}" for p in ("R", "L", "D")))
         out.print(table)
+    if res.isolations:
+        table = Table(title="HST: detection, steady-state estimate and multi-model isolation",
+                      title_justify="left")
+        for col in ("fault", "detected", "isolated", "estimate (true)"):
+            table.add_column(col)
+        for iso in res.isolations:
+            r, est = iso.result, iso.result.estimates.get(iso.parameter)
+            table.add_row(iso.fault, "no" if r.detection_time is None else f"{r.detection_time:.2f} s",
+                          ", ".join(r.isolated) or "—",
+                          "—" if est is None else f"{_fmt(est.value)} ({_fmt(iso.true_value)})")
+        out.print(table)
     out.print(f"history: {res.database}")
     out.print(f"report:  {res.report}  (open it in a browser)")
 

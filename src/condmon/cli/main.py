@@ -122,9 +122,9 @@ def demo_cmd(
         for col in ("fault", "detected", "isolated", "estimate (true)"):
             table.add_column(col)
         for iso in res.isolations:
-            r, est = iso.result, iso.result.estimates.get(iso.parameter)
-            table.add_row(iso.fault, "no" if r.detection_time is None else f"{r.detection_time:.2f} s",
-                          ", ".join(r.isolated) or "—",
+            found, est = iso.result, iso.result.estimates.get(iso.parameter)
+            table.add_row(iso.fault, "no" if found.detection_time is None
+                          else f"{found.detection_time:.2f} s", ", ".join(found.isolated) or "—",
                           "—" if est is None else f"{_fmt(est.value)} ({_fmt(iso.true_value)})")
         out.print(table)
     out.print(f"history: {res.database}")

@@ -168,3 +168,11 @@ def test_normalisation_per_operating_point_absorbs_a_model_mismatch(
     faulty = isolate(simulate_plant(plant, ["Dm=-25%@10s"], seed=9), hst,
                      normalisation=per_point, settings=settings, workers=1)
     assert faulty.detected and "Dm" in faulty.isolated
+
+
+def test_a_record_without_the_input_column_uses_the_test_schedule(hst: PlantModel) -> None:
+    rec = simulate_plant(hst, ["Dm=+10%@10s"], seed=12)
+    with_input = isolate(rec, hst, workers=1)
+    without = isolate(rec[["t", "Ps", "omega_m"]], hst, workers=1)
+    assert without.isolated == with_input.isolated == ("Dm",)
+    assert without.estimates["Dm"].value == with_input.estimates["Dm"].value

@@ -12,6 +12,7 @@ seconds: a single noisy sample never raises an alarm.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,7 +22,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from condmon.errors import ConfigError, DataError
+from condmon.errors import ConfigError, DataError, DataWarning
 from condmon.io.config import load_default, load_toml, merge
 from condmon.models.declared import PlantModel
 from condmon.simulate.plant import ParameterStep, input_signals, integrate, sensor_readings
@@ -199,7 +200,9 @@ class Detection:
 def validate_plant_record(model: PlantModel, record: pd.DataFrame, source: str = "record"
                           ) -> pd.DataFrame:
     """Check a record against a model: ``t`` and every sensor column, finite,
-    uniformly sampled. Raises :class:`DataError` naming the file and column."""
+    uniformly sampled. Raises :class:`DataError` naming the file and column;
+    warns (:class:`DataWarning`) when more than 1 % of a sensor's samples lie
+    outside its declared range."""
     missing = [c for c in ("t", *model.sensor_names) if c not in record.columns]
     if missing:
         raise DataError(f"{source}: missing column {missing[0]!r}; model {model.name!r} needs "
@@ -210,6 +213,14 @@ def validate_plant_record(model: PlantModel, record: pd.DataFrame, source: str =
         if not np.all(np.isfinite(values)):
             k = int(np.flatnonzero(~np.isfinite(values))[0])
             raise DataError(f"{source}: column {c!r} has a missing or non-numeric value at row {k}")
+    for sensor in model.sensors:
+        y = record[sensor.name].to_numpy(dtype=np.float64)
+        lo, hi = sensor.range
+        share = float(np.mean((y < lo) | (y > hi)))
+        if share > 0.01:
+            warnings.warn(f"{source}: {share:.0%} of column {sensor.name!r} lies outside the "
+                          f"sensor's range [{lo:g}, {hi:g}] {sensor.unit}; a real sensor would "
+                          "saturate there", DataWarning, stacklevel=2)
     t = record["t"].to_numpy(dtype=np.float64)
     if len(t) < 10:
         raise DataError(f"{source}: {len(t)} samples; at least 10 are needed")

@@ -25,7 +25,9 @@ from numpy.typing import NDArray
 from condmon.errors import ConfigError, DataError, DataWarning
 from condmon.io.config import load_default, load_toml, merge
 from condmon.models.declared import PlantModel
-from condmon.simulate.plant import ParameterStep, input_signals, integrate, sensor_readings
+from condmon.simulate.plant import (
+    ParameterStep, input_signals, integrate, operating_segments, sensor_readings,
+)
 
 __all__ = ["DetectionSettings", "Residuals", "Normalisation", "Detection", "load_settings",
            "validate_plant_record", "compute_residuals", "learn_normalisation",
@@ -89,7 +91,7 @@ class DetectionSettings:
         """Samples whose residuals are judged: after start-up, away from input steps."""
         ok = t >= t[0] + self.startup
         if self.input_settle > 0 and len(t) > 1:
-            for i in np.flatnonzero(np.any(np.diff(inputs, axis=0) != 0, axis=1)) + 1:
+            for i in operating_segments(inputs)[1:]:
                 ok &= ~((t >= t[i]) & (t < t[i] + self.input_settle))
         return ok  # type: ignore[no-any-return]
 
@@ -160,7 +162,7 @@ class Normalisation:
         mean = np.tile(self.mean, (n, 1))
         std = np.tile(self.std, (n, 1))
         for k, point in enumerate(self.points):
-            at = np.all(np.isclose(inputs, point, rtol=1e-9, atol=0.0), axis=1)
+            at = _near(inputs, point)
             mean[at], std[at] = self.point_mean[k], self.point_std[k]
         return mean, std
 
@@ -271,6 +273,12 @@ def _measured_state(model: PlantModel, sensor: str) -> str:
     return next(s.measures.strip() for s in model.sensors if s.name == sensor)
 
 
+def _near(inputs: FloatArray, level: FloatArray, rel_tol: float = 0.02) -> NDArray[np.bool_]:
+    """Samples whose inputs are within ``rel_tol`` of an operating point's level."""
+    return np.all(np.abs(inputs - level) <= rel_tol * np.maximum(np.abs(level), 1e-12),  # type: ignore[no-any-return]
+                  axis=1)
+
+
 def moving_average(values: FloatArray, n: int) -> FloatArray:
     """Trailing moving average over ``n`` samples along axis 0 (shorter at the start)."""
     if n <= 1:
@@ -314,16 +322,24 @@ def learn_normalisation(residual_sets: Sequence[Residuals], settings: DetectionS
     if np.any(std <= 0):
         raise DataError("the healthy residuals have no spread (noise-free records?)")
     names = residual_sets[0].names
-    points, pmean, pstd = [], [], []
-    levels, counts = np.unique(u, axis=0, return_counts=True)
-    if settings.by_operating_point and len(levels) > 1:
+    points: list[FloatArray] = []
+    pmean, pstd = [], []
+    if settings.by_operating_point:
+        for r in residual_sets:  # the operating points met in the healthy records
+            starts = operating_segments(r.inputs)
+            for a, b in zip(starts, [*starts[1:], len(r.inputs)]):
+                level = r.inputs[a:b].mean(axis=0)
+                if not any(_near(level[None, :], p)[0] for p in points):
+                    points.append(level)
         enough = _samples(settings.min_point_time, residual_sets[0].t)
-        for level, count in zip(levels, counts):
-            at = np.all(u == level, axis=1)
-            if count >= enough:
-                points.append(level)
+        kept = []
+        for level in points if len(points) > 1 else []:
+            at = _near(u, level)
+            if at.sum() >= enough:
+                kept.append(level)
                 pmean.append(s[at].mean(axis=0))
                 pstd.append(np.maximum(s[at].std(axis=0, ddof=1), 1e-12 * std))
+        points = kept
     n_u = u.shape[1]
     return Normalisation(names, s.mean(axis=0), std, w.std(axis=0, ddof=1), settings.window,
                          f"healthy records ({len(residual_sets)})",

@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 from scipy import optimize
 
 from condmon.models.declared import CompiledModel, PlantModel
+from condmon.simulate.plant import operating_segments
 
 __all__ = ["SteadyWindow", "SteadyStateEstimate", "steady_windows", "estimate_steady_state"]
 
@@ -90,10 +91,11 @@ def steady_windows(t: FloatArray, u: FloatArray, y: FloatArray, states: FloatArr
                    start: float, settle: float, min_length: float, noise: FloatArray
                    ) -> list[SteadyWindow]:
     """Steady windows after ``start`` [s]: ``settle`` [s] after it and after each
-    known input change, up to the next change; windows shorter than
+    change of operating point (:func:`~condmon.simulate.plant.operating_segments`),
+    up to the next change; windows shorter than
     ``min_length`` [s] are dropped. ``states`` (the healthy model's) give the
     starting guesses; ``noise`` the per-sample standard deviation of each sensor."""
-    changes = [float(t[i]) for i in np.flatnonzero(np.any(np.diff(u, axis=0) != 0, axis=1)) + 1]
+    changes = [float(t[i]) for i in operating_segments(u)[1:]]
     bounds = sorted({start, *(c for c in changes if c > start)})
     out = []
     for k, a in enumerate(bounds):
@@ -103,7 +105,7 @@ def steady_windows(t: FloatArray, u: FloatArray, y: FloatArray, states: FloatArr
         if mask.sum() < 2 or (t[mask][-1] - t[mask][0]) < min_length:
             continue
         n = int(mask.sum())
-        out.append(SteadyWindow(float(t[mask][0]), float(t[mask][-1]), u[mask][-1].copy(),
+        out.append(SteadyWindow(float(t[mask][0]), float(t[mask][-1]), u[mask].mean(axis=0),
                                 y[mask].mean(axis=0), noise / math.sqrt(n),
                                 states[mask][-1].copy()))
     return out

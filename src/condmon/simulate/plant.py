@@ -22,10 +22,11 @@ from condmon.errors import ConfigError, DataError, EstimationError
 from condmon.models.declared import CompiledModel, PlantModel
 from condmon.simulate.faults import Fault, apply_fault, parse_fault
 
-__all__ = ["ParameterStep", "parameter_steps", "input_signals", "integrate", "sensor_readings",
-           "simulate_plant", "time_grid"]
+__all__ = ["ParameterStep", "parameter_steps", "input_signals", "operating_segments",
+           "integrate", "sensor_readings", "simulate_plant", "time_grid"]
 
 FloatArray = NDArray[np.float64]
+_MAX_RESTARTS = 100  # more input changes than this: the inputs are measured, not stepped
 
 
 @dataclass(frozen=True)
@@ -91,6 +92,35 @@ def input_signals(model: PlantModel, t: FloatArray, record: pd.DataFrame | None 
     return u
 
 
+def operating_segments(u: FloatArray, rel_tol: float = 0.02) -> NDArray[np.intp]:
+    """Start indices of the operating points of a record's known inputs.
+
+    A new segment starts where an input leaves the running mean of the current
+    segment by more than ``rel_tol`` of its size, so a measured (noisy) input
+    keeps one segment per level while a step starts a new one.
+
+    Example
+    -------
+    >>> u = np.r_[np.full(5, 152.0), np.full(5, 114.0)][:, None]
+    >>> operating_segments(u + 0.05 * np.sin(np.arange(10))[:, None]).tolist()
+    [0, 5]
+    """
+    starts = [0]
+    if len(u) == 0:
+        return np.array(starts, dtype=np.intp)
+    total = u[0].astype(np.float64).copy()
+    n = 1
+    for k in range(1, len(u)):
+        level = total / n
+        if np.any(np.abs(u[k] - level) > rel_tol * np.maximum(np.abs(level), 1e-12)):
+            starts.append(k)
+            total, n = u[k].astype(np.float64).copy(), 1
+        else:
+            total += u[k]
+            n += 1
+    return np.array(starts, dtype=np.intp)
+
+
 def integrate(compiled: CompiledModel, t: FloatArray, u: FloatArray,
               steps: Sequence[ParameterStep] = (), params: Mapping[str, float] | None = None,
               measured: Mapping[str, FloatArray] | None = None,
@@ -130,8 +160,13 @@ def integrate(compiled: CompiledModel, t: FloatArray, u: FloatArray,
     p = compiled.parameter_vector(params)
     pindex = {n: i for i, n in enumerate(model.parameter_names)}
 
-    # breakpoints: input changes and parameter steps, each a restart of the solver
+    # breakpoints: input changes and parameter steps, each a restart of the solver.
+    # A measured input that moves at every sample is interpolated instead (a
+    # restart per sample would be exact for a held input, and very slow).
     changes = np.flatnonzero(np.any(np.diff(u, axis=0) != 0, axis=1)) + 1
+    smooth_inputs = len(changes) > _MAX_RESTARTS
+    if smooth_inputs:
+        changes = operating_segments(u)[1:]
     bps = sorted({float(t[0]), float(t[-1]), *(float(t[i]) for i in changes),
                   *(s.at for s in steps if t[0] < s.at < t[-1])})
     x_out = np.tile(x_full0, (len(t), 1))
@@ -149,12 +184,14 @@ def integrate(compiled: CompiledModel, t: FloatArray, u: FloatArray,
         xf[idx] = xi
         for i, v in fixed:
             xf[i] = np.interp(tt, t, v)
+        if smooth_inputs:
+            uk = np.array([np.interp(tt, t, u[:, j]) for j in range(u.shape[1])])
         return compiled.rhs(xf, uk, p)[idx]
 
     # with measured (noisy) signals as inputs the right-hand side has a kink at
     # every sample; a relative tolerance of 1e-5 keeps the integration error
     # near 1e-3 of the sensor noise at a quarter of the cost of 1e-7
-    rtol = 1e-5 if fixed else 1e-7
+    rtol = 1e-5 if fixed or smooth_inputs else 1e-7
     for a, b in zip(bps[:-1], bps[1:]):
         k = int(np.searchsorted(t, a + 1e-9 * max(1.0, abs(a)), side="right")) - 1
         uk = u[max(k, 0)]

@@ -32,7 +32,9 @@ import sympy as sp
 from numpy.typing import NDArray
 
 from condmon.errors import ConfigError, ModelError
-from condmon.models.declared import PlantModel, equations_of, symbols_of
+from condmon.models.declared import (
+    PlantModel, equations_of, substituted_equations, symbols_of,
+)
 
 __all__ = ["ResidualGenerator", "FaultSignature", "RESIDUAL_KINDS", "residual_generators",
            "fault_signature", "suspects"]
@@ -183,18 +185,15 @@ def _generator(model: PlantModel, r: _Relations, eqs: Iterable[int]) -> Residual
     labels = [r.labels[i] for i in sorted(eqs)]
     integrated = [lab[4:] for lab in labels if lab.startswith("der:")]
     sensors = [lab[7:] for lab in labels if lab.startswith("sensor:")]
-    variables, derivs, readings = equations_of(model)
-    sym = symbols_of(model)
-    resolved: dict[sp.Symbol, sp.Expr] = {}
-    for name, expr in variables.items():
-        resolved[sym[name]] = expr.xreplace(resolved)
+    readings = equations_of(model)[2]
+    _, flat_derivs, flat_readings = substituted_equations(model)
     compared, inputs = [], []
     for s in sensors:
         reading = readings[s]
         if isinstance(reading, sp.Symbol) and str(reading) in model.state_names \
                 and str(reading) not in integrated:
             inputs.append(s)
-        elif _states_in(reading.xreplace(resolved), model) <= set(integrated):
+        elif _states_in(flat_readings[s], model) <= set(integrated):
             compared.append(s)
         else:
             return None
@@ -202,7 +201,7 @@ def _generator(model: PlantModel, r: _Relations, eqs: Iterable[int]) -> Residual
         return None
     fixed = {str(readings[s]) for s in inputs}
     for st in integrated:
-        if not _states_in(derivs[st].xreplace(resolved), model) <= set(integrated) | fixed:
+        if not _states_in(flat_derivs[st], model) <= set(integrated) | fixed:
             return None  # an algebraic loop through a state: derivative causality
     faults = tuple(f for f in r.faults
                    if any(sp.Symbol(f, real=True) in _free(r.rels[i]) for i in eqs))

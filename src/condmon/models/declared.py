@@ -28,7 +28,8 @@ from condmon.io.config import load_default, load_toml
 from condmon.models.expressions import parse_expression
 
 __all__ = ["Parameter", "Input", "Variable", "State", "Sensor", "InputStep", "BuiltInTest",
-           "PlantModel", "CompiledModel", "load_plant_model", "list_plant_models"]
+           "PlantModel", "CompiledModel", "load_plant_model", "list_plant_models",
+           "equations_of", "substituted_equations", "symbols_of"]
 
 FloatArray = NDArray[np.float64]
 
@@ -263,15 +264,19 @@ def equations_of(model: PlantModel) -> tuple[dict[str, sp.Expr], dict[str, sp.Ex
     return variables, derivs, readings
 
 
-def _substituted(model: PlantModel) -> tuple[list[sp.Expr], list[sp.Expr], list[sp.Expr]]:
+@functools.lru_cache(maxsize=32)
+def substituted_equations(model: PlantModel) -> tuple[dict[str, sp.Expr], dict[str, sp.Expr],
+                                                      dict[str, sp.Expr]]:
+    """Equations over states, inputs and parameters only: the algebraic
+    variables substituted in. (variables, state derivatives, sensor readings)."""
     variables, derivs, readings = equations_of(model)
     sym = symbols_of(model)
     resolved: dict[sp.Symbol, sp.Expr] = {}
     for name, expr in variables.items():
         resolved[sym[name]] = expr.xreplace(resolved)
-    return ([resolved[sym[v.name]] for v in model.variables],
-            [e.xreplace(resolved) for e in derivs.values()],
-            [e.xreplace(resolved) for e in readings.values()])
+    return ({v: resolved[sym[v]] for v in variables},
+            {k: e.xreplace(resolved) for k, e in derivs.items()},
+            {k: e.xreplace(resolved) for k, e in readings.items()})
 
 
 @functools.lru_cache(maxsize=32)
@@ -280,7 +285,7 @@ def _compile(model: PlantModel) -> CompiledModel:
     xs = [sym[n] for n in model.state_names]
     us = [sym[n] for n in model.input_names]
     ps = [sym[n] for n in model.parameter_names]
-    var_exprs, deriv_exprs, out_exprs = _substituted(model)
+    var_exprs, deriv_exprs, out_exprs = (list(d.values()) for d in substituted_equations(model))
 
     def raw(exprs: list[sp.Expr]) -> Callable[..., Any]:
         return sp.lambdify((xs, us, ps), exprs, modules="numpy", cse=True)  # type: ignore[no-any-return]

@@ -55,3 +55,18 @@ def test_bad_input_gives_one_line_and_status_2(tmp_path: Path, capsys: pytest.Ca
     assert main([a.format(**{k: str(v) for k, v in paths.items()}) for a in args]) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1 and "Traceback" not in err
+
+
+def test_a_users_own_declaration_is_simulated_and_isolated(tmp_path: Path,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    from importlib import resources
+
+    model = tmp_path / "my-hst.toml"
+    model.write_text((resources.files("condmon") / "data" / "hst.toml").read_text()
+                     .replace('name = "hst"', 'name = "my-hst"'))
+    rec = tmp_path / "r.csv"
+    assert main(["simulate", "plant", str(model), "--out", str(rec), "--fault", "Dm=+25%@10s"]) == 0
+    capsys.readouterr()
+    assert main(["isolate", str(model), str(rec), "--json", "--workers", "1"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["model"] == "my-hst" and doc["isolated"] == ["Dm"]

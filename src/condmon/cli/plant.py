@@ -17,32 +17,27 @@ __all__ = ["register"]
 
 ModelArg = Annotated[str, typer.Argument(help="Shipped model name (hst) or a declaration file (.toml).")]
 ParamsOpt = Annotated[Optional[Path], typer.Option(help="TOML file of parameter values overriding the declaration's.")]
+OutOpt = Annotated[Path, typer.Option("--out", help="Output file (.csv or .parquet).")]
+FaultOpt = Annotated[Optional[list[str]], typer.Option(help="Parameter fault, e.g. Rv=+40%@10s, Dm=-25%@10s, Tld=+20@10s (repeatable).")]
+SeedOpt = Annotated[int, typer.Option(help="Random seed of the sensor noise.")]
+DurationOpt = Annotated[Optional[float], typer.Option(help="Record length [s] (default: the declared test's).")]
 
 
 def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
     """Add the plant-model commands to the ``condmon`` application."""
 
     @simulate_app.command("hst")
-    def simulate_hst_cmd(
-        out_path: Annotated[Path, typer.Option("--out", help="Output file (.csv or .parquet).")],
-        fault: Annotated[Optional[list[str]], typer.Option(help="Parameter fault, e.g. Rv=+40%@10s, Dm=-25%@10s, Tld=+20@10s (repeatable).")] = None,
-        params: ParamsOpt = None,
-        seed: Annotated[int, typer.Option(help="Random seed of the sensor noise.")] = 0,
-        model: Annotated[str, typer.Option(help="Model declaration (.toml) instead of the shipped HST.")] = "hst",
-        duration: Annotated[Optional[float], typer.Option(help="Record length [s] (default: the declared test's).")] = None,
-    ) -> None:
+    def simulate_hst_cmd(out_path: OutOpt, fault: FaultOpt = None, params: ParamsOpt = None,
+                         seed: SeedOpt = 0, duration: DurationOpt = None) -> None:
         """Simulate the hydrostatic transmission's test (columns t, Ps, omega_m, omega_p)."""
-        from condmon.io.records import write_record
-        from condmon.models.declared import load_plant_model
-        from condmon.simulate.plant import parameter_steps, simulate_plant
+        _simulate("hst", out_path, fault, params, seed, duration)
 
-        plant = load_plant_model(model, params)
-        steps = parameter_steps(plant, fault or ())
-        rec = simulate_plant(plant, fault or (), seed=seed, duration=duration)
-        write_record(rec, out_path)
-        faults = ", ".join(f"{s.name}={fmt(s.value)}@{s.at:g}s" for s in steps) or "none"
-        err.print(f"wrote {len(rec)} samples to {out_path} (model {plant.name}, faults: {faults})",
-                  highlight=False)
+    @simulate_app.command("plant")
+    def simulate_plant_cmd(model: ModelArg, out_path: OutOpt, fault: FaultOpt = None,
+                           params: ParamsOpt = None, seed: SeedOpt = 0,
+                           duration: DurationOpt = None) -> None:
+        """Simulate the built-in test of any declared plant model (a .toml file)."""
+        _simulate(model, out_path, fault, params, seed, duration)
 
     @app.command("isolate")
     def isolate_cmd(
@@ -93,6 +88,21 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
             write_json(res.to_dict())
             return
         _print_isolation(res)
+
+
+def _simulate(model: str, out_path: Path, fault: list[str] | None, params: Path | None,
+              seed: int, duration: float | None) -> None:
+    from condmon.io.records import write_record
+    from condmon.models.declared import load_plant_model
+    from condmon.simulate.plant import parameter_steps, simulate_plant
+
+    plant = load_plant_model(model, params)
+    steps = parameter_steps(plant, fault or ())
+    rec = simulate_plant(plant, fault or (), seed=seed, duration=duration)
+    write_record(rec, out_path)
+    faults = ", ".join(f"{s.name}={fmt(s.value)}@{s.at:g}s" for s in steps) or "none"
+    err.print(f"wrote {len(rec)} samples to {out_path} (model {plant.name}, faults: {faults})",
+              highlight=False)
 
 
 def _print_isolation(res: IsolationResult) -> None:

@@ -248,6 +248,17 @@ def compute_residuals(model: PlantModel, record: pd.DataFrame, generators: Seque
         Parameter changes applied to the model (a suspect's fault).
     params : mapping, optional
         Parameter values replacing the nominal ones.
+
+
+    Example
+    -------
+    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.simulate.plant import simulate_plant
+    >>> from condmon.diagnose.structure import residual_generators
+    >>> m = load_plant_model("hst")
+    >>> r = compute_residuals(m, simulate_plant(m, seed=1), residual_generators(m))
+    >>> r.names, round(float(r.values[100:, 0].std()) / 2.5e4, 1)   # noise only
+    (('r_Ps', 'r_omega_m'), 1.0)
     """
     compiled = model.compile()
     t = record["t"].to_numpy(dtype=np.float64)
@@ -280,7 +291,13 @@ def _near(inputs: FloatArray, level: FloatArray, rel_tol: float = 0.02) -> NDArr
 
 
 def moving_average(values: FloatArray, n: int) -> FloatArray:
-    """Trailing moving average over ``n`` samples along axis 0 (shorter at the start)."""
+    """Trailing moving average over ``n`` samples along axis 0 (shorter at the start).
+
+    Example
+    -------
+    >>> moving_average(np.array([[1.0], [3.0], [5.0]]), 2).ravel().tolist()
+    [1.0, 2.0, 4.0]
+    """
     if n <= 1:
         return np.asarray(values, dtype=np.float64)
     c = np.cumsum(np.vstack([np.zeros((1, values.shape[1])), values]), axis=0)

@@ -64,7 +64,15 @@ def parameter_steps(model: PlantModel, faults: Iterable[str | Fault]) -> tuple[P
 
 def time_grid(model: PlantModel, duration: float | None = None,
               sample_rate: float | None = None) -> FloatArray:
-    """Sample times of the built-in test [s]."""
+    """Sample times of the built-in test [s].
+
+    Example
+    -------
+    >>> from condmon.models.declared import load_plant_model
+    >>> t = time_grid(load_plant_model("hst"))
+    >>> len(t), float(t[-1])
+    (3001, 30.0)
+    """
     d = model.test.duration if duration is None else duration
     fs = model.test.sample_rate if sample_rate is None else sample_rate
     n = int(round(d * fs)) + 1
@@ -77,6 +85,14 @@ def input_signals(model: PlantModel, t: FloatArray, record: pd.DataFrame | None 
 
     A column of the record named like the input is used as it is; otherwise the
     input is its nominal value with the test's schedule of known steps.
+
+    Example
+    -------
+    >>> from condmon.models.declared import load_plant_model
+    >>> m = load_plant_model("hst")
+    >>> u = input_signals(m, time_grid(m))
+    >>> u[[0, -1], 0].tolist()      # nominal pump speed, then 75 % from 20 s [rad/s]
+    [152.0, 114.0]
     """
     u = np.empty((len(t), len(model.inputs)), dtype=np.float64)
     for j, name in enumerate(model.input_names):
@@ -149,6 +165,16 @@ def integrate(compiled: CompiledModel, t: FloatArray, u: FloatArray,
     -------
     ndarray
         Integrated states as computed, measured ones as given.
+
+
+    Example
+    -------
+    >>> from condmon.models.declared import load_plant_model
+    >>> m = load_plant_model("hst")
+    >>> t = time_grid(m)
+    >>> x = integrate(m.compile(), t, input_signals(m, t))
+    >>> round(float(x[1999, 0]) / 1e5, 1), round(float(x[1999, 2]), 1)   # Ps [bar], omega_m [rad/s]
+    (39.4, 14.4)
     """
     model = compiled.model
     names = model.state_names

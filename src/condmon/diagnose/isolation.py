@@ -41,9 +41,7 @@ from condmon.identify.steady_state import (
     SteadyStateEstimate, estimate_steady_state, steady_windows,
 )
 from condmon.models.declared import PlantModel
-from condmon.simulate.plant import (
-    ParameterStep, input_signals, integrate, sensor_readings, simulate_plant,
-)
+from condmon.simulate.plant import ParameterStep, integrate, sensor_readings, simulate_plant
 
 __all__ = ["IsolationSettings", "SuspectTask", "IsolationResult", "simulate_suspect",
            "isolate", "healthy_normalisation"]
@@ -266,10 +264,9 @@ def isolate(record: pd.DataFrame, model: PlantModel, *,
         return IsolationResult(model.name, False, None, None, (), fsm, (), empty, empty, (),
                                "no fault detected", res, norm, det, empty, None, noise)
     sus = suspects(fsm, det.fired)
-    t = res.t
-    u = input_signals(model, t, record)
+    t, u = res.t, res.inputs
     y = record[list(model.sensor_names)].to_numpy(dtype=np.float64)
-    x_nominal = integrate(model.compile(), t, u)
+    x_nominal = res.states if res.states is not None else integrate(model.compile(), t, u)
     windows = steady_windows(t, u, y, x_nominal, det.time, settings.estimation_settle,
                              settings.min_window, noise)
     estimates = {p: estimate_steady_state(model, p, windows) for p in sus}
@@ -280,9 +277,7 @@ def isolate(record: pd.DataFrame, model: PlantModel, *,
     compare_from = det.time + settings.compare_settle
     mask = t >= compare_from
     errors: dict[str, float] = {}
-    for p in sus:
-        if mask.sum() == 0:
-            break
+    for p in sus if mask.any() else ():
         e = (y[mask] - outputs[p][mask]) / noise
         errors[p] = float(math.sqrt(np.mean(e ** 2)))
     isolated, statement = _conclude(sus, estimates, errors, int(mask.sum()) * y.shape[1],
@@ -304,10 +299,9 @@ def _sensor_noise(model: PlantModel, norm: Normalisation, gens: Sequence[Any]) -
 
 def _run(tasks: Sequence[SuspectTask], workers: int | None) -> list[FloatArray]:
     n = min(len(tasks), workers if workers is not None else (os.cpu_count() or 1))
-    if n <= 1 or len(tasks) <= 1:
+    if n <= 1:
         return [simulate_suspect(task) for task in tasks]
-    if tasks:
-        tasks[0].model.compile()  # forked workers inherit the compiled model
+    tasks[0].model.compile()  # forked workers inherit the compiled model
     method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
     with ProcessPoolExecutor(max_workers=n, mp_context=multiprocessing.get_context(method)) as pool:
         return list(pool.map(simulate_suspect, tasks))

@@ -114,6 +114,9 @@ class Residuals:
         The model's prediction. [sensor unit]
     inputs : ndarray, shape (n, n_inputs)
         The known inputs: they define the operating point. [input units]
+    states : ndarray, shape (n, n_states), or None
+        The model's states when run from the known inputs alone (None when no
+        residual did so). [state units]
     """
 
     t: FloatArray
@@ -122,6 +125,7 @@ class Residuals:
     values: FloatArray
     predicted: FloatArray
     inputs: FloatArray
+    states: FloatArray | None = None
 
 
 @dataclass(frozen=True)
@@ -266,6 +270,7 @@ def compute_residuals(model: PlantModel, record: pd.DataFrame, generators: Seque
     values = np.empty((len(t), len(generators)))
     predicted = np.empty_like(values)
     runs: dict[tuple[tuple[str, ...], tuple[str, ...]], FloatArray] = {}
+    full: FloatArray | None = None
     for j, g in enumerate(generators):
         key = (g.integrated, g.inputs)
         if key not in runs:
@@ -273,11 +278,13 @@ def compute_residuals(model: PlantModel, record: pd.DataFrame, generators: Seque
                         for s in g.inputs}
             x = integrate(compiled, t, u, steps, params, measured, g.integrated)
             runs[key] = sensor_readings(compiled, x, u, steps, t, params)
+            if not g.inputs and g.integrated == model.state_names:
+                full = x
         k = model.sensor_names.index(g.sensor)
         predicted[:, j] = runs[key][:, k]
         values[:, j] = record[g.sensor].to_numpy(dtype=np.float64) - predicted[:, j]
     return Residuals(t, tuple(g.name for g in generators), tuple(g.sensor for g in generators),
-                     values, predicted, u)
+                     values, predicted, u, full)
 
 
 def _measured_state(model: PlantModel, sensor: str) -> str:

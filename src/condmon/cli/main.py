@@ -32,7 +32,6 @@ baseline_app = typer.Typer(no_args_is_help=True, help="Build a unit's healthy ba
 app.add_typer(baseline_app, name="baseline")
 register_plant_commands(app, simulate_app)
 
-_fmt, _write_json, _progress = fmt, write_json, progress
 
 
 @app.command("estimate")
@@ -49,14 +48,14 @@ def estimate_cmd(
     """Estimate the physical parameters of one test record."""
     res, _ = _options(method, gamma, excitation, columns, fit_threshold, model).run(record)
     if as_json:
-        _write_json(res.to_dict())
+        write_json(res.to_dict())
         return
     table = Table(title=f"{record} — {res.method.upper()}, "
                         f"{'closed-loop instruments' if res.closed_loop_instruments else 'direct approach'}")
     for col in ("parameter", "value", "std error", "unit"):
         table.add_column(col, justify="right" if col != "parameter" else "left")
     for k, v in res.parameters.items():
-        table.add_row(k, _fmt(v), _fmt(res.std_errors[k]), res.units[k])
+        table.add_row(k, fmt(v), fmt(res.std_errors[k]), res.units[k])
     out.print(table)
     fits = ", ".join(f"{k} {v:.1f} %" for k, v in res.fit.fits_percent.items())
     verdict = "[green]accepted[/green]" if res.accepted else f"[red]rejected[/red]: {res.reason}"
@@ -82,7 +81,7 @@ def simulate_actuator_cmd(
     rig = load_actuator_rig(params, fault or ())
     rec = simulate_actuator(rig, seed=seed, linear=linear)
     write_record(rec, out_path)
-    truth = ", ".join(f"{k}={_fmt(v)}" for k, v in rig.physical().items())
+    truth = ", ".join(f"{k}={fmt(v)}" for k, v in rig.physical().items())
     err.print(f"wrote {len(rec)} samples to {out_path} ({truth})")
 
 
@@ -94,7 +93,7 @@ def demo_cmd(
     """Reproduce the reference experiments on the simulated test-bed and write a report."""
     from condmon.demo import run_demo
 
-    with _progress() as prog:
+    with progress() as prog:
         task = prog.add_task("simulating and checking tests", total=None)
 
         def tick(done: int, total: int, label: str) -> None:
@@ -125,7 +124,7 @@ def demo_cmd(
             found, est = iso.result, iso.result.estimates.get(iso.parameter)
             table.add_row(iso.fault, "no" if found.detection_time is None
                           else f"{found.detection_time:.2f} s", ", ".join(found.isolated) or "—",
-                          "—" if est is None else f"{_fmt(est.value)} ({_fmt(iso.true_value)})")
+                          "—" if est is None else f"{fmt(est.value)} ({fmt(iso.true_value)})")
         out.print(table)
     out.print(f"history: {res.database}")
     out.print(f"report:  {res.report}  (open it in a browser)")
@@ -178,7 +177,7 @@ def baseline_add_cmd(
     opts = _options(method, gamma, excitation, columns, fit_threshold)
     with open_store(db) as store:
         if len(records) > 1:
-            with _progress() as prog:
+            with progress() as prog:
                 task = prog.add_task("estimating", total=len(records))
 
                 def tick(done: int, total: int, label: str) -> None:
@@ -199,7 +198,7 @@ def baseline_add_cmd(
         for col in ("parameter", "mean", "std", "std %"):
             table.add_column(col, justify="left" if col == "parameter" else "right")
         for p, m, sd in zip(res.baseline.parameters, res.baseline.mean, res.baseline.std):
-            table.add_row(p, _fmt(m), _fmt(sd), f"{100 * sd / abs(m):.2f}")
+            table.add_row(p, fmt(m), fmt(sd), f"{100 * sd / abs(m):.2f}")
         out.print(table)
 
 
@@ -228,7 +227,7 @@ def check_cmd(
     with open_store(db) as store:
         res = check_test(store, unit, record, opts, cfg, rb)
     if as_json:
-        _write_json(res.to_dict())
+        write_json(res.to_dict())
         return
     out.print(f"{unit} — {record}: {_status_text(res.status)}  "
               f"(fit {res.estimate.fit_percent:.1f} %, test #{res.test_id})")
@@ -240,7 +239,7 @@ def check_cmd(
         table.add_column(col, justify="left" if col == "parameter" else "right")
     for p, v in res.estimate.parameters.items():
         sym = res.symptoms.get(p, {"high": 0.0, "low": 0.0})
-        table.add_row(p, _fmt(v), f"{res.percent_change[p]:+.1f}", f"{sym['high']:.2f}", f"{sym['low']:.2f}")
+        table.add_row(p, fmt(v), f"{res.percent_change[p]:+.1f}", f"{sym['high']:.2f}", f"{sym['low']:.2f}")
     out.print(table)
     if res.diagnosis.no_fault:
         out.print("no fault")

@@ -100,7 +100,7 @@ def test_rejected_fit_exits_zero(rig: ActuatorRig, tmp_path: Path,
 
 @pytest.mark.parametrize("args,message", [
     (["estimate", "missing.csv"], "missing.csv: file not found"),
-    (["estimate", "{rec}", "--method", "oe"], "unknown --method 'oe'; allowed: sriv, iv, arx"),
+    (["estimate", "{rec}", "--method", "bogus"], "unknown --method 'bogus'; allowed: sriv, oe, iv, arx"),
     (["estimate", "{rec}", "--columns", "V=watts"], "column mapping names ['watts'] not in the file"),
     (["estimate", "{rec}", "--excitation", "xx"], "missing column(s) 'xx'"),
     (["simulate", "actuator", "--out", "{tmp}/x.csv", "--fault", "R+4"], "cannot read fault 'R+4'"),

@@ -174,8 +174,8 @@ def test_physical_parameters_round_trip_through_discrete_model() -> None:
 
 def test_unknown_method_and_model_are_named() -> None:
     rec = condmon.simulate_actuator(seed=0)
-    with pytest.raises(ModelError, match="allowed: sriv, iv, arx"):
-        estimate(rec, method="oe")
+    with pytest.raises(ModelError, match="allowed: sriv, oe, iv, arx"):
+        estimate(rec, method="ml")
     with pytest.raises(ModelError, match="allowed: dc-motor"):
         estimate(rec, model="pump")
 

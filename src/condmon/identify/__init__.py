@@ -4,7 +4,9 @@ Estimators share their leading arguments ``(u, y, order, *, dt, ...)``:
 
 - :func:`arx` — least squares (biased by output noise; a baseline).
 - :func:`iv` — basic instrumental variables.
-- :func:`sriv` — simplified refined IV (Young): the default.
+- :func:`sriv` — simplified refined IV (Young): the default; falls back to the
+  output-error refinement when its iterations fail.
+- :func:`oe` — output error (maximum likelihood), started from SRIV.
 - :func:`rls`, :func:`riv` — recursive LS / IV with a prior.
 
 Closed-loop data: pass the external excitation signals as ``excitation`` and the
@@ -18,12 +20,15 @@ from condmon.identify.estimate import (
 )
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD, FitCheck, fit_check
 from condmon.identify.ls import arx, iv
+from condmon.identify.oe import oe
+from condmon.identify.refine import OutputErrorFit, refine_output_error
 from condmon.identify.recursive import RecursiveEstimate, riv, rls
 from condmon.identify.sriv import sriv
 
 __all__ = [
     "TFEstimate", "RecursiveEstimate", "EstimateResult", "FitCheck",
-    "arx", "iv", "sriv", "rls", "riv", "noise_free_input",
+    "arx", "iv", "sriv", "oe", "rls", "riv", "noise_free_input",
+    "OutputErrorFit", "refine_output_error",
     "fit_check", "DEFAULT_FIT_THRESHOLD", "estimate", "estimate_record",
     "list_estimators", "DEFAULT_EXCITATION",
 ]

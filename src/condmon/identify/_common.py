@@ -21,7 +21,7 @@ from condmon.errors import DataError, EstimationError, ModelError
 from condmon.models.transfer import DiscreteTF
 
 __all__ = ["TFEstimate", "prepare", "normal_equations", "to_model", "stabilise",
-           "simulate_outputs"]
+           "simulate_outputs", "covariance", "log_oe_cost"]
 
 FloatArray = NDArray[np.float64]
 
@@ -53,6 +53,10 @@ class TFEstimate:
         Samples used.
     notes : tuple of str
         Anything the user should know about this estimate.
+    path : str
+        The route that produced the estimate, e.g. ``"sriv"`` or
+        ``"sriv -> oe"`` when the output-error refinement took over (the reason
+        is in ``notes``). Empty means ``method``.
     """
 
     model: DiscreteTF
@@ -65,6 +69,12 @@ class TFEstimate:
     closed_loop_instruments: bool = False
     n_samples: int = 0
     notes: tuple[str, ...] = field(default=())
+    path: str = ""
+
+    @property
+    def route(self) -> str:
+        """The route taken (``path``, or ``method`` for one-step estimators)."""
+        return self.path or self.method
 
     @property
     def std_errors(self) -> FloatArray:
@@ -75,6 +85,7 @@ class TFEstimate:
         """JSON-ready summary."""
         return {
             "method": self.method,
+            "path": self.route,
             "theta": self.theta.tolist(),
             "std_errors": self.std_errors.tolist(),
             "noise_variance": dict(zip(self.model.outputs, self.noise_variance.tolist())),
@@ -160,9 +171,13 @@ def normal_equations(sig: FloatArray, m: int, order: int, weights: FloatArray
 
 
 def solve(R: FloatArray, r: FloatArray) -> FloatArray:
-    """Solve the normal equations, refusing a singular system."""
-    cond = np.linalg.cond(R)
-    if not np.isfinite(cond) or cond > 1e14:
+    """Solve the normal equations, refusing a singular or non-finite system."""
+    if not (_well_conditioned(R) and np.all(np.isfinite(r))):
+        with np.errstate(all="ignore"):
+            try:
+                cond = float(np.linalg.cond(R)) if np.all(np.isfinite(R)) else float("inf")
+            except np.linalg.LinAlgError:
+                cond = float("inf")
         raise EstimationError(
             f"normal equations are singular (condition number {cond:.3g}): the input "
             "does not excite the model, or the order is too high"
@@ -181,22 +196,73 @@ def to_model(theta: FloatArray, order: int, dt: float, outputs: tuple[str, ...],
     return DiscreteTF(den, nums, dt, outputs, input_name)
 
 
+#: Largest pole radius a stabilised denominator keeps (a pole reflected onto or
+#: beyond it is pulled just inside the unit circle).
+MAX_RADIUS = 1.0 - 1e-6
+
+
 def stabilise(den: FloatArray) -> FloatArray:
-    """Reflect roots outside the unit circle into it (keeps the prefilter stable)."""
+    """Reflect roots outside the unit circle into it (keeps the prefilter stable).
+
+    A root ``r`` with ``|r| >= 1`` becomes ``1/conj(r)``, the root with the same
+    spectral magnitude inside the circle; a root on the circle (an integrator)
+    is pulled to radius :data:`MAX_RADIUS`.
+
+    Raises
+    ------
+    EstimationError
+        When the coefficients are not finite (a diverged iterate).
+    """
+    if not np.all(np.isfinite(den)):
+        raise EstimationError("the estimate diverged (non-finite denominator)")
     roots = np.roots(den)
     mag = np.abs(roots)
     if np.all(mag < 1.0):
         return den
-    roots = np.where(mag >= 1.0, 1.0 / np.conj(roots) * 0.999, roots)
-    return np.real(np.poly(roots))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inside = np.where(mag >= 1.0, 1.0 / np.conj(roots), roots)
+    mag_in = np.abs(inside)
+    inside = np.where(mag_in > MAX_RADIUS, inside * (MAX_RADIUS / np.maximum(mag_in, 1e-300)),
+                      inside)
+    return np.real(np.poly(inside)) * den[0]
+
+
+def covariance(R: FloatArray, S: FloatArray) -> FloatArray:
+    """IV covariance ``R⁻¹ S R⁻ᵀ``, refusing a singular ``R``."""
+    Ri = np.linalg.solve(R, np.eye(R.shape[0])) if _well_conditioned(R) else None
+    if Ri is None:
+        raise EstimationError("the instrumental-variable matrix is singular: the data "
+                              "do not determine the model")
+    return np.asarray(Ri @ S @ Ri.T, dtype=np.float64)
+
+
+def _well_conditioned(R: FloatArray) -> bool:
+    with np.errstate(all="ignore"):
+        if not np.all(np.isfinite(R)):
+            return False
+        try:
+            cond = float(np.linalg.cond(R))
+        except np.linalg.LinAlgError:
+            return False
+    return bool(np.isfinite(cond) and cond < 1e14)
+
+
+def log_oe_cost(sig2: FloatArray) -> float:
+    """Output-error criterion ``Σ_j log σ_j²`` (Gaussian likelihood, unknown
+    variance per output; independent of the outputs' units). inf when not finite."""
+    with np.errstate(all="ignore"):
+        v = float(np.sum(np.log(np.maximum(sig2, 1e-300))))
+    return v if np.isfinite(v) else float("inf")
 
 
 def simulate_outputs(theta: FloatArray, order: int, u: FloatArray, m: int) -> FloatArray:
     """Noise-free outputs ``B_j/A u`` of a parameter vector, shape (N, m)."""
     n = order
-    x = lfilter([1.0], np.r_[1.0, theta[:n]], u)
-    N = x.size
-    X = np.zeros((N, n))
-    for d in range(1, n + 1):
-        X[d:, d - 1] = x[: N - d]
-    return np.asarray(X @ theta[n:].reshape(m, n).T, dtype=np.float64)
+    # An unstable iterate overflows: the caller sees inf/NaN and handles it.
+    with np.errstate(all="ignore"):
+        x = lfilter([1.0], np.r_[1.0, theta[:n]], u)
+        N = x.size
+        X = np.zeros((N, n))
+        for d in range(1, n + 1):
+            X[d:, d - 1] = x[: N - d]
+        return np.asarray(X @ theta[n:].reshape(m, n).T, dtype=np.float64)

@@ -19,6 +19,7 @@ from condmon.errors import ModelError
 from condmon.identify._common import TFEstimate
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD, FitCheck, fit_check
 from condmon.identify.ls import arx, iv
+from condmon.identify.oe import oe
 from condmon.identify.sriv import sriv
 from condmon.io.records import Record, validate_record
 from condmon.models.conversion import tf_d2c
@@ -40,7 +41,7 @@ class Estimator(Protocol):
                  input_name: str = ...) -> TFEstimate: ...
 
 
-_ESTIMATORS: dict[str, Estimator] = {"sriv": sriv, "iv": iv, "arx": arx}
+_ESTIMATORS: dict[str, Estimator] = {"sriv": sriv, "oe": oe, "iv": iv, "arx": arx}
 
 
 def list_estimators() -> list[str]:
@@ -141,6 +142,7 @@ class EstimateResult:
             "accepted": self.accepted,
             "reason": self.reason,
             "method": self.discrete.method,
+            "path": self.discrete.route,
             "closed_loop_instruments": self.discrete.closed_loop_instruments,
             "iterations": self.discrete.iterations,
             "converged": self.discrete.converged,
@@ -180,8 +182,10 @@ def estimate(record: pd.DataFrame, model: str = "dc-motor", *, method: str = "sr
         ``I`` [A], ``omega`` [rad/s]); optionally the excitation signals.
     model : str
         Physical model, see :func:`condmon.models.list_models`.
-    method : {"sriv", "iv", "arx"}
-        Estimator.
+    method : {"sriv", "oe", "iv", "arx"}
+        Estimator: SRIV (falls back to output-error refinement when its
+        iterations fail), output error (maximum likelihood, started from SRIV),
+        basic IV, least squares.
     gamma : float, optional
         Ke/Kt; the model's configured default if omitted. [-]
     excitation : "auto", sequence of str or None

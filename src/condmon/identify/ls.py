@@ -103,8 +103,10 @@ def simulate_fir(theta: FloatArray, n: int, u: FloatArray, m: int) -> FloatArray
 def output_error_variance(theta: FloatArray, n: int, u: FloatArray,
                           y: FloatArray) -> FloatArray:
     """Variance of ``y - B/A u`` per output (the simulation residual)."""
-    e = y - simulate_outputs(theta, n, u, y.shape[1])
-    return np.asarray(np.var(e[n:], axis=0), dtype=np.float64)
+    with np.errstate(all="ignore"):
+        e = y - simulate_outputs(theta, n, u, y.shape[1])
+        v = np.var(e[n:], axis=0)
+    return np.asarray(np.where(np.isfinite(v), v, np.inf), dtype=np.float64)
 
 
 def iv(u: ArrayLike, y: ArrayLike, order: int, *, dt: float = 1.0,

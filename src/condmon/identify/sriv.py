@@ -12,6 +12,14 @@ outputs with their common denominator, (4) re-estimate each output's noise
 variance from its simulation residual. Stops when the relative change of the
 parameters falls below ``tol`` or at ``max_iter``.
 
+Robustness: the start (least squares) and every iterate have their
+denominator stabilised by reflecting poles into the unit circle, so no
+auxiliary model or prefilter can diverge. An iteration that fails (singular
+equations, non-finite output) ends the loop at the best iterate so far (the
+lowest output-error criterion ``Σ log σ_j²``). When the loop fails or does not
+converge, the output-error refinement (:mod:`condmon.identify.refine`) takes
+over from that iterate and the route is reported (``path`` "sriv -> oe").
+
 References
 ----------
 .. [1] P. C. Young, "The instrumental variable method: a practical approach to
@@ -23,25 +31,110 @@ References
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 from scipy.signal import lfilter
 
-from condmon.errors import ConvergenceWarning
+from condmon.errors import ConvergenceWarning, EstimationError
 from condmon.identify._common import (
-    TFEstimate, normal_equations, prepare, simulate_outputs, solve, stabilise, to_model,
+    TFEstimate, covariance, log_oe_cost, normal_equations, prepare, simulate_outputs,
+    solve, stabilise, to_model,
 )
 from condmon.identify.closed_loop import noise_free_input
 from condmon.identify.ls import _names, arx_theta, output_error_variance
+from condmon.identify.refine import refine_output_error
 
-__all__ = ["sriv"]
+__all__ = ["sriv", "sriv_iterations", "SrivIterations"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class SrivIterations:
+    """Outcome of the SRIV iterations (before any fallback).
+
+    Attributes
+    ----------
+    theta : ndarray
+        The last iterate if converged, else the best one (lowest ``Σ log σ_j²``).
+    covariance : ndarray or None
+        ``R⁻¹ S R⁻ᵀ`` of ``theta`` (None when it could not be formed).
+    noise_variance : ndarray
+        Output-error variance per output. [output unit^2]
+    iterations : int
+        Iterations run.
+    converged : bool
+        Whether ``|Δθ|/|θ| < tol`` was met.
+    failure : str or None
+        Why the loop stopped early (singular equations, non-finite output).
+    """
+
+    theta: FloatArray
+    covariance: FloatArray | None
+    noise_variance: FloatArray
+    iterations: int
+    converged: bool
+    failure: str | None
+
+
+def _stable_theta(theta: FloatArray, n: int) -> FloatArray:
+    return np.r_[stabilise(np.r_[1.0, theta[:n]])[1:], theta[n:]]
+
+
+def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *,
+                    tol: float = 1e-6, max_iter: int = 30) -> SrivIterations:
+    """The SRIV loop on prepared arrays (``u`` (N,), ``y`` (N, m), instrument input ``u_i``).
+
+    Raises
+    ------
+    EstimationError
+        Only when not even the least-squares start exists.
+    """
+    m = y.shape[1]
+    theta = _stable_theta(arx_theta(u, y, order), order)
+    sig2 = output_error_variance(theta, order, u, y)
+    best = (log_oe_cost(sig2), theta, sig2, None)
+    cov: FloatArray | None = None
+    converged = False
+    failure: str | None = None
+    it = 0
+    for it in range(1, max_iter + 1):
+        den = np.r_[1.0, theta[:order]]
+        x = simulate_outputs(theta, order, u_i, m)
+        # One filter call for every signal: [y, u, x, u_i] -> prefiltered by 1/Â.
+        with np.errstate(all="ignore"):
+            sig = lfilter([1.0], den, np.column_stack([y, u, x, u_i]), axis=0)
+        weights = 1.0 / np.maximum(sig2, 1e-300)
+        try:
+            if not np.all(np.isfinite(sig)):
+                raise EstimationError("the prefiltered signals are not finite")
+            R, r, S, _ = normal_equations(sig, m, order, weights)
+            raw = solve(R, r)
+            cov = covariance(R, S)
+            new = _stable_theta(raw, order)
+        except EstimationError as err:
+            failure = f"iteration {it}: {err}"
+            break
+        change = float(np.linalg.norm(new - theta)) / max(float(np.linalg.norm(new)), 1e-300)
+        theta = new
+        sig2 = output_error_variance(theta, order, u, y)
+        cost = log_oe_cost(sig2)
+        if cost < best[0]:
+            best = (cost, theta, sig2, cov)
+        if change < tol:
+            converged = True
+            break
+    if converged:
+        return SrivIterations(theta, cov, sig2, it, True, None)
+    return SrivIterations(best[1], best[3], best[2], it, False, failure)
 
 
 def sriv(u: ArrayLike, y: ArrayLike, order: int, *, dt: float = 1.0,
          excitation: ArrayLike | None = None, outputs: tuple[str, ...] | None = None,
          input_name: str = "u", tol: float = 1e-6, max_iter: int = 30,
-         warn: bool = True) -> TFEstimate:
+         refine: bool = True, warn: bool = True) -> TFEstimate:
     """SRIV estimate of a common-denominator transfer function.
 
     Parameters
@@ -68,14 +161,25 @@ def sriv(u: ArrayLike, y: ArrayLike, order: int, *, dt: float = 1.0,
         Convergence threshold on ``|Δθ| / |θ|``.
     max_iter : int
         Iteration cap.
+    refine : bool
+        When the iterations fail or do not converge, refine the best iterate by
+        output-error minimisation (the default). False: return the best iterate
+        as it is (noted, and warned when ``warn``).
     warn : bool
-        Issue a :class:`ConvergenceWarning` when the cap is reached.
+        Issue a :class:`ConvergenceWarning` when the cap is reached and no
+        refinement is made.
 
     Returns
     -------
     TFEstimate
-        With ``iterations``, ``converged`` and the covariance
-        ``R⁻¹ S R⁻ᵀ`` (``R = Σ w ζφᵀ``, ``S = Σ w ζζᵀ``, ``w = 1/σ²``).
+        With ``iterations``, ``converged``, the covariance ``R⁻¹ S R⁻ᵀ``
+        (``R = Σ w ζφᵀ``, ``S = Σ w ζζᵀ``, ``w = 1/σ²``) and ``path``: "sriv",
+        or "sriv -> oe" when the refinement took over (the reason in ``notes``).
+
+    Raises
+    ------
+    EstimationError
+        When neither the iterations nor the refinement give a model.
 
     Example
     -------
@@ -90,38 +194,38 @@ def sriv(u: ArrayLike, y: ArrayLike, order: int, *, dt: float = 1.0,
     m = y_a.shape[1]
     closed = excitation is not None
     u_i = u_a if excitation is None else noise_free_input(u_a, excitation)
-
-    theta = arx_theta(u_a, y_a, order)
-    sig2 = output_error_variance(theta, order, u_a, y_a)
-    converged = False
-    it = 0
-    R = S = np.eye(theta.size)
-    for it in range(1, max_iter + 1):
-        den = stabilise(np.r_[1.0, theta[:order]])
-        theta_s = np.r_[den[1:], theta[order:]]
-        x = simulate_outputs(theta_s, order, u_i, m)
-        # One filter call for every signal: [y, u, x, u_i] -> prefiltered by 1/Â.
-        sig = lfilter([1.0], den, np.column_stack([y_a, u_a, x, u_i]), axis=0)
-        weights = 1.0 / np.maximum(sig2, 1e-300)
-        R, r, S, _ = normal_equations(sig, m, order, weights)
-        new = solve(R, r)
-        change = float(np.linalg.norm(new - theta)) / max(float(np.linalg.norm(new)), 1e-300)
-        theta = new
-        sig2 = output_error_variance(theta, order, u_a, y_a)
-        if change < tol:
-            converged = True
-            break
-    Ri = np.linalg.inv(R)
-    cov = Ri @ S @ Ri.T
+    names = _names(outputs, m)
+    its = sriv_iterations(u_a, y_a, order, u_i, tol=tol, max_iter=max_iter)
     notes: list[str] = []
     if not closed:
         notes.append("direct approach: input taken as noise-free")
-    if not converged:
-        notes.append(f"not converged after {max_iter} iterations")
+    if its.converged and its.covariance is not None:
+        return TFEstimate(to_model(its.theta, order, dt, names, input_name), its.theta,
+                          its.covariance, its.noise_variance, "sriv",
+                          iterations=its.iterations, converged=True,
+                          closed_loop_instruments=closed, n_samples=u_a.size,
+                          notes=tuple(notes), path="sriv")
+    why = its.failure or f"not converged after {max_iter} iterations"
+    if not refine:
+        if its.covariance is None:
+            raise EstimationError(f"SRIV failed ({why})")
+        notes.append(why)
         if warn:
-            warnings.warn(f"SRIV did not converge in {max_iter} iterations",
-                          ConvergenceWarning, stacklevel=2)
-    return TFEstimate(to_model(theta, order, dt, _names(outputs, m), input_name), theta,
-                      cov, sig2, "sriv", iterations=it, converged=converged,
+            warnings.warn(f"SRIV: {why}", ConvergenceWarning, stacklevel=2)
+        return TFEstimate(to_model(its.theta, order, dt, names, input_name), its.theta,
+                          its.covariance, its.noise_variance, "sriv",
+                          iterations=its.iterations, converged=False,
+                          closed_loop_instruments=closed, n_samples=u_a.size,
+                          notes=tuple(notes), path="sriv")
+    try:
+        fit = refine_output_error(u_a, y_a, order, its.theta)
+    except EstimationError as err:
+        raise EstimationError(f"SRIV failed ({why}) and so did the output-error "
+                              f"refinement ({err})") from None
+    notes.append(f"SRIV {why}; output-error refinement (measured input) from its best "
+                 f"iterate ({fit.evaluations} evaluations)")
+    return TFEstimate(to_model(fit.theta, order, dt, names, input_name), fit.theta,
+                      fit.covariance, output_error_variance(fit.theta, order, u_a, y_a),
+                      "sriv", iterations=its.iterations, converged=fit.success,
                       closed_loop_instruments=closed, n_samples=u_a.size,
-                      notes=tuple(notes))
+                      notes=tuple(notes), path="sriv -> oe")

@@ -7,6 +7,7 @@ physical parameters with standard errors.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -15,7 +16,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 
-from condmon.errors import ModelError
+from condmon.errors import EstimationError, ModelError
 from condmon.identify._common import TFEstimate
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD, FitCheck, fit_check
 from condmon.identify.ls import arx, iv
@@ -227,11 +228,26 @@ def estimate_record(rec: Record, model: str = "dc-motor", *, method: str = "sriv
     """:func:`estimate` on an already validated :class:`~condmon.io.Record`."""
     spec = get_model(model)
     g = spec.gamma if gamma is None else float(gamma)
+    if not (math.isfinite(g) and g > 0):
+        raise ModelError(f"gamma (Ke/Kt) must be a positive number, got {g!r}")
+    if not (math.isfinite(fit_threshold) and 0.0 <= fit_threshold <= 100.0):
+        raise ModelError(f"the fit threshold must be in 0..100 %, got {fit_threshold!r}")
+    spec.plausibility.check_timing(rec.dt, rec.dt * len(rec), rec.source, spec.name)
     u = rec[spec.input]
     y = rec.stack(spec.outputs)
     r = rec.stack(excitation) if excitation else None
-    est = _ESTIMATORS[method](u, y, spec.order, dt=rec.dt, excitation=r,
-                              outputs=spec.outputs, input_name=spec.input)
+    try:
+        with np.errstate(over="raise", invalid="raise", divide="raise"):
+            est = _ESTIMATORS[method](u, y, spec.order, dt=rec.dt, excitation=r,
+                                      outputs=spec.outputs, input_name=spec.input)
+    except EstimationError as err:
+        raise EstimationError(f"{rec.source}: {err}") from None
+    except (ArithmeticError, np.linalg.LinAlgError, ValueError) as err:
+        if isinstance(err, ModelError):
+            raise
+        # The estimators guard every step; this is the last line, never a traceback.
+        raise EstimationError(f"{rec.source}: the estimate failed numerically "
+                              f"({type(err).__name__}: {err})") from None
     fit = fit_check(est.model, u, y, fit_threshold)
     names = spec.parameters
     cont: ContinuousTF | None = None
@@ -244,6 +260,10 @@ def estimate_record(rec: Record, model: str = "dc-motor", *, method: str = "sriv
         values = np.full(len(names), np.nan)
         pcov = np.full((len(names), len(names)), np.nan)
     se = np.sqrt(np.clip(np.diag(pcov), 0.0, None))
+    if rejection is None:
+        rejection = spec.plausibility.check_values(dict(zip(names, values)), spec.units)
+    if rejection is None and not np.all(np.isfinite(se)):
+        rejection = "the standard errors are not finite: the data do not determine the model"
     return EstimateResult(
         parameters={k: float(v) for k, v in zip(names, values)},
         std_errors={k: float(v) for k, v in zip(names, se)},

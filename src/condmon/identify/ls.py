@@ -7,7 +7,8 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.signal import lfilter
 
 from condmon.identify._common import (
-    TFEstimate, normal_equations, prepare, simulate_outputs, solve, to_model,
+    TFEstimate, covariance, normal_equations, prepare, simulate_outputs, solve, stabilise,
+    to_model,
 )
 from condmon.identify.closed_loop import noise_free_input
 
@@ -69,7 +70,7 @@ def arx(u: ArrayLike, y: ArrayLike, order: int, *, dt: float = 1.0,
     R, r, _, _ = normal_equations(sig, m, order, weights)
     theta = solve(R, r)
     sig2 = _equation_error_variance(theta, order, u_a, y_a)
-    cov = np.asarray(np.linalg.inv(R), dtype=np.float64)
+    cov = np.asarray(np.linalg.solve(R, np.eye(R.shape[0])), dtype=np.float64)
     notes = ("least squares: input taken as noise-free"
              + ("; excitation signals ignored" if excitation is not None else ""),)
     return TFEstimate(to_model(theta, order, dt, _names(outputs, m), input_name), theta,
@@ -143,6 +144,8 @@ def iv(u: ArrayLike, y: ArrayLike, order: int, *, dt: float = 1.0,
     closed = excitation is not None
     u_i = u_a if excitation is None else noise_free_input(u_a, excitation)
     first = arx_theta(u_a, y_a, order)
+    # The auxiliary model must simulate: reflect an unstable least-squares pole.
+    first = np.r_[stabilise(np.r_[1.0, first[:order]])[1:], first[order:]]
     x = simulate_outputs(first, order, u_i, m)
     weights = 1.0 / np.maximum(_equation_error_variance(first, order, u_a, y_a), 1e-300)
     sig = np.column_stack([y_a, u_a, x, u_i])
@@ -151,8 +154,7 @@ def iv(u: ArrayLike, y: ArrayLike, order: int, *, dt: float = 1.0,
     sig2 = output_error_variance(theta, order, u_a, y_a)
     weights = 1.0 / np.maximum(sig2, 1e-300)
     R, _, S, _ = normal_equations(sig, m, order, weights)
-    Ri = np.linalg.inv(R)
-    cov = Ri @ S @ Ri.T
+    cov = covariance(R, S)
     notes = () if closed else ("direct approach: input taken as noise-free",)
     return TFEstimate(to_model(theta, order, dt, _names(outputs, m), input_name), theta,
                       cov, sig2, "iv", closed_loop_instruments=closed,

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 from condmon.errors import ModelError
 from condmon.io.config import load_default
 from condmon.models.dc_motor import PARAMETER_NAMES, PARAMETER_UNITS, dc_motor_from_discrete
+from condmon.models.plausibility import Plausibility, parse_plausibility
 from condmon.models.transfer import DiscreteTF
 
 __all__ = ["PhysicalModel", "get_model", "list_models"]
@@ -40,6 +41,9 @@ class PhysicalModel:
         Default model constant (Ke/Kt for the DC motor).
     from_discrete : callable
         ``(model, covariance, gamma) -> (values, covariance)``.
+    plausibility : Plausibility
+        What is physically possible: parameter bounds, record timing, the
+        believable change against a baseline.
     """
 
     name: str
@@ -50,6 +54,7 @@ class PhysicalModel:
     units: dict[str, str]
     gamma: float
     from_discrete: Callable[[DiscreteTF, FloatArray, float], tuple[FloatArray, FloatArray]]
+    plausibility: Plausibility = field(default_factory=Plausibility)
 
 
 def _dc_motor(model: DiscreteTF, cov: FloatArray, gamma: float
@@ -60,10 +65,11 @@ def _dc_motor(model: DiscreteTF, cov: FloatArray, gamma: float
 
 def _registry() -> dict[str, PhysicalModel]:
     cfg = load_default("models.toml")
+    dc = cfg["dc-motor"]
     return {
         "dc-motor": PhysicalModel("dc-motor", "V", ("I", "omega"), 2, PARAMETER_NAMES,
-                                  PARAMETER_UNITS, float(cfg["dc-motor"]["gamma"]),
-                                  _dc_motor),
+                                  PARAMETER_UNITS, float(dc["gamma"]), _dc_motor,
+                                  parse_plausibility(dc, "models.toml [dc-motor]")),
     }
 
 

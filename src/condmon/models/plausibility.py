@@ -1,0 +1,181 @@
+"""What a physical model declares physically possible, and the checks made with it.
+
+Declared as data per model (``condmon/data/models.toml``): bounds on each
+parameter, the record duration and sample interval the model needs, and the
+largest believable change against a unit's baseline. An estimate outside its
+bounds is rejected with the reason; a record outside the timing limits, or a
+test whose parameters jump beyond the believable change or flip sign, is
+refused as a likely unit or sign error.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from condmon.errors import ConfigError, DataError
+
+__all__ = ["Bound", "Plausibility", "parse_plausibility"]
+
+_OPS = {"gt": (">", lambda v, b: v > b), "ge": (">=", lambda v, b: v >= b),
+        "lt": ("<", lambda v, b: v < b), "le": ("<=", lambda v, b: v <= b)}
+
+
+@dataclass(frozen=True)
+class Bound:
+    """Bounds of one parameter: ``{op: value}`` with op in gt, ge, lt, le. [SI]"""
+
+    limits: tuple[tuple[str, float], ...]
+
+    def violation(self, value: float) -> str | None:
+        """The first violated bound as text (``"must be > 0"``), or None."""
+        if not math.isfinite(value):
+            return "is not finite"
+        for op, b in self.limits:
+            sym, ok = _OPS[op]
+            if not ok(value, b):
+                return f"must be {sym} {b:g}"
+        return None
+
+    def __str__(self) -> str:
+        return " and ".join(f"{_OPS[op][0]} {b:g}" for op, b in self.limits)
+
+
+@dataclass(frozen=True)
+class Plausibility:
+    """The physically possible of one model.
+
+    Attributes
+    ----------
+    bounds : dict of str to Bound
+        Per parameter. [SI units]
+    min_duration : float
+        Shortest record. [s]
+    sample_interval : tuple of float
+        Allowed sample interval (low, high). [s]
+    max_change : dict of str to float
+        Largest believable ratio to the baseline mean, either way. [-]
+    """
+
+    bounds: dict[str, Bound] = field(default_factory=dict)
+    min_duration: float = 0.0
+    sample_interval: tuple[float, float] = (0.0, math.inf)
+    max_change: dict[str, float] = field(default_factory=dict)
+
+    def check_values(self, values: Mapping[str, float], units: Mapping[str, str]) -> str | None:
+        """Why an estimate is not physically possible (None when it is).
+
+        Example
+        -------
+        >>> p = Plausibility({"R": Bound((("gt", 0.0),))})
+        >>> p.check_values({"R": -1.0}, {"R": "ohm"})
+        'not physically possible: R = -1 ohm must be > 0'
+        """
+        bad = []
+        for name, bound in self.bounds.items():
+            if name in values:
+                why = bound.violation(float(values[name]))
+                if why is not None:
+                    bad.append(f"{name} = {values[name]:.4g} {units.get(name, '')}".rstrip()
+                               + f" {why}")
+        if not bad:
+            return None
+        negative = [n for n in self.bounds if n in values and values[n] < 0]
+        hint = ("; a sign may be inverted (input or output column negated?)"
+                if len(negative) >= 2 else "")
+        return "not physically possible: " + ", ".join(bad) + hint
+
+    def check_timing(self, dt: float, duration: float, source: str, model: str) -> None:
+        """Refuse a record the model cannot be estimated from.
+
+        Raises
+        ------
+        DataError
+            Naming the file, the measured interval or duration and the limits.
+        """
+        lo, hi = self.sample_interval
+        if not lo <= dt <= hi:
+            hint = ""
+            if dt > hi and lo <= dt / 1000.0 <= hi:
+                hint = " — is column 't' in milliseconds? (condmon expects seconds)"
+            elif dt < lo and lo <= dt * 1000.0 <= hi:
+                hint = " — is column 't' in kiloseconds or scaled by 1/1000?"
+            raise DataError(f"{source}: sample interval {dt:.6g} s is outside the "
+                            f"{lo:g}..{hi:g} s the {model} model needs{hint}")
+        if duration < self.min_duration:
+            raise DataError(f"{source}: the record lasts {duration:.4g} s; the {model} model "
+                            f"needs at least {self.min_duration:g} s for a trustworthy estimate")
+
+    def check_against_baseline(self, values: Mapping[str, float],
+                               baseline: Mapping[str, float],
+                               units: Mapping[str, str]) -> str | None:
+        """Why a test looks like a unit or sign error against the baseline (or None).
+
+        Example
+        -------
+        >>> p = Plausibility(max_change={"Kt": 5.0})
+        >>> p.check_against_baseline({"Kt": 0.005}, {"Kt": 0.05}, {"Kt": "N m/A"})[:40]
+        'likely unit or sign error: Kt = 0.005 N '
+        """
+        bad = []
+        for name, ratio_max in self.max_change.items():
+            if name not in values or name not in baseline or baseline[name] == 0:
+                continue
+            ratio = float(values[name]) / float(baseline[name])
+            unit = units.get(name, "")
+            if ratio <= 0:
+                bad.append(f"{name} = {values[name]:.4g} {unit} has the opposite sign of its "
+                           f"baseline {baseline[name]:.4g} {unit}")
+            elif ratio > ratio_max or ratio < 1.0 / ratio_max:
+                bad.append(f"{name} = {values[name]:.4g} {unit} is {ratio:.3g} x its baseline "
+                           f"{baseline[name]:.4g} {unit} (believable: /{ratio_max:g} to "
+                           f"x{ratio_max:g})")
+        if not bad:
+            return None
+        return ("likely unit or sign error: " + "; ".join(bad)
+                + " — check the units and signs of the record's columns (rad/s, A, V, s)")
+
+
+def _bound(name: str, spec: Any, where: str) -> Bound:
+    if not isinstance(spec, Mapping) or not spec:
+        raise ConfigError(f"{where}: bounds of {name!r} must be a table like "
+                          "{ gt = 0.0, lt = 1e3 }")
+    limits = []
+    for op, value in spec.items():
+        if op not in _OPS:
+            raise ConfigError(f"{where}: unknown bound {op!r} for {name!r}; "
+                              f"allowed: {', '.join(_OPS)}")
+        if not isinstance(value, (int, float)) or isinstance(value, bool):
+            raise ConfigError(f"{where}: bound {op} of {name!r} must be a number, got {value!r}")
+        limits.append((op, float(value)))
+    return Bound(tuple(limits))
+
+
+def parse_plausibility(cfg: Mapping[str, Any], where: str) -> Plausibility:
+    """Read a model's ``plausible``, ``max_change``, ``min_duration`` and
+    ``sample_interval`` entries (all optional).
+
+    Raises
+    ------
+    ConfigError
+        Naming the entry.
+    """
+    bounds = {k: _bound(k, v, where) for k, v in dict(cfg.get("plausible", {})).items()}
+    changes: dict[str, float] = {}
+    for k, v in dict(cfg.get("max_change", {})).items():
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not v > 1.0:
+            raise ConfigError(f"{where}: max_change of {k!r} must be a number > 1, got {v!r}")
+        changes[k] = float(v)
+    interval = cfg.get("sample_interval", [0.0, math.inf])
+    if (not isinstance(interval, (list, tuple)) or len(interval) != 2
+            or not all(isinstance(x, (int, float)) for x in interval)
+            or not 0 <= interval[0] < interval[1]):
+        raise ConfigError(f"{where}: sample_interval must be [low, high] in seconds, "
+                          f"got {interval!r}")
+    duration = cfg.get("min_duration", 0.0)
+    if not isinstance(duration, (int, float)) or duration < 0:
+        raise ConfigError(f"{where}: min_duration must be a number >= 0 [s], got {duration!r}")
+    return Plausibility(bounds, float(duration), (float(interval[0]), float(interval[1])),
+                        changes)

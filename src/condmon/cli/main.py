@@ -187,11 +187,13 @@ def baseline_add_cmd(
         else:
             res = add_baseline_tests(store, unit, records, opts)
     for t in res.tests:
-        if t.duplicate:
+        if t.refused:
+            err.print(f"refused {t.source}: {t.reason}", highlight=False, markup=False, soft_wrap=True)
+        elif t.duplicate:
             err.print(f"skipped {t.source}: already in the history (test #{t.test_id})", highlight=False)
         elif not t.accepted:
             err.print(f"stored {t.source} as rejected: {t.reason}", highlight=False)
-    n_new = sum(1 for t in res.tests if not t.duplicate)
+    n_new = sum(1 for t in res.tests if not (t.duplicate or t.refused))
     out.print(f"{n_new} test(s) added to {unit!r}; {res.message}")
     if res.baseline is not None:
         table = Table(title=f"Baseline of {unit} (N = {res.baseline.n})")

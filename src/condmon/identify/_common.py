@@ -224,7 +224,7 @@ def stabilise(den: FloatArray) -> FloatArray:
     mag_in = np.abs(inside)
     inside = np.where(mag_in > MAX_RADIUS, inside * (MAX_RADIUS / np.maximum(mag_in, 1e-300)),
                       inside)
-    return np.real(np.poly(inside)) * den[0]
+    return np.asarray(np.real(np.poly(inside)) * den[0], dtype=np.float64)
 
 
 def covariance(R: FloatArray, S: FloatArray) -> FloatArray:

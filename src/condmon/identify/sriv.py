@@ -80,7 +80,7 @@ class SrivIterations:
 
 
 def _stable_theta(theta: FloatArray, n: int) -> FloatArray:
-    return np.r_[stabilise(np.r_[1.0, theta[:n]])[1:], theta[n:]]
+    return np.asarray(np.r_[stabilise(np.r_[1.0, theta[:n]])[1:], theta[n:]], dtype=np.float64)
 
 
 def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *,
@@ -95,7 +95,8 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
     m = y.shape[1]
     theta = _stable_theta(arx_theta(u, y, order), order)
     sig2 = output_error_variance(theta, order, u, y)
-    best = (log_oe_cost(sig2), theta, sig2, None)
+    best: tuple[float, FloatArray, FloatArray, FloatArray | None] = (
+        log_oe_cost(sig2), theta, sig2, None)
     cov: FloatArray | None = None
     converged = False
     failure: str | None = None

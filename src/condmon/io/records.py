@@ -27,6 +27,9 @@ FloatArray = NDArray[np.float64]
 TIME_JITTER = 1e-3
 #: Share of samples at the input's extreme values above which saturation is flagged.
 SATURATION_SHARE = 0.05
+#: Largest magnitude accepted in a column: beyond it a value is corrupt or
+#: mis-scaled, and its square would overflow the estimators' sums.
+MAX_MAGNITUDE = 1e15
 
 
 @dataclass(frozen=True, eq=False)
@@ -180,6 +183,11 @@ def validate_record(df: pd.DataFrame, required: Sequence[str],
                                 f"but the record has {n_rows} rows (mismatched lengths)")
             raise DataError(f"{src}: column {name!r} has {bad_idx.size} NaN/inf value(s), "
                             f"first at row {bad_idx[0]}")
+        huge = np.flatnonzero(np.abs(arr) > MAX_MAGNITUDE)
+        if huge.size:
+            raise DataError(f"{src}: column {name!r} has {huge.size} value(s) beyond "
+                            f"{MAX_MAGNITUDE:g} in magnitude (row {huge[0]}: {arr[huge[0]]:.6g}); "
+                            "a corrupt or mis-scaled column?")
         cols[name] = arr
     if n_rows < min_samples:
         raise DataError(f"{src}: {n_rows} samples are too few; need at least {min_samples}")

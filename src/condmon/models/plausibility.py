@@ -11,7 +11,8 @@ refused as a likely unit or sign error.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+import operator
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -19,8 +20,9 @@ from condmon.errors import ConfigError, DataError
 
 __all__ = ["Bound", "Plausibility", "parse_plausibility"]
 
-_OPS = {"gt": (">", lambda v, b: v > b), "ge": (">=", lambda v, b: v >= b),
-        "lt": ("<", lambda v, b: v < b), "le": ("<=", lambda v, b: v <= b)}
+_OPS: dict[str, tuple[str, Callable[[float, float], bool]]] = {
+    "gt": (">", operator.gt), "ge": (">=", operator.ge),
+    "lt": ("<", operator.lt), "le": ("<=", operator.le)}
 
 
 @dataclass(frozen=True)

@@ -21,6 +21,7 @@ from condmon.errors import DataError
 from condmon.identify.estimate import EstimateResult, estimate
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD
 from condmon.io.records import read_record
+from condmon.models.registry import get_model
 from condmon.monitor.baseline import MIN_BASELINE_TESTS, Baseline, make_baseline
 from condmon.monitor.fuzzy import MonitorConfig, compute_symptoms, load_monitor_config
 from condmon.store.db import DuplicateTestError, HistoryStore, file_hash, frame_hash
@@ -59,13 +60,18 @@ class EstimateOptions:
 
 @dataclass(frozen=True)
 class AddedTest:
-    """One record offered to the baseline: stored, rejected or a duplicate."""
+    """One record offered to the baseline: stored, rejected, a duplicate or refused.
+
+    ``refused`` records (a likely unit or sign error against the baseline so
+    far) are not stored; their ``test_id`` is -1 and ``reason`` says why.
+    """
 
     source: str
     test_id: int
     accepted: bool
     duplicate: bool
     reason: str | None = None
+    refused: bool = False
 
 
 @dataclass(frozen=True)
@@ -104,6 +110,21 @@ def current_baseline(store: HistoryStore, unit: str) -> tuple[Baseline, list[int
     return make_baseline(table.to_numpy(), list(table.columns)), ids
 
 
+def _existing_baseline(store: HistoryStore, unit: str) -> Baseline | None:
+    """The unit's current baseline, or None while it has fewer than 3 healthy tests."""
+    ids, table = store.accepted_estimates(unit, role="baseline")
+    if len(ids) < MIN_BASELINE_TESTS:
+        return None
+    return make_baseline(table.to_numpy(), list(table.columns))
+
+
+def _unit_error(res: EstimateResult, baseline: Baseline) -> str | None:
+    """Why a test's parameters jump beyond what is believable or flip sign
+    against the baseline ("likely unit or sign error ..."), or None."""
+    return get_model(res.model).plausibility.check_against_baseline(
+        res.parameters, dict(zip(baseline.parameters, baseline.mean)), res.units)
+
+
 def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordLike],
                        options: EstimateOptions | None = None,
                        progress: Progress | None = None) -> BaselineAddResult:
@@ -121,6 +142,11 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
         if progress is not None:
             progress(i, len(records), str(name))
         res, digest = opts.run(rec)
+        prior = _existing_baseline(store, unit) if res.accepted else None
+        why = None if prior is None else _unit_error(res, prior)
+        if why is not None:
+            added.append(AddedTest(res.source, -1, False, False, why, refused=True))
+            continue
         try:
             tid = store.add_test(unit, res, role="baseline", digest=digest)
             added.append(AddedTest(res.source, tid, res.accepted, False, res.reason))
@@ -204,7 +230,9 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
     Raises
     ------
     DataError
-        The unit has no baseline yet (fewer than 3 accepted healthy tests).
+        The unit has no baseline yet (fewer than 3 accepted healthy tests), or
+        the test's parameters jump beyond the model's believable change or flip
+        sign against the baseline (a likely unit or sign error; nothing stored).
     DuplicateTestError
         The record is already in the unit's history.
     """
@@ -214,6 +242,9 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
     baseline, ids = current_baseline(store, unit)
     rb.check_parameters(baseline.parameters)
     res, digest = opts.run(record)
+    why = _unit_error(res, baseline) if res.accepted else None
+    if why is not None:
+        raise DataError(f"{res.source}: refused, {why}; nothing was stored")
     if not res.accepted:
         tid = store.add_test(unit, res, role="check", digest=digest)
         return CheckResult(unit, tid, res, "retest", baseline)

@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 
-from condmon.errors import EstimationError, ModelError
+from condmon.errors import CondmonError, EstimationError, ModelError
 from condmon.identify._common import TFEstimate
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD, FitCheck, fit_check
 from condmon.identify.ls import arx, iv
@@ -240,11 +240,10 @@ def estimate_record(rec: Record, model: str = "dc-motor", *, method: str = "sriv
         with np.errstate(over="raise", invalid="raise", divide="raise"):
             est = _ESTIMATORS[method](u, y, spec.order, dt=rec.dt, excitation=r,
                                       outputs=spec.outputs, input_name=spec.input)
-    except EstimationError as err:
-        raise EstimationError(f"{rec.source}: {err}") from None
+    except CondmonError as err:
+        # Estimators do not know the file: name it (same error class).
+        raise type(err)(f"{rec.source}: {err}") from None
     except (ArithmeticError, np.linalg.LinAlgError, ValueError) as err:
-        if isinstance(err, ModelError):
-            raise
         # The estimators guard every step; this is the last line, never a traceback.
         raise EstimationError(f"{rec.source}: the estimate failed numerically "
                               f"({type(err).__name__}: {err})") from None

@@ -32,9 +32,13 @@ from condmon.models import PARAMETER_NAMES, DCMotorParameters, dc_motor_tf, tf_c
 from condmon.models.dc_motor import dc_motor_from_discrete
 from condmon.simulate import load_actuator_rig, simulate_actuator
 
-CONFIGS = {
+CONFIGS: dict[str, dict[str, float]] = {
     "no current feedback, ud 100 Hz": {"k_current": 0.0, "ud_bandwidth": 100.0},
     "built-in defaults": {},
+    "other motor": {"R": 0.4, "L": 0.4e-3, "Kt": 0.1, "J": 2e-4, "D": 5e-4,
+                    "k_current": 0.0, "ud_bandwidth": 100.0},
+    "Coulomb friction": {"coulomb_friction": 0.02, "k_current": 0.0, "ud_bandwidth": 100.0},
+    "noise x2": {"noise_I": 0.7, "noise_omega": 4.0, "k_current": 0.0, "ud_bandwidth": 100.0},
 }
 
 

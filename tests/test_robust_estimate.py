@@ -179,7 +179,7 @@ def test_fit_threshold_must_be_a_percentage(noisy_record: pd.DataFrame,
 def test_physical_bounds_come_from_data() -> None:
     from condmon.models.registry import get_model
 
-    plaus = get_model("dc-motor").plausibility
+    plaus = get_model("dc-motor").spec.plausibility
     assert str(plaus.bounds["D"]) == ">= 0 and < 1000"
     assert plaus.min_duration == 1.0 and plaus.sample_interval == (1e-5, 2e-3)
 

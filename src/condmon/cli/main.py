@@ -34,24 +34,33 @@ register_plant_commands(app, simulate_app)
 
 
 
+ModelOpt = Annotated[str, typer.Option(help="Machine model: a shipped name (dc-motor) or a declaration file (.toml).")]
+RouteOpt = Annotated[Optional[str], typer.Option(help="Estimation route: auto, linear or inverse (default: the declaration's).")]
+ConstOpt = Annotated[Optional[str], typer.Option(help="Known constants overriding the declaration's, NAME=VALUE,... e.g. gamma=0.9.")]
+
+
 @app.command("estimate")
 def estimate_cmd(
-    record: Annotated[Path, typer.Argument(help="Test record (.csv or .parquet) with t, V, I, omega.")],
-    model: Annotated[str, typer.Option(help="Physical model.")] = "dc-motor",
+    record: Annotated[Path, typer.Argument(help="Test record with t and the model's input and sensor columns (DC motor: V, I, omega).")],
+    model: ModelOpt = "dc-motor",
     method: Annotated[str, typer.Option(help=f"Estimator: {', '.join(list_estimators())}.")] = "sriv",
     gamma: Annotated[Optional[float], typer.Option(help="Ke/Kt of the motor (default from the model's configuration, 0.95).")] = None,
     excitation: Annotated[str, typer.Option(help="Excitation columns for closed-loop instruments, comma-separated; 'auto' uses yd,ud when present; 'none' forces the direct approach.")] = "auto",
     columns: Annotated[Optional[str], typer.Option(help="Column mapping CANONICAL=FILE_COLUMN,... e.g. V=volts,I=amps.")] = None,
     fit_threshold: Annotated[float, typer.Option(help="Reject below this percentage fit [%].")] = DEFAULT_FIT_THRESHOLD,
+    route: RouteOpt = None,
+    constants: ConstOpt = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
 ) -> None:
     """Estimate the physical parameters of one test record."""
-    res, _ = _options(method, gamma, excitation, columns, fit_threshold, model).run(record)
+    res, _ = _options(method, gamma, excitation, columns, fit_threshold, model, route,
+                      constants).run(record)
     if as_json:
         write_json(res.to_dict())
         return
-    table = Table(title=f"{record} — {res.method.upper()}, "
-                        f"{'closed-loop instruments' if res.closed_loop_instruments else 'direct approach'}")
+    how = (("closed-loop instruments" if res.closed_loop_instruments else "direct approach")
+           if res.route == "linear" else "inverse model")
+    table = Table(title=f"{record} — {res.model}, {res.method.upper()}, {how}")
     for col in ("parameter", "value", "std error", "unit"):
         table.add_column(col, justify="right" if col != "parameter" else "left")
     for k, v in res.parameters.items():
@@ -61,8 +70,8 @@ def estimate_cmd(
     verdict = "[green]accepted[/green]" if res.accepted else f"[red]rejected[/red]: {res.reason}"
     out.print(f"fit {res.fit_percent:.1f} % ({fits}) — {verdict} "
               f"(threshold {res.fit.threshold:g} %)")
-    for note in res.discrete.notes:
-        out.print(f"note: {note}")
+    for note in res.notes:
+        out.print(f"note: {note}", highlight=False, markup=False)
 
 
 @simulate_app.command("actuator")
@@ -136,7 +145,8 @@ def _status_text(status: str) -> str:
 
 
 def _options(method: str, gamma: float | None, excitation: str, columns: str | None,
-             fit_threshold: float, model: str = "dc-motor") -> EstimateOptions:
+             fit_threshold: float, model: str = "dc-motor", route: str | None = None,
+             constants: str | None = None) -> EstimateOptions:
     if method not in list_estimators():
         raise CondmonError(f"unknown --method {method!r}; allowed: {', '.join(list_estimators())}")
     exc: str | tuple[str, ...] | None
@@ -146,13 +156,19 @@ def _options(method: str, gamma: float | None, excitation: str, columns: str | N
         exc = None
     else:
         exc = tuple(c.strip() for c in excitation.split(",") if c.strip())
+    consts: dict[str, float] = {}
+    for key, value in parse_column_map(constants).items():
+        try:
+            consts[key] = float(value)
+        except ValueError:
+            raise CondmonError(f"--constants: {key}={value!r} is not a number") from None
     return EstimateOptions(model, method, gamma, exc, fit_threshold,
-                           parse_column_map(columns) or None)
+                           parse_column_map(columns) or None, route, consts or None)
 
 
 DbOpt = Annotated[str, typer.Option("--db", help="History database: a SQLite file or a postgresql:// URL.")]
 UnitOpt = Annotated[str, typer.Option("--unit", help="Unit (machine) name.")]
-MethodOpt = Annotated[str, typer.Option(help="Estimator: sriv, iv, arx.")]
+MethodOpt = Annotated[str, typer.Option(help=f"Estimator: {', '.join(list_estimators())}.")]
 GammaOpt = Annotated[Optional[float], typer.Option(help="Ke/Kt of the motor (default 0.95).")]
 ExcOpt = Annotated[str, typer.Option(help="Excitation columns ('auto', 'none' or a,b).")]
 ColOpt = Annotated[Optional[str], typer.Option(help="Column mapping CANONICAL=FILE_COLUMN,...")]
@@ -169,12 +185,15 @@ def baseline_add_cmd(
     excitation: ExcOpt = "auto",
     columns: ColOpt = None,
     fit_threshold: FitOpt = DEFAULT_FIT_THRESHOLD,
+    model: ModelOpt = "dc-motor",
+    route: RouteOpt = None,
+    constants: ConstOpt = None,
 ) -> None:
     """Estimate healthy tests and store them as the unit's baseline."""
     from condmon.monitor.workflow import add_baseline_tests
     from condmon.store.db import open_store
 
-    opts = _options(method, gamma, excitation, columns, fit_threshold)
+    opts = _options(method, gamma, excitation, columns, fit_threshold, model, route, constants)
     with open_store(db) as store:
         if len(records) > 1:
             with progress() as prog:
@@ -216,6 +235,9 @@ def check_cmd(
     fit_threshold: FitOpt = DEFAULT_FIT_THRESHOLD,
     rules: Annotated[Optional[Path], typer.Option(help="Rule base TOML (default: the shipped one).")] = None,
     monitor: Annotated[Optional[Path], typer.Option(help="Monitor breakpoints TOML (default: the shipped one).")] = None,
+    model: ModelOpt = "dc-motor",
+    route: RouteOpt = None,
+    constants: ConstOpt = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
 ) -> None:
     """Check one test against the unit's baseline: go / advisory / no-go and faults."""
@@ -224,7 +246,7 @@ def check_cmd(
     from condmon.monitor.workflow import check_test
     from condmon.store.db import open_store
 
-    opts = _options(method, gamma, excitation, columns, fit_threshold)
+    opts = _options(method, gamma, excitation, columns, fit_threshold, model, route, constants)
     cfg, rb = load_monitor_config(monitor), load_rules(rules)
     with open_store(db) as store:
         res = check_test(store, unit, record, opts, cfg, rb)

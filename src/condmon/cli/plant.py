@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Optional
 
@@ -69,7 +70,9 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
             if healthy:
                 task = prog.add_task("learning the normalisation", total=None)
                 norm = healthy_normalisation(plant, [read_record(h) for h in healthy],
-                                             residuals, cfg.detection)  # type: ignore[arg-type]
+                                             residuals, cfg.detection,  # type: ignore[arg-type]
+                                             record=cfg.record, limits=cfg.simulation,
+                                             sources=[str(h) for h in healthy])
                 prog.update(task, visible=False)
             task = prog.add_task("isolating", total=4)
 
@@ -108,8 +111,13 @@ def _simulate(model: str, out_path: Path, fault: list[str] | None, params: Path 
 def _print_isolation(res: IsolationResult) -> None:
     out.print(f"[bold]{res.model}[/]: residuals normalised from {res.normalisation.source}")
     out.print(res.fsm.table(), highlight=False)
+    for note in res.notes:
+        out.print(f"note: {note}", highlight=False, markup=False)
     if not res.detected:
-        out.print("[green]no fault detected[/]")
+        if res.decided:
+            out.print("[green]no fault detected[/]")
+        else:
+            out.print(f"[bold yellow]undecided[/]: {res.reason}", highlight=False)
         return
     out.print(f"detected at {res.detection_time:.2f} s (onset {res.onset_time:.2f} s); "
               f"fired: {', '.join(res.fired_residuals)}; suspects: {', '.join(res.suspects)}",
@@ -119,13 +127,15 @@ def _print_isolation(res: IsolationResult) -> None:
         table.add_column(col, justify="left" if col == "suspect" else "right")
     for p in sorted(res.suspects, key=lambda p: res.errors.get(p, float("inf"))):
         e = res.estimates[p]
-        change = "" if e.change_percent is None else (
+        change = "" if e.change_percent is None or not math.isfinite(e.change_percent) else (
             f"{e.change_percent:+.1f}" if abs(e.change_percent) < 1e4 else "ran away")
         cons = "" if e.consistency is None else f"{e.consistency:.2f}"
         error = f"{res.errors[p]:.2f}" if p in res.errors else "—"
         name = f"[bold]{p}[/]" if p in res.isolated else p
         table.add_row(name, fmt(e.value), fmt(e.nominal), change, cons,
-                      error if e.converged else f"{error} (not estimable)")
+                      "rejected" if p in res.rejected else error)
     out.print(table)
+    for p, why in res.rejected.items():
+        out.print(f"rejected {p}: {why}", highlight=False, markup=False)
     color = "red" if len(res.isolated) == 1 else "yellow"
     out.print(f"[bold {color}]{res.statement}[/]", highlight=False)

@@ -9,17 +9,27 @@ an ambiguity set.
 
 Each suspect's simulation is a pure function of a small picklable task
 (:func:`simulate_suspect`), so it can be shipped to a process pool, as here, or
-to a distributed engine.
+to a distributed engine (:mod:`condmon.diagnose.suspects`).
+
+The flow always ends and never claims more than the record shows:
+
+- each suspect's run has a wall-time limit (a multiple of the nominal model
+  run's, with a floor) checked inside the solver, so a runaway stops;
+- an estimate outside the parameter's plausible range (declared, or a factor
+  around nominal), one that did not converge, and a run that failed or timed
+  out reject that suspect with the reason; the others still decide;
+- a record that cannot show a fault (too short to judge) or cannot isolate one
+  (no steady window after the detection, every suspect rejected) gives
+  ``decided = False`` with the reason, never "no fault".
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-import multiprocessing
-import os
+import time
+import warnings
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,19 +39,23 @@ import pandas as pd
 from numpy.typing import NDArray
 from scipy import stats
 
+from condmon.diagnose.checks import RecordSettings, validate_plant_record
 from condmon.diagnose.residuals import (
     Detection, DetectionSettings, Normalisation, Residuals, compute_residuals, detect,
-    learn_normalisation, load_settings, noise_normalisation, validate_plant_record,
+    learn_normalisation, load_settings, noise_normalisation,
 )
 from condmon.diagnose.structure import (
     FaultSignature, ResidualKind, fault_signature, residual_generators, suspects,
 )
-from condmon.errors import ConfigError
+from condmon.diagnose.suspects import SuspectTask, plausible_range, run_suspects, simulate_suspect
+from condmon.errors import ConfigError, EstimationError
 from condmon.identify.steady_state import (
-    SteadyStateEstimate, estimate_steady_state, steady_windows,
+    SteadyStateEstimate, SteadyWindow, estimate_steady_state, steady_windows,
 )
 from condmon.models.declared import PlantModel
-from condmon.simulate.plant import ParameterStep, integrate, sensor_readings, simulate_plant
+from condmon.simulate.plant import (
+    SimulationLimits, integrate, operating_segments, simulate_plant,
+)
 
 __all__ = ["IsolationSettings", "SuspectTask", "IsolationResult", "simulate_suspect",
            "isolate", "healthy_normalisation"]
@@ -64,6 +78,22 @@ class IsolationSettings:
         Model outputs are compared from this long after detection. [s]
     significance : float
         Level of the test "not significantly worse than the best". [-]
+    time_limit_factor : float
+        A suspect's model may run this many times the wall time of the nominal
+        model run beside the record... [-]
+    time_limit_floor : float
+        ...and at least this long. [s]
+    range_factor : float
+        An estimate of a parameter without a declared range must lie within
+        this factor of its (non-zero) nominal value. [-]
+    explain_limit : float
+        A suspect whose model leaves a larger output error (RMS, in noise
+        standard deviations) does not explain the record; when none does, the
+        fault is not isolated. [-]
+    record : RecordSettings
+        Checks of the record.
+    simulation : SimulationLimits
+        Bounds on the nominal model run (a suspect's wall time is bounded as above).
     """
 
     detection: DetectionSettings = field(default_factory=DetectionSettings)
@@ -71,40 +101,32 @@ class IsolationSettings:
     min_window: float = 1.0
     compare_settle: float = 4.0
     significance: float = 0.01
+    time_limit_factor: float = 5.0
+    time_limit_floor: float = 5.0
+    range_factor: float = 100.0
+    explain_limit: float = 10.0
+    record: RecordSettings = field(default_factory=RecordSettings)
+    simulation: SimulationLimits = field(default_factory=SimulationLimits)
 
     @classmethod
     def load(cls, path: str | Path | None = None) -> IsolationSettings:
         """Settings from the shipped file, overridden by ``path``."""
         cfg = load_settings(path)
+        iso = cfg["isolation"]
         out = cls(DetectionSettings.from_config(cfg), float(cfg["estimation"]["settle"]),
-                  float(cfg["estimation"]["min_window"]), float(cfg["isolation"]["settle"]),
-                  float(cfg["isolation"]["significance"]))
+                  float(cfg["estimation"]["min_window"]), float(iso["settle"]),
+                  float(iso["significance"]), float(iso["time_limit_factor"]),
+                  float(iso["time_limit_floor"]), float(iso["range_factor"]),
+                  float(iso["explain_limit"]), RecordSettings.from_config(cfg), SimulationLimits.from_config(cfg))
         if not 0 < out.significance < 1:
             raise ConfigError(f"[isolation].significance must be in (0, 1), not {out.significance}")
+        if not (out.time_limit_factor > 0 and out.time_limit_floor > 0 and out.range_factor > 1
+                and out.explain_limit > 0):
+            raise ConfigError("[isolation]: time_limit_factor, time_limit_floor and "
+                              "explain_limit must be > 0 and range_factor > 1 (got "
+                              f"{out.time_limit_factor:g}, {out.time_limit_floor:g}, "
+                              f"{out.explain_limit:g}, {out.range_factor:g})")
         return out
-
-
-@dataclass(frozen=True)
-class SuspectTask:
-    """One suspect's model run: ``parameter`` steps to ``value`` at ``at`` [s]."""
-
-    model: PlantModel
-    parameter: str
-    value: float
-    at: float
-    t: FloatArray
-    u: FloatArray
-
-
-def simulate_suspect(task: SuspectTask) -> FloatArray:
-    """Sensor readings of the model with the suspect's estimate, shape (n, n_sensors).
-
-    A pure function of its task: safe to run in another process.
-    """
-    compiled = task.model.compile()
-    steps = (ParameterStep(task.parameter, task.at, task.value),)
-    x = integrate(compiled, task.t, task.u, steps)
-    return sensor_readings(compiled, x, task.u, steps, task.t)
 
 
 @dataclass(frozen=True)
@@ -137,6 +159,18 @@ class IsolationResult:
         Start of the comparison window. [s]
     sensor_noise : ndarray
         Per-sample noise of each sensor the errors are expressed in. [sensor units]
+    decided : bool
+        False when the record could not settle the question: too short to show a
+        fault, or a fault detected but not isolable from it.
+    reason : str or None
+        Why it is not decided (None when it is).
+    rejected : dict of str to str
+        Suspects left out of the comparison, with the reason (estimate outside
+        its plausible range, not converged, simulation failed or timed out).
+    notes : tuple of str
+        Other things the user should know (pooled normalisation, ...).
+    time_limit : float or None
+        Wall-time limit of each suspect's model run. [s]
     """
 
     model: str
@@ -156,34 +190,67 @@ class IsolationResult:
     outputs: dict[str, FloatArray]
     compare_from: float | None
     sensor_noise: FloatArray
+    decided: bool = True
+    reason: str | None = None
+    rejected: dict[str, str] = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
+    time_limit: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready summary (keys ``detected``, ``detection_time``,
-        ``fired_residuals``, ``fsm``, ``suspects``, ``estimates``, ``errors``,
-        ``isolated``, ...)."""
+        """JSON-ready summary (keys ``detected``, ``decided``, ``reason``,
+        ``detection_time``, ``fired_residuals``, ``fsm``, ``suspects``,
+        ``estimates``, ``rejected``, ``errors``, ``isolated``, ...); a number
+        that is not finite is ``null``."""
         return {
             "model": self.model,
             "detected": self.detected,
-            "detection_time": self.detection_time,
-            "onset_time": self.onset_time,
+            "decided": self.decided,
+            "reason": self.reason,
+            "detection_time": _finite(self.detection_time),
+            "onset_time": _finite(self.onset_time),
             "fired_residuals": list(self.fired_residuals),
             "fsm": self.fsm.to_dict(),
             "suspects": list(self.suspects),
-            "estimates": {p: e.value for p, e in self.estimates.items()},
-            "estimate_change_percent": {p: e.change_percent for p, e in self.estimates.items()},
-            "consistency": {p: e.consistency for p, e in self.estimates.items()},
-            "errors": dict(self.errors),
+            "estimates": {p: _finite(e.value) for p, e in self.estimates.items()},
+            "estimate_change_percent": {p: _finite(e.change_percent)
+                                        for p, e in self.estimates.items()},
+            "consistency": {p: _finite(e.consistency) for p, e in self.estimates.items()},
+            "rejected": dict(self.rejected),
+            "errors": {p: _finite(v) for p, v in self.errors.items()},
             "isolated": list(self.isolated),
             "ambiguous": len(self.isolated) > 1,
             "statement": self.statement,
+            "notes": list(self.notes),
+            "time_limit": _finite(self.time_limit),
             "normalisation": self.normalisation.to_dict(),
         }
 
 
+def _finite(value: float | None) -> float | None:
+    """``value`` as a float, None when missing or not finite (JSON has no NaN)."""
+    return None if value is None or not math.isfinite(value) else float(value)
+
+
 def healthy_normalisation(model: PlantModel, healthy: Sequence[pd.DataFrame],
                           kind: ResidualKind = "simulation",
-                          settings: DetectionSettings | None = None) -> Normalisation:
+                          settings: DetectionSettings | None = None, *,
+                          record: RecordSettings | None = None,
+                          limits: SimulationLimits | None = None,
+                          sources: Sequence[str] | None = None) -> Normalisation:
     """Learn the residuals' normalisation from healthy records.
+
+    Parameters
+    ----------
+    model : PlantModel
+    healthy : sequence of DataFrame
+    kind : {"simulation", "structured"}
+    settings : DetectionSettings, optional
+    record : RecordSettings, optional
+        Checks of each record.
+    limits : SimulationLimits, optional
+        Bounds on each model run.
+    sources : sequence of str, optional
+        Names of the records for error messages (default "healthy record N").
 
     Example
     -------
@@ -195,8 +262,11 @@ def healthy_normalisation(model: PlantModel, healthy: Sequence[pd.DataFrame],
     ('r_Ps', 'r_omega_m')
     """
     gens = residual_generators(model, kind)
-    sets = [compute_residuals(model, validate_plant_record(model, r, f"healthy record {i + 1}"), gens)
-            for i, r in enumerate(healthy)]
+    names = list(sources) if sources is not None else \
+        [f"healthy record {i + 1}" for i in range(len(healthy))]
+    sets = [compute_residuals(model, validate_plant_record(model, r, name, record), gens,
+                              limits=limits, source=name)
+            for r, name in zip(healthy, names)]
     return learn_normalisation(sets, settings or DetectionSettings.from_config())
 
 
@@ -233,6 +303,13 @@ def isolate(record: pd.DataFrame, model: PlantModel, *,
     -------
     IsolationResult
 
+    Raises
+    ------
+    DataError
+        When the record is unusable (naming ``source`` and the column).
+    EstimationError
+        When the nominal model cannot be run beside the record.
+
     Example
     -------
     >>> from condmon.models.declared import load_plant_model
@@ -243,48 +320,145 @@ def isolate(record: pd.DataFrame, model: PlantModel, *,
     (('Dm',), -25)
     """
     settings = settings or IsolationSettings.load()
-    record = validate_plant_record(model, record, source)
+    record = validate_plant_record(model, record, source, settings.record)
     tick = progress or (lambda done, total, label: None)
     gens = residual_generators(model, kind)
     fsm = fault_signature(model, kind)
-    res = compute_residuals(model, record, gens)
+    started = time.monotonic()
+    try:
+        res = compute_residuals(model, record, gens, limits=settings.simulation, source=source)
+    except EstimationError as exc:
+        raise EstimationError(f"{source}: the model cannot be run beside the record: {exc}"
+                              ) from None
+    nominal_time = time.monotonic() - started
     if normalisation is not None:
         norm = normalisation
     elif kind == "simulation":
         norm = noise_normalisation(model, res, settings.detection)
     else:
         norm = healthy_normalisation(model, [simulate_plant(model, seed=s) for s in range(3)],
-                                     kind, settings.detection)
+                                     kind, settings.detection, limits=settings.simulation)
         norm = dataclasses.replace(norm, source="simulated healthy records (3)")
     det = detect(res, norm, settings.detection)
     tick(1, 4, "residuals")
-    empty: dict[str, Any] = {}
     noise = _sensor_noise(model, norm, gens)
+    quiet = IsolationResult(model.name, False, None, None, (), fsm, (), {}, {}, (),
+                            "no fault detected", res, norm, det, {}, None, noise,
+                            notes=(*norm.notes, *_input_notes(model, res)))
     if not det.detected or det.time is None or det.onset is None:
-        return IsolationResult(model.name, False, None, None, (), fsm, (), empty, empty, (),
-                               "no fault detected", res, norm, det, empty, None, noise)
+        if det.undecidable is not None:
+            return dataclasses.replace(quiet, statement=f"undecided: {det.undecidable}",
+                                       decided=False, reason=det.undecidable)
+        return quiet
     sus = suspects(fsm, det.fired)
     t, u = res.t, res.inputs
     y = record[list(model.sensor_names)].to_numpy(dtype=np.float64)
-    x_nominal = res.states if res.states is not None else integrate(model.compile(), t, u)
+    x_nominal = res.states if res.states is not None else \
+        integrate(model.compile(), t, u, limits=settings.simulation)
     windows = steady_windows(t, u, y, x_nominal, det.time, settings.estimation_settle,
                              settings.min_window, noise)
-    estimates = {p: estimate_steady_state(model, p, windows) for p in sus}
+    estimates, rejected = {}, {}
+    for p in sus:
+        estimates[p], why = _estimate(model, p, windows, settings.range_factor)
+        if why is not None:
+            rejected[p] = why
     tick(2, 4, "steady-state estimates")
-    tasks = [SuspectTask(model, p, estimates[p].value, det.onset, t, u) for p in sus]
-    outputs = dict(zip(sus, _run(tasks, workers)))
+    limit = min(settings.simulation.time_limit,
+                max(settings.time_limit_floor, settings.time_limit_factor * nominal_time))
+    limits = dataclasses.replace(settings.simulation, time_limit=limit)
+    tasks = [SuspectTask(model, p, estimates[p].value, det.onset, t, u, limits)
+             for p in sus if p not in rejected] if windows else []
+    outputs: dict[str, FloatArray] = {}
+    for task, outcome in zip(tasks, run_suspects(tasks, workers)):
+        if outcome.outputs is None:
+            rejected[task.parameter] = outcome.failure or "simulation failed"
+        else:
+            outputs[task.parameter] = outcome.outputs
     tick(3, 4, "suspect models")
     compare_from = det.time + settings.compare_settle
     mask = t >= compare_from
     errors: dict[str, float] = {}
-    for p in sus if mask.any() else ():
+    for p in outputs if mask.any() else ():
         e = (y[mask] - outputs[p][mask]) / noise
         errors[p] = float(math.sqrt(np.mean(e ** 2)))
-    isolated, statement = _conclude(sus, estimates, errors, int(mask.sum()) * y.shape[1],
-                                    settings.significance, windows)
+    why_not = _undecided(windows, errors, rejected, det.time, float(t[-1]), settings)
+    if why_not is not None:
+        statement = f"fault detected at {det.time:.2f} s but not isolated: {why_not}"
+        isolated: tuple[str, ...] = ()
+    else:
+        isolated, statement = _conclude(sus, errors, int(mask.sum()) * y.shape[1],
+                                        settings.significance, windows)
     tick(4, 4, "isolated")
-    return IsolationResult(model.name, True, det.time, det.onset, det.fired, fsm, sus, estimates,
-                           errors, isolated, statement, res, norm, det, outputs, compare_from, noise)
+    return dataclasses.replace(quiet, detected=True, detection_time=det.time,
+                               onset_time=det.onset, fired_residuals=det.fired, suspects=sus,
+                               estimates=estimates, errors=errors, isolated=isolated,
+                               statement=statement, outputs=outputs, compare_from=compare_from,
+                               decided=why_not is None, reason=why_not, rejected=rejected,
+                               time_limit=limit)
+
+
+def _estimate(model: PlantModel, parameter: str, windows: Sequence[SteadyWindow],
+              factor: float) -> tuple[SteadyStateEstimate, str | None]:
+    """A suspect's steady-state estimate and, when it must not be used, why."""
+    param = model.parameter(parameter)
+    nominal = param.value
+    try:
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the solvers' complaints: judged by the result
+            est = estimate_steady_state(model, parameter, windows)
+    except Exception as exc:  # noqa: BLE001 - a failed estimate rejects only this suspect
+        return (SteadyStateEstimate(parameter, math.nan, nominal, None, False),
+                f"estimation failed: {type(exc).__name__}: {exc}")
+    if not windows:
+        return est, "no steady window to estimate from"
+    if not math.isfinite(est.value):
+        return est, "estimate is not finite"
+    bounds = plausible_range(param, factor)
+    unit = f" {param.unit}" if param.unit else ""
+    if bounds is not None and not bounds[0] <= est.value <= bounds[1]:
+        return est, (f"estimate {est.value:.4g}{unit} outside the plausible range "
+                     f"[{bounds[0]:.4g}, {bounds[1]:.4g}]{unit}")
+    if not est.converged:
+        return est, "no value makes the model's steady state match the record (not converged)"
+    return est, None
+
+
+def _undecided(windows: Sequence[SteadyWindow], errors: Mapping[str, float],
+               rejected: Mapping[str, str], detected: float, end: float,
+               settings: IsolationSettings) -> str | None:
+    """Why a detected fault cannot be isolated from this record, or None."""
+    if not windows:
+        need = detected + settings.estimation_settle + settings.min_window
+        if end < need:
+            return (f"the record ends at {end:.2f} s, before a steady window "
+                    f"({settings.estimation_settle:g} s settling + {settings.min_window:g} s) "
+                    f"after the detection at {detected:.2f} s (needs {need:.2f} s)")
+        return (f"no steady window of {settings.min_window:g} s after the detection: the "
+                "known inputs never hold one level long enough")
+    if not errors:
+        if rejected:
+            return "every suspect was rejected (" + "; ".join(
+                f"{p}: {why}" for p, why in rejected.items()) + ")"
+        return (f"the record ends before the comparison window (from "
+                f"{detected + settings.compare_settle:.2f} s)")
+    best = min(errors, key=lambda p: errors[p])
+    if not errors[best] <= settings.explain_limit:
+        return (f"no suspect's model explains the record: the best, {best}, leaves an error "
+                f"of {errors[best]:.3g} noise standard deviations (limit "
+                f"{settings.explain_limit:g}); the fault may be none of the candidates, "
+                "several, or the data may be wrong")
+    return None
+
+
+def _input_notes(model: PlantModel, res: Residuals) -> list[str]:
+    """A note when the record's known inputs vary continuously (no operating points)."""
+    if res.inputs.shape[1] == 0 or len(res.t) < 2:
+        return []
+    starts = operating_segments(res.inputs)
+    if len(starts) > max(4.0, (res.t[-1] - res.t[0]) / 2.0):
+        return [f"the known inputs ({', '.join(model.input_names)}) vary continuously in the "
+                f"record ({len(starts)} levels): steady windows only where they hold still"]
+    return []
 
 
 def _sensor_noise(model: PlantModel, norm: Normalisation, gens: Sequence[Any]) -> FloatArray:
@@ -297,28 +471,15 @@ def _sensor_noise(model: PlantModel, norm: Normalisation, gens: Sequence[Any]) -
     return np.array(out, dtype=np.float64)
 
 
-def _run(tasks: Sequence[SuspectTask], workers: int | None) -> list[FloatArray]:
-    n = min(len(tasks), workers if workers is not None else (os.cpu_count() or 1))
-    if n <= 1:
-        return [simulate_suspect(task) for task in tasks]
-    tasks[0].model.compile()  # forked workers inherit the compiled model
-    method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
-    with ProcessPoolExecutor(max_workers=n, mp_context=multiprocessing.get_context(method)) as pool:
-        return list(pool.map(simulate_suspect, tasks))
-
-
-def _conclude(sus: Sequence[str], estimates: Mapping[str, SteadyStateEstimate],
-              errors: Mapping[str, float], n: int, alpha: float, windows: Sequence[Any]
-              ) -> tuple[tuple[str, ...], str]:
-    usable = [p for p in sus if p in errors and estimates[p].converged]
-    if not usable:
-        return (), ("a fault was detected but no suspect could be estimated at steady state "
-                    "(record too short after detection?)")
+def _conclude(sus: Sequence[str], errors: Mapping[str, float], n: int, alpha: float,
+              windows: Sequence[Any]) -> tuple[tuple[str, ...], str]:
+    usable = [p for p in sus if p in errors and math.isfinite(errors[p])]
     best = min(usable, key=lambda p: errors[p])
     # mean squared errors of white noise: their ratio is F(n, n) when both models
     # explain the data; beyond the (1 - alpha) quantile a model is significantly worse
     limit = float(stats.f.ppf(1.0 - alpha, n, n))
-    isolated = tuple(sorted((p for p in usable if (errors[p] / errors[best]) ** 2 <= limit),
+    floor = max(errors[best], 1e-300)
+    isolated = tuple(sorted((p for p in usable if (errors[p] / floor) ** 2 <= limit),
                             key=lambda p: errors[p]))
     note = ""
     if errors[best] ** 2 > limit:

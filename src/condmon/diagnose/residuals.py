@@ -12,7 +12,6 @@ seconds: a single noisy sample never raises an alarm.
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,11 +21,13 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from condmon.errors import ConfigError, DataError, DataWarning
+from condmon.diagnose.checks import validate_plant_record
+from condmon.errors import ConfigError, DataError
 from condmon.io.config import load_default, load_toml, merge
 from condmon.models.declared import PlantModel
 from condmon.simulate.plant import (
-    ParameterStep, input_signals, integrate, operating_segments, sensor_readings,
+    ParameterStep, SimulationLimits, input_signals, integrate, operating_segments,
+    sensor_readings,
 )
 
 __all__ = ["DetectionSettings", "Residuals", "Normalisation", "Detection", "load_settings",
@@ -34,6 +35,7 @@ __all__ = ["DetectionSettings", "Residuals", "Normalisation", "Detection", "load
            "noise_normalisation", "detect", "moving_average"]
 
 FloatArray = NDArray[np.float64]
+_MIN_SAMPLES = 10  # fewest samples a mean and spread are learned from
 
 
 def load_settings(path: str | Path | None = None) -> dict[str, Any]:
@@ -148,6 +150,9 @@ class Normalisation:
         a sample at any other operating point gets the pooled ``mean``/``std``.
     point_mean, point_std : ndarray, shape (n_points, n_residuals)
         Mean and spread of the smoothed residuals at each operating point. [sensor unit]
+    notes : tuple of str
+        What was learned otherwise than asked (e.g. pooled figures for a
+        continuously varying input).
     """
 
     names: tuple[str, ...]
@@ -159,6 +164,7 @@ class Normalisation:
     points: FloatArray = field(default_factory=lambda: np.empty((0, 0)))
     point_mean: FloatArray = field(default_factory=lambda: np.empty((0, 0)))
     point_std: FloatArray = field(default_factory=lambda: np.empty((0, 0)))
+    notes: tuple[str, ...] = ()
 
     def figures(self, inputs: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Mean and spread for every sample, by its operating point, shape (n, n_residuals)."""
@@ -176,7 +182,8 @@ class Normalisation:
                               for n, m, s, r in zip(self.names, self.mean, self.std, self.raw_std)},
                 "operating_points": [{"inputs": p.tolist(), "mean": m.tolist(), "std": sd.tolist()}
                                      for p, m, sd in zip(self.points, self.point_mean,
-                                                         self.point_std)]}
+                                                         self.point_std)],
+                "notes": list(self.notes)}
 
 
 @dataclass(frozen=True)
@@ -194,6 +201,9 @@ class Detection:
         Residuals that fired anywhere in the record.
     normalised : ndarray, shape (n, n_residuals)
         Smoothed, normalised residuals (±1 is the threshold). [-]
+    undecidable : str or None
+        Why the record could not show a fault had there been one (no judged
+        stretch as long as the persistence time), None when it could.
     """
 
     detected: bool
@@ -201,44 +211,14 @@ class Detection:
     onset: float | None
     fired: tuple[str, ...]
     normalised: FloatArray
-
-
-def validate_plant_record(model: PlantModel, record: pd.DataFrame, source: str = "record"
-                          ) -> pd.DataFrame:
-    """Check a record against a model: ``t`` and every sensor column, finite,
-    uniformly sampled. Raises :class:`DataError` naming the file and column;
-    warns (:class:`DataWarning`) when more than 1 % of a sensor's samples lie
-    outside its declared range."""
-    missing = [c for c in ("t", *model.sensor_names) if c not in record.columns]
-    if missing:
-        raise DataError(f"{source}: missing column {missing[0]!r}; model {model.name!r} needs "
-                        f"t, {', '.join(model.sensor_names)}")
-    cols = ["t", *model.sensor_names, *(u for u in model.input_names if u in record.columns)]
-    for c in cols:
-        values = pd.to_numeric(record[c], errors="coerce").to_numpy(dtype=np.float64)
-        if not np.all(np.isfinite(values)):
-            k = int(np.flatnonzero(~np.isfinite(values))[0])
-            raise DataError(f"{source}: column {c!r} has a missing or non-numeric value at row {k}")
-    for sensor in model.sensors:
-        y = record[sensor.name].to_numpy(dtype=np.float64)
-        lo, hi = sensor.range
-        share = float(np.mean((y < lo) | (y > hi)))
-        if share > 0.01:
-            warnings.warn(f"{source}: {share:.0%} of column {sensor.name!r} lies outside the "
-                          f"sensor's range [{lo:g}, {hi:g}] {sensor.unit}; a real sensor would "
-                          "saturate there", DataWarning, stacklevel=2)
-    t = record["t"].to_numpy(dtype=np.float64)
-    if len(t) < 10:
-        raise DataError(f"{source}: {len(t)} samples; at least 10 are needed")
-    dt = np.diff(t)
-    if not (np.all(dt > 0) and np.ptp(dt) <= 1e-6 * np.mean(dt) + 1e-12):
-        raise DataError(f"{source}: column 't' is not uniformly sampled and increasing")
-    return record.reset_index(drop=True)
+    undecidable: str | None = None
 
 
 def compute_residuals(model: PlantModel, record: pd.DataFrame, generators: Sequence[Any],
                       steps: Sequence[ParameterStep] = (),
-                      params: Mapping[str, float] | None = None) -> Residuals:
+                      params: Mapping[str, float] | None = None,
+                      limits: SimulationLimits | None = None, source: str = "record"
+                      ) -> Residuals:
     """Run the model beside the record and return every generator's residual.
 
     Parameters
@@ -252,7 +232,17 @@ def compute_residuals(model: PlantModel, record: pd.DataFrame, generators: Seque
         Parameter changes applied to the model (a suspect's fault).
     params : mapping, optional
         Parameter values replacing the nominal ones.
+    limits : SimulationLimits, optional
+        Bounds on each model run (default: the shipped ``[simulation]`` settings).
+    source : str
+        Name of the record for error messages.
 
+    Raises
+    ------
+    DataError
+        When a residual is not finite (naming ``source`` and the column).
+    EstimationError
+        When the model cannot be run beside the record (solver failure, limit).
 
     Example
     -------
@@ -265,6 +255,7 @@ def compute_residuals(model: PlantModel, record: pd.DataFrame, generators: Seque
     (('r_Ps', 'r_omega_m'), 1.0)
     """
     compiled = model.compile()
+    lim = limits or SimulationLimits.from_config()
     t = record["t"].to_numpy(dtype=np.float64)
     u = input_signals(model, t, record, params)
     values = np.empty((len(t), len(generators)))
@@ -276,13 +267,18 @@ def compute_residuals(model: PlantModel, record: pd.DataFrame, generators: Seque
         if key not in runs:
             measured = {_measured_state(model, s): record[s].to_numpy(dtype=np.float64)
                         for s in g.inputs}
-            x = integrate(compiled, t, u, steps, params, measured, g.integrated)
+            x = integrate(compiled, t, u, steps, params, measured, g.integrated, lim)
             runs[key] = sensor_readings(compiled, x, u, steps, t, params)
             if not g.inputs and g.integrated == model.state_names:
                 full = x
         k = model.sensor_names.index(g.sensor)
         predicted[:, j] = runs[key][:, k]
-        values[:, j] = record[g.sensor].to_numpy(dtype=np.float64) - predicted[:, j]
+        with np.errstate(all="ignore"):
+            values[:, j] = record[g.sensor].to_numpy(dtype=np.float64) - predicted[:, j]
+        if not np.all(np.isfinite(values[:, j])):
+            k = int(np.flatnonzero(~np.isfinite(values[:, j]))[0])
+            raise DataError(f"{source}: residual {g.name!r} of column {g.sensor!r} is not finite "
+                            f"at row {k} (t = {t[k]:g} s): the model's prediction overflowed")
     return Residuals(t, tuple(g.name for g in generators), tuple(g.sensor for g in generators),
                      values, predicted, u, full)
 
@@ -342,34 +338,59 @@ def learn_normalisation(residual_sets: Sequence[Residuals], settings: DetectionS
         raw.append(r.values[keep])
         inputs.append(r.inputs[keep])
     s, w, u = np.vstack(smooth), np.vstack(raw), np.vstack(inputs)
+    if len(s) < _MIN_SAMPLES:
+        raise DataError(f"the healthy records hold {len(s)} judged samples (after the "
+                        f"{settings.startup:g} s start-up); at least {_MIN_SAMPLES} are needed")
     std = s.std(axis=0, ddof=1)
-    if np.any(std <= 0):
+    if not np.all(std > 0):
         raise DataError("the healthy residuals have no spread (noise-free records?)")
     names = residual_sets[0].names
-    points: list[FloatArray] = []
-    pmean, pstd = [], []
-    if settings.by_operating_point:
-        for r in residual_sets:  # the operating points met in the healthy records
-            starts = operating_segments(r.inputs)
-            for a, b in zip(starts, [*starts[1:], len(r.inputs)]):
-                level = r.inputs[a:b].mean(axis=0)
-                if not any(_near(level[None, :], p)[0] for p in points):
-                    points.append(level)
-        enough = _samples(settings.min_point_time, residual_sets[0].t)
-        kept = []
-        for level in points if len(points) > 1 else []:
-            at = _near(u, level)
-            if at.sum() >= enough:
-                kept.append(level)
-                pmean.append(s[at].mean(axis=0))
-                pstd.append(np.maximum(s[at].std(axis=0, ddof=1), 1e-12 * std))
-        points = kept
+    points, pmean, pstd, notes = (_point_figures(residual_sets, s, u, std, settings)
+                                  if settings.by_operating_point else ([], [], [], []))
     n_u = u.shape[1]
     return Normalisation(names, s.mean(axis=0), std, w.std(axis=0, ddof=1), settings.window,
                          f"healthy records ({len(residual_sets)})",
                          np.array(points).reshape(len(points), n_u),
                          np.array(pmean).reshape(len(points), len(names)),
-                         np.array(pstd).reshape(len(points), len(names)))
+                         np.array(pstd).reshape(len(points), len(names)), tuple(notes))
+
+
+def _point_figures(sets: Sequence[Residuals], s: FloatArray, u: FloatArray, std: FloatArray,
+                   settings: DetectionSettings
+                   ) -> tuple[list[FloatArray], list[FloatArray], list[FloatArray], list[str]]:
+    """Operating points of the healthy records with enough samples for figures of
+    their own: (levels, means, spreads, notes). A continuously varying input has
+    no operating points: the pooled figures serve, and a note says so."""
+    points: list[FloatArray] = []
+    short = total = 0
+    for r in sets:  # the operating points met in the healthy records
+        starts = operating_segments(r.inputs)
+        lengths = np.diff([*starts, len(r.inputs)])
+        short += int(lengths[lengths < _samples(settings.min_point_time, r.t)].sum())
+        total += len(r.inputs)
+        for a, b in zip(starts, [*starts[1:], len(r.inputs)]):
+            level = r.inputs[a:b].mean(axis=0)
+            if not any(_near(level[None, :], p)[0] for p in points):
+                points.append(level)
+    if short > 0.5 * total:
+        return [], [], [], [f"the known inputs vary continuously in the healthy records "
+                            f"({len(points)} levels, most held less than "
+                            f"{settings.min_point_time:g} s): pooled normalisation"]
+    enough = max(_samples(settings.min_point_time, sets[0].t), _MIN_SAMPLES)
+    kept, pmean, pstd = [], [], []
+    for level in points if len(points) > 1 else []:
+        at = _near(u, level)
+        if at.sum() >= enough:
+            spread = s[at].std(axis=0, ddof=1)
+            if np.all(np.isfinite(spread)):
+                kept.append(level)
+                pmean.append(s[at].mean(axis=0))
+                pstd.append(np.maximum(spread, 1e-12 * std))
+    notes = []
+    if len(points) > 1 and len(kept) < len(points):
+        notes.append(f"{len(points) - len(kept)} of {len(points)} operating points held less "
+                     f"than {settings.min_point_time:g} s: pooled figures there")
+    return kept, pmean, pstd, notes
 
 
 def noise_normalisation(model: PlantModel, residuals: Residuals, settings: DetectionSettings
@@ -405,9 +426,11 @@ def detect(residuals: Residuals, norm: Normalisation, settings: DetectionSetting
     t = residuals.t
     smooth = moving_average(residuals.values, _samples(norm.window, t))
     mean, std = norm.figures(residuals.inputs)
-    normalised = (smooth - mean) / (settings.z * std)
+    with np.errstate(all="ignore"):
+        normalised = (smooth - mean) / (settings.z * std)
     need = _samples(settings.persistence, t) if settings.persistence > 0 else 1
-    outside = (np.abs(normalised) > 1.0) & settings.judged(t, residuals.inputs)[:, None]
+    judged = settings.judged(t, residuals.inputs)
+    outside = (np.abs(normalised) > 1.0) & judged[:, None]
     fired, first = [], (np.inf, np.inf)
     for j, name in enumerate(residuals.names):
         start = _first_run(outside[:, j], need)
@@ -415,8 +438,24 @@ def detect(residuals: Residuals, norm: Normalisation, settings: DetectionSetting
             fired.append(name)
             first = min(first, (float(t[start + need - 1]), float(t[start])))
     if not fired:
-        return Detection(False, None, None, (), normalised)
+        why = None
+        if _first_run(judged, need) is None:
+            longest = _longest_run(judged) * float(t[1] - t[0])
+            why = (f"record too short to decide: it lasts {t[-1] - t[0]:.3g} s and its "
+                   f"longest judged stretch (after the {settings.startup:g} s start-up"
+                   + (f", outside {settings.input_settle:g} s after input steps"
+                      if settings.input_settle > 0 else "")
+                   + f") is {longest:.3g} s, less than the {settings.persistence:g} s a "
+                   "residual must stay outside its band")
+        return Detection(False, None, None, (), normalised, why)
     return Detection(True, first[0], first[1], tuple(fired), normalised)
+
+
+def _longest_run(flags: NDArray[np.bool_]) -> int:
+    """Length of the longest run of True values."""
+    padded = np.concatenate([[False], flags, [False]])
+    edges = np.flatnonzero(np.diff(padded.astype(np.int8)))
+    return int((edges[1::2] - edges[::2]).max()) if len(edges) else 0
 
 
 def _first_run(flags: NDArray[np.bool_], length: int) -> int | None:

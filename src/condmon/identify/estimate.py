@@ -1,15 +1,17 @@
 """From one test record to physical parameters: the estimation pipeline (SPEC A3-A5).
 
-record -> validate -> discrete estimate (SRIV by default, closed-loop
-instruments when the excitation is recorded) -> fit check -> ZOH inverse ->
-physical parameters with standard errors.
+record -> validate -> the machine's declaration -> route: linear (discrete
+estimate, SRIV by default with closed-loop instruments when the excitation is
+recorded -> fit check -> ZOH inverse -> parameters from the symbolic
+coefficient map) or inverse model (filtered, differentiated signals -> least
+squares) -> physical parameters with standard errors -> plausibility.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
@@ -18,12 +20,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from condmon.errors import CondmonError, EstimationError, ModelError
 from condmon.identify._common import TFEstimate
-from condmon.identify.fit import DEFAULT_FIT_THRESHOLD, FitCheck, fit_check
+from condmon.identify.fit import DEFAULT_FIT_THRESHOLD, FitCheck
+from condmon.identify.greybox import choose_route, inverse_route, linear_route
 from condmon.identify.ls import arx, iv
 from condmon.identify.oe import oe
 from condmon.identify.sriv import sriv
 from condmon.io.records import Record, validate_record
-from condmon.models.conversion import tf_d2c
+from condmon.models.machine import Machine
 from condmon.models.registry import get_model
 from condmon.models.transfer import ContinuousTF
 
@@ -57,43 +60,58 @@ class EstimateResult:
     Attributes
     ----------
     parameters : dict of str to float
-        Physical parameters in SI units (DC motor: R [ohm], L [H], Ke [V s/rad],
-        Kt [N m/A], J [kg m^2], D [N m s/rad]).
+        Physical parameters in SI units, in the model's report order (DC motor:
+        R [ohm], L [H], Ke [V s/rad], Kt [N m/A], J [kg m^2], D [N m s/rad]).
     std_errors : dict of str to float
         Standard error of each parameter (delta method). [same units]
     covariance : ndarray
         Covariance of the parameters, in the order of ``parameters``.
     fit : FitCheck
-        R_T² per output, percentage fit, accepted or not.
-    discrete : TFEstimate
-        The discrete estimate (with its own covariance and notes).
+        R_T² per output (linear route) or per equation (inverse route),
+        percentage fit, accepted or not.
+    discrete : TFEstimate or None
+        The discrete estimate of the linear route (None for the inverse route).
     continuous : ContinuousTF or None
         Its zero-order-hold continuous equivalent (None when it has none).
     model : str
-        Physical model name.
-    gamma : float
-        Model constant used (Ke/Kt). [-]
+        Model name.
+    constants : dict of str to float
+        Known constants used (e.g. gamma = Ke/Kt, gtau). [SI]
     source : str
         Record's source.
     units : dict of str to str
         Unit of each parameter.
     rejection : str or None
-        Why no physical parameters could be read (e.g. a discrete pole on the
-        negative real axis); the parameters are then NaN, ``accepted`` is False
-        and the JSON holds ``null``.
+        Why no physical parameters could be accepted (no continuous
+        equivalent, not physically possible); ``accepted`` is then False.
+    route : str
+        "linear" or "inverse".
+    notes : tuple of str
+        What the user should know (the estimator's path, residual checks).
+    diagnostics : dict of str to float
+        Route-specific figures (inverse route: ``nrmse``, ``whiteness`` per
+        equation, ``cutoff`` [Hz]).
     """
 
     parameters: dict[str, float]
     std_errors: dict[str, float]
     covariance: FloatArray
     fit: FitCheck
-    discrete: TFEstimate
+    discrete: TFEstimate | None
     continuous: ContinuousTF | None
     model: str
-    gamma: float
+    constants: dict[str, float]
     source: str
     units: dict[str, str]
     rejection: str | None = None
+    route: str = "linear"
+    notes: tuple[str, ...] = ()
+    diagnostics: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def gamma(self) -> float:
+        """Ke/Kt used (DC-motor models; NaN for others). [-]"""
+        return float(self.constants.get("gamma", float("nan")))
 
     @property
     def accepted(self) -> bool:
@@ -117,23 +135,25 @@ class EstimateResult:
 
     @property
     def method(self) -> str:
-        """Estimator used."""
-        return self.discrete.method
+        """Estimator used ("inverse" for the inverse-model route)."""
+        return self.discrete.method if self.discrete is not None else "idim-ls"
 
     @property
     def closed_loop_instruments(self) -> bool:
         """Whether instruments came from the excitation signals."""
-        return self.discrete.closed_loop_instruments
+        return self.discrete.closed_loop_instruments if self.discrete is not None else False
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready result (the ``condmon estimate --json`` document)."""
-        def clean(d: dict[str, float]) -> dict[str, float | None]:
-            return {k: (v if np.isfinite(v) else None) for k, v in d.items()}
+        """JSON-ready result (the ``condmon estimate --json`` document); no NaN or inf."""
+        def clean(d: Mapping[str, float]) -> dict[str, float | None]:
+            return {k: (float(v) if np.isfinite(v) else None) for k, v in d.items()}
 
         fit = self.fit.fit_percent
+        d = self.discrete
         return {
             "source": self.source,
             "model": self.model,
+            "route": self.route,
             "parameters": clean(self.parameters),
             "std_errors": clean(self.std_errors),
             "units": self.units,
@@ -142,14 +162,16 @@ class EstimateResult:
             "fit_threshold": self.fit.threshold,
             "accepted": self.accepted,
             "reason": self.reason,
-            "method": self.discrete.method,
-            "path": self.discrete.route,
-            "closed_loop_instruments": self.discrete.closed_loop_instruments,
-            "iterations": self.discrete.iterations,
-            "converged": self.discrete.converged,
-            "gamma": self.gamma,
-            "notes": list(self.discrete.notes),
-            "discrete_model": self.discrete.to_dict(),
+            "method": self.method,
+            "path": d.route if d is not None else "idim-ls",
+            "closed_loop_instruments": self.closed_loop_instruments,
+            "iterations": d.iterations if d is not None else 1,
+            "converged": d.converged if d is not None else True,
+            "gamma": self.gamma if np.isfinite(self.gamma) else None,
+            "constants": clean(self.constants),
+            "notes": list(self.notes),
+            "diagnostics": clean(self.diagnostics),
+            "discrete_model": None if d is None else d.to_dict(),
             "continuous_model": None if self.continuous is None else self.continuous.to_dict(),
         }
 
@@ -159,45 +181,73 @@ class EstimateResult:
                              "unit": self.units})
 
 
-def _excitation_columns(record: pd.DataFrame | Record,
+def _excitation_columns(record: pd.DataFrame | Record, machine: Machine,
                         excitation: Sequence[str] | str | None) -> tuple[str, ...]:
     cols = record.columns if isinstance(record, Record) else list(record.columns)
     if excitation == "auto":
-        return tuple(c for c in DEFAULT_EXCITATION if c in cols)
+        names = machine.spec.excitation or DEFAULT_EXCITATION
+        return tuple(c for c in names if c in cols)
     if excitation is None or isinstance(excitation, str):
         return ()
     return tuple(excitation)
 
 
-def estimate(record: pd.DataFrame, model: str = "dc-motor", *, method: str = "sriv",
-             gamma: float | None = None, excitation: Sequence[str] | str | None = "auto",
+def _required_columns(machine: Machine, route: str) -> tuple[str, ...]:
+    if route == "linear":
+        lin = machine.linear()
+        return (lin.input, *lin.outputs)
+    inv = machine.inverse()
+    from condmon.models.declared import substituted_equations
+
+    readings = substituted_equations(machine.plant)[2]
+    sensors = [name for name, e in readings.items() if str(e) in inv.signals]
+    used = set()
+    for eq in inv.equations:
+        used |= {str(s) for _, phi in eq.terms for s in phi.free_symbols}
+        used |= {str(s) for s in eq.known.free_symbols}
+    inputs = [u for u in machine.plant.input_names if u in used]
+    return (*inputs, *sensors)
+
+
+def estimate(record: pd.DataFrame, model: str | Machine = "dc-motor", *,
+             method: str = "sriv", gamma: float | None = None,
+             excitation: Sequence[str] | str | None = "auto",
              fit_threshold: float = DEFAULT_FIT_THRESHOLD,
              columns: Mapping[str, str] | None = None,
-             source: str | None = None) -> EstimateResult:
+             source: str | None = None, route: str | None = None,
+             constants: Mapping[str, float] | None = None) -> EstimateResult:
     """Estimate the physical parameters of a machine from one test record.
 
     Parameters
     ----------
     record : pandas.DataFrame
-        Columns ``t`` [s] and the model's input and outputs (DC motor: ``V`` [V],
+        Columns ``t`` [s] and the model's input and sensors (DC motor: ``V`` [V],
         ``I`` [A], ``omega`` [rad/s]); optionally the excitation signals.
-    model : str
-        Physical model, see :func:`condmon.models.list_models`.
+        Constants in ``record.attrs["constants"]`` (e.g. scalars of a .mat
+        file) override the declared ones.
+    model : str, path or Machine
+        A declared machine: a name from :func:`condmon.models.list_machines`
+        or a declaration file (.toml).
     method : {"sriv", "oe", "iv", "arx"}
-        Estimator: SRIV (falls back to output-error refinement when its
-        iterations fail), output error (maximum likelihood, started from SRIV),
-        basic IV, least squares.
+        Discrete estimator of the linear route: SRIV (falls back to
+        output-error refinement when its iterations fail), output error
+        (maximum likelihood, started from SRIV), basic IV, least squares.
     gamma : float, optional
-        Ke/Kt; the model's configured default if omitted. [-]
+        Ke/Kt of a DC motor (shorthand for ``constants={"gamma": ...}``). [-]
     excitation : "auto", sequence of str or None
-        Excitation columns for closed-loop instruments. "auto" uses ``yd`` and
-        ``ud`` when present; None (or an empty list) forces the direct approach.
+        Excitation columns for closed-loop instruments. "auto" uses the
+        declared ones (``yd``, ``ud``) when present; None (or an empty list)
+        forces the direct approach.
     fit_threshold : float
         Reject below this percentage fit. [%]
     columns : mapping, optional
         ``{canonical: column}`` renames applied first.
     source : str, optional
         Name of the record in messages and results.
+    route : {"auto", "linear", "inverse"}, optional
+        Override the declaration's route.
+    constants : mapping, optional
+        Known constants overriding the declared ones. [SI]
 
     Returns
     -------
@@ -207,39 +257,89 @@ def estimate(record: pd.DataFrame, model: str = "dc-motor", *, method: str = "sr
     -------
     >>> from condmon.simulate import simulate_actuator
     >>> res = estimate(simulate_actuator(seed=1))
-    >>> res.accepted, res.method, res.closed_loop_instruments
-    (True, 'sriv', True)
+    >>> res.accepted, res.method, res.closed_loop_instruments, res.route
+    (True, 'sriv', True, 'linear')
     """
-    spec = get_model(model)
+    machine = model if isinstance(model, Machine) else get_model(model)
+    machine.require_estimation()
     if method not in _ESTIMATORS:
         raise ModelError(f"unknown method {method!r}; allowed: {', '.join(_ESTIMATORS)}")
+    chosen = choose_route(machine, route)
     df = record.rename(columns={v: k for k, v in columns.items()}) if columns else record
-    exc = _excitation_columns(df, excitation)
-    rec = validate_record(df, (spec.input, *spec.outputs, *exc), input_name=spec.input,
-                          min_samples=10 * spec.order * (1 + len(spec.outputs)),
-                          source=source)
-    return estimate_record(rec, model, method=method, gamma=gamma, excitation=exc,
-                           fit_threshold=fit_threshold)
+    exc = _excitation_columns(df, machine, excitation) if chosen == "linear" else ()
+    n_unknowns = len(machine.spec.unknowns)
+    rec = validate_record(df, (*_required_columns(machine, chosen), *exc),
+                          input_name=machine.linear().input if chosen == "linear" else None,
+                          min_samples=10 * (n_unknowns + 1), source=source)
+    consts = dict(df.attrs.get("constants", {}) or {})
+    consts.update(constants or {})
+    if gamma is not None:
+        consts["gamma"] = gamma
+    return estimate_record(rec, machine, method=method, excitation=exc,
+                           fit_threshold=fit_threshold, route=chosen, constants=consts)
 
 
-def estimate_record(rec: Record, model: str = "dc-motor", *, method: str = "sriv",
+def _check_constants(machine: Machine, constants: Mapping[str, float]) -> dict[str, float]:
+    known = machine.constants()
+    out = {}
+    for k, v in constants.items():
+        if k not in known:
+            continue  # constants of a file that this model does not use
+        try:
+            val = float(v)
+        except (TypeError, ValueError):
+            raise ModelError(f"constant {k} must be a number, got {v!r}") from None
+        if k == "gamma" and not (math.isfinite(val) and val > 0):
+            raise ModelError(f"gamma (Ke/Kt) must be a positive number, got {val!r}")
+        if not math.isfinite(val):
+            raise ModelError(f"constant {k} must be finite, got {val!r}")
+        out[k] = val
+    return out
+
+
+def estimate_record(rec: Record, model: str | Machine = "dc-motor", *, method: str = "sriv",
                     gamma: float | None = None, excitation: Sequence[str] = (),
-                    fit_threshold: float = DEFAULT_FIT_THRESHOLD) -> EstimateResult:
+                    fit_threshold: float = DEFAULT_FIT_THRESHOLD, route: str | None = None,
+                    constants: Mapping[str, float] | None = None) -> EstimateResult:
     """:func:`estimate` on an already validated :class:`~condmon.io.Record`."""
-    spec = get_model(model)
-    g = spec.gamma if gamma is None else float(gamma)
-    if not (math.isfinite(g) and g > 0):
-        raise ModelError(f"gamma (Ke/Kt) must be a positive number, got {g!r}")
+    machine = model if isinstance(model, Machine) else get_model(model)
+    given = dict(constants or {})
+    if gamma is not None:
+        given["gamma"] = gamma
+    consts = machine.constants(_check_constants(machine, given))
     if not (math.isfinite(fit_threshold) and 0.0 <= fit_threshold <= 100.0):
         raise ModelError(f"the fit threshold must be in 0..100 %, got {fit_threshold!r}")
-    spec.plausibility.check_timing(rec.dt, rec.dt * len(rec), rec.source, spec.name)
-    u = rec[spec.input]
-    y = rec.stack(spec.outputs)
-    r = rec.stack(excitation) if excitation else None
+    spec = machine.spec
+    spec.plausibility.check_timing(rec.dt, rec.dt * len(rec), rec.source, machine.name)
+    chosen = choose_route(machine, route)
+    notes: list[str] = []
+    diagnostics: dict[str, float] = {}
+    discrete = None
+    cont = None
+    rejection = None
     try:
         with np.errstate(over="raise", invalid="raise", divide="raise"):
-            est = _ESTIMATORS[method](u, y, spec.order, dt=rec.dt, excitation=r,
-                                      outputs=spec.outputs, input_name=spec.input)
+            if chosen == "linear":
+                lin = linear_route(rec, machine, _ESTIMATORS[method], excitation=excitation,
+                                   constants=consts, fit_threshold=fit_threshold)
+                values, ucov, fit = lin.values, lin.covariance, lin.fit
+                discrete, cont, rejection = lin.discrete, lin.continuous, lin.rejection
+                notes += list(lin.discrete.notes)
+            else:
+                inv = inverse_route(rec, machine, constants=consts, fit_threshold=fit_threshold)
+                values, ucov, fit = inv.values, inv.covariance, inv.fit
+                diagnostics = {"cutoff_hz": inv.cutoff, "samples": float(inv.samples),
+                               **{f"nrmse {k}": v for k, v in inv.nrmse.items()},
+                               **{f"whiteness {k}": v for k, v in inv.whiteness.items()}}
+                notes.append(f"inverse model (IDIM-LS): zero-phase low-pass at {inv.cutoff:g} Hz, "
+                             f"central differences, {inv.samples} samples")
+                worst = max(inv.whiteness, key=lambda k: inv.whiteness[k])
+                limit = spec.max_residual_correlation
+                if inv.whiteness[worst] > limit:
+                    rejection = (f"structure mismatch: the residual of {worst} is strongly "
+                                 f"correlated ({inv.whiteness[worst]:.2f} > {limit:g}); the "
+                                 "model misses part of the dynamics (friction, offset, "
+                                 "another mode?)")
     except CondmonError as err:
         # Estimators do not know the file: name it (same error class).
         raise type(err)(f"{rec.source}: {err}") from None
@@ -247,24 +347,21 @@ def estimate_record(rec: Record, model: str = "dc-motor", *, method: str = "sriv
         # The estimators guard every step; this is the last line, never a traceback.
         raise EstimationError(f"{rec.source}: the estimate failed numerically "
                               f"({type(err).__name__}: {err})") from None
-    fit = fit_check(est.model, u, y, fit_threshold)
-    names = spec.parameters
-    cont: ContinuousTF | None = None
-    rejection = None
-    try:
-        cont = tf_d2c(est.model)
-        values, pcov = spec.from_discrete(est.model, est.covariance, g)
-    except ModelError as err:  # ConversionError included: no physical reading exists
-        rejection = f"no physical parameters: {err}"
-        values = np.full(len(names), np.nan)
+    names = spec.report
+    if rejection is None or rejection.startswith("structure mismatch"):
+        params, pcov = machine.report_values({**consts, **values}, ucov)
+        vals = np.array([params[k] for k in names])
+    else:
+        vals = np.full(len(names), np.nan)
         pcov = np.full((len(names), len(names)), np.nan)
     se = np.sqrt(np.clip(np.diag(pcov), 0.0, None))
     if rejection is None:
-        rejection = spec.plausibility.check_values(dict(zip(names, values)), spec.units)
+        rejection = spec.plausibility.check_values(dict(zip(names, vals)), machine.units)
     if rejection is None and not np.all(np.isfinite(se)):
         rejection = "the standard errors are not finite: the data do not determine the model"
     return EstimateResult(
-        parameters={k: float(v) for k, v in zip(names, values)},
+        parameters={k: float(v) for k, v in zip(names, vals)},
         std_errors={k: float(v) for k, v in zip(names, se)},
-        covariance=pcov, fit=fit, discrete=est, continuous=cont, model=spec.name,
-        gamma=g, source=rec.source, units=dict(spec.units), rejection=rejection)
+        covariance=pcov, fit=fit, discrete=discrete, continuous=cont, model=machine.name,
+        constants=consts, source=rec.source, units=machine.units, rejection=rejection,
+        route=chosen, notes=tuple(notes), diagnostics=diagnostics)

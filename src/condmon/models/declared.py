@@ -6,6 +6,17 @@ positive) and kept as a frozen :class:`PlantModel`. From it condmon derives, wit
 no code per machine, the simulator (:meth:`PlantModel.compile`), the steady-state
 equations (derivatives set to zero) and the structure used by the fault
 signature matrix (:mod:`condmon.diagnose.structure`).
+
+Optional parts of a declaration:
+
+- ``range = [low, high]`` on a parameter: the values an estimate of it may take
+  (a suspect's estimate outside is rejected); on an input: the span of the
+  signal (a record's input column far outside is refused).
+- ``[smoothing] eps = ...``: width of the regularisation of the non-smooth
+  functions (``sign``, ``abs``, ``min``, ``max``; see
+  :func:`~condmon.models.expressions.smoothed`) in the simulator, in the unit
+  of their arguments; 0 keeps them exact. Default: ``smoothing_eps`` of the
+  ``[simulation]`` settings (``condmon/data/isolation.toml``).
 """
 
 from __future__ import annotations
@@ -25,10 +36,10 @@ from numpy.typing import NDArray
 
 from condmon.errors import ConfigError
 from condmon.io.config import load_default, load_toml
-from condmon.models.expressions import parse_expression
+from condmon.models.expressions import parse_expression, smoothed
 
 __all__ = ["Parameter", "Input", "Variable", "State", "Sensor", "InputStep", "BuiltInTest",
-           "PlantModel", "CompiledModel", "load_plant_model", "list_plant_models",
+           "PlantModel", "CompiledModel", "load_plant_model", "list_plant_models", "plant_from_doc",
            "equations_of", "substituted_equations", "symbols_of"]
 
 FloatArray = NDArray[np.float64]
@@ -39,23 +50,27 @@ _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 @dataclass(frozen=True)
 class Parameter:
-    """A model parameter: ``value`` [unit]; ``fault`` marks a candidate fault."""
+    """A model parameter: ``value`` [unit]; ``fault`` marks a candidate fault;
+    ``range`` the plausible values of an estimate [unit] (None: not declared)."""
 
     name: str
     value: float
     unit: str = ""
     description: str = ""
     fault: bool = False
+    range: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
 class Input:
-    """A known input signal; ``nominal`` is a parameter's name or a number [unit]."""
+    """A known input signal; ``nominal`` is a parameter's name or a number [unit];
+    ``range`` the signal's plausible span [unit]."""
 
     name: str
     nominal: str | float
     unit: str = ""
     description: str = ""
+    range: tuple[float, float] = (-math.inf, math.inf)
 
 
 @dataclass(frozen=True)
@@ -136,6 +151,7 @@ class PlantModel:
     sensors: tuple[Sensor, ...]
     test: BuiltInTest
     source: str = ""
+    smoothing: float | None = None
 
     @property
     def parameter_names(self) -> tuple[str, ...]:
@@ -285,7 +301,10 @@ def _compile(model: PlantModel) -> CompiledModel:
     xs = [sym[n] for n in model.state_names]
     us = [sym[n] for n in model.input_names]
     ps = [sym[n] for n in model.parameter_names]
-    var_exprs, deriv_exprs, out_exprs = (list(d.values()) for d in substituted_equations(model))
+    eps = model.smoothing if model.smoothing is not None else \
+        float(load_default("isolation.toml")["simulation"]["smoothing_eps"])
+    var_exprs, deriv_exprs, out_exprs = ([smoothed(e, eps) for e in d.values()]
+                                         for d in substituted_equations(model))
 
     def raw(exprs: list[sp.Expr]) -> Callable[..., Any]:
         return sp.lambdify((xs, us, ps), exprs, modules="numpy", cse=True)  # type: ignore[no-any-return]
@@ -356,6 +375,11 @@ def load_plant_model(model: str | Path = "hst", params: str | Path | Mapping[str
         raise ConfigError(f"{params}: {err}") from None
 
 
+def plant_from_doc(doc: Mapping[str, Any], source: str) -> PlantModel:
+    """Read and validate a declaration already parsed from TOML (``source`` names it)."""
+    return _validated(_from_doc(doc, source), source)
+
+
 def _table(doc: Mapping[str, Any], key: str, source: str) -> dict[str, Any]:
     value = doc.get(key, {})
     if not isinstance(value, dict):
@@ -387,16 +411,19 @@ def _from_doc(doc: Mapping[str, Any], src: str) -> PlantModel:
     text = ("unit", "description")
     params = []
     for k, e in _table(doc, "parameters", src).items():
-        f = _fields(e, f"{src}[parameters.{k}]", ("value",), (*text, "fault"))
-        params.append(Parameter(k, _number(f["value"], f"{src}[parameters.{k}].value"),
-                                f.get("unit", ""), f.get("description", ""),
-                                bool(f.get("fault", False))))
+        f = _fields(e, f"{src}[parameters.{k}]", ("value",), (*text, "fault", "range"))
+        value = _number(f["value"], f"{src}[parameters.{k}].value")
+        rng = _range(f, f"{src}[parameters.{k}].range") if "range" in f else None
+        params.append(Parameter(k, value, f.get("unit", ""), f.get("description", ""),
+                                bool(f.get("fault", False)), rng))
     inputs = []
     for k, e in _table(doc, "inputs", src).items():
-        f = _fields(e, f"{src}[inputs.{k}]", ("nominal",), text)
+        f = _fields(e, f"{src}[inputs.{k}]", ("nominal",), (*text, "range"))
         nominal = f["nominal"] if isinstance(f["nominal"], str) else \
             _number(f["nominal"], f"{src}[inputs.{k}].nominal")
-        inputs.append(Input(k, nominal, f.get("unit", ""), f.get("description", "")))
+        inputs.append(Input(k, nominal, f.get("unit", ""), f.get("description", ""),
+                            _range(f, f"{src}[inputs.{k}].range") if "range" in f
+                            else (-math.inf, math.inf)))
     variables = [Variable(k, str(_fields(e, f"{src}[variables.{k}]", ("equation",), text)["equation"]),
                           e.get("unit", ""), e.get("description", ""))
                  for k, e in _table(doc, "variables", src).items()]
@@ -409,11 +436,10 @@ def _from_doc(doc: Mapping[str, Any], src: str) -> PlantModel:
     sensors = []
     for k, e in _table(doc, "sensors", src).items():
         f = _fields(e, f"{src}[sensors.{k}]", ("measures", "noise"), (*text, "range"))
-        rng = f.get("range", [-math.inf, math.inf])
-        if not isinstance(rng, list) or len(rng) != 2:
-            raise ConfigError(f"{src}[sensors.{k}].range must be [low, high]")
         sensors.append(Sensor(k, str(f["measures"]), _number(f["noise"], f"{src}[sensors.{k}].noise"),
-                              f.get("unit", ""), (float(rng[0]), float(rng[1])),
+                              f.get("unit", ""),
+                              _range(f, f"{src}[sensors.{k}].range", finite=False)
+                              if "range" in f else (-math.inf, math.inf),
                               f.get("description", "")))
     t = _fields(_table(doc, "test", src), f"{src}[test]", ("duration", "sample_rate"), ("schedule",))
     steps = []
@@ -428,9 +454,25 @@ def _from_doc(doc: Mapping[str, Any], src: str) -> PlantModel:
     test = BuiltInTest(_number(t["duration"], f"{src}[test].duration"),
                        _number(t["sample_rate"], f"{src}[test].sample_rate"),
                        tuple(sorted(steps, key=lambda s: s.at)))
+    smooth = _fields(_table(doc, "smoothing", src), f"{src}[smoothing]", (), ("eps",))
+    eps = _number(smooth["eps"], f"{src}[smoothing].eps") if "eps" in smooth else None
+    if eps is not None and eps < 0:
+        raise ConfigError(f"{src}[smoothing].eps must be >= 0 (0: exact), not {eps:g}")
     return PlantModel(str(doc.get("name", Path(src).stem)), str(doc.get("description", "")),
                       tuple(params), tuple(inputs), tuple(variables), tuple(states),
-                      tuple(sensors), test, src)
+                      tuple(sensors), test, src, eps)
+
+
+def _range(entry: Mapping[str, Any], where: str, finite: bool = True) -> tuple[float, float]:
+    """``range = [low, high]`` of a declaration entry, low < high."""
+    rng = entry["range"]
+    if not isinstance(rng, list) or len(rng) != 2 or any(
+            isinstance(v, bool) or not isinstance(v, (int, float)) for v in rng):
+        raise ConfigError(f"{where} must be [low, high] (two numbers)")
+    lo, hi = float(rng[0]), float(rng[1])
+    if (finite and not (math.isfinite(lo) and math.isfinite(hi))) or not lo < hi:
+        raise ConfigError(f"{where} must be [low, high] with low < high, not {rng!r}")
+    return lo, hi
 
 
 def _validated(m: PlantModel, src: str) -> PlantModel:
@@ -453,6 +495,10 @@ def _validated(m: PlantModel, src: str) -> PlantModel:
         if isinstance(u.nominal, str) and u.nominal not in m.parameter_names:
             raise ConfigError(f"{src}[inputs.{u.name}].nominal: unknown parameter {u.nominal!r}; "
                               f"allowed: {', '.join(m.parameter_names)}")
+    for p in m.parameters:
+        if p.range is not None and not p.range[0] <= p.value <= p.range[1]:
+            raise ConfigError(f"{src}[parameters.{p.name}]: value {p.value:g} lies outside its "
+                              f"range [{p.range[0]:g}, {p.range[1]:g}]")
     for s in m.sensors:
         if not s.noise > 0:
             raise ConfigError(f"{src}[sensors.{s.name}].noise must be > 0, not {s.noise!r}")

@@ -3,23 +3,38 @@
 The text of an equation comes from a file a user edits, so it is never handed to
 ``eval`` (which ``sympy.sympify`` uses): it is parsed with :mod:`ast` and only
 names, numbers, ``+ - * / **`` and a short list of functions are accepted.
+
+Of those functions, ``sign``, ``abs``, ``min`` and ``max`` are not smooth: a
+model using them (Coulomb friction ``Fc*sign(v)``) chatters about the kink and
+a variable-step solver crawls there. :func:`smoothed` replaces them, for
+simulation only, by smooth approximations of width ``eps`` (the structure of the
+equations, used by the fault signature matrix, is unchanged):
+
+- ``sign(x)`` → ``tanh(x/eps)``
+- ``abs(x)`` → ``x*tanh(x/eps)``
+- ``max(a, b)`` → ``(a + b + |a − b|)/2`` and ``min(a, b)`` → ``(a + b − |a − b|)/2``,
+  with the smooth ``|·|``.
 """
 
 from __future__ import annotations
 
 import ast
+import functools
 from collections.abc import Callable, Mapping
 
 import sympy as sp
 
 from condmon.errors import ConfigError
 
-__all__ = ["FUNCTIONS", "parse_expression"]
+__all__ = ["FUNCTIONS", "NON_SMOOTH", "parse_expression", "smoothed"]
 
 FUNCTIONS: dict[str, Callable[..., sp.Expr]] = {
     "sqrt": sp.sqrt, "abs": sp.Abs, "sign": sp.sign, "exp": sp.exp, "log": sp.log,
     "sin": sp.sin, "cos": sp.cos, "tanh": sp.tanh, "min": sp.Min, "max": sp.Max,
 }
+
+NON_SMOOTH = ("sign", "abs", "min", "max")
+"""Functions of :data:`FUNCTIONS` with a kink or a jump, smoothed for simulation."""
 
 _BINARY: dict[type[ast.operator], Callable[[sp.Expr, sp.Expr], sp.Expr]] = {
     ast.Add: lambda a, b: a + b, ast.Sub: lambda a, b: a - b,
@@ -86,3 +101,43 @@ def parse_expression(text: str, symbols: Mapping[str, sp.Symbol], where: str = "
         raise ConfigError(f"{prefix}cannot use {ast.unparse(node)!r} in an equation ({text!r})")
 
     return build(tree)
+
+
+def smoothed(expr: sp.Expr, eps: float) -> sp.Expr:
+    """``expr`` with its non-smooth functions (:data:`NON_SMOOTH`) regularised.
+
+    Parameters
+    ----------
+    expr : sympy.Expr
+    eps : float
+        Width of the regularisation, in the unit of each function's argument;
+        0 leaves the expression exact.
+
+    Returns
+    -------
+    sympy.Expr
+
+    Example
+    -------
+    >>> v = sp.Symbol("v", real=True)
+    >>> smoothed(2*sp.sign(v), 0.01)
+    2*tanh(100.0*v)
+    """
+    if eps == 0:
+        return expr
+    e = sp.Float(eps)
+
+    def smooth_abs(a: sp.Expr) -> sp.Expr:
+        return a * sp.tanh(a / e)
+
+    def smooth_max(a: sp.Expr, b: sp.Expr) -> sp.Expr:
+        return (a + b + smooth_abs(a - b)) / 2
+
+    def smooth_min(a: sp.Expr, b: sp.Expr) -> sp.Expr:
+        return (a + b - smooth_abs(a - b)) / 2
+
+    out = expr.replace(sp.Max, lambda *args: functools.reduce(smooth_max, args))
+    out = out.replace(sp.Min, lambda *args: functools.reduce(smooth_min, args))
+    out = out.replace(sp.sign, lambda a: sp.tanh(a / e))
+    out = out.replace(sp.Abs, smooth_abs)
+    return out

@@ -1,95 +1,90 @@
-"""Registry of the physical models an estimate can be mapped to."""
+"""The one registry of machine models: every machine is a declaration (TOML).
+
+Shipped entries: ``dc-motor`` (linear, estimated by SRIV through its transfer
+functions) and ``hst`` (the hydrostatic transmission, monitored by residuals
+and isolation). A user's declaration file is used by its path, or
+registered under a name with :func:`register_model`.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
-import numpy as np
-from numpy.typing import NDArray
+from condmon.errors import ConfigError, ModelError
+from condmon.io.config import load_default, load_toml
+from condmon.models.declared import plant_from_doc
+from condmon.models.machine import Machine, machine_from_doc
 
-from condmon.errors import ModelError
-from condmon.io.config import load_default
-from condmon.models.dc_motor import PARAMETER_NAMES, PARAMETER_UNITS, dc_motor_from_discrete
-from condmon.models.plausibility import Plausibility, parse_plausibility
-from condmon.models.transfer import DiscreteTF
+__all__ = ["get_model", "list_models", "register_model"]
 
-__all__ = ["PhysicalModel", "get_model", "list_models"]
-
-FloatArray = NDArray[np.float64]
-
-
-@dataclass(frozen=True)
-class PhysicalModel:
-    """A physical model reachable from a discrete transfer-function estimate.
-
-    Attributes
-    ----------
-    name : str
-        Registry key.
-    input : str
-        Input column.
-    outputs : tuple of str
-        Output columns, in model order.
-    order : int
-        Number of poles of the discrete model.
-    parameters : tuple of str
-        Physical parameter names.
-    units : dict of str to str
-        Unit of each parameter.
-    gamma : float
-        Default model constant (Ke/Kt for the DC motor).
-    from_discrete : callable
-        ``(model, covariance, gamma) -> (values, covariance)``.
-    plausibility : Plausibility
-        What is physically possible: parameter bounds, record timing, the
-        believable change against a baseline.
-    """
-
-    name: str
-    input: str
-    outputs: tuple[str, ...]
-    order: int
-    parameters: tuple[str, ...]
-    units: dict[str, str]
-    gamma: float
-    from_discrete: Callable[[DiscreteTF, FloatArray, float], tuple[FloatArray, FloatArray]]
-    plausibility: Plausibility = field(default_factory=Plausibility)
-
-
-def _dc_motor(model: DiscreteTF, cov: FloatArray, gamma: float
-              ) -> tuple[FloatArray, FloatArray]:
-    params, pcov = dc_motor_from_discrete(model, cov, gamma)
-    return params.as_array(), pcov
-
-
-def _registry() -> dict[str, PhysicalModel]:
-    cfg = load_default("models.toml")
-    dc = cfg["dc-motor"]
-    return {
-        "dc-motor": PhysicalModel("dc-motor", "V", ("I", "omega"), 2, PARAMETER_NAMES,
-                                  PARAMETER_UNITS, float(dc["gamma"]), _dc_motor,
-                                  parse_plausibility(dc, "models.toml [dc-motor]")),
-    }
-
-
-_MODELS = _registry()
+#: Shipped declarations: name -> file in condmon/data.
+_SHIPPED = {"dc-motor": "dc-motor.toml", "hst": "hst.toml"}
+_USER: dict[str, Path] = {}
+_CACHE: dict[str, Machine] = {}
 
 
 def list_models() -> list[str]:
-    """Names of the registered physical models."""
-    return sorted(_MODELS)
-
-
-def get_model(name: str) -> PhysicalModel:
-    """The registered model ``name``.
+    """Names of the machine models: shipped and registered.
 
     Example
     -------
-    >>> get_model("dc-motor").parameters
-    ('R', 'L', 'Ke', 'Kt', 'J', 'D')
+    >>> list_models()
+    ['dc-motor', 'hst']
     """
-    try:
-        return _MODELS[name]
-    except KeyError:
-        raise ModelError(f"unknown model {name!r}; allowed: {', '.join(list_models())}") from None
+    return sorted({*_SHIPPED, *_USER})
+
+
+def register_model(name: str, path: str | Path) -> Machine:
+    """Register a declaration file under ``name`` (validated now, not at first use).
+
+    Raises
+    ------
+    ConfigError
+        When the file does not exist or is not a valid declaration.
+    """
+    machine = _load(Path(path))
+    _USER[name] = Path(path)
+    _CACHE[name] = machine
+    return machine
+
+
+def get_model(model: str | Path) -> Machine:
+    """A machine model by name (shipped or registered) or declaration file.
+
+    Raises
+    ------
+    ModelError
+        Unknown name (the allowed ones listed).
+    ConfigError
+        An invalid declaration (file and entry named).
+
+    Example
+    -------
+    >>> get_model("dc-motor").spec.unknowns
+    ('R', 'L', 'Kt', 'J', 'D')
+    """
+    key = str(model)
+    if key in _CACHE:
+        return _CACHE[key]
+    if key in _USER:
+        machine = _load(_USER[key])
+    elif key in _SHIPPED:
+        machine = _machine(load_default(_SHIPPED[key]), _SHIPPED[key])
+    elif Path(key).suffix.lower() == ".toml" or Path(key).exists():
+        machine = _load(Path(key))
+    else:
+        raise ModelError(f"unknown model {key!r}; give a declaration file (.toml) or one "
+                         f"of: {', '.join(list_models())}")
+    _CACHE[key] = machine
+    return machine
+
+
+def _load(path: Path) -> Machine:
+    if not path.exists():
+        raise ConfigError(f"{path}: declaration file not found")
+    return _machine(load_toml(path), str(path))
+
+
+def _machine(doc: dict[str, Any], source: str) -> Machine:
+    return machine_from_doc(plant_from_doc(doc, source), doc)

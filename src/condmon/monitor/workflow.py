@@ -43,6 +43,8 @@ class EstimateOptions:
     excitation: Sequence[str] | str | None = "auto"
     fit_threshold: float = DEFAULT_FIT_THRESHOLD
     columns: dict[str, str] | None = None
+    route: str | None = None
+    constants: dict[str, float] | None = None
 
     def run(self, record: RecordLike) -> tuple[EstimateResult, str]:
         """Read (if a path), estimate; returns the result and the record's SHA-256."""
@@ -54,7 +56,7 @@ class EstimateOptions:
         res = estimate(df, self.model, method=self.method, gamma=self.gamma,
                        excitation=self.excitation, fit_threshold=self.fit_threshold,
                        columns=self.columns if isinstance(record, pd.DataFrame) else None,
-                       source=source)
+                       source=source, route=self.route, constants=self.constants)
         return res, digest
 
 
@@ -121,7 +123,7 @@ def _existing_baseline(store: HistoryStore, unit: str) -> Baseline | None:
 def _unit_error(res: EstimateResult, baseline: Baseline) -> str | None:
     """Why a test's parameters jump beyond what is believable or flip sign
     against the baseline ("likely unit or sign error ..."), or None."""
-    return get_model(res.model).plausibility.check_against_baseline(
+    return get_model(res.model).spec.plausibility.check_against_baseline(
         res.parameters, dict(zip(baseline.parameters, baseline.mean)), res.units)
 
 

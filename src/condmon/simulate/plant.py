@@ -6,27 +6,76 @@ pressure drop, at start-up). Known input steps and parameter faults are
 discontinuities: the integration stops and restarts at each, so none is smeared.
 The same routine runs the model beside a record, with some states taken from
 measured signals instead of integrated (the structured residual generators).
+
+Every integration is bounded (:class:`SimulationLimits`, defaults in the
+``[simulation]`` table of ``condmon/data/isolation.toml``): a wall-clock limit and
+a cap on right-hand-side evaluations per sample, both checked inside the
+right-hand side, so a runaway (stiff, chattering) integration stops with
+:class:`SimulationTimeout` instead of running on. Non-finite derivatives stop it
+at once with :class:`~condmon.errors.EstimationError`.
 """
 
 from __future__ import annotations
 
+import math
+import time
+import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
-from condmon.errors import ConfigError, DataError, EstimationError
+from condmon.errors import CondmonError, ConfigError, DataError, EstimationError
+from condmon.io.config import load_default
 from condmon.models.declared import CompiledModel, PlantModel
 from condmon.simulate.faults import Fault, apply_fault, parse_fault
 
-__all__ = ["ParameterStep", "parameter_steps", "input_signals", "operating_segments",
-           "integrate", "sensor_readings", "simulate_plant", "time_grid"]
+__all__ = ["ParameterStep", "SimulationLimits", "SimulationTimeout", "parameter_steps",
+           "input_signals", "operating_segments", "integrate", "sensor_readings",
+           "simulate_plant", "time_grid"]
 
 FloatArray = NDArray[np.float64]
 _MAX_RESTARTS = 100  # more input changes than this: the inputs are measured, not stepped
+
+
+class SimulationTimeout(EstimationError):
+    """A simulation went beyond its wall-time or evaluation limit and was stopped."""
+
+
+class _Stop(Exception):
+    """Raised inside the right-hand side to leave the solver (internal)."""
+
+
+@dataclass(frozen=True)
+class SimulationLimits:
+    """Bounds on the cost of one simulation (defaults: ``[simulation]`` of
+    ``condmon/data/isolation.toml``).
+
+    Attributes
+    ----------
+    time_limit : float
+        Wall-clock time one integration may take. [s]
+    max_evaluations_per_sample : float
+        Right-hand-side evaluations allowed per sample of the time grid. [-]
+    """
+
+    time_limit: float = math.inf
+    max_evaluations_per_sample: float = math.inf
+
+    @classmethod
+    def from_config(cls, cfg: Mapping[str, Any] | None = None) -> SimulationLimits:
+        """The ``[simulation]`` table of a settings document (default: the shipped one)."""
+        sim = (cfg or load_default("isolation.toml"))["simulation"]
+        out = cls(float(sim["time_limit"]), float(sim["max_evaluations_per_sample"]))
+        if not (out.time_limit > 0 and out.max_evaluations_per_sample > 0):
+            raise ConfigError(f"[simulation]: time_limit and max_evaluations_per_sample must "
+                              f"be > 0 (got {out.time_limit:g}, "
+                              f"{out.max_evaluations_per_sample:g})")
+        return out
 
 
 @dataclass(frozen=True)
@@ -140,7 +189,8 @@ def operating_segments(u: FloatArray, rel_tol: float = 0.02) -> NDArray[np.intp]
 def integrate(compiled: CompiledModel, t: FloatArray, u: FloatArray,
               steps: Sequence[ParameterStep] = (), params: Mapping[str, float] | None = None,
               measured: Mapping[str, FloatArray] | None = None,
-              integrated: Sequence[str] | None = None) -> FloatArray:
+              integrated: Sequence[str] | None = None,
+              limits: SimulationLimits | None = None) -> FloatArray:
     """States of the model on the grid ``t``, shape (len(t), n_states).
 
     Parameters
@@ -160,11 +210,20 @@ def integrate(compiled: CompiledModel, t: FloatArray, u: FloatArray,
     integrated : sequence of str, optional
         States to integrate (default: every state not in ``measured``); the
         others stay at their initial values.
+    limits : SimulationLimits, optional
+        Wall-time and evaluation limits (default: none).
 
     Returns
     -------
     ndarray
         Integrated states as computed, measured ones as given.
+
+    Raises
+    ------
+    SimulationTimeout
+        When a limit is reached (checked inside the right-hand side).
+    EstimationError
+        When the solver fails or the derivatives become non-finite.
 
 
     Example
@@ -204,43 +263,79 @@ def integrate(compiled: CompiledModel, t: FloatArray, u: FloatArray,
     for s in steps:
         if s.at <= t[0]:
             p[pindex[s.name]] = s.value
+    lim = limits or SimulationLimits()
+    started = time.monotonic()
+    deadline = started + lim.time_limit
+    max_calls = lim.max_evaluations_per_sample * len(t)
+    calls = [0]
 
     def rhs(tt: float, xi: FloatArray, uk: FloatArray) -> FloatArray:
+        calls[0] += 1
+        if calls[0] > max_calls or (calls[0] % 16 == 0 and time.monotonic() > deadline):
+            raise _Stop(tt)
         xf = x_full0.copy()
         xf[idx] = xi
         for i, v in fixed:
             xf[i] = np.interp(tt, t, v)
         if smooth_inputs:
             uk = np.array([np.interp(tt, t, u[:, j]) for j in range(u.shape[1])])
-        return compiled.rhs(xf, uk, p)[idx]
+        d: FloatArray = compiled.rhs(xf, uk, p)[idx]
+        if not np.all(np.isfinite(d)):
+            raise _Stop(tt, "non-finite")
+        return d
 
     # with measured (noisy) signals as inputs the right-hand side has a kink at
     # every sample; a relative tolerance of 1e-5 keeps the integration error
     # near 1e-3 of the sensor noise at a quarter of the cost of 1e-7
     rtol = 1e-5 if fixed or smooth_inputs else 1e-7
-    for a, b in zip(bps[:-1], bps[1:]):
-        k = int(np.searchsorted(t, a + 1e-9 * max(1.0, abs(a)), side="right")) - 1
-        uk = u[max(k, 0)]
-        mask = (t >= a) & (t < b)
-        sol = solve_ivp(rhs, (a, b), x, method="LSODA", t_eval=np.append(t[mask], b),
-                        args=(uk,), rtol=rtol, atol=1e-9)
-        if not sol.success:
-            raise EstimationError(f"simulation of {model.name!r} failed at t = {a:g} s: "
-                                  f"{sol.message}")
-        x_out[np.ix_(mask, idx)] = sol.y[:, :-1].T
-        x = sol.y[:, -1].copy()
-        for s in steps:
-            if a < s.at <= b:
-                p[pindex[s.name]] = s.value
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the solver's own warnings: its failure is raised below
+        for a, b in zip(bps[:-1], bps[1:]):
+            k = int(np.searchsorted(t, a + 1e-9 * max(1.0, abs(a)), side="right")) - 1
+            uk = u[max(k, 0)]
+            mask = (t >= a) & (t < b)
+            sol = _solve(rhs, a, b, x, np.append(t[mask], b), uk, rtol, model.name,
+                         lim, started)
+            x_out[np.ix_(mask, idx)] = sol.y[:, :-1].T
+            x = sol.y[:, -1].copy()
+            for s in steps:
+                if a < s.at <= b:
+                    p[pindex[s.name]] = s.value
     x_out[-1, idx] = x
     if not np.all(np.isfinite(x_out)):
         raise EstimationError(f"simulation of {model.name!r} gave non-finite states")
     return x_out
 
 
+def _solve(rhs: Any, a: float, b: float, x: FloatArray, t_eval: FloatArray, uk: FloatArray,
+           rtol: float, name: str, lim: SimulationLimits, started: float) -> Any:
+    """One solver run from ``a`` to ``b`` [s]; every failure as a condmon error."""
+    try:
+        sol = solve_ivp(rhs, (a, b), x, method="LSODA", t_eval=t_eval, args=(uk,),
+                        rtol=rtol, atol=1e-9)
+    except _Stop as stop:
+        at = float(stop.args[0])
+        if len(stop.args) > 1:
+            raise EstimationError(f"simulation of {name!r} gave non-finite derivatives at "
+                                  f"t = {at:g} s") from None
+        spent = time.monotonic() - started
+        raise SimulationTimeout(
+            f"simulation of {name!r} stopped at t = {at:g} s of {t_eval[-1]:g} s after "
+            f"{spent:.1f} s (limits: {lim.time_limit:g} s wall time, "
+            f"{lim.max_evaluations_per_sample:g} evaluations per sample)") from None
+    except CondmonError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - no raw solver error reaches a user
+        raise EstimationError(f"simulation of {name!r} failed at t = {a:g} s: "
+                              f"{type(exc).__name__}: {exc}") from None
+    if not sol.success:
+        raise EstimationError(f"simulation of {name!r} failed at t = {a:g} s: {sol.message}")
+    return sol
+
+
 def simulate_plant(model: PlantModel, faults: Iterable[str | Fault] = (), *, seed: int = 0,
                    duration: float | None = None, sample_rate: float | None = None,
-                   noise: bool = True) -> pd.DataFrame:
+                   noise: bool = True, limits: SimulationLimits | None = None) -> pd.DataFrame:
     """Simulate the model's built-in test: a record like one from the rig.
 
     Parameters
@@ -255,11 +350,18 @@ def simulate_plant(model: PlantModel, faults: Iterable[str | Fault] = (), *, see
         Override the test's [s] and [Hz].
     noise : bool
         Add each sensor's noise (standard deviation from the declaration).
+    limits : SimulationLimits, optional
+        Default: the shipped ``[simulation]`` settings.
 
     Returns
     -------
     pandas.DataFrame
         Columns ``t`` [s], one per sensor, one per input.
+
+    Raises
+    ------
+    SimulationTimeout
+        When the integration goes beyond ``limits`` (a stiff or chattering model).
 
     Example
     -------
@@ -273,8 +375,9 @@ def simulate_plant(model: PlantModel, faults: Iterable[str | Fault] = (), *, see
     if len(t) < 2:
         raise DataError("the simulated test needs at least two samples")
     u = input_signals(model, t)
-    x = integrate(compiled, t, u, parameter_steps(model, faults))
-    y = sensor_readings(compiled, x, u, parameter_steps(model, faults), t)
+    steps = parameter_steps(model, faults)
+    x = integrate(compiled, t, u, steps, limits=limits or SimulationLimits.from_config())
+    y = sensor_readings(compiled, x, u, steps, t)
     rng = np.random.default_rng(seed)
     cols: dict[str, FloatArray] = {"t": t}
     for j, s in enumerate(model.sensors):
@@ -299,5 +402,6 @@ def sensor_readings(compiled: CompiledModel, x: FloatArray, u: FloatArray,
         for s in steps:
             if s.at <= t[a]:
                 p[pindex[s.name]] = s.value
-        out[a:b] = compiled.outputs_on(x[a:b], u[a:b], p)
+        with np.errstate(all="ignore"):  # non-finite readings are the caller's to judge
+            out[a:b] = compiled.outputs_on(x[a:b], u[a:b], p)
     return out

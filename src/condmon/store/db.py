@@ -260,7 +260,7 @@ class HistoryStore:
         with self.engine.connect() as conn:
             model = conn.execute(sa.select(S.units.c.model).where(S.units.c.name == unit)).scalar()
         try:
-            order = list(get_model(str(model)).parameters)
+            order = list(get_model(str(model)).spec.report)
         except ModelError:
             order = []
         return [p for p in order if p in names] + sorted(p for p in names if p not in order)

@@ -1,0 +1,184 @@
+"""Checks of a record against a declared plant model, before any residual.
+
+A record that cannot be right is refused with one line naming the file and the
+column (:class:`~condmon.errors.DataError`); one that is usable but suspicious
+gets a :class:`~condmon.errors.DataWarning`. The limits are data
+(``[record]`` of ``condmon/data/isolation.toml``):
+
+- every value finite and numeric; ``t`` increasing and uniformly sampled;
+- a sensor or input value further outside its declared range than
+  ``refuse_outside_spans`` times the range's span: refused (a unit error, a
+  corrupt file); more than 1 % of a column's samples outside the range, by
+  less: a warning (a real sensor saturates there);
+- a sensor column whose largest magnitude is below ``dead_fraction`` of its
+  range span and whose whole excursion is below its declared noise: refused (a
+  dead sensor, or a unit 1e3–1e5 times too large, e.g. bar for Pa);
+- a sample interval ``time_base_factor`` times shorter or longer than the
+  test's: refused (time in the wrong unit, e.g. milliseconds as seconds); a
+  record shorter than ``short_fraction`` of the test: a warning.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from condmon.errors import ConfigError, DataError, DataWarning
+from condmon.io.config import load_default
+from condmon.models.declared import PlantModel
+
+__all__ = ["RecordSettings", "validate_plant_record"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class RecordSettings:
+    """Limits of the record checks (defaults: ``[record]`` of ``isolation.toml``).
+
+    Attributes
+    ----------
+    refuse_outside_spans : float
+        A value further outside its declared range than this many range spans
+        is refused. [-]
+    dead_fraction : float
+        A sensor column below this fraction of its range span, with an
+        excursion below its noise, is refused. [-]
+    time_base_factor : float
+        A sample interval this many times shorter or longer than the test's is
+        refused. [-]
+    short_fraction : float
+        A record shorter than this fraction of the test's duration is warned of. [-]
+    """
+
+    refuse_outside_spans: float = 10.0
+    dead_fraction: float = 1e-3
+    time_base_factor: float = 300.0
+    short_fraction: float = 0.1
+
+    @classmethod
+    def from_config(cls, cfg: Mapping[str, Any] | None = None) -> RecordSettings:
+        """The ``[record]`` table of a settings document (default: the shipped one)."""
+        r = (cfg or load_default("isolation.toml"))["record"]
+        out = cls(float(r["refuse_outside_spans"]), float(r["dead_fraction"]),
+                  float(r["time_base_factor"]), float(r["short_fraction"]))
+        if not (out.refuse_outside_spans > 0 and 0 <= out.dead_fraction < 1
+                and out.time_base_factor > 1 and 0 <= out.short_fraction <= 1):
+            raise ConfigError(f"[record]: refuse_outside_spans > 0, 0 <= dead_fraction < 1, "
+                              f"time_base_factor > 1 and 0 <= short_fraction <= 1 (got {out})")
+        return out
+
+
+def validate_plant_record(model: PlantModel, record: pd.DataFrame, source: str = "record",
+                          settings: RecordSettings | None = None) -> pd.DataFrame:
+    """Check a record against a model (see the module's list); the record, reindexed.
+
+    Raises
+    ------
+    DataError
+        Naming ``source`` and the column.
+
+    Example
+    -------
+    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.simulate.plant import simulate_plant
+    >>> m = load_plant_model("hst")
+    >>> rec = simulate_plant(m, seed=1)
+    >>> rec["Ps"] = rec["Ps"] / 1e5          # bar where the declaration says Pa
+    >>> validate_plant_record(m, rec, "rig.csv")
+    Traceback (most recent call last):
+    ...
+    condmon.errors.DataError: rig.csv: column 'Ps' stays within [0.0864, 66.8] Pa, less than its noise (25000 Pa) and below 0.001 of its range [0, 1e+07] Pa: a dead sensor, or a value in a larger unit (bar for Pa?)
+    """
+    cfg = settings or RecordSettings.from_config()
+    missing = [c for c in ("t", *model.sensor_names) if c not in record.columns]
+    if missing:
+        raise DataError(f"{source}: missing column {missing[0]!r}; model {model.name!r} needs "
+                        f"t, {', '.join(model.sensor_names)}")
+    inputs = [u for u in model.inputs if u.name in record.columns]
+    values: dict[str, FloatArray] = {}
+    for c in ["t", *model.sensor_names, *(u.name for u in inputs)]:
+        v = pd.to_numeric(record[c], errors="coerce").to_numpy(dtype=np.float64)
+        if not np.all(np.isfinite(v)):
+            k = int(np.flatnonzero(~np.isfinite(v))[0])
+            raise DataError(f"{source}: column {c!r} has a missing or non-numeric value at row {k}")
+        values[c] = v
+    t = values["t"]
+    if len(t) < 10:
+        raise DataError(f"{source}: {len(t)} samples; at least 10 are needed")
+    dt = np.diff(t)
+    if not (np.all(dt > 0) and np.ptp(dt) <= 1e-6 * np.mean(dt) + 1e-12):
+        raise DataError(f"{source}: column 't' is not uniformly sampled and increasing")
+    _check_time_base(model, t, source, cfg)
+    for u in inputs:
+        _far_outside(values[u.name], u.name, "input", u.range, u.unit, source, cfg)
+        share = float(np.mean((values[u.name] < u.range[0]) | (values[u.name] > u.range[1])))
+        if share > 0.01:
+            warnings.warn(f"{source}: {share:.0%} of column {u.name!r} lies outside the input's "
+                          f"range [{u.range[0]:g}, {u.range[1]:g}] {u.unit}", DataWarning,
+                          stacklevel=3)
+    for s in model.sensors:
+        y = values[s.name]
+        _far_outside(y, s.name, "sensor", s.range, s.unit, source, cfg)
+        _dead(y, s.name, s.range, s.noise, s.unit, source, cfg)
+        lo, hi = s.range
+        share = float(np.mean((y < lo) | (y > hi)))
+        if share > 0.01:
+            warnings.warn(f"{source}: {share:.0%} of column {s.name!r} lies outside the "
+                          f"sensor's range [{lo:g}, {hi:g}] {s.unit}; a real sensor would "
+                          "saturate there", DataWarning, stacklevel=3)
+        elif np.ptp(y) == 0:
+            warnings.warn(f"{source}: column {s.name!r} is constant ({y[0]:g} {s.unit}): a stuck "
+                          "sensor or a noise-free record", DataWarning, stacklevel=3)
+    out = record.reset_index(drop=True).copy()
+    for c, v in values.items():
+        out[c] = v
+    return out
+
+
+def _check_time_base(model: PlantModel, t: FloatArray, source: str, cfg: RecordSettings) -> None:
+    dt = float(np.mean(np.diff(t)))
+    test_dt = 1.0 / model.test.sample_rate
+    ratio = dt / test_dt
+    if ratio >= cfg.time_base_factor or ratio <= 1.0 / cfg.time_base_factor:
+        how = f"{ratio:.3g} times longer" if ratio > 1 else f"{1 / ratio:.3g} times shorter"
+        raise DataError(f"{source}: the sample interval {dt:.3g} s is {how} than the test's "
+                        f"{test_dt:.3g} s: column 't' must be in seconds (milliseconds given "
+                        "as seconds, or the reverse?)")
+    duration = float(t[-1] - t[0])
+    if duration < cfg.short_fraction * model.test.duration:
+        warnings.warn(f"{source}: the record lasts {duration:.3g} s, far less than the test's "
+                      f"{model.test.duration:g} s", DataWarning, stacklevel=4)
+
+
+def _far_outside(y: FloatArray, name: str, what: str, rng: tuple[float, float], unit: str,
+                 source: str, cfg: RecordSettings) -> None:
+    lo, hi = rng
+    span = hi - lo
+    if not math.isfinite(span):
+        return
+    worst = float(np.max(np.maximum(lo - y, y - hi)))
+    if worst > cfg.refuse_outside_spans * span:
+        k = int(np.argmax(np.maximum(lo - y, y - hi)))
+        raise DataError(f"{source}: column {name!r} reaches {y[k]:.4g} {unit} at row {k}, more "
+                        f"than {cfg.refuse_outside_spans:g} spans outside the {what}'s declared "
+                        f"range [{lo:g}, {hi:g}] {unit}: wrong unit, or not this {what}?")
+
+
+def _dead(y: FloatArray, name: str, rng: tuple[float, float], noise: float, unit: str,
+          source: str, cfg: RecordSettings) -> None:
+    span = rng[1] - rng[0]
+    if not math.isfinite(span):
+        return
+    if float(np.max(np.abs(y))) < cfg.dead_fraction * span and float(np.ptp(y)) < noise:
+        raise DataError(f"{source}: column {name!r} stays within [{y.min():.3g}, {y.max():.3g}] "
+                        f"{unit}, less than its noise ({noise:g} {unit}) and below "
+                        f"{cfg.dead_fraction:g} of its range [{rng[0]:g}, {rng[1]:g}] {unit}: a "
+                        "dead sensor, or a value in a larger unit (bar for Pa?)")

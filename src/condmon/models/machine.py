@@ -1,0 +1,472 @@
+"""A machine declared as data, ready for estimation: the declaration plus its
+``[estimation]`` table, and the structure condmon derives from the equations.
+
+Two structures are derived symbolically (sympy), with no code per machine:
+
+- :class:`LinearStructure` — when every state derivative is linear in the
+  states and one input, and every sensor reads a linear combination of states:
+  the common-denominator transfer functions ``C adj(sI - A) B / det(sI - A)``
+  and the map from their coefficients to the parameters.
+- :class:`InverseStructure` — when the equations are linear in the unknown
+  parameters (nonlinear in the signals allowed: ``sign``, offsets): each
+  equation ``den·x' - num = 0`` written as ``Σ θ_k φ_k(signals) = known(signals)``.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import sympy as sp
+from numpy.typing import NDArray
+
+from condmon.errors import ConfigError, ModelError
+from condmon.models.declared import PlantModel, substituted_equations, symbols_of
+from condmon.models.expressions import parse_expression
+from condmon.models.plausibility import Plausibility, parse_plausibility
+
+__all__ = ["EstimationSpec", "Machine", "LinearStructure", "InverseStructure",
+           "InverseEquation", "machine_from_doc", "ROUTES"]
+
+FloatArray = NDArray[np.float64]
+
+#: Estimation routes a declaration may ask for.
+ROUTES = ("auto", "linear", "inverse")
+
+
+@dataclass(frozen=True)
+class EstimationSpec:
+    """The ``[estimation]`` table of a declaration.
+
+    Attributes
+    ----------
+    unknowns : tuple of str
+        Parameters estimated; every other parameter is a known constant.
+    report : tuple of str
+        Quantities reported, in order (unknowns and derived).
+    derived : dict of str to (str, str)
+        ``name -> (equation, unit)`` of quantities computed from parameters.
+    route : {"auto", "linear", "inverse"}
+    order : int or None
+        Discrete model order for the linear route (default: number of states).
+    excitation : tuple of str
+        Closed-loop excitation columns, used when the record has them.
+    cutoff : float or None
+        Zero-phase low-pass cut-off before differentiation (inverse route);
+        None: a tenth of the Nyquist frequency. [Hz]
+    decimate : int
+        Keep one sample in ``decimate`` for the inverse-model regression.
+    plausibility : Plausibility
+    max_residual_correlation : float
+        Inverse route: largest normalised autocorrelation of an equation's
+        residual (lags 1..20 at twice the cut-off) before the estimate is
+        rejected as a structure mismatch (the model misses part of the
+        dynamics). [-]
+    """
+
+    unknowns: tuple[str, ...]
+    report: tuple[str, ...]
+    derived: dict[str, tuple[str, str]] = field(default_factory=dict)
+    route: str = "auto"
+    order: int | None = None
+    excitation: tuple[str, ...] = ()
+    cutoff: float | None = None
+    decimate: int = 1
+    plausibility: Plausibility = field(default_factory=Plausibility)
+    max_residual_correlation: float = 0.8
+
+
+@dataclass(frozen=True, eq=False)
+class Machine:
+    """A declared machine: the plant model and how to estimate it.
+
+    Example
+    -------
+    >>> from condmon.models.registry import get_model
+    >>> m = get_model("dc-motor")
+    >>> m.spec.unknowns, m.spec.report
+    (('R', 'L', 'Kt', 'J', 'D'), ('R', 'L', 'Ke', 'Kt', 'J', 'D'))
+    >>> m.linear().order, m.linear().outputs
+    (2, ('I', 'omega'))
+    """
+
+    plant: PlantModel
+    spec: EstimationSpec
+
+    @property
+    def name(self) -> str:
+        """The model's name."""
+        return self.plant.name
+
+    @property
+    def units(self) -> dict[str, str]:
+        """Unit of every reported quantity."""
+        units = {p.name: p.unit for p in self.plant.parameters}
+        units.update({k: u for k, (_, u) in self.spec.derived.items()})
+        return {k: units.get(k, "") for k in self.spec.report}
+
+    def constants(self, overrides: Mapping[str, float] | None = None) -> dict[str, float]:
+        """Known parameters (not estimated), with ``overrides`` applied. [SI]"""
+        values = {p.name: p.value for p in self.plant.parameters
+                  if p.name not in self.spec.unknowns}
+        for k, v in (overrides or {}).items():
+            if k in values:
+                values[k] = float(v)
+        return values
+
+    def nominal(self) -> dict[str, float]:
+        """Declared values of the unknowns (the starting point of a search). [SI]"""
+        return {p.name: p.value for p in self.plant.parameters if p.name in self.spec.unknowns}
+
+    def require_estimation(self) -> None:
+        """Raise :class:`ModelError` when the declaration says nothing to estimate."""
+        if not self.spec.unknowns:
+            raise ModelError(f"model {self.name!r} ({self.plant.source}) declares no "
+                             "[estimation] table: add one naming the parameters to estimate")
+
+    def linear(self) -> LinearStructure:
+        """The linear structure; :class:`ModelError` (with the reason) if the model is not linear."""
+        return _linear(self)
+
+    def inverse(self) -> InverseStructure:
+        """The inverse-model structure; :class:`ModelError` if not linear in the parameters."""
+        return _inverse(self)
+
+    def derived_functions(self) -> dict[str, tuple[sp.Expr, Callable[..., Any]]]:
+        """Each derived quantity as (expression, fn(params dict) -> value)."""
+        return _derived(self)
+
+    def report_values(self, params: Mapping[str, float], cov: FloatArray
+                      ) -> tuple[dict[str, float], FloatArray]:
+        """Reported quantities and their covariance from the unknowns' estimates.
+
+        ``params`` holds unknowns and constants; ``cov`` is the unknowns'
+        covariance (order of ``spec.unknowns``). Derived quantities take the
+        delta method with their exact gradient.
+        """
+        unknowns = self.spec.unknowns
+        rows = []
+        values = {}
+        for name in self.spec.report:
+            if name in unknowns:
+                g = np.zeros(len(unknowns))
+                g[unknowns.index(name)] = 1.0
+                values[name] = float(params[name])
+            else:
+                values[name] = float(self.derived_functions()[name][1](params))
+                g = _derived_gradients(self)[name](params)
+            rows.append(g)
+        G = np.array(rows)
+        return values, G @ cov @ G.T
+
+
+# -- the linear structure ---------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class LinearStructure:
+    """Transfer functions of a linear declared model and their coefficient map.
+
+    Attributes
+    ----------
+    order : int
+        Number of states n (the common denominator's degree).
+    input : str
+        The input column.
+    outputs : tuple of str
+        Sensor (record column) names, in numerator order.
+    coefficients : tuple of sympy.Expr
+        ``[a_1..a_n, b_11..b_1n, ..., b_m1..b_mn]`` of
+        ``(b_j1 s^(n-1) + ... + b_jn) / (s^n + a_1 s^(n-1) + ... + a_n)``,
+        as functions of the parameters.
+    free : tuple of int
+        Indices of the coefficients not identically zero (the equations solved).
+    values : callable
+        ``values(unknowns, constants) -> coefficient vector`` (free ones).
+    jacobian : callable
+        ``jacobian(unknowns, constants) -> d coefficients / d unknowns``.
+    """
+
+    order: int
+    input: str
+    outputs: tuple[str, ...]
+    coefficients: tuple[sp.Expr, ...]
+    free: tuple[int, ...]
+    values: Callable[[FloatArray, FloatArray], FloatArray]
+    jacobian: Callable[[FloatArray, FloatArray], FloatArray]
+
+
+def _is_linear_in(expr: sp.Expr, syms: list[sp.Symbol]) -> bool:
+    if expr.has(sp.sign, sp.Abs, sp.Min, sp.Max, sp.Heaviside):
+        return False
+    for s in syms:
+        d = sp.diff(expr, s)
+        if any(sp.diff(d, t) != 0 for t in syms):
+            return False
+    return bool(sp.simplify(expr.subs({s: 0 for s in syms})) == 0)
+
+
+@functools.lru_cache(maxsize=32)
+def _linear(machine: Machine) -> LinearStructure:
+    plant, spec = machine.plant, machine.spec
+    sym = symbols_of(plant)
+    _, derivs, readings = substituted_equations(plant)
+    xs = [sym[n] for n in plant.state_names]
+    used_inputs = [u for u in plant.input_names
+                   if any(e.has(sym[u]) for e in derivs.values())]
+    where = f"{plant.source}: the linear route"
+    if len(used_inputs) != 1:
+        raise ModelError(f"{where} needs exactly one input in the state equations, found "
+                         f"{len(used_inputs)} ({', '.join(used_inputs) or 'none'})")
+    u = sym[used_inputs[0]]
+    for name, e in derivs.items():
+        if not _is_linear_in(e, [*xs, u]):
+            raise ModelError(f"{where}: d{name}/dt = {e} is not linear in the states and "
+                             f"the input (no offset, sign or abs)")
+    for name, e in readings.items():
+        if e.has(u) or not _is_linear_in(e, xs):
+            raise ModelError(f"{where}: sensor {name!r} = {e} is not a linear combination "
+                             "of the states")
+    n = len(xs)
+    A = sp.Matrix([[sp.diff(derivs[a], x) for x in xs] for a in plant.state_names])
+    B = sp.Matrix([sp.diff(derivs[a], u) for a in plant.state_names])
+    C = sp.Matrix([[sp.diff(readings[s], x) for x in xs] for s in plant.sensor_names])
+    s = sp.Symbol("s")
+    M = s * sp.eye(n) - A
+    den = sp.Poly(sp.expand(M.det(method="berkowitz")), s)
+    lead = den.coeffs()[0]
+    adjB = M.adjugate() * B
+    den_c = [sp.simplify(den.coeff_monomial(s ** (n - k)) / lead) for k in range(1, n + 1)]
+    coeffs = list(den_c)
+    for j in range(C.rows):
+        num = sp.Poly(sp.expand((C[j, :] * adjB)[0, 0]), s)
+        if num.degree() >= n:
+            raise ModelError(f"{where}: sensor {plant.sensor_names[j]!r} has direct "
+                             "feedthrough from the input")
+        coeffs += [sp.simplify(num.coeff_monomial(s ** (n - k)) / lead) for k in range(1, n + 1)]
+    free = tuple(i for i, c in enumerate(coeffs) if c != 0)
+    unknowns = [sym[k] for k in spec.unknowns]
+    missing = [k for k in spec.unknowns if not any(c.has(sym[k]) for c in coeffs)]
+    if missing:
+        raise ModelError(f"{where}: {', '.join(missing)} do not appear in the transfer "
+                         "functions and cannot be estimated from them")
+    known = [sym[p] for p in plant.parameter_names if p not in spec.unknowns]
+    vec = sp.Matrix([coeffs[i] for i in free])
+    jac = vec.jacobian(unknowns)
+    f_val = sp.lambdify((unknowns, known), list(vec), modules="numpy", cse=True)
+    f_jac = sp.lambdify((unknowns, known), jac.tolist(), modules="numpy", cse=True)
+    if len(free) < len(unknowns):
+        raise ModelError(f"{where}: {len(free)} transfer-function coefficients cannot "
+                         f"determine {len(unknowns)} unknowns; fix some as constants")
+    return LinearStructure(
+        n, used_inputs[0], plant.sensor_names, tuple(coeffs), free,
+        lambda p, k: np.asarray(f_val(list(p), list(k)), dtype=np.float64),
+        lambda p, k: np.asarray(f_jac(list(p), list(k)), dtype=np.float64))
+
+
+# -- the inverse-model structure --------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class InverseEquation:
+    """One state equation in linear-in-the-parameters form.
+
+    ``Σ_k θ_k φ_k = known`` with ``θ`` the unknowns in ``terms`` (several terms
+    may share one unknown through known factors).
+
+    Attributes
+    ----------
+    state : str
+        The state whose derivative the equation gives.
+    terms : tuple of (str, sympy.Expr)
+        ``(unknown, regressor)``: the regressor is an expression of signals
+        (states, their derivatives ``d_<state>``, inputs) and known constants.
+    known : sympy.Expr
+        Right-hand side: signals and constants only.
+    """
+
+    state: str
+    terms: tuple[tuple[str, sp.Expr], ...]
+    known: sp.Expr
+
+
+@dataclass(frozen=True)
+class InverseStructure:
+    """Linear-in-the-parameters form of the state equations that carry unknowns.
+
+    Attributes
+    ----------
+    equations : tuple of InverseEquation
+    signals : tuple of str
+        States needed as signals (measured by a sensor or derived by
+        differentiating a measured state), in order of derivation.
+    derivation : dict of str to str
+        ``state -> measured state it is the derivative of`` for derived states.
+    """
+
+    equations: tuple[InverseEquation, ...]
+    signals: tuple[str, ...]
+    derivation: dict[str, str]
+
+
+@functools.lru_cache(maxsize=32)
+def _inverse(machine: Machine) -> InverseStructure:
+    plant, spec = machine.plant, machine.spec
+    sym = symbols_of(plant)
+    _, derivs, readings = substituted_equations(plant)
+    where = f"{plant.source}: the inverse-model route"
+    measured = {str(e) for e in readings.values() if isinstance(e, sp.Symbol)}
+    derivation: dict[str, str] = {}
+    for name, e in derivs.items():  # x' = y with y a state: y = dx/dt
+        if isinstance(e, sp.Symbol) and str(e) in plant.state_names and name in measured:
+            derivation[str(e)] = name
+    unknown_syms = {sym[k] for k in spec.unknowns}
+    equations = []
+    for name, e in derivs.items():
+        if not e.free_symbols & unknown_syms:
+            continue
+        dx = sp.Symbol(f"d_{name}", real=True)
+        num, den = sp.fraction(sp.together(e))
+        resid = sp.expand(den * dx - num)  # = 0
+        terms: dict[str, sp.Expr] = {}
+        known = sp.Integer(0)
+        for term in sp.Add.make_args(resid):
+            ps = term.free_symbols & unknown_syms
+            if len(ps) > 1 or (ps and sp.degree(term, next(iter(ps))) != 1):
+                raise ModelError(f"{where}: d{name}/dt = {e} is not linear in the unknowns "
+                                 f"(term {term})")
+            if not ps:
+                known -= term
+                continue
+            p = next(iter(ps))
+            terms[str(p)] = terms.get(str(p), sp.Integer(0)) + term / p
+        equations.append(InverseEquation(name, tuple(terms.items()), sp.simplify(known)))
+    if not equations:
+        raise ModelError(f"{where}: no state equation holds an unknown parameter")
+    available = measured | set(derivation)
+    for eq in equations:
+        need = set()
+        for _, phi in eq.terms:
+            need |= {str(s) for s in phi.free_symbols}
+        need |= {str(s) for s in eq.known.free_symbols}
+        states_needed = {s for s in need if s in plant.state_names}
+        d_needed = {s[2:] for s in need if s.startswith("d_")}
+        missing = sorted((states_needed | d_needed) - available)
+        if missing:
+            raise ModelError(f"{where}: the equation of {eq.state!r} needs "
+                             f"{', '.join(missing)}, neither measured nor the derivative "
+                             "of a measured state")
+    covered = {p for eq in equations for p, _ in eq.terms}
+    if set(spec.unknowns) - covered:
+        raise ModelError(f"{where}: {', '.join(sorted(set(spec.unknowns) - covered))} "
+                         "appear in no usable equation")
+    signals = tuple(s for s in plant.state_names if s in available)
+    return InverseStructure(tuple(equations), signals, derivation)
+
+
+# -- derived quantities -----------------------------------------------------------------
+
+
+@functools.lru_cache(maxsize=32)
+def _derived(machine: Machine) -> dict[str, tuple[sp.Expr, Callable[..., Any]]]:
+    sym = symbols_of(machine.plant)
+    params = {k: sym[k] for k in machine.plant.parameter_names}
+    out = {}
+    for name, (eq, _) in machine.spec.derived.items():
+        expr = parse_expression(eq, params, f"{machine.plant.source}[estimation.derived.{name}]")
+        fn = sp.lambdify(list(params.values()), expr, modules="numpy")
+        names = list(params)
+        out[name] = (expr, (lambda f, ns: lambda d: f(*[d[k] for k in ns]))(fn, names))
+    return out
+
+
+@functools.lru_cache(maxsize=32)
+def _derived_gradients(machine: Machine) -> dict[str, Callable[..., Any]]:
+    """Gradient of each derived quantity with respect to the unknowns, lambdified."""
+    sym = symbols_of(machine.plant)
+    params = [sym[k] for k in machine.plant.parameter_names]
+    names = list(machine.plant.parameter_names)
+    out = {}
+    for name, (expr, _) in _derived(machine).items():
+        grad = [sp.diff(expr, sym[u]) for u in machine.spec.unknowns]
+        fn = sp.lambdify(params, grad, modules="numpy")
+        out[name] = (lambda f, ns: lambda d: np.asarray(f(*[d[k] for k in ns]),
+                                                        dtype=np.float64))(fn, names)
+    return out
+
+
+# -- reading the [estimation] table ---------------------------------------------------
+
+
+def _names(value: Any, where: str) -> tuple[str, ...]:
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise ConfigError(f"{where} must be a list of names, got {value!r}")
+    return tuple(value)
+
+
+def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any]) -> Machine:
+    """Read a declaration's ``[estimation]`` table (validated against the plant).
+
+    Raises
+    ------
+    ConfigError
+        Naming the file and the entry.
+    """
+    src = plant.source
+    est = doc.get("estimation")
+    if est is None:  # a model for residuals and isolation only (e.g. the HST)
+        return Machine(plant, EstimationSpec((), ()))
+    if not isinstance(est, dict):
+        raise ConfigError(f"{src}: [estimation] must be a table")
+    allowed = {"estimate", "report", "derived", "route", "order", "excitation", "cutoff",
+               "decimate", "plausible", "max_change", "min_duration", "sample_interval",
+               "max_residual_correlation"}
+    unknown = set(est) - allowed
+    if unknown:
+        raise ConfigError(f"{src}[estimation]: unknown key {sorted(unknown)[0]!r}; "
+                          f"allowed: {', '.join(sorted(allowed))}")
+    unknowns = _names(est.get("estimate"), f"{src}[estimation].estimate")
+    for k in unknowns:
+        if k not in plant.parameter_names:
+            raise ConfigError(f"{src}[estimation].estimate: unknown parameter {k!r}; "
+                              f"allowed: {', '.join(plant.parameter_names)}")
+    derived: dict[str, tuple[str, str]] = {}
+    for k, v in dict(est.get("derived", {})).items():
+        if not isinstance(v, dict) or "equation" not in v:
+            raise ConfigError(f"{src}[estimation.derived.{k}] must be {{ equation = \"...\", "
+                              "unit = \"...\" }")
+        derived[k] = (str(v["equation"]), str(v.get("unit", "")))
+    report = _names(est.get("report", [*unknowns, *derived]), f"{src}[estimation].report")
+    for k in report:
+        if k not in unknowns and k not in derived:
+            raise ConfigError(f"{src}[estimation].report: {k!r} is neither estimated nor "
+                              "derived")
+    route = est.get("route", "auto")
+    if route not in ROUTES:
+        raise ConfigError(f"{src}[estimation].route: unknown route {route!r}; "
+                          f"allowed: {', '.join(ROUTES)}")
+    order = est.get("order")
+    if order is not None and (not isinstance(order, int) or isinstance(order, bool) or order < 1):
+        raise ConfigError(f"{src}[estimation].order must be a positive integer, got {order!r}")
+    cutoff = est.get("cutoff")
+    if cutoff is not None and (isinstance(cutoff, bool) or not isinstance(cutoff, (int, float))
+                               or not cutoff > 0):
+        raise ConfigError(f"{src}[estimation].cutoff must be a frequency > 0 [Hz], got {cutoff!r}")
+    decimate = est.get("decimate", 1)
+    if not isinstance(decimate, int) or isinstance(decimate, bool) or decimate < 1:
+        raise ConfigError(f"{src}[estimation].decimate must be an integer >= 1, got {decimate!r}")
+    corr = est.get("max_residual_correlation", 0.8)
+    if isinstance(corr, bool) or not isinstance(corr, (int, float)) or not 0 < corr <= 1:
+        raise ConfigError(f"{src}[estimation].max_residual_correlation must be in (0, 1], "
+                          f"got {corr!r}")
+    spec = EstimationSpec(
+        unknowns, report, derived, str(route), order,
+        _names(est.get("excitation", []), f"{src}[estimation].excitation"),
+        None if cutoff is None else float(cutoff), decimate,
+        parse_plausibility(est, f"{src}[estimation]"), float(corr))
+    machine = Machine(plant, spec)
+    machine.derived_functions()  # every derived equation parses
+    return machine

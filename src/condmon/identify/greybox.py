@@ -339,12 +339,12 @@ def inverse_route(rec: Record, machine: Machine, *, constants: Mapping[str, floa
 def _evaluate(expr: sp.Expr, sig: Mapping[str, FloatArray], consts: Mapping[str, float],
               sym: Mapping[str, sp.Symbol], n_rows: int, keep: slice) -> FloatArray:
     names = sorted(str(s) for s in expr.free_symbols)
-    args = []
+    args: list[FloatArray | float] = []
     for n in names:
         if n in sig:
             args.append(sig[n][keep])
         elif n in consts:
-            args.append(np.float64(consts[n]))
+            args.append(float(consts[n]))
         else:
             raise EstimationError(f"signal {n!r} is not available for the inverse model")
     fn = sp.lambdify([sp.Symbol(n, real=True) for n in names], expr, modules="numpy")

@@ -1,9 +1,12 @@
-"""Reading and validating test records (CSV, Parquet) at the boundary.
+"""Validating test records at the boundary.
 
 Everything a record can get wrong is checked here, once, and reported with the
 file and the column: missing columns, non-numeric or non-finite values, a time
-base that is not increasing or not uniform, mismatched lengths, a record too
-short for the model, an input with no excitation, a saturated drive.
+base that is not increasing or not uniform (:func:`check_time_base`, the one
+time-base check of every command), mismatched lengths, a record too short for
+the model, an input with no excitation, a saturated drive. Files are read by
+:func:`condmon.io.readers.read_record` (CSV, text, Parquet, MATLAB, TDMS),
+re-exported here.
 """
 
 from __future__ import annotations
@@ -15,11 +18,13 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from condmon.errors import DataError, DataWarning
+from condmon.io.readers import read_record
 
-__all__ = ["Record", "read_record", "validate_record", "parse_column_map", "write_record"]
+__all__ = ["Record", "read_record", "validate_record", "check_time_base", "parse_column_map",
+           "write_record"]
 
 FloatArray = NDArray[np.float64]
 
@@ -83,44 +88,75 @@ def parse_column_map(text: str | None) -> dict[str, str]:
     return out
 
 
-def read_record(path: str | Path, columns: Mapping[str, str] | None = None) -> pd.DataFrame:
-    """Read a CSV or Parquet record and rename columns to canonical names.
+def check_time_base(t: ArrayLike, source: str = "record", tolerance: float = TIME_JITTER,
+                    column: str = "t") -> float:
+    """Check that a time column increases with a uniform step; return the step.
 
     Parameters
     ----------
-    path : str or Path
-        ``.csv`` (comma-separated, header row) or ``.parquet``/``.pq``.
-    columns : mapping, optional
-        ``{canonical: column in the file}``, e.g. ``{"V": "volts"}``.
+    t : array_like
+        The time column. [s]
+    source : str
+        The file (or label) named in messages.
+    tolerance : float
+        Largest relative deviation of a sample interval from the median
+        interval. [-]
+    column : str
+        The column's name, for messages.
 
     Returns
     -------
-    pandas.DataFrame
-        With ``attrs["source"]`` set to the path.
+    float
+        The sample interval: the median of the intervals. [s]
+
+    Raises
+    ------
+    DataError
+        Fewer than two samples, a value that is not finite, an interval that is
+        not positive ("not increasing at row k"), or a jitter beyond the
+        tolerance ("not uniformly sampled"; the message gives the jitter, the
+        largest relative deviation in %, and its row).
+
+    Example
+    -------
+    >>> check_time_base([0.0, 0.25, 0.5, 0.75], "rig.csv")
+    0.25
+    >>> check_time_base([0.0, 0.25, 0.5, 0.80], "rig.csv")
+    Traceback (most recent call last):
+    ...
+    condmon.errors.DataError: rig.csv: column 't' is not uniformly sampled: jitter 20 % \
+(tolerance 0.1 %), interval 0.3 s at row 3 against 0.25 s elsewhere; 1 interval(s) \
+beyond the tolerance, first at row 3 (resample first)
     """
-    p = Path(path)
-    if not p.exists():
-        raise DataError(f"{p}: file not found")
-    suffix = p.suffix.lower()
     try:
-        if suffix == ".csv":
-            df = pd.read_csv(p)
-        elif suffix in (".parquet", ".pq"):
-            df = pd.read_parquet(p)
-        else:
-            raise DataError(f"{p}: unknown file type {suffix!r}; allowed: .csv, .parquet")
-    except DataError:
-        raise
-    except Exception as err:  # parser errors of every kind become one clear line
-        raise DataError(f"{p}: cannot read: {err}") from None
-    if columns:
-        missing = [f for f in columns.values() if f not in df.columns]
-        if missing:
-            raise DataError(f"{p}: column mapping names {missing} not in the file; "
-                            f"columns are {list(df.columns)}")
-        df = df.rename(columns={v: k for k, v in columns.items()})
-    df.attrs["source"] = str(p)
-    return df
+        arr = np.asarray(t, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise DataError(f"{source}: column {column!r} is not numeric") from None
+    if arr.size < 2:
+        raise DataError(f"{source}: column {column!r} has {arr.size} sample(s); "
+                        "a time base needs at least 2")
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        raise DataError(f"{source}: column {column!r} has {bad.size} NaN/inf value(s), "
+                        f"first at row {bad[0]}")
+    with np.errstate(over="ignore", invalid="ignore"):
+        dts = np.diff(arr)
+    if np.any(~(dts > 0)):
+        k = int(np.flatnonzero(~(dts > 0))[0])
+        raise DataError(f"{source}: column {column!r} is not increasing at row {k + 1} "
+                        f"({arr[k]!r} then {arr[k + 1]!r})")
+    dt = float(np.median(dts))
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        deviation = np.abs(dts - dt) / dt
+    beyond = np.flatnonzero(~(deviation <= tolerance))
+    if beyond.size:
+        k = int(np.nanargmax(np.where(np.isnan(deviation), np.inf, deviation)))
+        raise DataError(f"{source}: column {column!r} is not uniformly sampled: jitter "
+                        f"{100 * deviation[k]:.3g} % (tolerance {100 * tolerance:.3g} %), "
+                        f"interval {dts[k]:.6g} s at row {k + 1} against {dt:.6g} s elsewhere; "
+                        f"{beyond.size} interval(s) beyond the tolerance, first at row "
+                        f"{beyond[0] + 1} (resample first)")
+    return dt
 
 
 def validate_record(df: pd.DataFrame, required: Sequence[str],
@@ -191,19 +227,7 @@ def validate_record(df: pd.DataFrame, required: Sequence[str],
         cols[name] = arr
     if n_rows < min_samples:
         raise DataError(f"{src}: {n_rows} samples are too few; need at least {min_samples}")
-    t = cols["t"]
-    dts = np.diff(t)
-    if np.any(dts <= 0):
-        k = int(np.flatnonzero(dts <= 0)[0])
-        raise DataError(f"{src}: column 't' is not increasing at row {k + 1} "
-                        f"({t[k]!r} then {t[k + 1]!r})")
-    dt = float(np.median(dts))
-    jitter = np.abs(dts - dt) > TIME_JITTER * dt
-    if np.any(jitter):
-        k = int(np.flatnonzero(jitter)[0])
-        raise DataError(f"{src}: column 't' is not uniformly sampled: interval "
-                        f"{dts[k]:.6g} s at row {k + 1} against {dt:.6g} s elsewhere "
-                        "(resample first)")
+    dt = check_time_base(cols["t"], src)
     if input_name is not None:
         u = cols[input_name]
         if float(np.std(u)) <= 1e-12 * max(1.0, float(np.max(np.abs(u)))):

@@ -1,0 +1,219 @@
+"""Delimited text records: CSV with ``,`` or ``;``, decimal point or comma, tab text.
+
+The separator and the decimal mark are told from the header and the first
+lines, never assumed: each interpretation (``,`` with ``.``; ``;`` with ``,`` or
+``.``; tab with ``.`` or ``,``) is tried on them, and the one whose rows all have
+the header's number of fields and whose columns are all numbers (or date-times)
+wins. Two interpretations that fit equally well but read different numbers are
+refused rather than guessed.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+from condmon.errors import DataError
+from condmon.io.raw import RawRecord, time_to_seconds
+
+__all__ = ["Dialect", "sniff_dialect", "read_delimited"]
+
+#: Bytes of the file read to tell the dialect.
+SNIFF_BYTES = 65536
+#: Lines (header included) on which the dialect is told.
+SNIFF_LINES = 50
+_NAMES = {",": "comma", ";": "semicolon", "\t": "tab"}
+
+
+@dataclass(frozen=True)
+class Dialect:
+    """How a delimited text file is written.
+
+    Attributes
+    ----------
+    sep : str
+        Field separator: ``","``, ``";"`` or ``"\\t"``.
+    decimal : str
+        Decimal mark: ``"."`` or ``","``.
+    encoding : str
+        ``"utf-8-sig"``, or ``"latin-1"`` when the bytes are not UTF-8.
+    """
+
+    sep: str
+    decimal: str
+    encoding: str = "utf-8-sig"
+
+    def describe(self) -> str:
+        """``"semicolon-separated, decimal comma"``."""
+        mark = "comma" if self.decimal == "," else "point"
+        return f"{_NAMES[self.sep]}-separated, decimal {mark}"
+
+
+def _candidates(suffix: str) -> list[tuple[str, str]]:
+    """Interpretations in order of preference for a tie."""
+    tab = [("\t", "."), ("\t", ",")]
+    text = [(",", "."), (";", ","), (";", ".")]
+    return tab + text if suffix in (".tsv", ".txt") else text + tab
+
+
+def _typed_columns(frame: pd.DataFrame) -> int:
+    """Columns that are all numbers or all date-times."""
+    n = 0
+    for name in frame.columns:
+        col = frame[name]
+        if pd.api.types.is_numeric_dtype(col.dtype) and not pd.api.types.is_bool_dtype(col.dtype):
+            n += 1
+        else:
+            try:
+                n += time_to_seconds(col) is not None
+            except DataError:
+                n += 1  # date-times, though with an ambiguous day/month order
+    return n
+
+
+def _is_number(text: str, decimal: str) -> bool:
+    try:
+        float(text.strip().replace(decimal, ".") if decimal == "," else text.strip())
+    except ValueError:
+        return False
+    return True
+
+
+def sniff_dialect(text: str, source: Path | str, suffix: str = ".csv",
+                  encoding: str = "utf-8-sig") -> Dialect:
+    """Tell separator and decimal mark from the first lines of a file.
+
+    Parameters
+    ----------
+    text : str
+        The header line and the first data lines.
+    source : Path or str
+        The file, for messages.
+    suffix : str
+        ``.csv`` prefers comma, then semicolon, then tab on a tie; ``.tsv`` and
+        ``.txt`` prefer tab.
+    encoding : str
+        Carried into the returned dialect.
+
+    Returns
+    -------
+    Dialect
+
+    Raises
+    ------
+    DataError
+        No interpretation gives rows of the header's width, the first line is
+        numbers rather than column names, or two interpretations read different
+        numbers equally well.
+
+    Example
+    -------
+    >>> sniff_dialect("t;V\\n0,000;1,25\\n0,001;3,5\\n", "rig.csv").describe()
+    'semicolon-separated, decimal comma'
+    >>> sniff_dialect("t,V\\n0.000,1.25\\n", "rig.csv").describe()
+    'comma-separated, decimal point'
+    """
+    lines = [ln for ln in text.splitlines() if ln.strip()][:SNIFF_LINES]
+    if not lines:
+        raise DataError(f"{source}: the file is empty")
+    scored: list[tuple[tuple[bool, bool, int, int], int, Dialect, pd.DataFrame]] = []
+    widths: dict[str, tuple[int, int, int]] = {}
+    for rank, (sep, decimal) in enumerate(_candidates(suffix)):
+        rows = list(csv.reader(lines, delimiter=sep))
+        width = len(rows[0])
+        bad = next((k for k, r in enumerate(rows[1:], start=2) if len(r) != width), None)
+        if bad is not None:
+            widths[sep] = (width, len(rows[bad - 1]), bad)
+            continue
+        try:
+            sample = pd.read_csv(io.StringIO("\n".join(lines)), sep=sep, decimal=decimal,
+                                 skipinitialspace=True)
+        except (ValueError, pd.errors.ParserError):
+            continue
+        typed = _typed_columns(sample)
+        score = (typed == width, sep in lines[0], typed, width)
+        scored.append((score, -rank, Dialect(sep, decimal, encoding), sample))
+    scored.sort(key=lambda s: (s[0], s[1]), reverse=True)
+    if not scored and not widths:
+        raise DataError(f"{source}: cannot tell the separator and the decimal mark")
+    if widths and (not scored or (scored[0][0][2] == 0 and len(lines) > 1)):
+        # rows of another width than the header, and no reading gives a number
+        sep, (width, got, line) = next(iter(widths.items()))
+        raise DataError(f"{source}: cannot tell the separator: with {_NAMES[sep]}s line {line} "
+                        f"has {got} fields but the header has {width} "
+                        "(expected comma, semicolon or tab separated columns)")
+    best = scored[0]
+    header = next(csv.reader(lines[:1], delimiter=best[2].sep))
+    if len(lines) > 1 and all(_is_number(h, best[2].decimal) for h in header):
+        raise DataError(f"{source}: the first line holds numbers, not column names; "
+                        f"add a header row (e.g. t{best[2].sep}V{best[2].sep}I{best[2].sep}omega)")
+    for other in scored[1:]:
+        if other[0] == best[0] and not other[3].equals(best[3]):
+            raise DataError(f"{source}: ambiguous format: read as {best[2].describe()} "
+                            f"or as {other[2].describe()} gives different numbers; "
+                            "write it with a decimal point and comma separators")
+    return best[2]
+
+
+def _read_head(path: Path) -> tuple[str, str]:
+    """The first bytes decoded, and the encoding that decodes them."""
+    with path.open("rb") as fh:
+        head = fh.read(SNIFF_BYTES)
+        more = bool(fh.read(1))
+    if more and b"\n" in head:
+        head = head[: head.rindex(b"\n") + 1]
+    try:
+        return head.decode("utf-8-sig"), "utf-8-sig"
+    except UnicodeDecodeError:
+        return head.decode("latin-1"), "latin-1"
+
+
+def read_delimited(path: Path) -> RawRecord:
+    """Read a delimited text record, its dialect told from its first lines.
+
+    Parameters
+    ----------
+    path : Path
+        ``.csv``, ``.tsv`` or ``.txt`` with a header row.
+
+    Returns
+    -------
+    RawRecord
+        Columns under the header's names (surrounding spaces removed).
+
+    Raises
+    ------
+    DataError
+        See :func:`sniff_dialect`; pandas' parser errors are left to the caller.
+
+    Example
+    -------
+    >>> import tempfile
+    >>> d = tempfile.TemporaryDirectory()
+    >>> p = Path(d.name) / "rig.txt"
+    >>> _ = p.write_text("t\\tV\\n0,0\\t1,5\\n0,5\\t2,5\\n")
+    >>> read_delimited(p).frame["V"].tolist()
+    [1.5, 2.5]
+    >>> d.cleanup()
+    """
+    text, encoding = _read_head(path)
+    dialect = sniff_dialect(text, path, path.suffix.lower(), encoding)
+    frame = _parse(path, dialect)
+    if dialect.sep != "," and _typed_columns(frame) < frame.shape[1]:
+        # the first lines held no decimal mark: try the other one on the whole file
+        other = Dialect(dialect.sep, "." if dialect.decimal == "," else ",", encoding)
+        alt = _parse(path, other)
+        if _typed_columns(alt) > _typed_columns(frame):
+            frame = alt
+    return RawRecord(frame)
+
+
+def _parse(path: Path, dialect: Dialect) -> pd.DataFrame:
+    frame = pd.read_csv(path, sep=dialect.sep, decimal=dialect.decimal,
+                        encoding=dialect.encoding, skipinitialspace=True, low_memory=False)
+    frame.columns = [str(c).strip() for c in frame.columns]
+    return frame

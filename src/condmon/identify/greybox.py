@@ -297,20 +297,26 @@ def inverse_route(rec: Record, machine: Machine, *, constants: Mapping[str, floa
         if state in plant.state_names:
             sig[f"d_{state}"] = np.gradient(sig[state], rec.dt)
     consts = machine.constants(constants)
+    sym = symbols_of(plant)
     edge = int(math.ceil(3.0 * fs / cutoff))
-    keep = slice(edge, len(rec) - edge, spec.decimate)
-    n_rows = len(range(*keep.indices(len(rec))))
+    rows = np.arange(edge, len(rec) - edge, spec.decimate)
+    # Rows where the argument of a sign/abs is near zero (an axis standing
+    # still: static friction anywhere within +-Fc) are left out.
+    for arg in _switch_arguments(inv):
+        a = _evaluate(arg, sig, consts, rows)
+        rms = float(np.sqrt(np.mean(a ** 2))) if a.size else 0.0
+        rows = rows[np.abs(a) > spec.deadband * rms]
+    n_rows = int(rows.size)
     if n_rows < 10 * len(spec.unknowns):
         raise EstimationError(f"{rec.source}: {n_rows} usable samples after filtering are "
                               f"too few for {len(spec.unknowns)} unknowns")
-    sym = symbols_of(plant)
     blocks, rhs, names = [], [], []
     for eq in inv.equations:
         X = np.zeros((n_rows, len(spec.unknowns)))
         for unknown, phi in eq.terms:
-            X[:, spec.unknowns.index(unknown)] += _evaluate(phi, sig, consts, sym, n_rows, keep)
+            X[:, spec.unknowns.index(unknown)] += _evaluate(phi, sig, consts, rows)
         blocks.append(X)
-        rhs.append(_evaluate(eq.known, sig, consts, sym, n_rows, keep))
+        rhs.append(_evaluate(eq.known, sig, consts, rows))
         names.append(f"d{eq.state}/dt")
     theta, cov, _ = _weighted_lstsq(blocks, rhs, rec.source)
     # Fit of each equation on the measured (filtered, differentiated) state
@@ -321,9 +327,9 @@ def inverse_route(rec: Record, machine: Machine, *, constants: Mapping[str, floa
     r2, nrmse, white = {}, {}, {}
     for eq in inv.equations:
         name = f"d{eq.state}/dt"
-        meas = sig[f"d_{eq.state}"][keep]
+        meas = sig[f"d_{eq.state}"][rows]
         pred = _evaluate(derivs[eq.state].xreplace({sym[k]: v for k, v in values.items()}),
-                         sig, consts, sym, n_rows, keep)
+                         sig, consts, rows)
         e = meas - pred
         var_m = float(np.var(meas))
         r2[name] = 1.0 - float(np.var(e)) / var_m if var_m > 0 else float("-inf")
@@ -336,13 +342,24 @@ def inverse_route(rec: Record, machine: Machine, *, constants: Mapping[str, floa
                               white, float(cutoff), n_rows)
 
 
+def _switch_arguments(inv: InverseStructure) -> list[sp.Expr]:
+    """Arguments of the sign/abs functions in the equations (unique)."""
+    found: list[sp.Expr] = []
+    for eq in inv.equations:
+        for expr in (*(phi for _, phi in eq.terms), eq.known):
+            for f in expr.atoms(sp.sign, sp.Abs):
+                if f.args[0] not in found:
+                    found.append(f.args[0])
+    return found
+
+
 def _evaluate(expr: sp.Expr, sig: Mapping[str, FloatArray], consts: Mapping[str, float],
-              sym: Mapping[str, sp.Symbol], n_rows: int, keep: slice) -> FloatArray:
+              rows: NDArray[np.intp]) -> FloatArray:
     names = sorted(str(s) for s in expr.free_symbols)
     args: list[FloatArray | float] = []
     for n in names:
         if n in sig:
-            args.append(sig[n][keep])
+            args.append(sig[n][rows])
         elif n in consts:
             args.append(float(consts[n]))
         else:
@@ -350,7 +367,7 @@ def _evaluate(expr: sp.Expr, sig: Mapping[str, FloatArray], consts: Mapping[str,
     fn = sp.lambdify([sp.Symbol(n, real=True) for n in names], expr, modules="numpy")
     with np.errstate(all="ignore"):
         val = np.asarray(fn(*args), dtype=np.float64)
-    return np.broadcast_to(val, (n_rows,)).astype(np.float64)
+    return np.broadcast_to(val, (rows.size,)).astype(np.float64)
 
 
 def _weighted_lstsq(blocks: list[FloatArray], rhs: list[FloatArray], source: str

@@ -60,6 +60,10 @@ class EstimationSpec:
     decimate : int
         Keep one sample in ``decimate`` for the inverse-model regression.
     plausibility : Plausibility
+    deadband : float
+        Inverse route: rows where the argument of a ``sign``/``abs`` is within
+        this fraction of its RMS are left out (static friction at standstill
+        is anywhere within ±Fc). [-]
     max_residual_correlation : float
         Inverse route: largest normalised autocorrelation of an equation's
         residual (lags 1..20 at twice the cut-off) before the estimate is
@@ -77,6 +81,7 @@ class EstimationSpec:
     decimate: int = 1
     plausibility: Plausibility = field(default_factory=Plausibility)
     max_residual_correlation: float = 0.8
+    deadband: float = 0.01
 
 
 @dataclass(frozen=True, eq=False)
@@ -407,6 +412,12 @@ def _names(value: Any, where: str) -> tuple[str, ...]:
     return tuple(value)
 
 
+def _fraction(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 <= value < 1:
+        raise ConfigError(f"{where} must be a fraction in [0, 1), got {value!r}")
+    return float(value)
+
+
 def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any]) -> Machine:
     """Read a declaration's ``[estimation]`` table (validated against the plant).
 
@@ -423,7 +434,7 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any]) -> Machine:
         raise ConfigError(f"{src}: [estimation] must be a table")
     allowed = {"estimate", "report", "derived", "route", "order", "excitation", "cutoff",
                "decimate", "plausible", "max_change", "min_duration", "sample_interval",
-               "max_residual_correlation"}
+               "max_residual_correlation", "deadband"}
     unknown = set(est) - allowed
     if unknown:
         raise ConfigError(f"{src}[estimation]: unknown key {sorted(unknown)[0]!r}; "
@@ -466,7 +477,8 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any]) -> Machine:
         unknowns, report, derived, str(route), order,
         _names(est.get("excitation", []), f"{src}[estimation].excitation"),
         None if cutoff is None else float(cutoff), decimate,
-        parse_plausibility(est, f"{src}[estimation]"), float(corr))
+        parse_plausibility(est, f"{src}[estimation]"), float(corr),
+        _fraction(est.get("deadband", 0.01), f"{src}[estimation].deadband"))
     machine = Machine(plant, spec)
     machine.derived_functions()  # every derived equation parses
     return machine

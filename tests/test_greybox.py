@@ -1,0 +1,219 @@
+"""Grey-box estimation from a declaration: the linear route (symbolic transfer
+functions), the inverse-model route (IDIM-LS), the registry and the structure check."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from condmon.errors import ConfigError, ModelError
+from condmon.identify import estimate
+from condmon.models import dc_motor_from_discrete, get_model, list_models, register_model
+from condmon.simulate import simulate_actuator
+
+ROOT = Path(__file__).parents[1]
+EMPS_TOML = ROOT / "examples" / "emps" / "emps.toml"
+EMPS_MAT = ROOT.parent / "shared" / "external" / "emps" / "DATA_EMPS.mat"
+PUBLISHED = {"M": 95.1089, "Fv": 203.5034, "Fc": 20.3935, "offset": -3.1648}
+
+
+def test_registry_lists_shipped_models_and_refuses_unknown_names() -> None:
+    assert {"dc-motor", "hst"} <= set(list_models())
+    with pytest.raises(ModelError, match="unknown model 'pump'.*dc-motor, hst"):
+        get_model("pump")
+    with pytest.raises(ModelError, match="declares no \\[estimation\\]"):
+        estimate(simulate_actuator(seed=0), "hst")
+
+
+def test_dc_motor_declaration_gives_the_closed_form_estimates() -> None:
+    """The declared (symbolic) route against the closed-form DC-motor map."""
+    for seed in range(5):
+        res = estimate(simulate_actuator(seed=seed))
+        assert res.discrete is not None
+        ref, cov = dc_motor_from_discrete(res.discrete.model, res.discrete.covariance, 0.95)
+        for i, (k, v) in enumerate(ref.as_dict().items()):
+            assert res.parameters[k] == pytest.approx(v, rel=1e-9), k
+            assert res.std_errors[k] == pytest.approx(np.sqrt(cov[i, i]), rel=1e-4), k
+
+
+def test_symbolic_transfer_functions_of_the_dc_motor() -> None:
+    lin = get_model("dc-motor").linear()
+    assert [str(c) for c in lin.coefficients] == [
+        "D/J + R/L", "(D*R + Kt**2*gamma)/(J*L)", "1/L", "D/(J*L)", "0", "Kt/(J*L)"]
+    assert lin.free == (0, 1, 2, 3, 5)  # the speed numerator's s-term is structurally 0
+
+
+def _write(tmp: Path, name: str, text: str) -> Path:
+    p = tmp / name
+    p.write_text(text, encoding="utf-8")
+    return p
+
+
+def _emps_axis(M: float = 95.0, Fv: float = 200.0, Fc: float = 20.0, offset: float = -3.0,
+               gtau: float = 35.15, seed: int = 0, duration: float = 20.0) -> pd.DataFrame:
+    """A positioning axis under PD position control, with Coulomb friction, 1 kHz."""
+    rng = np.random.default_rng(seed)
+    dt, sub = 1e-3, 10
+    n = int(duration / dt)
+    t = np.arange(n) * dt
+    # reference: smoothed random steps between +-0.2 m
+    steps = np.repeat(rng.uniform(-0.2, 0.2, n // 2000 + 1), 2000)[:n]
+    ref = np.convolve(steps, np.ones(300) / 300, mode="same")
+    kp, kv = 160.0, 240.0
+    q = v = 0.0
+    qm = np.empty(n)
+    vir = np.empty(n)
+    h = dt / sub
+    for k in range(n):
+        qm[k] = q + 2e-7 * rng.standard_normal()
+        u = kp * (ref[k] - qm[k]) * 1.0 - kv * v * 0.01
+        vir[k] = u
+        for _ in range(sub):
+            acc = (gtau * u - Fv * v - Fc * np.tanh(v / 1e-4) - offset) / M
+            v += h * acc
+            q += h * v
+    return pd.DataFrame({"t": t, "qm": qm, "vir": vir, "qg": ref})
+
+
+def test_inverse_route_recovers_a_simulated_axis() -> None:
+    truth = {"M": 95.0, "Fv": 200.0, "Fc": 20.0, "offset": -3.0}
+    res = estimate(_emps_axis(**truth), EMPS_TOML)
+    assert res.accepted, res.reason
+    assert res.route == "inverse" and res.method == "idim-ls"
+    for k, v in truth.items():
+        assert res.parameters[k] == pytest.approx(v, rel=0.02 if k != "offset" else 0.05), k
+        assert 0 < res.std_errors[k] < 0.05 * abs(v), k
+
+
+def test_viscous_only_model_is_flagged_as_a_structure_mismatch(tmp_path: Path) -> None:
+    text = EMPS_TOML.read_text()
+    text = text.replace('"(gtau*vir - Fv*qd - Fc*sign(qd) - offset)/M"', '"(gtau*vir - Fv*qd)/M"')
+    text = text.replace('estimate = ["M", "Fv", "Fc", "offset"]', 'estimate = ["M", "Fv"]')
+    path = _write(tmp_path, "viscous.toml", text)
+    res = estimate(_emps_axis(), path)
+    assert not res.accepted
+    assert res.reason is not None and res.reason.startswith("structure mismatch")
+
+
+@pytest.mark.skipif(not EMPS_MAT.exists(), reason="the EMPS data set is not beside the repository")
+def test_emps_real_data_matches_the_published_parameters(tmp_path: Path) -> None:
+    import scipy.io as sio
+
+    d = sio.loadmat(EMPS_MAT)
+    df = pd.DataFrame({k: d[k].ravel() for k in ("t", "qm", "vir", "qg")})
+    df.attrs["constants"] = {"gtau": float(d["gtau"].item())}
+    t0 = time.perf_counter()
+    res = estimate(df, EMPS_TOML, source="DATA_EMPS.mat")
+    seconds = time.perf_counter() - t0
+    assert res.accepted, res.reason
+    for k in ("M", "Fv", "Fc"):
+        assert res.parameters[k] == pytest.approx(PUBLISHED[k], rel=0.01), k
+    assert res.parameters["offset"] == pytest.approx(PUBLISHED["offset"], rel=0.03)
+    assert seconds < 2.0
+    # the same declaration, unchanged, on another record of the axis (second half)
+    half = df.iloc[len(df) // 2:].reset_index(drop=True)
+    half["t"] -= half["t"].iloc[0]
+    half.attrs = df.attrs
+    other = estimate(half, EMPS_TOML, source="second half")
+    assert other.accepted
+    for k in ("M", "Fv", "Fc"):
+        assert other.parameters[k] == pytest.approx(PUBLISHED[k], rel=0.01), k
+    # viscous-only: a structure mismatch, never accepted
+    text = EMPS_TOML.read_text().replace(
+        '"(gtau*vir - Fv*qd - Fc*sign(qd) - offset)/M"', '"(gtau*vir - Fv*qd)/M"').replace(
+        'estimate = ["M", "Fv", "Fc", "offset"]', 'estimate = ["M", "Fv"]')
+    viscous = estimate(df, _write(tmp_path, "v.toml", text), source="DATA_EMPS.mat")
+    assert not viscous.accepted and "structure mismatch" in str(viscous.reason)
+
+
+_RC = """
+name = "rc"
+[parameters]
+Rr = { value = 1000.0, unit = "ohm", fault = true }
+C = { value = 1.0e-6, unit = "F", fault = true }
+[inputs]
+u = { nominal = 0.0, unit = "V" }
+[states]
+vc = { derivative = "(u - vc)/(Rr*C)", unit = "V" }
+[sensors]
+vm = { measures = "vc", noise = 0.01, unit = "V" }
+[test]
+duration = 2.0
+sample_rate = 10000.0
+[estimation]
+estimate = ["Rr"]
+sample_interval = [1.0e-6, 1.0e-2]
+[estimation.plausible]
+Rr = { gt = 0.0 }
+"""
+
+
+def test_a_users_linear_declaration_estimates_through_the_linear_route(tmp_path: Path) -> None:
+    from scipy.signal import lfilter
+
+    path = _write(tmp_path, "rc.toml", _RC)
+    machine = register_model("my-rc", path)
+    assert "my-rc" in list_models() and machine.linear().order == 1
+    dt, tau = 1e-4, 2200.0 * 1e-6
+    rng = np.random.default_rng(1)
+    u = np.repeat(rng.standard_normal(2000), 10)
+    a = np.exp(-dt / tau)
+    vc = lfilter([0.0, 1 - a], [1.0, -a], u)
+    df = pd.DataFrame({"t": np.arange(u.size) * dt, "u": u,
+                       "vm": vc + 0.005 * rng.standard_normal(u.size)})
+    res = estimate(df, "my-rc")
+    assert res.route == "linear" and res.accepted
+    assert res.parameters["Rr"] == pytest.approx(2200.0, rel=0.01)
+    # a known constant overridden at the call
+    res2 = estimate(df, "my-rc", constants={"C": 2e-6})
+    assert res2.parameters["Rr"] == pytest.approx(1100.0, rel=0.01)
+
+
+@pytest.mark.parametrize("change,match", [
+    ('estimate = ["Rr"]', None),
+    ('estimate = ["Rx"]', "unknown parameter 'Rx'"),
+    ('estimate = "Rr"', "must be a list of names"),
+    ('estimate = ["Rr"]\nroute = "magic"', "unknown route 'magic'"),
+    ('estimate = ["Rr"]\nbogus = 1', "unknown key 'bogus'"),
+    ('estimate = ["Rr"]\ncutoff = -5', "cutoff must be a frequency > 0"),
+    ('estimate = ["Rr"]\nderived = { tau = { equation = "Rr*C*" } }', "derived.tau"),
+])
+def test_estimation_table_errors_name_the_entry(tmp_path: Path, change: str,
+                                                match: str | None) -> None:
+    path = _write(tmp_path, "rc.toml", _RC.replace('estimate = ["Rr"]', change))
+    if match is None:
+        assert get_model(path).spec.unknowns == ("Rr",)
+        return
+    with pytest.raises(ConfigError, match=match):
+        get_model(path)
+
+
+def test_unsuitable_routes_say_why(tmp_path: Path) -> None:
+    text = _RC.replace('"(u - vc)/(Rr*C)"', '"(u - vc - 0.1*sign(vc))/(Rr*C)"').replace(
+        '[estimation]', '[estimation]\nroute = "linear"')
+    with pytest.raises(ModelError, match="is not linear in the states and the input"):
+        estimate(pd.DataFrame({"t": np.arange(100) * 1e-3, "u": np.sin(np.arange(100)),
+                               "vm": np.cos(np.arange(100))}), _write(tmp_path, "n.toml", text))
+    text2 = _RC.replace('"(u - vc)/(Rr*C)"', '"(u - vc)/(Rr*Rr*C)"').replace(
+        '[estimation]', '[estimation]\nroute = "inverse"')
+    with pytest.raises(ModelError, match="not linear in the unknowns"):
+        get_model(_write(tmp_path, "q.toml", text2)).inverse()
+
+
+def test_the_template_declaration_estimates_a_simulated_record() -> None:
+    from scipy.signal import cont2discrete, lfilter
+
+    num, den, _ = cont2discrete(([10.0], [2.0, 5.0, 800.0]), 1e-3, method="zoh")
+    rng = np.random.default_rng(0)
+    u = np.repeat(rng.standard_normal(500), 20)
+    y = lfilter(np.ravel(num), den, u)
+    df = pd.DataFrame({"t": np.arange(u.size) * 1e-3, "u": u,
+                       "pos": y + 1e-5 * rng.standard_normal(u.size)})
+    res = estimate(df, ROOT / "examples" / "template.toml")
+    assert res.accepted and res.route == "linear"
+    for k, v in {"m": 2.0, "c": 5.0, "k": 800.0}.items():
+        assert res.parameters[k] == pytest.approx(v, rel=0.01), k

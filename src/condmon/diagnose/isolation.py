@@ -48,7 +48,7 @@ from condmon.diagnose.structure import (
     FaultSignature, ResidualKind, fault_signature, residual_generators, suspects,
 )
 from condmon.diagnose.suspects import SuspectTask, plausible_range, run_suspects, simulate_suspect
-from condmon.errors import ConfigError, EstimationError
+from condmon.errors import ConfigError, DataError, EstimationError
 from condmon.identify.steady_state import (
     SteadyStateEstimate, SteadyWindow, estimate_steady_state, steady_windows,
 )
@@ -340,6 +340,7 @@ def isolate(record: pd.DataFrame, model: PlantModel, *,
                                      kind, settings.detection, limits=settings.simulation)
         norm = dataclasses.replace(norm, source="simulated healthy records (3)")
     det = detect(res, norm, settings.detection)
+    _check_finite(det, res, source)
     tick(1, 4, "residuals")
     noise = _sensor_noise(model, norm, gens)
     quiet = IsolationResult(model.name, False, None, None, (), fsm, (), {}, {}, (),
@@ -448,6 +449,16 @@ def _undecided(windows: Sequence[SteadyWindow], errors: Mapping[str, float],
                 f"{settings.explain_limit:g}); the fault may be none of the candidates, "
                 "several, or the data may be wrong")
     return None
+
+
+def _check_finite(det: Detection, res: Residuals, source: str) -> None:
+    """Refuse a record whose normalised residuals are not finite (an overflow)."""
+    bad = ~np.isfinite(det.normalised)
+    if bad.any():
+        k, j = (int(v[0]) for v in np.nonzero(bad))
+        raise DataError(f"{source}: residual {res.names[j]!r} of column {res.sensors[j]!r} "
+                        f"overflows at row {k} (t = {res.t[k]:g} s): readings near the float "
+                        "limit?")
 
 
 def _input_notes(model: PlantModel, res: Residuals) -> list[str]:

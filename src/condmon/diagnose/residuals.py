@@ -303,10 +303,11 @@ def moving_average(values: FloatArray, n: int) -> FloatArray:
     """
     if n <= 1:
         return np.asarray(values, dtype=np.float64)
-    c = np.cumsum(np.vstack([np.zeros((1, values.shape[1])), values]), axis=0)
-    k = np.arange(1, len(values) + 1)
-    lo = np.maximum(k - n, 0)
-    return (c[k] - c[lo]) / (k - lo)[:, None]  # type: ignore[no-any-return]
+    with np.errstate(all="ignore"):  # values near the float limit: inf, judged by the caller
+        c = np.cumsum(np.vstack([np.zeros((1, values.shape[1])), values]), axis=0)
+        k = np.arange(1, len(values) + 1)
+        lo = np.maximum(k - n, 0)
+        return (c[k] - c[lo]) / (k - lo)[:, None]  # type: ignore[no-any-return]
 
 
 def _samples(seconds: float, t: FloatArray) -> int:
@@ -341,7 +342,12 @@ def learn_normalisation(residual_sets: Sequence[Residuals], settings: DetectionS
     if len(s) < _MIN_SAMPLES:
         raise DataError(f"the healthy records hold {len(s)} judged samples (after the "
                         f"{settings.startup:g} s start-up); at least {_MIN_SAMPLES} are needed")
-    std = s.std(axis=0, ddof=1)
+    with np.errstate(all="ignore"):
+        std = s.std(axis=0, ddof=1)
+    if not np.all(np.isfinite(std)):
+        j = int(np.flatnonzero(~np.isfinite(std))[0])
+        raise DataError(f"the healthy residual {residual_sets[0].names[j]!r} overflows "
+                        "(readings near the float limit?)")
     if not np.all(std > 0):
         raise DataError("the healthy residuals have no spread (noise-free records?)")
     names = residual_sets[0].names

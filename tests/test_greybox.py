@@ -89,8 +89,19 @@ def test_inverse_route_recovers_a_simulated_axis() -> None:
         assert 0 < res.std_errors[k] < 0.05 * abs(v), k
 
 
-def test_viscous_only_model_is_flagged_as_a_structure_mismatch(tmp_path: Path) -> None:
+def _viscous_text() -> str:
+    """The EMPS declaration without Coulomb friction and offset (and without its
+    [monitor] files, which live beside the original)."""
     text = EMPS_TOML.read_text()
+    start = text.index("[monitor]")
+    text = text[:start] + text[text.index("[estimation]"):]
+    return text.replace('"(gtau*vir - Fv*qd - Fc*sign(qd) - offset)/M"',
+                        '"(gtau*vir - Fv*qd)/M"').replace(
+        'estimate = ["M", "Fv", "Fc", "offset"]', 'estimate = ["M", "Fv"]')
+
+
+def test_viscous_only_model_is_flagged_as_a_structure_mismatch(tmp_path: Path) -> None:
+    text = _viscous_text()
     text = text.replace('"(gtau*vir - Fv*qd - Fc*sign(qd) - offset)/M"', '"(gtau*vir - Fv*qd)/M"')
     text = text.replace('estimate = ["M", "Fv", "Fc", "offset"]', 'estimate = ["M", "Fv"]')
     path = _write(tmp_path, "viscous.toml", text)
@@ -123,10 +134,7 @@ def test_emps_real_data_matches_the_published_parameters(tmp_path: Path) -> None
     for k in ("M", "Fv", "Fc"):
         assert other.parameters[k] == pytest.approx(PUBLISHED[k], rel=0.01), k
     # viscous-only: a structure mismatch, never accepted
-    text = EMPS_TOML.read_text().replace(
-        '"(gtau*vir - Fv*qd - Fc*sign(qd) - offset)/M"', '"(gtau*vir - Fv*qd)/M"').replace(
-        'estimate = ["M", "Fv", "Fc", "offset"]', 'estimate = ["M", "Fv"]')
-    viscous = estimate(df, _write(tmp_path, "v.toml", text), source="DATA_EMPS.mat")
+    viscous = estimate(df, _write(tmp_path, "v.toml", _viscous_text()), source="DATA_EMPS.mat")
     assert not viscous.accepted and "structure mismatch" in str(viscous.reason)
 
 

@@ -102,22 +102,23 @@ def test_baseline_snapshots(store_url: str, results: list) -> None:  # type: ign
 
 
 def test_schema_version_and_migration(store_url: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    current = schema.SCHEMA_VERSION
     store = open_store(store_url)
-    assert store.schema_version == schema.SCHEMA_VERSION == 1
+    assert store.schema_version == current == 2
     store.close()
 
-    def v1_to_v2(conn: sa.Connection) -> None:
+    def add_operator(conn: sa.Connection) -> None:
         conn.execute(sa.text("ALTER TABLE tests ADD COLUMN operator VARCHAR(64)"))
 
-    monkeypatch.setattr(schema, "SCHEMA_VERSION", 2)
-    monkeypatch.setitem(schema.MIGRATIONS, 1, v1_to_v2)
+    monkeypatch.setattr(schema, "SCHEMA_VERSION", current + 1)
+    monkeypatch.setitem(schema.MIGRATIONS, current, add_operator)
     store = open_store(store_url)
-    assert store.schema_version == 2
+    assert store.schema_version == current + 1
     cols = {c["name"] for c in sa.inspect(store.engine).get_columns("tests")}
     assert "operator" in cols
     store.close()
-    monkeypatch.setattr(schema, "SCHEMA_VERSION", 1)
-    with pytest.raises(StoreError, match="schema v2 is newer than this condmon"):
+    monkeypatch.setattr(schema, "SCHEMA_VERSION", current)
+    with pytest.raises(StoreError, match=f"schema v{current + 1} is newer than this condmon"):
         open_store(store_url)
 
 

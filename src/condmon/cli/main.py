@@ -35,6 +35,7 @@ register_plant_commands(app, simulate_app)
 
 
 ModelOpt = Annotated[str, typer.Option(help="Machine model: a shipped name (dc-motor) or a declaration file (.toml).")]
+UnitModelOpt = Annotated[Optional[str], typer.Option("--model", help="Machine model (name or declaration file); default: the unit's, else dc-motor.")]
 RouteOpt = Annotated[Optional[str], typer.Option(help="Estimation route: auto, linear or inverse (default: the declaration's).")]
 ConstOpt = Annotated[Optional[str], typer.Option(help="Known constants overriding the declaration's, NAME=VALUE,... e.g. gamma=0.9.")]
 
@@ -145,7 +146,7 @@ def _status_text(status: str) -> str:
 
 
 def _options(method: str, gamma: float | None, excitation: str, columns: str | None,
-             fit_threshold: float, model: str = "dc-motor", route: str | None = None,
+             fit_threshold: float, model: str | None = None, route: str | None = None,
              constants: str | None = None) -> EstimateOptions:
     if method not in list_estimators():
         raise CondmonError(f"unknown --method {method!r}; allowed: {', '.join(list_estimators())}")
@@ -185,7 +186,7 @@ def baseline_add_cmd(
     excitation: ExcOpt = "auto",
     columns: ColOpt = None,
     fit_threshold: FitOpt = DEFAULT_FIT_THRESHOLD,
-    model: ModelOpt = "dc-motor",
+    model: UnitModelOpt = None,
     route: RouteOpt = None,
     constants: ConstOpt = None,
 ) -> None:
@@ -235,7 +236,7 @@ def check_cmd(
     fit_threshold: FitOpt = DEFAULT_FIT_THRESHOLD,
     rules: Annotated[Optional[Path], typer.Option(help="Rule base TOML (default: the shipped one).")] = None,
     monitor: Annotated[Optional[Path], typer.Option(help="Monitor breakpoints TOML (default: the shipped one).")] = None,
-    model: ModelOpt = "dc-motor",
+    model: UnitModelOpt = None,
     route: RouteOpt = None,
     constants: ConstOpt = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
@@ -247,7 +248,8 @@ def check_cmd(
     from condmon.store.db import open_store
 
     opts = _options(method, gamma, excitation, columns, fit_threshold, model, route, constants)
-    cfg, rb = load_monitor_config(monitor), load_rules(rules)
+    cfg = load_monitor_config(monitor) if monitor is not None else None
+    rb = load_rules(rules) if rules is not None else None
     with open_store(db) as store:
         res = check_test(store, unit, record, opts, cfg, rb)
     if as_json:
@@ -280,13 +282,17 @@ def history_cmd(
     """Show the unit's tests: fit, status and parameter changes."""
     from condmon.store.db import open_store
 
+    from condmon.models.registry import get_model
+
     with open_store(db) as store:
         hist = store.history(unit)
-    params = [p for p in ("R", "L", "Kt", "J", "D") if p in hist.columns]  # Ke = gamma Kt
+        model = store.unit_model(unit) or "dc-motor"
+    # the estimated parameters (derived ones, e.g. Ke = gamma Kt, move with them)
+    params = [p for p in get_model(model).spec.unknowns if p in hist.columns]
     if as_json:
         sys.stdout.write(hist.reset_index().to_json(orient="records", date_format="iso", indent=2) + "\n")
         return
-    table = Table(title=f"History of {unit}: change against the baseline [%] (Ke moves with Kt)",
+    table = Table(title=f"History of {unit} ({model}): change against the baseline [%]",
                   box=box.SIMPLE_HEAD, padding=(0, 1))
     widths = {"#": 3, "fit": 4, "status": 8}  # fits 80 columns with five parameters
     for col in ("#", "source", "fit", "status", *params):
@@ -325,8 +331,11 @@ def report_cmd(
     from condmon.report.html import write_report
     from condmon.store.db import open_store
 
-    cfg = load_monitor_config(monitor)
+    from condmon.models.registry import get_model
+
     with open_store(db) as store:
+        model = get_model(store.unit_model(unit) or "dc-motor")
+        cfg = load_monitor_config(monitor if monitor is not None else model.breakpoints)
         files = write_report(store, unit, out_dir, cfg)
     out.print(f"wrote {files.html} and {len(files.figures)} figures")
 

@@ -91,6 +91,8 @@ class EstimateResult:
     diagnostics : dict of str to float
         Route-specific figures (inverse route: ``nrmse``, ``whiteness`` per
         equation, ``cutoff`` [Hz]).
+    model_source : str or None
+        The declaration file of a user's model (None for a shipped model).
     """
 
     parameters: dict[str, float]
@@ -107,6 +109,13 @@ class EstimateResult:
     route: str = "linear"
     notes: tuple[str, ...] = ()
     diagnostics: dict[str, float] = field(default_factory=dict)
+    model_source: str | None = None
+
+    @property
+    def model_key(self) -> str:
+        """What :func:`condmon.models.get_model` takes to find this model again:
+        the declaration file of a user's model, else the shipped name."""
+        return self.model_source or self.model
 
     @property
     def gamma(self) -> float:
@@ -364,4 +373,4 @@ def estimate_record(rec: Record, model: str | Machine = "dc-motor", *, method: s
         std_errors={k: float(v) for k, v in zip(names, se)},
         covariance=pcov, fit=fit, discrete=discrete, continuous=cont, model=machine.name,
         constants=consts, source=rec.source, units=machine.units, rejection=rejection,
-        route=chosen, notes=tuple(notes), diagnostics=diagnostics)
+        route=chosen, notes=tuple(notes), diagnostics=diagnostics, model_source=machine.origin)

@@ -17,6 +17,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -86,7 +87,11 @@ class EstimationSpec:
 
 @dataclass(frozen=True, eq=False)
 class Machine:
-    """A declared machine: the plant model and how to estimate it.
+    """A declared machine: the plant model and how to estimate and monitor it.
+
+    ``origin`` is the declaration file of a user's model (None for a shipped
+    one); ``rules`` and ``breakpoints`` the model's own rule base and monitor
+    breakpoints files (None: the shipped DC-motor ones).
 
     Example
     -------
@@ -100,6 +105,9 @@ class Machine:
 
     plant: PlantModel
     spec: EstimationSpec
+    origin: str | None = None
+    rules: str | None = None
+    breakpoints: str | None = None
 
     @property
     def name(self) -> str:
@@ -418,8 +426,11 @@ def _fraction(value: Any, where: str) -> float:
     return float(value)
 
 
-def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any]) -> Machine:
-    """Read a declaration's ``[estimation]`` table (validated against the plant).
+def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any],
+                     origin: str | None = None) -> Machine:
+    """Read a declaration's ``[estimation]`` and ``[monitor]`` tables (validated
+    against the plant). ``origin``: the file of a user's declaration (its
+    ``[monitor]`` files are relative to it), None for a shipped one.
 
     Raises
     ------
@@ -427,9 +438,26 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any]) -> Machine:
         Naming the file and the entry.
     """
     src = plant.source
+    mon = doc.get("monitor", {})
+    if not isinstance(mon, dict) or set(mon) - {"rules", "breakpoints"}:
+        raise ConfigError(f"{src}[monitor]: a table with 'rules' and 'breakpoints' (files, "
+                          "relative to the declaration)")
+    base = Path(src).parent if origin is not None else None
+
+    def _file(key: str) -> str | None:
+        if key not in mon:
+            return None
+        if not isinstance(mon[key], str):
+            raise ConfigError(f"{src}[monitor].{key} must be a file name, got {mon[key]!r}")
+        path = Path(mon[key]) if base is None else base / mon[key]
+        if not path.exists():
+            raise ConfigError(f"{src}[monitor].{key}: {path} not found")
+        return str(path)
+
+    files = {"origin": origin, "rules": _file("rules"), "breakpoints": _file("breakpoints")}
     est = doc.get("estimation")
     if est is None:  # a model for residuals and isolation only (e.g. the HST)
-        return Machine(plant, EstimationSpec((), ()))
+        return Machine(plant, EstimationSpec((), ()), **files)
     if not isinstance(est, dict):
         raise ConfigError(f"{src}: [estimation] must be a table")
     allowed = {"estimate", "report", "derived", "route", "order", "excitation", "cutoff",
@@ -479,6 +507,6 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any]) -> Machine:
         None if cutoff is None else float(cutoff), decimate,
         parse_plausibility(est, f"{src}[estimation]"), float(corr),
         _fraction(est.get("deadband", 0.01), f"{src}[estimation].deadband"))
-    machine = Machine(plant, spec)
+    machine = Machine(plant, spec, **files)
     machine.derived_functions()  # every derived equation parses
     return machine

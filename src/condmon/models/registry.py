@@ -70,7 +70,7 @@ def get_model(model: str | Path) -> Machine:
     if key in _USER:
         machine = _load(_USER[key])
     elif key in _SHIPPED:
-        machine = _machine(load_default(_SHIPPED[key]), _SHIPPED[key])
+        machine = _machine(load_default(_SHIPPED[key]), _SHIPPED[key], shipped=True)
     elif Path(key).suffix.lower() == ".toml" or Path(key).exists():
         machine = _load(Path(key))
     else:
@@ -86,5 +86,6 @@ def _load(path: Path) -> Machine:
     return _machine(load_toml(path), str(path))
 
 
-def _machine(doc: dict[str, Any], source: str) -> Machine:
-    return machine_from_doc(plant_from_doc(doc, source), doc)
+def _machine(doc: dict[str, Any], source: str, shipped: bool = False) -> Machine:
+    origin = None if shipped else str(Path(source).resolve())
+    return machine_from_doc(plant_from_doc(doc, source), doc, origin)

@@ -7,6 +7,7 @@ run test -> estimate -> fit >= threshold? (else store as rejected and report)
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,9 +36,13 @@ Progress = Callable[[int, int, str], None]
 
 @dataclass(frozen=True)
 class EstimateOptions:
-    """How each record is estimated (see :func:`condmon.estimate`)."""
+    """How each record is estimated (see :func:`condmon.estimate`).
 
-    model: str = "dc-motor"
+    ``model`` None: the unit's model (the one its history was started with),
+    else ``dc-motor``.
+    """
+
+    model: str | None = None
     method: str = "sriv"
     gamma: float | None = None
     excitation: Sequence[str] | str | None = "auto"
@@ -53,7 +58,7 @@ class EstimateOptions:
             source = str(record.attrs.get("source", "record"))
         else:
             df, digest, source = read_record(record, self.columns), file_hash(record), str(record)
-        res = estimate(df, self.model, method=self.method, gamma=self.gamma,
+        res = estimate(df, self.model or "dc-motor", method=self.method, gamma=self.gamma,
                        excitation=self.excitation, fit_threshold=self.fit_threshold,
                        columns=self.columns if isinstance(record, pd.DataFrame) else None,
                        source=source, route=self.route, constants=self.constants)
@@ -112,6 +117,21 @@ def current_baseline(store: HistoryStore, unit: str) -> tuple[Baseline, list[int
     return make_baseline(table.to_numpy(), list(table.columns)), ids
 
 
+def _unit_options(store: HistoryStore, unit: str, opts: EstimateOptions) -> EstimateOptions:
+    """Options with the unit's model filled in; refuses a record offered with
+    another model than the one the unit's history was started with."""
+    stored = store.unit_model(unit)
+    if opts.model is None:
+        return dataclasses.replace(opts, model=stored or "dc-motor")
+    if stored is not None:
+        machine = get_model(opts.model)
+        if stored not in (machine.name, machine.origin):
+            raise DataError(f"unit {unit!r} is monitored with model {stored!r}; this record "
+                            f"was offered with {opts.model!r} (omit --model to use the "
+                            "unit's)")
+    return opts
+
+
 def _existing_baseline(store: HistoryStore, unit: str) -> Baseline | None:
     """The unit's current baseline, or None while it has fewer than 3 healthy tests."""
     ids, table = store.accepted_estimates(unit, role="baseline")
@@ -123,7 +143,7 @@ def _existing_baseline(store: HistoryStore, unit: str) -> Baseline | None:
 def _unit_error(res: EstimateResult, baseline: Baseline) -> str | None:
     """Why a test's parameters jump beyond what is believable or flip sign
     against the baseline ("likely unit or sign error ..."), or None."""
-    return get_model(res.model).spec.plausibility.check_against_baseline(
+    return get_model(res.model_key).spec.plausibility.check_against_baseline(
         res.parameters, dict(zip(baseline.parameters, baseline.mean)), res.units)
 
 
@@ -137,7 +157,7 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
     baseline (mean, sample standard deviation) is recomputed from every
     accepted healthy test once at least 3 exist.
     """
-    opts = options or EstimateOptions()
+    opts = _unit_options(store, unit, options or EstimateOptions())
     added = []
     for i, rec in enumerate(records):
         name = str(rec) if not isinstance(rec, pd.DataFrame) else rec.attrs.get("source", f"record {i}")
@@ -229,6 +249,9 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
                rules: RuleBase | None = None) -> CheckResult:
     """Estimate a test, store it, compute symptoms against the baseline and diagnose.
 
+    The monitor breakpoints and the rule base are the model's own (declared in
+    its ``[monitor]`` table), the shipped DC-motor ones otherwise, unless given.
+
     Raises
     ------
     DataError
@@ -238,9 +261,10 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
     DuplicateTestError
         The record is already in the unit's history.
     """
-    opts = options or EstimateOptions()
-    cfg = monitor or load_monitor_config()
-    rb = rules or load_rules()
+    opts = _unit_options(store, unit, options or EstimateOptions())
+    machine = get_model(opts.model or "dc-motor")
+    cfg = monitor or load_monitor_config(machine.breakpoints)
+    rb = rules or load_rules(machine.rules)
     baseline, ids = current_baseline(store, unit)
     rb.check_parameters(baseline.parameters)
     res, digest = opts.run(record)

@@ -139,7 +139,7 @@ class HistoryStore:
 
     # -- units --------------------------------------------------------------------------
     def unit_id(self, name: str, *, create: bool = False, model: str = "dc-motor",
-                conn: sa.Connection | None = None) -> int:
+                conn: sa.Connection | None = None, model_source: str | None = None) -> int:
         """Id of unit ``name``; created when ``create`` (else an error naming the units)."""
         def run(c: sa.Connection) -> int:
             uid = c.execute(sa.select(S.units.c.id).where(S.units.c.name == name)).scalar()
@@ -148,13 +148,24 @@ class HistoryStore:
             if not create:
                 known = [r[0] for r in c.execute(sa.select(S.units.c.name).order_by(S.units.c.name))]
                 raise ConfigError(f"unknown unit {name!r} in {self.url}; units: {known or 'none yet'}")
-            res = c.execute(sa.insert(S.units).values(name=name, model=model, created_at=_now()))
+            res = c.execute(sa.insert(S.units).values(name=name, model=model, created_at=_now(),
+                                                      model_source=model_source))
             return int(res.inserted_primary_key[0])  # type: ignore[index]
 
         if conn is not None:
             return run(conn)
         with self.engine.begin() as c:
             return run(c)
+
+    def unit_model(self, unit: str) -> str | None:
+        """The unit's model: its declaration file when it is not a shipped model,
+        else its name (None for an unknown unit)."""
+        with self.engine.connect() as conn:
+            row = conn.execute(sa.select(S.units.c.model, S.units.c.model_source)
+                               .where(S.units.c.name == unit)).first()
+        if row is None:
+            return None
+        return str(row[1]) if row[1] else str(row[0])
 
     def units(self) -> list[str]:
         """Names of every unit."""
@@ -206,14 +217,16 @@ class HistoryStore:
             raise DuplicateTestError(f"{result.source}: already in the history of {unit!r} "
                                      f"(test #{existing}); not added again", existing)
         with self.engine.begin() as conn:
-            uid = self.unit_id(unit, create=True, model=result.model, conn=conn)
+            uid = self.unit_id(unit, create=True, model=result.model, conn=conn,
+                               model_source=getattr(result, "model_source", None))
             res = conn.execute(sa.insert(S.tests).values(
                 unit_id=uid, created_at=_now(), source=result.source, file_hash=digest,
                 role=role, accepted=bool(result.accepted), reason=result.reason,
                 fit_percent=_num(result.fit_percent),
                 fits=json.dumps({k: _num(v) for k, v in result.fit.fits_percent.items()}),
                 method=result.method, closed_loop=bool(result.closed_loop_instruments),
-                gamma=float(result.gamma)))
+                constants=json.dumps({k: _num(v) for k, v in
+                                      dict(getattr(result, "constants", {})).items()})))
             tid = int(res.inserted_primary_key[0])  # type: ignore[index]
             conn.execute(sa.insert(S.estimates), [
                 {"test_id": tid, "parameter": p, "value": _num(v),
@@ -257,11 +270,10 @@ class HistoryStore:
         from condmon.errors import ModelError
         from condmon.models.registry import get_model
 
-        with self.engine.connect() as conn:
-            model = conn.execute(sa.select(S.units.c.model).where(S.units.c.name == unit)).scalar()
+        model = self.unit_model(unit)
         try:
-            order = list(get_model(str(model)).spec.report)
-        except ModelError:
+            order = list(get_model(model).spec.report) if model else []
+        except (ModelError, ConfigError):
             order = []
         return [p for p in order if p in names] + sorted(p for p in names if p not in order)
 

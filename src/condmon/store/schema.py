@@ -11,7 +11,7 @@ __all__ = ["metadata", "units", "tests", "estimates", "baselines", "baseline_val
            "MIGRATIONS"]
 
 #: Version of the schema this code writes.
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 
 metadata = sa.MetaData()
 
@@ -27,6 +27,7 @@ units = sa.Table(
     sa.Column("name", sa.String(200), nullable=False, unique=True),
     sa.Column("model", sa.String(64), nullable=False),
     sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+    sa.Column("model_source", sa.Text, nullable=True),        # declaration file, if not shipped
 )
 
 tests = sa.Table(
@@ -43,7 +44,7 @@ tests = sa.Table(
     sa.Column("fits", sa.Text, nullable=False),                # JSON {output: %}
     sa.Column("method", sa.String(16), nullable=False),
     sa.Column("closed_loop", sa.Boolean, nullable=False),
-    sa.Column("gamma", sa.Float, nullable=False),
+    sa.Column("constants", sa.Text, nullable=False),           # JSON {name: value} [SI]
     sa.UniqueConstraint("unit_id", "file_hash", name="uq_test_file"),
 )
 
@@ -103,4 +104,19 @@ diagnosis_faults = sa.Table(
 #: Upgrades, keyed by the version they start from: MIGRATIONS[v](conn) brings a
 #: database from v to v + 1 inside one transaction. Add an entry (and bump
 #: SCHEMA_VERSION) whenever a table changes.
-MIGRATIONS: dict[int, Callable[[sa.Connection], None]] = {}
+def _v1_to_v2(conn: sa.Connection) -> None:
+    """Model constants kept generically: ``tests.gamma`` becomes ``tests.constants``
+    (JSON ``{"gamma": value}``); units remember a user's declaration file."""
+    import json
+
+    conn.execute(sa.text("ALTER TABLE units ADD COLUMN model_source TEXT"))
+    conn.execute(sa.text("ALTER TABLE tests ADD COLUMN constants TEXT NOT NULL DEFAULT '{}'"))
+    rows = conn.execute(sa.text("SELECT id, gamma FROM tests")).all()
+    for tid, gamma in rows:
+        doc = json.dumps({} if gamma is None else {"gamma": float(gamma)})
+        conn.execute(sa.text("UPDATE tests SET constants = :c WHERE id = :i"),
+                     {"c": doc, "i": tid})
+    conn.execute(sa.text("ALTER TABLE tests DROP COLUMN gamma"))
+
+
+MIGRATIONS: dict[int, Callable[[sa.Connection], None]] = {1: _v1_to_v2}

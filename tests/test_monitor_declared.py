@@ -1,0 +1,79 @@
+"""The monitoring flow on a declared model other than the DC motor (the EMPS
+axis, its own breakpoints and rules), and the store's migration of model constants."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sqlite3
+from pathlib import Path
+
+import pytest
+
+from condmon.cli.main import main
+from condmon.store import open_store
+
+from test_greybox import EMPS_TOML, _emps_axis
+
+DATA = Path(__file__).parent / "data"
+
+
+@pytest.fixture(scope="module")
+def axis_files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
+    tmp = tmp_path_factory.mktemp("axis")
+    files = {}
+    cases = {f"h{s}": {"seed": s} for s in range(3)}
+    cases |= {"healthy": {"seed": 10}, "coulomb x2": {"seed": 11, "Fc": 40.0},
+              "viscous x2": {"seed": 12, "Fv": 400.0}}
+    for name, kw in cases.items():
+        p = tmp / f"{name.replace(' ', '-')}.csv"
+        _emps_axis(duration=10.0, **kw).to_csv(p, index=False)
+        files[name] = str(p)
+    return files
+
+
+def test_monitoring_flow_on_a_declared_axis(axis_files: dict[str, str], tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    db = str(tmp_path / "axis.db")
+    healthy = [axis_files[f"h{s}"] for s in range(3)]
+    assert main(["baseline", "add", *healthy, "--unit", "AX-1", "--db", db,
+                 "--model", str(EMPS_TOML)]) == 0
+    assert "baseline of 'AX-1' from 3 accepted healthy tests" in capsys.readouterr().out
+    # later commands find the unit's model by themselves
+    statuses = {}
+    for name in ("healthy", "coulomb x2", "viscous x2"):
+        assert main(["check", axis_files[name], "--unit", "AX-1", "--db", db, "--json"]) == 0
+        doc = json.loads(capsys.readouterr().out)
+        statuses[name] = (doc["status"], [f["name"] for f in doc["faults"]])
+    assert statuses["healthy"] == ("go", [])
+    assert statuses["coulomb x2"] == ("no-go", ["friction increase"])
+    assert statuses["viscous x2"] == ("no-go", ["friction increase"])
+    assert main(["history", "--unit", "AX-1", "--db", db]) == 0
+    out = capsys.readouterr().out
+    assert "Fc" in out and "offset" in out and "no-go: friction increase" in out
+    assert main(["report", "--unit", "AX-1", "--db", db, "--out", str(tmp_path / "rep")]) == 0
+    assert (tmp_path / "rep" / "AX-1.html").exists()
+    # a record offered with another model than the unit's is refused
+    assert main(["check", axis_files["healthy"], "--unit", "AX-1", "--db", db,
+                 "--model", "dc-motor"]) == 2
+    assert "is monitored with model" in capsys.readouterr().err
+    with open_store(db) as store:
+        assert store.unit_model("AX-1") == str(EMPS_TOML.resolve())
+
+
+def test_a_version_1_history_is_migrated(tmp_path: Path,
+                                         capsys: pytest.CaptureFixture[str]) -> None:
+    """A file written by condmon with schema v1 (a gamma column) is upgraded in place."""
+    db = tmp_path / "history.db"
+    shutil.copy(DATA / "history-v1.db", db)
+    with open_store(str(db)) as store:
+        assert store.schema_version == 2
+        ids, table = store.accepted_estimates("EMA-v1")
+        assert ids == [1, 2, 3] and list(table.columns) == ["R", "L", "Ke", "Kt", "J", "D"]
+    con = sqlite3.connect(db)
+    cols = [r[1] for r in con.execute("PRAGMA table_info(tests)")]
+    constants = [json.loads(r[0]) for r in con.execute("SELECT constants FROM tests")]
+    con.close()
+    assert "gamma" not in cols and constants == [{"gamma": 0.95}] * 4
+    assert main(["history", "--unit", "EMA-v1", "--db", str(db)]) == 0
+    assert "h3.csv" in capsys.readouterr().out

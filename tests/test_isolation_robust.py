@@ -249,6 +249,10 @@ def test_coulomb_friction_simulates_in_bounded_time(tmp_path: Path) -> None:
     stuck = rec[(rec["t"] > 0.0025) & (rec["t"] < 0.005)]  # 1 N < Fc: it stays put
     assert np.abs(stuck["v"]).max() < 1e-4
     assert rec["v"].iloc[-1] == pytest.approx((5.0 - 2.0) * 0.005, rel=0.02)  # slides
+    default = dataclasses.replace(m, smoothing=None)  # undeclared: the settings' default eps
+    start = time.monotonic()
+    assert simulate_plant(default, noise=False)["v"].iloc[-1] == pytest.approx(0.015, rel=0.02)
+    assert time.monotonic() - start < 5.0
     exact = dataclasses.replace(m, smoothing=0.0)  # the chattering original: stopped
     with pytest.raises(SimulationTimeout, match="coulomb-mass"):
         simulate_plant(exact, limits=SimulationLimits(time_limit=0.5))
@@ -333,6 +337,23 @@ def test_a_continuously_varying_input_gets_pooled_normalisation(hst: PlantModel)
     assert np.all(np.isfinite(res.detection.normalised))
     assert any("vary continuously" in n for n in res.notes)
     assert "vary continuously" in res.to_dict()["normalisation"]["notes"][0]
+
+
+def test_an_operating_point_held_too_briefly_uses_the_pooled_figures(hst: PlantModel) -> None:
+    t = time_grid(hst)
+    u = np.where(t < 14.0, 152.0, np.where(t < 14.5, 130.0, 114.0))[:, None]
+    c = hst.compile()
+    y = sensor_readings(c, integrate(c, t, u), u, (), t)
+    train = []
+    for s in range(3):
+        rng = np.random.default_rng(50 + s)
+        train.append(pd.DataFrame({"t": t, "Ps": y[:, 0] + rng.normal(0, 2.5e4, len(t)),
+                                   "omega_m": y[:, 1] + rng.normal(0, 0.05236, len(t)),
+                                   "omega_p": u[:, 0]}))
+    norm = healthy_normalisation(hst, train)
+    assert sorted(float(p[0]) for p in norm.points) == [114.0, 152.0]
+    assert np.all(np.isfinite(norm.point_std)) and np.all(norm.point_std > 0)
+    assert norm.notes == ("1 of 3 operating points held less than 2 s: pooled figures there",)
 
 
 # --- the command line -------------------------------------------------------------------

@@ -488,3 +488,44 @@ def test_truncated_tdms_warns_once_instead_of_logging(tmp_path: Path,
         df = read_record(p)
     assert 0 < len(df) < N
     assert "nptdms" not in capsys.readouterr().err
+
+
+def test_every_format_gives_the_same_estimate(tmp_path: Path, noisy_record: pd.DataFrame) -> None:
+    from condmon.identify import estimate
+
+    cols = {c: noisy_record[c].to_numpy() for c in noisy_record.columns}
+    files = {"eu.csv": lambda p: noisy_record.to_csv(p, sep=";", decimal=",", index=False),
+             "rec.tsv": lambda p: noisy_record.to_csv(p, sep="\t", index=False),
+             "v5.mat": lambda p: scipy.io.savemat(p, {**{k: v[:, None] for k, v in cols.items()},
+                                                      "kp": 1.0}),
+             "v73.mat": lambda p: _write_mat73(p, {k: v[:, None] for k, v in cols.items()}),
+             "rec.tdms": lambda p: _write_tdms(p, [ChannelObject("rig", k, v)
+                                                   for k, v in cols.items()])}
+    reference = estimate(noisy_record).parameters
+    for name, write in files.items():
+        p = tmp_path / name
+        write(p)
+        res = estimate(_read_quiet(p))
+        assert res.accepted, name
+        assert res.parameters == pytest.approx(reference, rel=1e-9), name
+
+
+def test_space_separated_text_is_refused_clearly(tmp_path: Path) -> None:
+    p = tmp_path / "spaces.txt"
+    p.write_text("t V I\n0.0 1.0 2.0\n0.1 1.5 2.5\n")
+    with pytest.raises(DataError, match=r"spaces\.txt: cannot tell the separator: no comma, "
+                                        r"semicolon or tab splits"):
+        read_record(p)
+
+
+def test_text_column_does_not_prevent_reading(tmp_path: Path) -> None:
+    p = tmp_path / "notes.csv"
+    p.write_text("t;V;note\n0,0;1,5;start\n0,1;2,5;x\n")
+    df = _read_quiet(p)
+    assert df["V"].tolist() == [1.5, 2.5] and df["note"].tolist() == ["start", "x"]
+
+
+def test_quoted_decimal_commas_in_a_comma_csv(tmp_path: Path) -> None:
+    p = tmp_path / "quoted.csv"
+    p.write_text('"t","V"\n"0,000","1,5"\n"0,001","2,5"\n')
+    assert _read_quiet(p).to_dict("list") == {"t": [0.0, 0.001], "V": [1.5, 2.5]}

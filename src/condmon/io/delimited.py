@@ -1,10 +1,11 @@
 """Delimited text records: CSV with ``,`` or ``;``, decimal point or comma, tab text.
 
 The separator and the decimal mark are told from the header and the first
-lines, never assumed: each interpretation (``,`` with ``.``; ``;`` with ``,`` or
-``.``; tab with ``.`` or ``,``) is tried on them, and the one whose rows all have
-the header's number of fields and whose columns are all numbers (or date-times)
-wins. Two interpretations that fit equally well but read different numbers are
+lines, never assumed: each interpretation (``,`` with ``.``, or with ``,``
+inside quoted fields; ``;`` with ``,`` or ``.``; tab with ``.`` or ``,``) is
+tried on them, and the one whose rows all have the header's number of fields
+and whose columns are all numbers (or date-times) wins. Two interpretations
+that fit equally well but read different numbers are
 refused rather than guessed.
 """
 
@@ -56,7 +57,7 @@ class Dialect:
 def _candidates(suffix: str) -> list[tuple[str, str]]:
     """Interpretations in order of preference for a tie."""
     tab = [("\t", "."), ("\t", ",")]
-    text = [(",", "."), (";", ","), (";", ".")]
+    text = [(",", "."), (";", ","), (";", "."), (",", ",")]  # the last: "1,5" quoted
     return tab + text if suffix in (".tsv", ".txt") else text + tab
 
 
@@ -138,13 +139,16 @@ def sniff_dialect(text: str, source: Path | str, suffix: str = ".csv",
         score = (typed == width, sep in lines[0], typed, width)
         scored.append((score, -rank, Dialect(sep, decimal, encoding), sample))
     scored.sort(key=lambda s: (s[0], s[1]), reverse=True)
-    if not scored and not widths:
-        raise DataError(f"{source}: cannot tell the separator and the decimal mark")
-    if widths and (not scored or (scored[0][0][2] == 0 and len(lines) > 1)):
-        # rows of another width than the header, and no reading gives a number
-        sep, (width, got, line) = next(iter(widths.items()))
-        raise DataError(f"{source}: cannot tell the separator: with {_NAMES[sep]}s line {line} "
-                        f"has {got} fields but the header has {width} "
+    if not scored or (len(lines) > 1 and scored[0][0][2] == 0
+                      and (widths or scored[0][0][3] == 1)):
+        # no reading gives a number: rows of another width than the header, or one
+        # column of text (spaces as separators?)
+        if widths:
+            sep, (width, got, line) = next(iter(widths.items()))
+            why = f"with {_NAMES[sep]}s line {line} has {got} fields but the header has {width}"
+        else:
+            why = "no comma, semicolon or tab splits the lines into numeric columns"
+        raise DataError(f"{source}: cannot tell the separator: {why} "
                         "(expected comma, semicolon or tab separated columns)")
     best = scored[0]
     header = next(csv.reader(lines[:1], delimiter=best[2].sep))
@@ -203,13 +207,27 @@ def read_delimited(path: Path) -> RawRecord:
     text, encoding = _read_head(path)
     dialect = sniff_dialect(text, path, path.suffix.lower(), encoding)
     frame = _parse(path, dialect)
-    if dialect.sep != "," and _typed_columns(frame) < frame.shape[1]:
-        # the first lines held no decimal mark: try the other one on the whole file
+    if dialect.sep != "," and _misread(frame, dialect.decimal):
+        # the first lines held no decimal mark, later ones the other: read again
         other = Dialect(dialect.sep, "." if dialect.decimal == "," else ",", encoding)
         alt = _parse(path, other)
         if _typed_columns(alt) > _typed_columns(frame):
             frame = alt
     return RawRecord(frame)
+
+
+def _misread(frame: pd.DataFrame, decimal: str) -> bool:
+    """A text column that would be all numbers with the other decimal mark."""
+    for name in frame.columns:
+        col = frame[name]
+        if pd.api.types.is_numeric_dtype(col.dtype):
+            continue
+        text = col.dropna().astype(str).str.strip()
+        if decimal == ".":
+            text = text.str.replace(",", ".", regex=False)
+        if not text.empty and bool(pd.to_numeric(text, errors="coerce").notna().all()):
+            return True
+    return False
 
 
 def _parse(path: Path, dialect: Dialect) -> pd.DataFrame:

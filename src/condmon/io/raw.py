@@ -167,12 +167,14 @@ def select_vectors(items: Mapping[str, AnyArray], source: Path | str, what: str 
 
 def _parse_datetimes(values: pd.Series, source: str) -> pd.Series | None:
     """Date-time strings parsed, or None when they are not all date-times."""
-    text = values.astype(str).str.strip().str.replace(_FRACTION_COMMA, r"\1.\2", regex=True)
-    text = text.where(values.notna())
-    first = text.dropna()
-    if first.empty:
+    valid = values.dropna()
+    if valid.empty:
         return None
-    sample = str(first.iloc[0])
+    text = values.astype(str).str.strip()
+    if _FRACTION_COMMA.search(str(valid.iloc[0])):  # 10:00:00,001: ISO 8601 allows the comma
+        text = text.str.replace(_FRACTION_COMMA, r"\1.\2", regex=True)
+    text = text.where(values.notna())
+    sample = str(text.dropna().iloc[0])
     from pandas.tseries.api import guess_datetime_format
 
     results: dict[bool, pd.Series] = {}
@@ -199,8 +201,9 @@ def _parse_datetimes(values: pd.Series, source: str) -> pd.Series | None:
             return results[increasing[0]]
         seconds = [(r - r.iloc[0]).dt.total_seconds() for r in results.values()]
         if not seconds[0].equals(seconds[1]):
-            raise DataError(f"{source}: column {values.name!r}: the order of day and month in its dates is ambiguous "
-                            f"({sample!r}); write ISO dates (YYYY-MM-DD)")
+            raise DataError(f"{source}: column {values.name!r}: the order of day and month "
+                            f"in its dates is ambiguous ({sample!r}); write ISO dates "
+                            "(YYYY-MM-DD)")
         # the same intervals either way, only the start date is in doubt:
         # dotted dates are day first (23.11.2026), slashed ones month first
         return results["." in sample.split()[0]]
@@ -242,7 +245,8 @@ def time_to_seconds(values: pd.Series, source: str = "record") -> tuple[pd.Serie
         stamps: pd.Series | None = values
     elif pd.api.types.is_object_dtype(values.dtype) or pd.api.types.is_string_dtype(values.dtype):
         valid = values.dropna().astype(str).str.strip()
-        if not valid.empty and bool(valid.str.fullmatch(_TIME_OF_DAY).all()):
+        if (not valid.empty and _TIME_OF_DAY.fullmatch(str(valid.iloc[0]))
+                and bool(valid.str.fullmatch(_TIME_OF_DAY).all())):
             try:
                 spans = pd.to_timedelta(values.astype(str).str.strip()
                                         .str.replace(",", ".", regex=False)

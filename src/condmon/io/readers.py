@@ -103,12 +103,11 @@ def read_record(path: str | Path, columns: Mapping[str, str] | None = None) -> p
     if p.stat().st_size == 0:
         raise DataError(f"{p}: the file is empty")
     try:
-        raw = _read_raw(p, suffix, mapping.get("t"))
+        return _finish(_read_raw(p, suffix, mapping.get("t")), p, mapping)
     except DataError:
         raise
     except Exception as err:  # parser errors of every kind become one clear line
         raise DataError(f"{p}: cannot read as a {_KINDS[suffix]} file: {one_line(err)}") from None
-    return _finish(raw, p, mapping)
 
 
 def _read_raw(p: Path, suffix: str, time_column: str | None) -> RawRecord:

@@ -124,7 +124,7 @@ def _read_hdf5(path: Path) -> dict[str, np.ndarray[Any, Any]]:
         for name in f:
             if name.startswith("#"):  # '#refs#', '#subsystem#': MATLAB's own storage
                 continue
-            node = f.get(name, getlink=False)
+            node = f.get(name)  # None for a broken link: left out like a group
             if not isinstance(node, h5py.Dataset):  # a struct or an object: a group
                 items[name] = np.array([], dtype=object)
                 continue

@@ -161,7 +161,7 @@ def select_vectors(items: Mapping[str, AnyArray], source: Path | str, what: str 
         odd.append(f"{name!r} ({ignored[name]})")
     if odd:
         warnings.warn(f"{source}: {what}(s) {', '.join(odd)} ignored: only vectors of the "
-                      f"record's length {n} become columns", DataWarning, stacklevel=3)
+                      f"record's length {n} become columns", DataWarning, stacklevel=5)
     return vectors, scalars, ignored
 
 

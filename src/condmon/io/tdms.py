@@ -71,7 +71,7 @@ def read_tdms(path: Path, time_column: str | None = None) -> RawRecord:
         tdms = TdmsFile.read(path)
     if messages:
         warnings.warn(f"{path}: {'; '.join(dict.fromkeys(messages))} (npTDMS; an incomplete "
-                      "file?)", DataWarning, stacklevel=3)
+                      "file?)", DataWarning, stacklevel=4)
     channels = [(group.name, channel) for group in tdms.groups() for channel in group.channels()]
     count = Counter(channel.name for _, channel in channels)
     items: dict[str, np.ndarray[Any, Any]] = {}

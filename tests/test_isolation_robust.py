@@ -273,6 +273,28 @@ def test_simulate_plant_cli_with_coulomb_friction(tmp_path: Path,
     assert "[smoothing].eps must be >= 0" in err and len(err.splitlines()) == 1
 
 
+def test_cli_a_chattering_model_beside_a_record_stops_with_one_line(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The exact (unsmoothed) Coulomb model run beside a record: stopped by the
+    [simulation] time limit, one line naming the record, exit status 2."""
+    smooth, exact = tmp_path / "smooth.toml", tmp_path / "exact.toml"
+    smooth.write_text(COULOMB)
+    exact.write_text(COULOMB.replace("eps = 1e-5", "eps = 0.0"))
+    rec = tmp_path / "rig.csv"
+    assert main(["simulate", "plant", str(smooth), "--out", str(rec)]) == 0
+    settings = tmp_path / "s.toml"
+    settings.write_text("[simulation]\ntime_limit = 0.5\n")
+    capsys.readouterr()
+    start = time.monotonic()
+    assert main(["isolate", str(exact), str(rec), "--settings", str(settings),
+                 "--workers", "1"]) == 2
+    assert time.monotonic() - start < 10.0
+    err = capsys.readouterr().err.strip()
+    assert f"{rec}: the model cannot be run beside the record: simulation of 'coulomb-mass' " \
+           "stopped at t = " in err
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
+
+
 # --- JSON and non-finite values ---------------------------------------------------------
 
 

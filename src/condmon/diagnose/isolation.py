@@ -354,8 +354,12 @@ def isolate(record: pd.DataFrame, model: PlantModel, *,
     sus = suspects(fsm, det.fired)
     t, u = res.t, res.inputs
     y = record[list(model.sensor_names)].to_numpy(dtype=np.float64)
-    x_nominal = res.states if res.states is not None else \
-        integrate(model.compile(), t, u, limits=settings.simulation)
+    try:
+        x_nominal = res.states if res.states is not None else \
+            integrate(model.compile(), t, u, limits=settings.simulation)
+    except EstimationError as exc:
+        raise EstimationError(f"{source}: the model cannot be run beside the record: {exc}"
+                              ) from None
     windows = steady_windows(t, u, y, x_nominal, det.time, settings.estimation_settle,
                              settings.min_window, noise)
     estimates, rejected = {}, {}

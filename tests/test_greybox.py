@@ -13,7 +13,7 @@ import pytest
 from condmon.errors import ConfigError, ModelError
 from condmon.identify import estimate
 from condmon.models import dc_motor_from_discrete, get_model, list_models, register_model
-from condmon.simulate import simulate_actuator
+from condmon.simulate import ActuatorRig, simulate_actuator
 
 ROOT = Path(__file__).parents[1]
 EMPS_TOML = ROOT / "examples" / "emps" / "emps.toml"
@@ -23,7 +23,7 @@ PUBLISHED = {"M": 95.1089, "Fv": 203.5034, "Fc": 20.3935, "offset": -3.1648}
 
 def test_registry_lists_shipped_models_and_refuses_unknown_names() -> None:
     assert {"dc-motor", "hst"} <= set(list_models())
-    with pytest.raises(ModelError, match="unknown model 'pump'.*dc-motor, hst"):
+    with pytest.raises(ModelError, match="unknown model 'pump'.*dc-motor, dc-motor-coulomb, hst"):
         get_model("pump")
     with pytest.raises(ModelError, match="declares no \\[estimation\\]"):
         estimate(simulate_actuator(seed=0), "hst")
@@ -225,3 +225,29 @@ def test_the_template_declaration_estimates_a_simulated_record() -> None:
     assert res.accepted and res.route == "linear"
     for k, v in {"m": 2.0, "c": 5.0, "k": 800.0}.items():
         assert res.parameters[k] == pytest.approx(v, rel=0.01), k
+
+
+def test_coulomb_model_by_output_error_removes_the_friction_bias(demo_rig: ActuatorRig) -> None:
+    """On the nonlinear rig the linear model folds Coulomb friction into D (+100 %);
+    the declared Coulomb model, by output error, finds D and Tc within their errors."""
+    rec = simulate_actuator(demo_rig, seed=4)
+    truth = {**demo_rig.physical(), "Tc": demo_rig.coulomb_friction}
+    linear = estimate(rec)
+    assert linear.parameters["D"] > 1.5 * truth["D"]
+    res = estimate(rec, model="dc-motor-coulomb")
+    assert res.accepted and res.route == "oe", res.reason
+    assert set(res.parameters) == {"R", "L", "Ke", "Kt", "J", "D", "Tc"}
+    for k in ("R", "L", "Kt", "J", "D", "Tc"):
+        assert abs(res.parameters[k] - truth[k]) < 3 * res.std_errors[k], k
+    assert res.std_errors["Tc"] < 0.3 * truth["Tc"]
+    assert res.to_dict()["diagnostics"]["nrmse omega"] < 0.2
+
+
+def test_output_error_route_needs_measured_nonlinear_signals(tmp_path: Path) -> None:
+    from condmon.models.semilinear import semilinear_structure
+
+    text = (ROOT / "src" / "condmon" / "data" / "dc-motor-coulomb.toml").read_text()
+    text = text.replace('omega = { measures = "omega", noise = 2.0, unit = "rad/s", '
+                        'description = "speed sensor" }\n', "")
+    with pytest.raises(ModelError, match="nonlinear in omega, which no sensor measures"):
+        semilinear_structure(get_model(_write(tmp_path, "c.toml", text)))

@@ -24,6 +24,7 @@ from condmon.identify.fit import DEFAULT_FIT_THRESHOLD, FitCheck
 from condmon.identify.greybox import choose_route, inverse_route, linear_route
 from condmon.identify.ls import arx, iv
 from condmon.identify.oe import oe
+from condmon.identify.oe_route import oe_route
 from condmon.identify.sriv import sriv
 from condmon.io.records import Record, validate_record
 from condmon.models.machine import Machine
@@ -202,6 +203,11 @@ def _excitation_columns(record: pd.DataFrame | Record, machine: Machine,
 
 
 def _required_columns(machine: Machine, route: str) -> tuple[str, ...]:
+    if route == "oe":
+        from condmon.models.semilinear import semilinear_structure
+
+        s = semilinear_structure(machine)
+        return (*s.inputs, *s.sensors)
     if route == "linear":
         lin = machine.linear()
         return (lin.input, *lin.outputs)
@@ -288,6 +294,20 @@ def estimate(record: pd.DataFrame, model: str | Machine = "dc-motor", *,
                            fit_threshold=fit_threshold, route=chosen, constants=consts)
 
 
+def _oe_start(rec: Record, machine: Machine, consts: Mapping[str, float],
+              fit_threshold: float) -> tuple[dict[str, float], str]:
+    """Starting values of the output-error route: the inverse-model estimate when
+    that route fits the model and gives positive-definite answers, else the
+    declared values."""
+    try:
+        inv = inverse_route(rec, machine, constants=consts, fit_threshold=fit_threshold)
+    except CondmonError:
+        return machine.nominal(), "the declared values"
+    if machine.spec.plausibility.check_values(inv.values, machine.units) is None:
+        return inv.values, "the inverse-model estimate"
+    return machine.nominal(), "the declared values"
+
+
 def _check_constants(machine: Machine, constants: Mapping[str, float]) -> dict[str, float]:
     known = machine.constants()
     out = {}
@@ -334,6 +354,16 @@ def estimate_record(rec: Record, model: str | Machine = "dc-motor", *, method: s
                 values, ucov, fit = lin.values, lin.covariance, lin.fit
                 discrete, cont, rejection = lin.discrete, lin.continuous, lin.rejection
                 notes += list(lin.discrete.notes)
+            elif chosen == "oe":
+                start, how = _oe_start(rec, machine, consts, fit_threshold)
+                oe_res = oe_route(rec, machine, start, constants=consts,
+                                  fit_threshold=fit_threshold)
+                values, ucov, fit = oe_res.values, oe_res.covariance, oe_res.fit
+                diagnostics = {**{f"nrmse {k}": v for k, v in oe_res.nrmse.items()},
+                               **{f"whiteness {k}": v for k, v in oe_res.whiteness.items()}}
+                notes.append(f"output error: the declared model simulated with its "
+                             f"linear part exact (ZOH), started from {how}, "
+                             f"{oe_res.evaluations} optimiser evaluations")
             else:
                 inv = inverse_route(rec, machine, constants=consts, fit_threshold=fit_threshold)
                 values, ucov, fit = inv.values, inv.covariance, inv.fit

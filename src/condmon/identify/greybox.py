@@ -54,7 +54,8 @@ FloatArray = NDArray[np.float64]
 
 def choose_route(machine: Machine, route: str | None = None) -> str:
     """The route to take: the one asked for, or the declaration's; "auto" picks
-    "linear" when the model is linear, else "inverse".
+    "linear" when the model is linear, else "inverse"; "oe" (output error on a
+    semi-linear model) is taken only when asked for.
 
     Raises
     ------
@@ -62,6 +63,11 @@ def choose_route(machine: Machine, route: str | None = None) -> str:
         When the route asked for does not fit the model (with the reason).
     """
     want = route or machine.spec.route
+    if want == "oe":
+        from condmon.models.semilinear import semilinear_structure
+
+        semilinear_structure(machine)
+        return "oe"
     if want == "linear":
         machine.linear()
         return "linear"
@@ -69,7 +75,7 @@ def choose_route(machine: Machine, route: str | None = None) -> str:
         machine.inverse()
         return "inverse"
     if want != "auto":
-        raise ModelError(f"unknown route {want!r}; allowed: auto, linear, inverse")
+        raise ModelError(f"unknown route {want!r}; allowed: auto, linear, inverse, oe")
     try:
         machine.linear()
         return "linear"

@@ -35,7 +35,7 @@ __all__ = ["EstimationSpec", "Machine", "LinearStructure", "InverseStructure",
 FloatArray = NDArray[np.float64]
 
 #: Estimation routes a declaration may ask for.
-ROUTES = ("auto", "linear", "inverse")
+ROUTES = ("auto", "linear", "inverse", "oe")
 
 
 @dataclass(frozen=True)
@@ -50,7 +50,7 @@ class EstimationSpec:
         Quantities reported, in order (unknowns and derived).
     derived : dict of str to (str, str)
         ``name -> (equation, unit)`` of quantities computed from parameters.
-    route : {"auto", "linear", "inverse"}
+    route : {"auto", "linear", "inverse", "oe"}
     order : int or None
         Discrete model order for the linear route (default: number of states).
     excitation : tuple of str

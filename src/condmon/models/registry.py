@@ -1,8 +1,9 @@
 """The one registry of machine models: every machine is a declaration (TOML).
 
 Shipped entries: ``dc-motor`` (linear, estimated by SRIV through its transfer
-functions) and ``hst`` (the hydrostatic transmission, monitored by residuals
-and isolation). A user's declaration file is used by its path, or
+functions), ``dc-motor-coulomb`` (with Coulomb friction, estimated by output
+error) and ``hst`` (the hydrostatic transmission, monitored by residuals and
+isolation). A user's declaration file is used by its path, or
 registered under a name with :func:`register_model`.
 """
 
@@ -19,7 +20,8 @@ from condmon.models.machine import Machine, machine_from_doc
 __all__ = ["get_model", "list_models", "register_model"]
 
 #: Shipped declarations: name -> file in condmon/data.
-_SHIPPED = {"dc-motor": "dc-motor.toml", "hst": "hst.toml"}
+_SHIPPED = {"dc-motor": "dc-motor.toml", "dc-motor-coulomb": "dc-motor-coulomb.toml",
+            "hst": "hst.toml"}
 _USER: dict[str, Path] = {}
 _CACHE: dict[str, Machine] = {}
 
@@ -29,8 +31,8 @@ def list_models() -> list[str]:
 
     Example
     -------
-    >>> list_models()
-    ['dc-motor', 'hst']
+    >>> [m for m in list_models() if m in ("dc-motor", "dc-motor-coulomb", "hst")]
+    ['dc-motor', 'dc-motor-coulomb', 'hst']
     """
     return sorted({*_SHIPPED, *_USER})
 

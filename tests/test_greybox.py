@@ -247,6 +247,7 @@ def test_output_error_route_needs_measured_nonlinear_signals(tmp_path: Path) -> 
     from condmon.models.semilinear import semilinear_structure
 
     text = (ROOT / "src" / "condmon" / "data" / "dc-motor-coulomb.toml").read_text()
+    text = text[:text.index("[monitor]")] + text[text.index("[estimation]"):]
     text = text.replace('omega = { measures = "omega", noise = 2.0, unit = "rad/s", '
                         'description = "speed sensor" }\n', "")
     with pytest.raises(ModelError, match="nonlinear in omega, which no sensor measures"):

@@ -77,3 +77,39 @@ def test_a_version_1_history_is_migrated(tmp_path: Path,
     assert "gamma" not in cols and constants == [{"gamma": 0.95}] * 4
     assert main(["history", "--unit", "EMA-v1", "--db", str(db)]) == 0
     assert "h3.csv" in capsys.readouterr().out
+
+
+def test_shipped_coulomb_model_monitors_with_its_own_rules(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import dataclasses
+
+    from condmon.demo import load_demo_config
+    from condmon.simulate import load_actuator_rig, simulate_actuator
+
+    rig = dataclasses.replace(load_actuator_rig(), **load_demo_config().get("rig", {}))
+    files = []
+    for s in range(3):
+        p = tmp_path / f"h{s}.csv"
+        simulate_actuator(rig, seed=s).to_csv(p, index=False)
+        files.append(str(p))
+    worn = tmp_path / "worn.csv"
+    simulate_actuator(rig.with_faults(["D=*7"]), seed=9).to_csv(worn, index=False)
+    db = str(tmp_path / "c.db")
+    assert main(["baseline", "add", *files, "--unit", "C1", "--db", db,
+                 "--model", "dc-motor-coulomb"]) == 0
+    capsys.readouterr()
+    assert main(["check", str(worn), "--unit", "C1", "--db", db, "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["status"] == "no-go" and [f["name"] for f in doc["faults"]] == ["friction increase"]
+    assert set(doc["parameters"]) == {"R", "L", "Ke", "Kt", "J", "D", "Tc"}
+
+
+def test_plant_models_come_from_the_one_registry(tmp_path: Path,
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    from condmon.models.declared import list_plant_models, load_plant_model
+
+    assert {"dc-motor", "dc-motor-coulomb", "hst"} <= set(list_plant_models())
+    assert load_plant_model("dc-motor-coulomb").state_names == ("I", "omega")
+    (tmp_path / "hst").mkdir()  # a folder named like a model does not hide it
+    monkeypatch.chdir(tmp_path)
+    assert load_plant_model("hst").name == "hst"

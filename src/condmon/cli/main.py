@@ -77,7 +77,7 @@ def estimate_cmd(
 
 @simulate_app.command("actuator")
 def simulate_actuator_cmd(
-    out_path: Annotated[Path, typer.Option("--out", help="Output file (.csv or .parquet).")],
+    out_path: Annotated[Path, typer.Option("--out", help="Output file (CSV, Parquet, .mat, TDMS).")],
     fault: Annotated[Optional[list[str]], typer.Option(help="Parameter fault, e.g. R=+40%, D=*7, L=+0.25mH (repeatable).")] = None,
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
     params: Annotated[Optional[Path], typer.Option(help="TOML file overriding the rig parameters.")] = None,
@@ -178,7 +178,7 @@ FitOpt = Annotated[float, typer.Option(help="Reject below this percentage fit [%
 
 @baseline_app.command("add")
 def baseline_add_cmd(
-    records: Annotated[list[Path], typer.Argument(help="Healthy test records (.csv or .parquet).")],
+    records: Annotated[list[Path], typer.Argument(help="Healthy test records (CSV, Parquet, .mat, TDMS).")],
     unit: UnitOpt,
     db: DbOpt = "condmon.db",
     method: MethodOpt = "sriv",
@@ -226,7 +226,7 @@ def baseline_add_cmd(
 
 @app.command("check")
 def check_cmd(
-    record: Annotated[Path, typer.Argument(help="Test record (.csv or .parquet).")],
+    record: Annotated[Path, typer.Argument(help="Test record (CSV, Parquet, .mat, TDMS).")],
     unit: UnitOpt,
     db: DbOpt = "condmon.db",
     method: MethodOpt = "sriv",

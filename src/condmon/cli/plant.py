@@ -16,7 +16,7 @@ if TYPE_CHECKING:
 
 __all__ = ["register"]
 
-ModelArg = Annotated[str, typer.Argument(help="Shipped model name (hst) or a declaration file (.toml).")]
+ModelArg = Annotated[str, typer.Argument(help="Machine model: a registered name (hst, dc-motor, ...) or a declaration file (.toml).")]
 ParamsOpt = Annotated[Optional[Path], typer.Option(help="TOML file of parameter values overriding the declaration's.")]
 OutOpt = Annotated[Path, typer.Option("--out", help="Output file (.csv or .parquet).")]
 FaultOpt = Annotated[Optional[list[str]], typer.Option(help="Parameter fault, e.g. Rv=+40%@10s, Dm=-25%@10s, Tld=+20@10s (repeatable).")]
@@ -43,8 +43,9 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
     @app.command("isolate")
     def isolate_cmd(
         model: ModelArg,
-        record: Annotated[Path, typer.Argument(help="Record (.csv or .parquet) with t and the sensor columns.")],
+        record: Annotated[Path, typer.Argument(help="Record (CSV, Parquet, .mat, TDMS) with t and the sensor columns.")],
         params: ParamsOpt = None,
+        columns: Annotated[Optional[str], typer.Option(help="Column mapping CANONICAL=FILE_COLUMN,... e.g. Ps=p_sys,omega_m=speed.")] = None,
         healthy: Annotated[Optional[list[Path]], typer.Option(help="Healthy record to learn the residuals' normalisation from (repeatable; default: the sensors' declared noise).")] = None,
         residuals: Annotated[str, typer.Option(help="Residual set: simulation (one per sensor, the model from its inputs) or structured (every MSO computable by integration).")] = "simulation",
         settings: Annotated[Optional[Path], typer.Option(help="Detection/estimation/isolation settings TOML (default: the shipped isolation.toml).")] = None,
@@ -57,19 +58,20 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
         from condmon.diagnose.isolation import IsolationSettings, healthy_normalisation, isolate
         from condmon.diagnose.structure import RESIDUAL_KINDS
         from condmon.errors import ConfigError
-        from condmon.io.records import read_record
+        from condmon.io.records import parse_column_map, read_record
         from condmon.models.declared import load_plant_model
 
+        mapping = parse_column_map(columns) or None
         if residuals not in RESIDUAL_KINDS:
             raise ConfigError(f"unknown --residuals {residuals!r}; allowed: {', '.join(RESIDUAL_KINDS)}")
         plant = load_plant_model(model, params)
         cfg = IsolationSettings.load(settings)
-        rec = read_record(record)
+        rec = read_record(record, mapping)
         norm = None
         with progress() as prog:
             if healthy:
                 task = prog.add_task("learning the normalisation", total=None)
-                norm = healthy_normalisation(plant, [read_record(h) for h in healthy],
+                norm = healthy_normalisation(plant, [read_record(h, mapping) for h in healthy],
                                              residuals, cfg.detection,  # type: ignore[arg-type]
                                              record=cfg.record, limits=cfg.simulation,
                                              sources=[str(h) for h in healthy])

@@ -90,8 +90,10 @@ class EstimateResult:
     notes : tuple of str
         What the user should know (the estimator's path, residual checks).
     diagnostics : dict of str to float
-        Route-specific figures (inverse route: ``nrmse``, ``whiteness`` per
-        equation, ``cutoff`` [Hz]).
+        Residual figures: ``nrmse <output>`` (RMS error / RMS of the measured
+        signal) and ``whiteness <output>`` (largest normalised
+        autocorrelation of the residual at lags 1..20) per output (linear and
+        output-error routes) or per equation (inverse route, with ``cutoff_hz``).
     model_source : str or None
         The declaration file of a user's model (None for a shipped model).
     """
@@ -353,6 +355,7 @@ def estimate_record(rec: Record, model: str | Machine = "dc-motor", *, method: s
                                    constants=consts, fit_threshold=fit_threshold)
                 values, ucov, fit = lin.values, lin.covariance, lin.fit
                 discrete, cont, rejection = lin.discrete, lin.continuous, lin.rejection
+                diagnostics = dict(lin.diagnostics)
                 notes += list(lin.discrete.notes)
             elif chosen == "oe":
                 start, how = _oe_start(rec, machine, consts, fit_threshold)

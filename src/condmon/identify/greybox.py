@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import sympy as sp
@@ -98,6 +98,23 @@ class LinearRouteResult:
     continuous: ContinuousTF | None
     fit: FitCheck
     rejection: str | None
+    diagnostics: dict[str, float] = field(default_factory=dict)
+
+
+def _output_diagnostics(est: TFEstimate, u: FloatArray, y: FloatArray) -> dict[str, float]:
+    """NRMSE and residual whiteness of each output's simulation error (the
+    system-identification benchmarks' figures; reported, not judged)."""
+    out: dict[str, float] = {}
+    if np.any(np.abs(est.model.poles()) >= 1.0):
+        return out
+    with np.errstate(all="ignore"):
+        e = y - est.model.simulate(u)
+    for j, name in enumerate(est.model.outputs):
+        rms = float(np.sqrt(np.mean(y[:, j] ** 2)))
+        if np.all(np.isfinite(e[:, j])) and rms > 0:
+            out[f"nrmse {name}"] = float(np.sqrt(np.mean(e[:, j] ** 2))) / rms
+            out[f"whiteness {name}"] = _whiteness(e[:, j])
+    return out
 
 
 def _solve_coefficients(lin: LinearStructure, target: FloatArray, start: FloatArray,
@@ -177,6 +194,7 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
     est: TFEstimate = estimator(u, y, order, dt=rec.dt, excitation=r,  # type: ignore[operator]
                                 outputs=lin.outputs, input_name=lin.input)
     fit = fit_check(est.model, u, y, fit_threshold)
+    diag = _output_diagnostics(est, u, y)
     consts = machine.constants(constants)
     known = np.array([consts[k] for k in machine.plant.parameter_names
                       if k not in spec.unknowns])
@@ -216,7 +234,8 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
     Jp = lin.jacobian(p, known)
     G = np.linalg.pinv(Jp)
     cov = G @ Jt @ est.covariance @ Jt.T @ G.T
-    return LinearRouteResult(dict(zip(spec.unknowns, map(float, p))), cov, est, cont, fit, None)
+    return LinearRouteResult(dict(zip(spec.unknowns, map(float, p))), cov, est, cont, fit, None,
+                             diag)
 
 
 @dataclass(frozen=True, eq=False)

@@ -34,6 +34,10 @@ def load_toml(path: str | Path) -> dict[str, Any]:
         raise ConfigError(f"{p}: file not found") from None
     except tomllib.TOMLDecodeError as err:
         raise ConfigError(f"{p}: not valid TOML: {err}") from None
+    except UnicodeDecodeError as err:
+        raise ConfigError(f"{p}: not valid TOML (not UTF-8 text: {err.reason})") from None
+    except OSError as err:  # a folder, no permission, ...
+        raise ConfigError(f"{p}: cannot read: {err.strerror or err}") from None
 
 
 def load_default(name: str) -> dict[str, Any]:

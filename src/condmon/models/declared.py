@@ -34,7 +34,7 @@ import numpy as np
 import sympy as sp
 from numpy.typing import NDArray
 
-from condmon.errors import ConfigError
+from condmon.errors import ConfigError, ModelError
 from condmon.io.config import load_default, load_toml
 from condmon.models.expressions import parse_expression, smoothed
 
@@ -44,7 +44,6 @@ __all__ = ["Parameter", "Input", "Variable", "State", "Sensor", "InputStep", "Bu
 
 FloatArray = NDArray[np.float64]
 
-_SHIPPED = {"hst": "hst.toml"}
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
@@ -324,8 +323,10 @@ def _compile(model: PlantModel) -> CompiledModel:
 
 
 def list_plant_models() -> list[str]:
-    """Names of the shipped model declarations."""
-    return sorted(_SHIPPED)
+    """Names of the registered machine models (see :func:`condmon.models.list_models`)."""
+    from condmon.models.registry import list_models
+
+    return list_models()
 
 
 def load_plant_model(model: str | Path = "hst", params: str | Path | Mapping[str, float] | None = None
@@ -350,14 +351,21 @@ def load_plant_model(model: str | Path = "hst", params: str | Path | Mapping[str
     >>> m.parameter("Rv").value
     12.0
     """
-    if isinstance(model, str) and model in _SHIPPED:
-        doc, source = load_default(_SHIPPED[model]), _SHIPPED[model]
-    elif Path(model).suffix.lower() == ".toml" or Path(model).exists():
+    from condmon.models.registry import list_models
+
+    if str(model) not in list_models() and (Path(model).suffix.lower() == ".toml"
+                                            or Path(model).is_file()):
         doc, source = load_toml(model), str(model)
+        plant = _validated(_from_doc(doc, source), source)
     else:
-        raise ConfigError(f"unknown model {str(model)!r}; give a declaration file (.toml) "
-                          f"or one of: {', '.join(list_plant_models())}")
-    plant = _validated(_from_doc(doc, source), source)
+        # A name: the one registry of machine models (imported here, as the
+        # registry itself is built on this module).
+        from condmon.models.registry import get_model
+
+        try:
+            plant = get_model(str(model)).plant
+        except ModelError as err:
+            raise ConfigError(str(err)) from None
     if params is None:
         return plant
     if isinstance(params, Mapping):

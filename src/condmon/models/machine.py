@@ -34,6 +34,9 @@ __all__ = ["EstimationSpec", "Machine", "LinearStructure", "InverseStructure",
 
 FloatArray = NDArray[np.float64]
 
+#: Folder of the shipped declarations and their monitoring files.
+DATA_DIR = Path(__file__).resolve().parents[1] / "data"
+
 #: Estimation routes a declaration may ask for.
 ROUTES = ("auto", "linear", "inverse", "oe")
 
@@ -442,14 +445,14 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any],
     if not isinstance(mon, dict) or set(mon) - {"rules", "breakpoints"}:
         raise ConfigError(f"{src}[monitor]: a table with 'rules' and 'breakpoints' (files, "
                           "relative to the declaration)")
-    base = Path(src).parent if origin is not None else None
+    base = Path(src).parent if origin is not None else DATA_DIR
 
     def _file(key: str) -> str | None:
         if key not in mon:
             return None
         if not isinstance(mon[key], str):
             raise ConfigError(f"{src}[monitor].{key} must be a file name, got {mon[key]!r}")
-        path = Path(mon[key]) if base is None else base / mon[key]
+        path = base / mon[key]
         if not path.exists():
             raise ConfigError(f"{src}[monitor].{key}: {path} not found")
         return str(path)

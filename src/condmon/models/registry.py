@@ -73,7 +73,7 @@ def get_model(model: str | Path) -> Machine:
         machine = _load(_USER[key])
     elif key in _SHIPPED:
         machine = _machine(load_default(_SHIPPED[key]), _SHIPPED[key], shipped=True)
-    elif Path(key).suffix.lower() == ".toml" or Path(key).exists():
+    elif Path(key).suffix.lower() == ".toml" or Path(key).is_file():
         machine = _load(Path(key))
     else:
         raise ModelError(f"unknown model {key!r}; give a declaration file (.toml) or one "

@@ -10,7 +10,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from condmon.models.transfer import DiscreteTF
 
-__all__ = ["FitCheck", "fit_check", "DEFAULT_FIT_THRESHOLD"]
+__all__ = ["FitCheck", "fit_check", "DEFAULT_FIT_THRESHOLD", "ResidualFigures",
+           "residual_figures"]
 
 DEFAULT_FIT_THRESHOLD = 90.0
 """Default acceptance threshold on the percentage fit. [%]"""
@@ -99,3 +100,48 @@ def fit_check(model: DiscreteTF, u: ArrayLike, y: ArrayLike,
                 r2[name] = float(1.0 - var_e[j] / var_y[j])
     fit = 100.0 * float(np.mean(list(r2.values())))
     return FitCheck(r2, fit, float(threshold), bool(fit >= threshold))
+
+
+@dataclass(frozen=True)
+class ResidualFigures:
+    """Figures of one signal's residual.
+
+    Attributes
+    ----------
+    r2 : float
+        ``1 - var(e)/var(measured)`` (-inf when the measured signal is constant). [-]
+    nrmse : float
+        RMS of the error / RMS of the measured signal (inf when that is 0). [-]
+    whiteness : float
+        Largest normalised autocorrelation of the error at lags 1..20
+        (0 for white noise, near 1 for a slowly varying misfit). [-]
+    """
+
+    r2: float
+    nrmse: float
+    whiteness: float
+
+
+def residual_figures(measured: ArrayLike, error: ArrayLike, lags: int = 20) -> ResidualFigures:
+    """R_T², normalised RMS error and residual whiteness of one signal.
+
+    Example
+    -------
+    >>> rng = np.random.default_rng(0)
+    >>> y = np.sin(np.linspace(0, 20, 2000))
+    >>> f = residual_figures(y, 0.01 * rng.standard_normal(2000))
+    >>> round(f.r2, 3), f.whiteness < 0.1
+    (1.0, True)
+    """
+    y = np.asarray(measured, dtype=np.float64)
+    e = np.asarray(error, dtype=np.float64)
+    var_y = float(np.var(y))
+    r2 = 1.0 - float(np.var(e)) / var_y if var_y > 0 else float("-inf")
+    rms = float(np.sqrt(np.mean(y ** 2))) if y.size else 0.0
+    nrmse = float(np.sqrt(np.mean(e ** 2))) / rms if rms > 0 else float("inf")
+    c = e - np.mean(e) if e.size else e
+    denom = float(np.dot(c, c))
+    white = 0.0
+    if denom > 0 and c.size > lags:
+        white = float(max(abs(float(np.dot(c[k:], c[:-k]))) / denom for k in range(1, lags + 1)))
+    return ResidualFigures(r2, nrmse, white)

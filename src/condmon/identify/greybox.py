@@ -39,7 +39,7 @@ from scipy.signal import butter, sosfiltfilt
 
 from condmon.errors import ConversionError, EstimationError, ModelError
 from condmon.identify._common import TFEstimate
-from condmon.identify.fit import FitCheck, fit_check
+from condmon.identify.fit import FitCheck, fit_check, residual_figures
 from condmon.io.records import Record
 from condmon.models.conversion import d2c_coefficients_fast, tf_d2c
 from condmon.models.declared import substituted_equations, symbols_of
@@ -110,10 +110,10 @@ def _output_diagnostics(est: TFEstimate, u: FloatArray, y: FloatArray) -> dict[s
     with np.errstate(all="ignore"):
         e = y - est.model.simulate(u)
     for j, name in enumerate(est.model.outputs):
-        rms = float(np.sqrt(np.mean(y[:, j] ** 2)))
-        if np.all(np.isfinite(e[:, j])) and rms > 0:
-            out[f"nrmse {name}"] = float(np.sqrt(np.mean(e[:, j] ** 2))) / rms
-            out[f"whiteness {name}"] = _whiteness(e[:, j])
+        if np.all(np.isfinite(e[:, j])):
+            figures = residual_figures(y[:, j], e[:, j])
+            out[f"nrmse {name}"] = figures.nrmse
+            out[f"whiteness {name}"] = figures.whiteness
     return out
 
 
@@ -356,11 +356,9 @@ def inverse_route(rec: Record, machine: Machine, *, constants: Mapping[str, floa
         pred = _evaluate(derivs[eq.state].xreplace({sym[k]: v for k, v in values.items()}),
                          sig, consts, rows)
         e = meas - pred
-        var_m = float(np.var(meas))
-        r2[name] = 1.0 - float(np.var(e)) / var_m if var_m > 0 else float("-inf")
-        rms_m = float(np.sqrt(np.mean(meas ** 2)))
-        nrmse[name] = float(np.sqrt(np.mean(e ** 2))) / rms_m if rms_m > 0 else float("inf")
-        white[name] = _whiteness(e[::step])
+        figures = residual_figures(meas, e)
+        r2[name], nrmse[name] = figures.r2, figures.nrmse
+        white[name] = residual_figures(meas[::step], e[::step]).whiteness
     fit_pct = 100.0 * float(np.mean(list(r2.values())))
     fit = FitCheck(r2, fit_pct, float(fit_threshold), bool(fit_pct >= fit_threshold))
     return InverseRouteResult(dict(zip(spec.unknowns, map(float, theta))), cov, fit, nrmse,
@@ -423,11 +421,3 @@ def _weighted_lstsq(blocks: list[FloatArray], rhs: list[FloatArray], source: str
     X = np.vstack([b * wi for b, wi in zip(blocks, w)])
     cov = np.linalg.inv(X.T @ X)
     return theta, np.asarray(cov, dtype=np.float64), resid
-
-
-def _whiteness(e: FloatArray, lags: int = 20) -> float:
-    e = e - np.mean(e)
-    denom = float(np.dot(e, e))
-    if denom == 0 or e.size <= lags:
-        return 0.0
-    return float(max(abs(float(np.dot(e[k:], e[:-k]))) / denom for k in range(1, lags + 1)))

@@ -28,7 +28,7 @@ from scipy.optimize import least_squares
 from scipy.signal import lfilter, ss2tf
 
 from condmon.errors import EstimationError
-from condmon.identify.fit import FitCheck
+from condmon.identify.fit import FitCheck, residual_figures
 from condmon.io.records import Record
 from condmon.models.machine import Machine
 from condmon.models.semilinear import SemiLinearStructure, semilinear_structure
@@ -89,14 +89,6 @@ class _Simulator:
                     # x(k+1) = Ad x(k) + Bd w(k): one sample of delay, as ss2tf gives
                     y[:, j] += lfilter(num[j], den, self.w[:, i])
         return y
-
-
-def _whiteness(e: FloatArray, lags: int = 20) -> float:
-    e = e - np.mean(e)
-    denom = float(np.dot(e, e))
-    if denom == 0 or e.size <= lags:
-        return 0.0
-    return float(max(abs(float(np.dot(e[k:], e[:-k]))) / denom for k in range(1, lags + 1)))
 
 
 def oe_route(rec: Record, machine: Machine, start: Mapping[str, float], *,
@@ -176,11 +168,8 @@ def oe_route(rec: Record, machine: Machine, start: Mapping[str, float], *,
     cov = np.asarray(np.linalg.solve(info, np.eye(p.size)), dtype=np.float64)
     r2, nrmse, white = {}, {}, {}
     for j, name in enumerate(s.sensors):
-        var_y = float(np.var(y[:, j]))
-        r2[name] = 1.0 - float(np.var(e[:, j])) / var_y if var_y > 0 else float("-inf")
-        rms = float(np.sqrt(np.mean(y[:, j] ** 2)))
-        nrmse[name] = float(np.sqrt(np.mean(e[:, j] ** 2))) / rms if rms > 0 else float("inf")
-        white[name] = _whiteness(e[:, j])
+        figures = residual_figures(y[:, j], e[:, j])
+        r2[name], nrmse[name], white[name] = figures.r2, figures.nrmse, figures.whiteness
     fit_pct = 100.0 * float(np.mean(list(r2.values())))
     fit = FitCheck(r2, fit_pct, float(fit_threshold), bool(fit_pct >= fit_threshold))
     return OERouteResult(dict(zip(spec.unknowns, map(float, p))), cov, fit, nrmse, white, nfev)

@@ -83,26 +83,20 @@ def noise_free_input(u: ArrayLike, r: ArrayLike, order: int = 8) -> FloatArray:
     # Rows k = n..N-1 of [-u(k-1..k-n), r_i(k..k-n)], built by slicing (lag-major).
     X = np.hstack([-u_arr[n - d: N - d, None] for d in range(1, n + 1)]
                   + [r_arr[n - d: N - d] for d in range(n + 1)])
-    # Normal equations (well conditioned in practice, 10x faster than an SVD
-    # solve). A loop without noise, or an excitation column that copies the
-    # input, makes them singular: the minimum-norm least-squares solution is
-    # then taken instead.
-    XtX = X.T @ X
-    with np.errstate(all="ignore"):
-        # Condition of the column-scaled matrix: signals in V and in m differ
-        # by 1e4, which says nothing about collinearity.
-        d = np.sqrt(np.diag(XtX))
-        scaled = XtX / np.outer(d, d)
-        cond = (float(np.linalg.cond(scaled)) if np.all(np.isfinite(scaled)) and np.all(d > 0)
-                else np.inf)
+    # Normal equations (10x faster than an SVD solve). A loop without noise, or
+    # an excitation column that copies the input, makes them exactly singular:
+    # the minimum-norm least-squares solution is then taken instead.
     try:
-        if np.isfinite(cond) and cond < 1e12:
-            sol = np.linalg.solve(XtX, X.T @ u_arr[n:])
-        else:
-            sol = np.linalg.lstsq(X, u_arr[n:], rcond=None)[0]
+        with np.errstate(all="ignore"):
+            sol = np.linalg.solve(X.T @ X, X.T @ u_arr[n:])
+        if not np.all(np.isfinite(sol)):
+            raise np.linalg.LinAlgError("non-finite solution")
     except np.linalg.LinAlgError:
-        raise EstimationError("the excitation signals cannot build instruments "
-                              "(the input-excitation regression failed)") from None
+        try:
+            sol = np.linalg.lstsq(X, u_arr[n:], rcond=None)[0]
+        except np.linalg.LinAlgError:
+            raise EstimationError("the excitation signals cannot build instruments "
+                                  "(the input-excitation regression failed)") from None
     nr = r_arr.shape[1]
     # back to per-input blocks: theta = [c_1..c_n, d_1(0..n), d_2(0..n), ...]
     theta = np.r_[sol[:n], sol[n:].reshape(n + 1, nr).T.ravel()]

@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import sympy as sp
@@ -122,31 +123,34 @@ def _solve_coefficients(lin: LinearStructure, target: FloatArray, start: FloatAr
     scale = np.where(target != 0, np.abs(target), 1.0)
 
     def res(p: FloatArray) -> FloatArray:
-        return (lin.values(p, known) - target) / scale
+        with np.errstate(all="ignore"):  # far from the solution: inf, judged by the caller
+            return (lin.values(p, known) - target) / scale
 
     def jac(p: FloatArray) -> FloatArray:
-        return lin.jacobian(p, known) / scale[:, None]
+        with np.errstate(all="ignore"):
+            return lin.jacobian(p, known) / scale[:, None]
 
-    xs = np.where(start != 0, np.abs(start), 1.0)
+    # Newton (Gauss-Newton when over-determined) from the declared values, then
+    # from their mirror image: a record with an inverted sign maps to negative
+    # parameters, which the plausibility check then names, rather than to a
+    # spurious far-away solution. A bounded trust-region search is the fallback.
     best: FloatArray | None = None
     best_cost = np.inf
-    # From the declared values, then from their mirror image: a record with an
-    # inverted sign maps to negative parameters, which the plausibility check
-    # then names, rather than to a spurious far-away solution.
     for x0 in (start, -start):
-        try:
-            with np.errstate(all="ignore"):
-                sol = least_squares(res, x0, jac=jac, method="trf", x_scale=xs,
-                                    xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=200)
-        except (ValueError, np.linalg.LinAlgError):
-            continue
-        p = np.asarray(sol.x, dtype=np.float64)
-        for _ in range(3):  # Gauss-Newton polish: the last digits of an exact solution
-            with np.errstate(all="ignore"):
-                J, r = jac(p), res(p)
-            if not (np.all(np.isfinite(J)) and np.all(np.isfinite(r))):
-                break
-            p = p + np.linalg.lstsq(J, -r, rcond=None)[0]
+        p = _newton(res, jac, x0)
+        if p is None or float(np.sum(res(p) ** 2)) > 1e-20:
+            try:
+                with np.errstate(all="ignore"):
+                    sol = least_squares(res, x0, jac=jac, method="trf",
+                                        x_scale=np.where(x0 != 0, np.abs(x0), 1.0),
+                                        xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=200)
+            except (ValueError, np.linalg.LinAlgError):
+                continue
+            x = np.asarray(sol.x, dtype=np.float64)
+            polished = _newton(res, jac, x, steps=3)
+            found = polished if polished is not None else x
+            if p is None or np.sum(res(found) ** 2) < np.sum(res(p) ** 2):
+                p = found
         with np.errstate(all="ignore"):
             r = res(p)
         cost = float(np.sum(r ** 2)) if np.all(np.isfinite(r)) else np.inf
@@ -160,6 +164,42 @@ def _solve_coefficients(lin: LinearStructure, target: FloatArray, start: FloatAr
         raise ConversionError("no parameter values reproduce the estimated coefficients "
                               f"(relative mismatch {np.sqrt(best_cost):.2g})")
     return best
+
+
+def _newton(res: Any, jac: Any, x0: FloatArray, steps: int = 30) -> FloatArray | None:
+    """Damped (Gauss-)Newton on ``res(p) = 0``: the last iterate, or None when
+    the misfit or its Jacobian stops being finite or the step cannot be solved."""
+    p = np.array(x0, dtype=np.float64)
+    with np.errstate(all="ignore"):
+        r = res(p)
+        cost = float(np.sum(r ** 2))
+        for _ in range(steps):
+            if not np.isfinite(cost):
+                return None
+            if cost < 1e-26:
+                return p
+            J = jac(p)
+            if not np.all(np.isfinite(J)):
+                return None
+            try:
+                step = (np.linalg.solve(J, -r) if J.shape[0] == J.shape[1]
+                        else np.linalg.lstsq(J, -r, rcond=None)[0])
+            except np.linalg.LinAlgError:
+                return None
+            t = 1.0
+            for _ in range(20):  # halve the step until the misfit falls
+                q = p + t * step
+                rq = res(q)
+                cq = float(np.sum(rq ** 2))
+                if np.isfinite(cq) and cq < cost:
+                    break
+                t *= 0.5
+            else:  # no descent: a (least-squares) stationary point
+                return p
+            if cost - cq < 1e-30:  # no further progress: converged
+                return q
+            p, r, cost = q, rq, cq
+    return p
 
 
 def linear_route(rec: Record, machine: Machine, estimator: object, *,

@@ -227,9 +227,11 @@ def stabilise(den: FloatArray) -> FloatArray:
     return np.asarray(np.real(np.poly(inside)) * den[0], dtype=np.float64)
 
 
-def covariance(R: FloatArray, S: FloatArray) -> FloatArray:
-    """IV covariance ``R⁻¹ S R⁻ᵀ``, refusing a singular ``R``."""
-    Ri = np.linalg.solve(R, np.eye(R.shape[0])) if _well_conditioned(R) else None
+def covariance(R: FloatArray, S: FloatArray, checked: bool = False) -> FloatArray:
+    """IV covariance ``R⁻¹ S R⁻ᵀ``, refusing a singular ``R`` (``checked``: the
+    caller has just solved with ``R`` through :func:`solve`, which checked it)."""
+    Ri = (np.linalg.solve(R, np.eye(R.shape[0])) if checked or _well_conditioned(R)
+          else None)
     if Ri is None:
         raise EstimationError("the instrumental-variable matrix is singular: the data "
                               "do not determine the model")

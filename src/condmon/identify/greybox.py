@@ -102,20 +102,27 @@ class LinearRouteResult:
     diagnostics: dict[str, float] = field(default_factory=dict)
 
 
-def _output_diagnostics(est: TFEstimate, u: FloatArray, y: FloatArray) -> dict[str, float]:
-    """NRMSE and residual whiteness of each output's simulation error (the
-    system-identification benchmarks' figures; reported, not judged)."""
-    out: dict[str, float] = {}
+def _fit_and_diagnostics(est: TFEstimate, u: FloatArray, y: FloatArray,
+                         threshold: float) -> tuple[FitCheck, dict[str, float]]:
+    """The fit check (SPEC A4) and each output's NRMSE and residual whiteness
+    (the system-identification benchmarks' figures; reported, not judged),
+    from one simulation of the model."""
     if np.any(np.abs(est.model.poles()) >= 1.0):
-        return out
+        return fit_check(est.model, u, y, threshold), {}
     with np.errstate(all="ignore"):
         e = y - est.model.simulate(u)
+    if not np.all(np.isfinite(e)):
+        return fit_check(est.model, u, y, threshold), {}
+    r2: dict[str, float] = {}
+    out: dict[str, float] = {}
     for j, name in enumerate(est.model.outputs):
-        if np.all(np.isfinite(e[:, j])):
-            figures = residual_figures(y[:, j], e[:, j])
-            out[f"nrmse {name}"] = figures.nrmse
-            out[f"whiteness {name}"] = figures.whiteness
-    return out
+        figures = residual_figures(y[:, j], e[:, j])
+        r2[name] = figures.r2 if np.var(y[:, j]) > 0 else (1.0 if np.var(e[:, j]) == 0
+                                                          else float("-inf"))
+        out[f"nrmse {name}"] = figures.nrmse
+        out[f"whiteness {name}"] = figures.whiteness
+    fit = 100.0 * float(np.mean(list(r2.values())))
+    return FitCheck(r2, fit, float(threshold), bool(fit >= threshold)), out
 
 
 def _solve_coefficients(lin: LinearStructure, target: FloatArray, start: FloatArray,
@@ -233,8 +240,7 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
     r = rec.stack(excitation) if excitation else None
     est: TFEstimate = estimator(u, y, order, dt=rec.dt, excitation=r,  # type: ignore[operator]
                                 outputs=lin.outputs, input_name=lin.input)
-    fit = fit_check(est.model, u, y, fit_threshold)
-    diag = _output_diagnostics(est, u, y)
+    fit, diag = _fit_and_diagnostics(est, u, y, fit_threshold)
     consts = machine.constants(constants)
     known = np.array([consts[k] for k in machine.plant.parameter_names
                       if k not in spec.unknowns])

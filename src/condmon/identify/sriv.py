@@ -113,7 +113,7 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
                 raise EstimationError("the prefiltered signals are not finite")
             R, r, S, _ = normal_equations(sig, m, order, weights)
             raw = solve(R, r)
-            cov = covariance(R, S)
+            cov = covariance(R, S, checked=True)
             new = _stable_theta(raw, order)
         except EstimationError as err:
             failure = f"iteration {it}: {err}"

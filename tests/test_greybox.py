@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from condmon.errors import ConfigError, ModelError
+from condmon.errors import ConfigError, DataError, ModelError
 from condmon.identify import estimate
 from condmon.models import dc_motor_from_discrete, get_model, list_models, register_model
 from condmon.simulate import ActuatorRig, simulate_actuator
@@ -252,3 +252,23 @@ def test_output_error_route_needs_measured_nonlinear_signals(tmp_path: Path) -> 
                         'description = "speed sensor" }\n', "")
     with pytest.raises(ModelError, match="nonlinear in omega, which no sensor measures"):
         semilinear_structure(get_model(_write(tmp_path, "c.toml", text)))
+
+
+def test_several_records_at_once(demo_rig: ActuatorRig) -> None:
+    from condmon.identify import estimate_joint
+
+    recs = [simulate_actuator(demo_rig, seed=s) for s in range(3)]
+    one = estimate(recs[0], model="dc-motor-coulomb")
+    joint = estimate_joint(recs, "dc-motor-coulomb", sources=["a.csv", "b.csv", "c.csv"])
+    assert joint.accepted and joint.route == "oe" and joint.source == "a.csv + b.csv + c.csv"
+    truth = {**demo_rig.physical(), "Tc": demo_rig.coulomb_friction}
+    for k in ("R", "L", "Kt", "J", "D", "Tc"):
+        assert abs(joint.parameters[k] - truth[k]) < 3 * joint.std_errors[k], k
+    # three records: standard errors shrink by about sqrt(3)
+    assert joint.std_errors["D"] < 0.75 * one.std_errors["D"]
+    axis = estimate_joint([_emps_axis(seed=1, duration=8.0), _emps_axis(seed=2, duration=8.0)],
+                          EMPS_TOML)
+    assert axis.route == "inverse" and axis.parameters["M"] == pytest.approx(95.0, rel=0.01)
+    with pytest.raises(DataError, match="b.csv: missing column"):
+        estimate_joint([recs[0], recs[1].drop(columns=["omega"])], "dc-motor-coulomb",
+                       sources=["a.csv", "b.csv"])

@@ -16,7 +16,8 @@ instruments are built from them (:func:`noise_free_input`).
 from condmon.identify._common import TFEstimate
 from condmon.identify.closed_loop import noise_free_input
 from condmon.identify.estimate import (
-    DEFAULT_EXCITATION, EstimateResult, estimate, estimate_record, list_estimators,
+    DEFAULT_EXCITATION, EstimateResult, estimate, estimate_joint, estimate_record,
+    list_estimators,
 )
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD, FitCheck, fit_check
 from condmon.identify.ls import arx, iv
@@ -29,6 +30,6 @@ __all__ = [
     "TFEstimate", "RecursiveEstimate", "EstimateResult", "FitCheck",
     "arx", "iv", "sriv", "oe", "rls", "riv", "noise_free_input",
     "OutputErrorFit", "refine_output_error",
-    "fit_check", "DEFAULT_FIT_THRESHOLD", "estimate", "estimate_record",
+    "fit_check", "DEFAULT_FIT_THRESHOLD", "estimate", "estimate_record", "estimate_joint",
     "list_estimators", "DEFAULT_EXCITATION",
 ]

@@ -31,7 +31,7 @@ from condmon.models.machine import Machine
 from condmon.models.registry import get_model
 from condmon.models.transfer import ContinuousTF
 
-__all__ = ["EstimateResult", "estimate", "estimate_record", "list_estimators",
+__all__ = ["EstimateResult", "estimate", "estimate_record", "estimate_joint", "list_estimators",
            "DEFAULT_EXCITATION"]
 
 FloatArray = NDArray[np.float64]
@@ -296,7 +296,7 @@ def estimate(record: pd.DataFrame, model: str | Machine = "dc-motor", *,
                            fit_threshold=fit_threshold, route=chosen, constants=consts)
 
 
-def _oe_start(rec: Record, machine: Machine, consts: Mapping[str, float],
+def _oe_start(rec: Sequence[Record], machine: Machine, consts: Mapping[str, float],
               fit_threshold: float) -> tuple[dict[str, float], str]:
     """Starting values of the output-error route: the inverse-model estimate when
     that route fits the model and gives positive-definite answers, else the
@@ -308,6 +308,58 @@ def _oe_start(rec: Record, machine: Machine, consts: Mapping[str, float],
     if machine.spec.plausibility.check_values(inv.values, machine.units) is None:
         return inv.values, "the inverse-model estimate"
     return machine.nominal(), "the declared values"
+
+
+def estimate_joint(records: Sequence[pd.DataFrame], model: str | Machine = "dc-motor", *,
+                   fit_threshold: float = DEFAULT_FIT_THRESHOLD,
+                   columns: Mapping[str, str] | None = None,
+                   sources: Sequence[str] | None = None, route: str | None = None,
+                   constants: Mapping[str, float] | None = None) -> EstimateResult:
+    """Estimate one set of physical parameters from several records at once.
+
+    The records (one sample interval) enter one criterion: the output error
+    summed over all of them (each simulated from rest), or one stacked
+    inverse-model regression. A linear model takes the output-error route.
+
+    Parameters
+    ----------
+    records : sequence of pandas.DataFrame
+        As for :func:`estimate`.
+    model, fit_threshold, columns, route, constants
+        As for :func:`estimate`.
+    sources : sequence of str, optional
+        Names of the records in messages and results.
+
+    Returns
+    -------
+    EstimateResult
+        ``source`` joins the records' names with " + ".
+
+    Example
+    -------
+    >>> from condmon.simulate import simulate_actuator
+    >>> res = estimate_joint([simulate_actuator(seed=1), simulate_actuator(seed=2)])
+    >>> res.route, res.accepted, res.source
+    ('oe', True, 'record 1 + record 2')
+    """
+    machine = model if isinstance(model, Machine) else get_model(model)
+    machine.require_estimation()
+    chosen = choose_route(machine, route)
+    if chosen == "linear":
+        chosen = choose_route(machine, "oe")
+    names = list(sources) if sources is not None else [
+        str(df.attrs.get("source", f"record {i + 1}")) for i, df in enumerate(records)]
+    consts: dict[str, float] = {}
+    recs = []
+    for df, name in zip(records, names):
+        frame = df.rename(columns={v: k for k, v in columns.items()}) if columns else df
+        consts.update(dict(frame.attrs.get("constants", {}) or {}))
+        recs.append(validate_record(frame, _required_columns(machine, chosen),
+                                    min_samples=10 * (len(machine.spec.unknowns) + 1),
+                                    source=name))
+    consts.update(constants or {})
+    return estimate_record(recs, machine, fit_threshold=fit_threshold, route=chosen,
+                           constants=consts)
 
 
 def _check_constants(machine: Machine, constants: Mapping[str, float]) -> dict[str, float]:
@@ -328,12 +380,21 @@ def _check_constants(machine: Machine, constants: Mapping[str, float]) -> dict[s
     return out
 
 
-def estimate_record(rec: Record, model: str | Machine = "dc-motor", *, method: str = "sriv",
-                    gamma: float | None = None, excitation: Sequence[str] = (),
+def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-motor", *,
+                    method: str = "sriv", gamma: float | None = None,
+                    excitation: Sequence[str] = (),
                     fit_threshold: float = DEFAULT_FIT_THRESHOLD, route: str | None = None,
                     constants: Mapping[str, float] | None = None) -> EstimateResult:
-    """:func:`estimate` on an already validated :class:`~condmon.io.Record`."""
+    """:func:`estimate` on already validated :class:`~condmon.io.Record` (s).
+
+    Several records are estimated together by the output-error or the
+    inverse-model route (a linear model takes the output-error route then).
+    """
     machine = model if isinstance(model, Machine) else get_model(model)
+    records = [rec] if isinstance(rec, Record) else list(rec)
+    if not records:
+        raise ModelError("no record to estimate from")
+    source = " + ".join(r.source for r in records)
     given = dict(constants or {})
     if gamma is not None:
         given["gamma"] = gamma
@@ -341,9 +402,15 @@ def estimate_record(rec: Record, model: str | Machine = "dc-motor", *, method: s
     if not (math.isfinite(fit_threshold) and 0.0 <= fit_threshold <= 100.0):
         raise ModelError(f"the fit threshold must be in 0..100 %, got {fit_threshold!r}")
     spec = machine.spec
-    spec.plausibility.check_timing(rec.dt, rec.dt * len(rec), rec.source, machine.name)
+    for r in records:
+        spec.plausibility.check_timing(r.dt, r.dt * len(r), r.source, machine.name)
     chosen = choose_route(machine, route)
     notes: list[str] = []
+    if len(records) > 1:
+        if chosen == "linear":
+            chosen = choose_route(machine, "oe")
+            notes.append("several records: the linear model is estimated by output error")
+        notes.append(f"estimated jointly from {len(records)} records")
     diagnostics: dict[str, float] = {}
     discrete = None
     cont = None
@@ -351,15 +418,15 @@ def estimate_record(rec: Record, model: str | Machine = "dc-motor", *, method: s
     try:
         with np.errstate(over="raise", invalid="raise", divide="raise"):
             if chosen == "linear":
-                lin = linear_route(rec, machine, _ESTIMATORS[method], excitation=excitation,
+                lin = linear_route(records[0], machine, _ESTIMATORS[method], excitation=excitation,
                                    constants=consts, fit_threshold=fit_threshold)
                 values, ucov, fit = lin.values, lin.covariance, lin.fit
                 discrete, cont, rejection = lin.discrete, lin.continuous, lin.rejection
                 diagnostics = dict(lin.diagnostics)
                 notes += list(lin.discrete.notes)
             elif chosen == "oe":
-                start, how = _oe_start(rec, machine, consts, fit_threshold)
-                oe_res = oe_route(rec, machine, start, constants=consts,
+                start, how = _oe_start(records, machine, consts, fit_threshold)
+                oe_res = oe_route(records, machine, start, constants=consts,
                                   fit_threshold=fit_threshold)
                 values, ucov, fit = oe_res.values, oe_res.covariance, oe_res.fit
                 diagnostics = {**{f"nrmse {k}": v for k, v in oe_res.nrmse.items()},
@@ -368,7 +435,8 @@ def estimate_record(rec: Record, model: str | Machine = "dc-motor", *, method: s
                              f"linear part exact (ZOH), started from {how}, "
                              f"{oe_res.evaluations} optimiser evaluations")
             else:
-                inv = inverse_route(rec, machine, constants=consts, fit_threshold=fit_threshold)
+                inv = inverse_route(records, machine, constants=consts,
+                                    fit_threshold=fit_threshold)
                 values, ucov, fit = inv.values, inv.covariance, inv.fit
                 diagnostics = {"cutoff_hz": inv.cutoff, "samples": float(inv.samples),
                                **{f"nrmse {k}": v for k, v in inv.nrmse.items()},
@@ -384,10 +452,10 @@ def estimate_record(rec: Record, model: str | Machine = "dc-motor", *, method: s
                                  "another mode?)")
     except CondmonError as err:
         # Estimators do not know the file: name it (same error class).
-        raise type(err)(f"{rec.source}: {err}") from None
+        raise type(err)(f"{source}: {err}") from None
     except (ArithmeticError, np.linalg.LinAlgError, ValueError) as err:
         # The estimators guard every step; this is the last line, never a traceback.
-        raise EstimationError(f"{rec.source}: the estimate failed numerically "
+        raise EstimationError(f"{source}: the estimate failed numerically "
                               f"({type(err).__name__}: {err})") from None
     names = spec.report
     if rejection is None or rejection.startswith("structure mismatch"):
@@ -405,5 +473,5 @@ def estimate_record(rec: Record, model: str | Machine = "dc-motor", *, method: s
         parameters={k: float(v) for k, v in zip(names, vals)},
         std_errors={k: float(v) for k, v in zip(names, se)},
         covariance=pcov, fit=fit, discrete=discrete, continuous=cont, model=machine.name,
-        constants=consts, source=rec.source, units=machine.units, rejection=rejection,
+        constants=consts, source=source, units=machine.units, rejection=rejection,
         route=chosen, notes=tuple(notes), diagnostics=diagnostics, model_source=machine.origin)

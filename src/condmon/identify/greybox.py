@@ -322,14 +322,17 @@ def _lowpass(x: FloatArray, cutoff: float, fs: float) -> FloatArray:
     return np.asarray(sosfiltfilt(sos, x), dtype=np.float64)
 
 
-def inverse_route(rec: Record, machine: Machine, *, constants: Mapping[str, float] | None = None,
+def inverse_route(rec: Record | Sequence[Record], machine: Machine, *,
+                  constants: Mapping[str, float] | None = None,
                   fit_threshold: float = 90.0) -> InverseRouteResult:
     """Inverse-model least squares (IDIM-LS) on filtered and differentiated signals.
 
     Parameters
     ----------
-    rec : Record
-        Validated record with every sensor and input column the equations use.
+    rec : Record or sequence of Record
+        Validated record(s) with every sensor and input column the equations
+        use; several records (one sample interval) are stacked into one
+        regression.
     machine : Machine
     constants : mapping, optional
         Values overriding the declared known constants. [SI]
@@ -347,11 +350,61 @@ def inverse_route(rec: Record, machine: Machine, *, constants: Mapping[str, floa
     """
     inv: InverseStructure = machine.inverse()
     spec, plant = machine.spec, machine.plant
-    fs = 1.0 / rec.dt
+    records = [rec] if isinstance(rec, Record) else list(rec)
+    fs = 1.0 / records[0].dt
+    if any(abs(r.dt * fs - 1.0) > 1e-3 for r in records):
+        raise EstimationError("records estimated together must share one sample interval: "
+                              + ", ".join(f"{r.source} {r.dt:.6g} s" for r in records))
     cutoff = spec.cutoff if spec.cutoff is not None else 0.1 * fs / 2.0
     if not cutoff < 0.5 * fs:
-        raise EstimationError(f"{rec.source}: the low-pass cut-off {cutoff:g} Hz is not below "
-                              f"the Nyquist frequency {0.5 * fs:g} Hz")
+        raise EstimationError(f"{records[0].source}: the low-pass cut-off {cutoff:g} Hz is "
+                              f"not below the Nyquist frequency {0.5 * fs:g} Hz")
+    consts = machine.constants(constants)
+    sym = symbols_of(plant)
+    prepared = [_inverse_signals(r, machine, inv, consts, cutoff) for r in records]
+    n_rows = sum(int(rows.size) for _, rows in prepared)
+    if n_rows < 10 * len(spec.unknowns):
+        raise EstimationError(f"{', '.join(r.source for r in records)}: {n_rows} usable "
+                              f"samples after filtering are too few for "
+                              f"{len(spec.unknowns)} unknowns")
+    blocks, rhs = [], []
+    for eq in inv.equations:
+        X = np.zeros((n_rows, len(spec.unknowns)))
+        for unknown, phi in eq.terms:
+            X[:, spec.unknowns.index(unknown)] += np.concatenate(
+                [_evaluate(phi, sig, consts, rows) for sig, rows in prepared])
+        blocks.append(X)
+        rhs.append(np.concatenate([_evaluate(eq.known, sig, consts, rows)
+                                   for sig, rows in prepared]))
+    theta, cov, _ = _weighted_lstsq(blocks, rhs, ", ".join(r.source for r in records))
+    # Fit of each equation on the measured (filtered, differentiated) state
+    # derivative against the derivative the estimated model predicts.
+    values = {**consts, **dict(zip(spec.unknowns, map(float, theta)))}
+    derivs = substituted_equations(plant)[1]
+    step = max(1, int(round(fs / (2.0 * cutoff * spec.decimate))))
+    r2, nrmse, white = {}, {}, {}
+    for eq in inv.equations:
+        name = f"d{eq.state}/dt"
+        model = derivs[eq.state].xreplace({sym[k]: v for k, v in values.items()})
+        meas = np.concatenate([sig[f"d_{eq.state}"][rows] for sig, rows in prepared])
+        pred = np.concatenate([_evaluate(model, sig, consts, rows) for sig, rows in prepared])
+        e = meas - pred
+        figures = residual_figures(meas, e)
+        r2[name], nrmse[name] = figures.r2, figures.nrmse
+        white[name] = residual_figures(meas[::step], e[::step]).whiteness
+    fit_pct = 100.0 * float(np.mean(list(r2.values())))
+    fit = FitCheck(r2, fit_pct, float(fit_threshold), bool(fit_pct >= fit_threshold))
+    return InverseRouteResult(dict(zip(spec.unknowns, map(float, theta))), cov, fit, nrmse,
+                              white, float(cutoff), n_rows)
+
+
+def _inverse_signals(rec: Record, machine: Machine, inv: InverseStructure,
+                     consts: Mapping[str, float], cutoff: float
+                     ) -> tuple[dict[str, FloatArray], NDArray[np.intp]]:
+    """One record's filtered signals and derivatives, and the rows to use
+    (filter edges and standstill left out)."""
+    plant, spec = machine.plant, machine.spec
+    fs = 1.0 / rec.dt
     column_of = {str(e): sensor for sensor, e in substituted_equations(plant)[2].items()
                  if isinstance(e, sp.Symbol)}
     sig: dict[str, FloatArray] = {}
@@ -367,8 +420,6 @@ def inverse_route(rec: Record, machine: Machine, *, constants: Mapping[str, floa
     for state in list(sig):
         if state in plant.state_names:
             sig[f"d_{state}"] = np.gradient(sig[state], rec.dt)
-    consts = machine.constants(constants)
-    sym = symbols_of(plant)
     edge = int(math.ceil(3.0 * fs / cutoff))
     rows = np.arange(edge, len(rec) - edge, spec.decimate)
     # Rows where the argument of a sign/abs is near zero (an axis standing
@@ -377,38 +428,7 @@ def inverse_route(rec: Record, machine: Machine, *, constants: Mapping[str, floa
         a = _evaluate(arg, sig, consts, rows)
         rms = float(np.sqrt(np.mean(a ** 2))) if a.size else 0.0
         rows = rows[np.abs(a) > spec.deadband * rms]
-    n_rows = int(rows.size)
-    if n_rows < 10 * len(spec.unknowns):
-        raise EstimationError(f"{rec.source}: {n_rows} usable samples after filtering are "
-                              f"too few for {len(spec.unknowns)} unknowns")
-    blocks, rhs, names = [], [], []
-    for eq in inv.equations:
-        X = np.zeros((n_rows, len(spec.unknowns)))
-        for unknown, phi in eq.terms:
-            X[:, spec.unknowns.index(unknown)] += _evaluate(phi, sig, consts, rows)
-        blocks.append(X)
-        rhs.append(_evaluate(eq.known, sig, consts, rows))
-        names.append(f"d{eq.state}/dt")
-    theta, cov, _ = _weighted_lstsq(blocks, rhs, rec.source)
-    # Fit of each equation on the measured (filtered, differentiated) state
-    # derivative against the derivative the estimated model predicts.
-    values = {**consts, **dict(zip(spec.unknowns, map(float, theta)))}
-    derivs = substituted_equations(plant)[1]
-    step = max(1, int(round(fs / (2.0 * cutoff * spec.decimate))))
-    r2, nrmse, white = {}, {}, {}
-    for eq in inv.equations:
-        name = f"d{eq.state}/dt"
-        meas = sig[f"d_{eq.state}"][rows]
-        pred = _evaluate(derivs[eq.state].xreplace({sym[k]: v for k, v in values.items()}),
-                         sig, consts, rows)
-        e = meas - pred
-        figures = residual_figures(meas, e)
-        r2[name], nrmse[name] = figures.r2, figures.nrmse
-        white[name] = residual_figures(meas[::step], e[::step]).whiteness
-    fit_pct = 100.0 * float(np.mean(list(r2.values())))
-    fit = FitCheck(r2, fit_pct, float(fit_threshold), bool(fit_pct >= fit_threshold))
-    return InverseRouteResult(dict(zip(spec.unknowns, map(float, theta))), cov, fit, nrmse,
-                              white, float(cutoff), n_rows)
+    return sig, rows
 
 
 def _switch_arguments(inv: InverseStructure) -> list[sp.Expr]:

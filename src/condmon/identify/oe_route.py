@@ -17,7 +17,7 @@ references); only the optimiser and the matrix exponential are borrowed.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -91,15 +91,31 @@ class _Simulator:
         return y
 
 
-def oe_route(rec: Record, machine: Machine, start: Mapping[str, float], *,
+def _driving_signals(rec: Record, s: SemiLinearStructure) -> FloatArray:
+    """The inputs and the nonlinear terms evaluated on the measured signals, (N, r)."""
+    sym = {n: sp.Symbol(n, real=True) for n in (*s.inputs, *s.measured)}
+    columns = {**{u: rec[u] for u in s.inputs},
+               **{state: rec[col] for state, col in s.measured.items()}}
+    w = [rec[u] for u in s.inputs]
+    for g in s.signal_terms:
+        names = sorted(str(x) for x in g.free_symbols)
+        fn = sp.lambdify([sym[n] for n in names], g, modules="numpy")
+        with np.errstate(all="ignore"):
+            val = np.asarray(fn(*[columns[n] for n in names]), dtype=np.float64)
+        w.append(np.broadcast_to(val, (len(rec),)).astype(np.float64))
+    return np.column_stack(w)
+
+
+def oe_route(rec: Record | Sequence[Record], machine: Machine, start: Mapping[str, float], *,
              constants: Mapping[str, float] | None = None,
              fit_threshold: float = 90.0) -> OERouteResult:
-    """Output-error estimate of a semi-linear declared model from one record.
+    """Output-error estimate of a semi-linear declared model from one record or
+    several at once (each simulated from rest, one criterion over all).
 
     Parameters
     ----------
-    rec : Record
-        Validated record with the inputs and every sensor column.
+    rec : Record or sequence of Record
+        Validated records with the inputs and every sensor column.
     machine : Machine
     start : mapping
         Starting values of the unknowns. [SI]
@@ -115,28 +131,22 @@ def oe_route(rec: Record, machine: Machine, start: Mapping[str, float], *,
     Raises
     ------
     EstimationError
-        When no stable model simulates the record or the sensitivities are singular.
+        When no stable model simulates the records or the sensitivities are singular.
     """
     s = semilinear_structure(machine)
     spec = machine.spec
     consts = machine.constants(constants)
     known = np.array([consts[k] for k in machine.plant.parameter_names
                       if k not in spec.unknowns])
-    sym = {n: sp.Symbol(n, real=True) for n in (*s.inputs, *s.measured)}
-    columns = {**{u: rec[u] for u in s.inputs},
-               **{state: rec[col] for state, col in s.measured.items()}}
-    w = [rec[u] for u in s.inputs]
-    for g in s.signal_terms:
-        names = sorted(str(x) for x in g.free_symbols)
-        fn = sp.lambdify([sym[n] for n in names], g, modules="numpy")
-        with np.errstate(all="ignore"):
-            val = np.asarray(fn(*[columns[n] for n in names]), dtype=np.float64)
-        w.append(np.broadcast_to(val, (len(rec),)).astype(np.float64))
-    sim = _Simulator(s, np.column_stack(w), known, rec.dt)
-    y = rec.stack(s.sensors)
+    records = [rec] if isinstance(rec, Record) else list(rec)
+    sims = [_Simulator(s, _driving_signals(r, s), known, r.dt) for r in records]
+    y = np.vstack([r.stack(s.sensors) for r in records])
+
+    def simulate(q: FloatArray) -> FloatArray:
+        return np.vstack([one.outputs(q) for one in sims])
     p0 = np.array([float(start[k]) for k in spec.unknowns])
     scale = np.where(p0 != 0, np.abs(p0), 1.0)
-    e0 = y - sim.outputs(p0)
+    e0 = y - simulate(p0)
     if not np.all(np.isfinite(e0)):
         raise EstimationError("output-error route: the starting model does not simulate "
                               "(unstable or non-finite)")
@@ -145,7 +155,7 @@ def oe_route(rec: Record, machine: Machine, start: Mapping[str, float], *,
     p = p0
     for _ in range(2):  # second pass with the noise levels of the first optimum
         def res(q: FloatArray, sig: FloatArray = sigma) -> FloatArray:
-            out = ((y - sim.outputs(q)) / sig).ravel()
+            out = ((y - simulate(q)) / sig).ravel()
             return out if np.all(np.isfinite(out)) else np.full(out.size, np.inf)
 
         try:
@@ -154,7 +164,7 @@ def oe_route(rec: Record, machine: Machine, start: Mapping[str, float], *,
         except (ValueError, np.linalg.LinAlgError) as err:
             raise EstimationError(f"output-error route failed: {err}") from None
         p, nfev = np.asarray(sol.x, dtype=np.float64), nfev + int(sol.nfev)
-        e = y - sim.outputs(p)
+        e = y - simulate(p)
         if not np.all(np.isfinite(e)):
             raise EstimationError("output-error route ended on a model that does not simulate")
         sigma = np.maximum(np.std(e, axis=0), 1e-300)

@@ -95,6 +95,9 @@ def _viscous_text() -> str:
     text = EMPS_TOML.read_text()
     start = text.index("[monitor]")
     text = text[:start] + text[text.index("[estimation]"):]
+    head, est = text[:text.index("[estimation]")], text[text.index("[estimation]"):]
+    est = "\n".join(ln for ln in est.splitlines() if not ln.startswith(("Fc =", "offset =")))
+    text = head + est + "\n"
     return text.replace('"(gtau*vir - Fv*qd - Fc*sign(qd) - offset)/M"',
                         '"(gtau*vir - Fv*qd)/M"').replace(
         'estimate = ["M", "Fv", "Fc", "offset"]', 'estimate = ["M", "Fv"]')

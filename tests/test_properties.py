@@ -117,7 +117,7 @@ def _check_result_or_refusal(df: pd.DataFrame, **kw: Any) -> None:
     json.dumps(doc, allow_nan=False)  # never NaN/inf in JSON
     if res.accepted:
         plaus = get_model("dc-motor").spec.plausibility
-        assert plaus.check_values(res.parameters, res.units) is None
+        assert plaus.check_values(res.parameters, res.units, res.std_errors) is None
         assert all(math.isfinite(v) for v in res.std_errors.values())
     else:
         assert res.reason

@@ -254,3 +254,52 @@ def test_cli_gamma_refused(unit_db: tuple[Path, Path], gamma: str,
     tmp, _ = unit_db
     assert main(["estimate", str(tmp / "h0.csv"), "--gamma", gamma]) == 2
     assert "gamma (Ke/Kt) must be a positive number" in capsys.readouterr().err
+
+
+# --- found by trying the tool as a new user -------------------------------------------
+
+def test_file_system_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    blocker = tmp_path / "a-file"
+    blocker.write_text("x")
+    assert main(["simulate", "actuator", "--out", str(blocker / "x.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+def test_text_in_rig_parameters_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    params = tmp_path / "p.toml"
+    params.write_text('[motor]\nR = "one"\n')
+    assert main(["simulate", "actuator", "--out", str(tmp_path / "x.csv"),
+                 "--params", str(params)]) == 2
+    assert "rig parameter 'R' must be a number, not 'one'" in capsys.readouterr().err
+
+
+def test_declaration_dividing_by_zero_is_refused(tmp_path: Path) -> None:
+    from condmon.errors import ConfigError
+    from condmon.models.declared import load_plant_model
+
+    text = (Path(__file__).parents[1] / "examples" / "template.toml").read_text()
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace('"(gain*u - c*v - k*x)/m"', '"(gain*u - c*v - k*x)/(m-m)"'))
+    with pytest.raises(ConfigError, match=r"\[states.v\]: the equation is infinite"):
+        load_plant_model(bad)
+
+
+def test_misspelt_constant_is_refused(noisy_record: pd.DataFrame) -> None:
+    with pytest.raises(ModelError, match="unknown constant 'gama'.*known constants: gamma"):
+        estimate(noisy_record, constants={"gama": 0.5})
+
+
+def test_switched_off_perturbation_is_left_out(rig: ActuatorRig) -> None:
+    rec = simulate_actuator(dataclasses.replace(rig, ud_std=0.0), seed=3)
+    res = estimate(rec)
+    assert res.accepted and res.closed_loop_instruments
+
+
+def test_coulomb_model_on_a_rig_without_coulomb_friction(rig: ActuatorRig) -> None:
+    """Tc scatters around 0 there: consistent with its bound, not rejected."""
+    results = [estimate(simulate_actuator(rig, seed=s), model="dc-motor-coulomb")
+               for s in range(4)]
+    assert all(r.accepted for r in results), [r.reason for r in results]
+    assert any(r.parameters["Tc"] < 0 for r in results) or all(
+        abs(r.parameters["Tc"]) < 3 * r.std_errors["Tc"] for r in results)

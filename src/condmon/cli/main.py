@@ -14,6 +14,7 @@ from typing import Annotated, Any, Optional
 import pandas as pd
 import typer
 from rich import box
+from rich.markup import escape
 from rich.table import Table
 
 from condmon.cli._console import err, fmt, out, progress, write_json
@@ -68,16 +69,16 @@ def estimate_cmd(
         table.add_row(k, fmt(v), fmt(res.std_errors[k]), res.units[k])
     out.print(table)
     fits = ", ".join(f"{k} {v:.1f} %" for k, v in res.fit.fits_percent.items())
-    verdict = "[green]accepted[/green]" if res.accepted else f"[red]rejected[/red]: {res.reason}"
-    out.print(f"fit {res.fit_percent:.1f} % ({fits}) — {verdict} "
-              f"(threshold {res.fit.threshold:g} %)")
+    verdict = (f"[green]accepted[/green] (threshold {res.fit.threshold:g} %)" if res.accepted
+               else f"[red]rejected[/red]: {escape(str(res.reason))}")
+    out.print(f"fit {res.fit_percent:.1f} % ({fits}) — {verdict}")
     for note in res.notes:
         out.print(f"note: {note}", highlight=False, markup=False)
 
 
 @simulate_app.command("actuator")
 def simulate_actuator_cmd(
-    out_path: Annotated[Path, typer.Option("--out", help="Output file (CSV, Parquet, .mat, TDMS).")],
+    out_path: Annotated[Path, typer.Option("--out", help="Output file (.csv or .parquet).")],
     fault: Annotated[Optional[list[str]], typer.Option(help="Parameter fault, e.g. R=+40%, D=*7, L=+0.25mH (repeatable).")] = None,
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
     params: Annotated[Optional[Path], typer.Option(help="TOML file overriding the rig parameters.")] = None,
@@ -354,6 +355,12 @@ def main(argv: list[str] | None = None) -> int:
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
     except CondmonError as exc:
         err.print(f"error: {exc}", highlight=False, markup=False, soft_wrap=True)
+        return 2
+    except OSError as exc:  # an output folder that cannot be made or written, a full disk
+        where = exc.filename if exc.filename is not None else ""
+        why = exc.strerror or str(exc)
+        err.print(f"error: {where}{': ' if where else ''}{why}", highlight=False, markup=False,
+                  soft_wrap=True)
         return 2
     except KeyboardInterrupt:
         err.print("interrupted")

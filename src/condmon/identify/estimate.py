@@ -148,7 +148,9 @@ class EstimateResult:
     @property
     def method(self) -> str:
         """Estimator used ("inverse" for the inverse-model route)."""
-        return self.discrete.method if self.discrete is not None else "idim-ls"
+        if self.discrete is not None:
+            return self.discrete.method
+        return "oe" if self.route == "oe" else "idim-ls"
 
     @property
     def closed_loop_instruments(self) -> bool:
@@ -175,7 +177,7 @@ class EstimateResult:
             "accepted": self.accepted,
             "reason": self.reason,
             "method": self.method,
-            "path": d.route if d is not None else "idim-ls",
+            "path": d.route if d is not None else self.method,
             "closed_loop_instruments": self.closed_loop_instruments,
             "iterations": d.iterations if d is not None else 1,
             "converged": d.converged if d is not None else True,
@@ -198,7 +200,12 @@ def _excitation_columns(record: pd.DataFrame | Record, machine: Machine,
     cols = record.columns if isinstance(record, Record) else list(record.columns)
     if excitation == "auto":
         names = machine.spec.excitation or DEFAULT_EXCITATION
-        return tuple(c for c in names if c in cols)
+        found = [c for c in names if c in cols]
+        if isinstance(record, Record):
+            return tuple(found)
+        # a recorded but constant excitation (a perturbation switched off) is left out
+        return tuple(c for c in found
+                     if pd.to_numeric(record[c], errors="coerce").nunique(dropna=True) > 1)
     if excitation is None or isinstance(excitation, str):
         return ()
     return tuple(excitation)
@@ -289,6 +296,7 @@ def estimate(record: pd.DataFrame, model: str | Machine = "dc-motor", *,
                           input_name=machine.linear().input if chosen == "linear" else None,
                           min_samples=10 * (n_unknowns + 1), source=source)
     consts = dict(df.attrs.get("constants", {}) or {})
+    _check_constants(machine, dict(constants or {}), strict=tuple(constants or ()))
     consts.update(constants or {})
     if gamma is not None:
         consts["gamma"] = gamma
@@ -362,11 +370,17 @@ def estimate_joint(records: Sequence[pd.DataFrame], model: str | Machine = "dc-m
                            constants=consts)
 
 
-def _check_constants(machine: Machine, constants: Mapping[str, float]) -> dict[str, float]:
+def _check_constants(machine: Machine, constants: Mapping[str, float],
+                     strict: Sequence[str] = ()) -> dict[str, float]:
+    """Validated constants; names in ``strict`` (given by the user) must be known
+    constants of the model, others (a .mat file's scalars) are skipped."""
     known = machine.constants()
     out = {}
     for k, v in constants.items():
         if k not in known:
+            if k in strict:
+                raise ModelError(f"unknown constant {k!r} for model {machine.name!r}; "
+                                 f"known constants: {', '.join(known) or 'none'}")
             continue  # constants of a file that this model does not use
         try:
             val = float(v)
@@ -451,8 +465,9 @@ def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-m
                                  "model misses part of the dynamics (friction, offset, "
                                  "another mode?)")
     except CondmonError as err:
-        # Estimators do not know the file: name it (same error class).
-        raise type(err)(f"{source}: {err}") from None
+        # Estimators do not know the file: name it (same error class), once.
+        text = str(err)
+        raise type(err)(text if text.startswith(source) else f"{source}: {text}") from None
     except (ArithmeticError, np.linalg.LinAlgError, ValueError) as err:
         # The estimators guard every step; this is the last line, never a traceback.
         raise EstimationError(f"{source}: the estimate failed numerically "
@@ -466,7 +481,8 @@ def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-m
         pcov = np.full((len(names), len(names)), np.nan)
     se = np.sqrt(np.clip(np.diag(pcov), 0.0, None))
     if rejection is None:
-        rejection = spec.plausibility.check_values(dict(zip(names, vals)), machine.units)
+        rejection = spec.plausibility.check_values(dict(zip(names, vals)), machine.units,
+                                                   dict(zip(names, se)))
     if rejection is None and not np.all(np.isfinite(se)):
         rejection = "the standard errors are not finite: the data do not determine the model"
     return EstimateResult(

@@ -268,7 +268,9 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
     try:
         p = _solve_coefficients(lin, c_hat, start, known)
     except ConversionError as err:
-        return LinearRouteResult(nan, nan_cov, est, cont, fit, f"no physical parameters: {err}")
+        return LinearRouteResult(nan, nan_cov, est, cont, fit,
+                                 f"no physical parameters: {err}; is the sign of a column "
+                                 "inverted or its unit wrong?")
     # Delta method: theta -> continuous coefficients (forward differences, as the
     # ZOH inverse has no closed form) -> parameters (exact Jacobian of the map).
     Jt = np.empty((c_hat.size, theta.size))

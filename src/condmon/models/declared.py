@@ -516,5 +516,10 @@ def _validated(m: PlantModel, src: str) -> PlantModel:
         if step.input not in m.input_names:
             raise ConfigError(f"{src}[test].schedule: unknown input {step.input!r}; "
                               f"allowed: {', '.join(m.input_names) or '(none declared)'}")
-    equations_of(m)  # every equation parses, with known names only
+    variables, derivs, readings = equations_of(m)  # every equation parses, known names only
+    for kind, eqs in (("variables", variables), ("states", derivs), ("sensors", readings)):
+        for name, expr in eqs.items():
+            if expr.has(sp.zoo, sp.nan, sp.oo, -sp.oo):
+                raise ConfigError(f"{src}[{kind}.{name}]: the equation is infinite or undefined "
+                                  f"as written ({expr}): a division by zero?")
     return m

@@ -471,6 +471,8 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any],
         raise ConfigError(f"{src}[estimation]: unknown key {sorted(unknown)[0]!r}; "
                           f"allowed: {', '.join(sorted(allowed))}")
     unknowns = _names(est.get("estimate"), f"{src}[estimation].estimate")
+    if not unknowns:
+        raise ConfigError(f"{src}[estimation].estimate lists no parameter to estimate")
     for k in unknowns:
         if k not in plant.parameter_names:
             raise ConfigError(f"{src}[estimation].estimate: unknown parameter {k!r}; "
@@ -500,6 +502,11 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any],
     decimate = est.get("decimate", 1)
     if not isinstance(decimate, int) or isinstance(decimate, bool) or decimate < 1:
         raise ConfigError(f"{src}[estimation].decimate must be an integer >= 1, got {decimate!r}")
+    for table in ("plausible", "max_change"):
+        for k in dict(est.get(table, {})):
+            if k not in report:
+                raise ConfigError(f"{src}[estimation.{table}]: {k!r} is not a reported "
+                                  f"quantity; allowed: {', '.join(report)}")
     corr = est.get("max_residual_correlation", 0.8)
     if isinstance(corr, bool) or not isinstance(corr, (int, float)) or not 0 < corr <= 1:
         raise ConfigError(f"{src}[estimation].max_residual_correlation must be in (0, 1], "

@@ -31,13 +31,16 @@ class Bound:
 
     limits: tuple[tuple[str, float], ...]
 
-    def violation(self, value: float) -> str | None:
-        """The first violated bound as text (``"must be > 0"``), or None."""
+    def violation(self, value: float, tolerance: float = 0.0) -> str | None:
+        """The first violated bound as text (``"must be > 0"``), or None; a
+        bound at 0 is not violated within ``tolerance``."""
         if not math.isfinite(value):
             return "is not finite"
         for op, b in self.limits:
             sym, ok = _OPS[op]
-            if not ok(value, b):
+            # the tolerance serves sign constraints only: a quantity that may be
+            # exactly zero (a friction a rig does not have) scatters around it
+            if not (ok(value, b) or (b == 0.0 and tolerance > 0 and abs(value) <= tolerance)):
                 return f"must be {sym} {b:g}"
         return None
 
@@ -66,8 +69,13 @@ class Plausibility:
     sample_interval: tuple[float, float] = (0.0, math.inf)
     max_change: dict[str, float] = field(default_factory=dict)
 
-    def check_values(self, values: Mapping[str, float], units: Mapping[str, str]) -> str | None:
+    def check_values(self, values: Mapping[str, float], units: Mapping[str, str],
+                     std_errors: Mapping[str, float] | None = None) -> str | None:
         """Why an estimate is not physically possible (None when it is).
+
+        With ``std_errors``, a value beyond a sign bound (at 0) by less than 3
+        standard errors is consistent with it (e.g. a Coulomb friction of
+        -2e-4 ± 3e-4 N m on a rig that has none) and is not rejected.
 
         Example
         -------
@@ -79,6 +87,10 @@ class Plausibility:
         for name, bound in self.bounds.items():
             if name in values:
                 why = bound.violation(float(values[name]))
+                se = float((std_errors or {}).get(name, 0.0))
+                if why is not None and math.isfinite(se) and se > 0 and \
+                        bound.violation(float(values[name]), 3.0 * se) is None:
+                    why = None
                 if why is not None:
                     bad.append(f"{name} = {values[name]:.4g} {units.get(name, '')}".rstrip()
                                + f" {why}")
@@ -100,7 +112,7 @@ class Plausibility:
         lo, hi = self.sample_interval
         if not lo <= dt <= hi:
             hint = ""
-            if dt > hi and lo <= dt / 1000.0 <= hi:
+            if dt >= 0.05 and lo <= dt / 1000.0 <= hi:
                 hint = " — is column 't' in milliseconds? (condmon expects seconds)"
             elif dt < lo and lo <= dt * 1000.0 <= hi:
                 hint = " — is column 't' in kiloseconds or scaled by 1/1000?"
@@ -137,7 +149,7 @@ class Plausibility:
         if not bad:
             return None
         return ("likely unit or sign error: " + "; ".join(bad)
-                + " — check the units and signs of the record's columns (rad/s, A, V, s)")
+                + " — check the units and signs of the record's columns")
 
 
 def _bound(name: str, spec: Any, where: str) -> Bound:

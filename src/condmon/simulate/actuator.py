@@ -177,11 +177,14 @@ def load_actuator_rig(path: str | Path | None = None,
     flat: dict[str, Any] = {}
     for section in _SECTIONS:
         flat.update(cfg[section])
-    flat["substeps"] = int(flat["substeps"])
-    flat["saturation"] = bool(flat["saturation"])
+    where = str(path) if path is not None else "actuator.toml"
     for k, v in flat.items():
-        if k not in ("substeps", "saturation"):
-            flat[k] = float(v)
+        kind = bool if k == "saturation" else (int if k == "substeps" else float)
+        if isinstance(v, str) or (kind is not bool and isinstance(v, bool)) \
+                or not isinstance(v, (int, float, bool)):
+            raise ConfigError(f"{where}: rig parameter {k!r} must be a "
+                              f"{'true/false' if kind is bool else 'number'}, not {v!r}")
+        flat[k] = kind(v)
     return ActuatorRig(**flat).with_faults(faults)
 
 

@@ -103,9 +103,9 @@ def test_mild_excursions_only_warn(hst: PlantModel, healthy: pd.DataFrame) -> No
 def test_the_record_limits_are_settings(tmp_path: Path, hst: PlantModel,
                                         healthy: pd.DataFrame) -> None:
     p = tmp_path / "s.toml"
-    p.write_text("[record]\nrefuse_outside_spans = 1000.0\n")
+    p.write_text("[record]\nrefuse_outside_spans = 1000.0\nunit_share = 1.0\n")
     cfg = IsolationSettings.load(p)
-    assert cfg.record.refuse_outside_spans == 1000.0
+    assert cfg.record.refuse_outside_spans == 1000.0 and cfg.record.unit_share == 1.0
     with pytest.warns(DataWarning, match="outside the sensor's range"):
         validate_plant_record(hst, healthy.assign(Ps=healthy["Ps"] * 1e3), "rig.csv", cfg.record)
     for bad in ("[isolation]\ntime_limit_floor = -1\n", "[isolation]\nrange_factor = 1\n",
@@ -415,3 +415,16 @@ def test_cli_says_undecided_for_a_short_record(tmp_path: Path, healthy: pd.DataF
     assert "warning:" in captured.err and "lasts 1.19 s" in captured.err
     assert main(["isolate", "hst", str(path), "--workers", "1"]) == 0
     assert "undecided" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("column,change,match", [
+    ("Ps", -1.0, "column 'Ps' is negative .* likely a sign error"),
+    ("omega_m", -1.0, "column 'omega_m' is negative .* likely a sign error"),
+    ("Ps", 10.0, "beyond 3 x its sensor.s range .* likely a unit error"),
+])
+def test_unit_and_sign_errors_of_a_sensor_are_refused(hst: PlantModel, healthy: pd.DataFrame,
+                                                      column: str, change: float,
+                                                      match: str) -> None:
+    bad = healthy.assign(**{column: healthy[column] * change})
+    with pytest.raises(DataError, match=match):
+        validate_plant_record(hst, bad, "rig.csv")

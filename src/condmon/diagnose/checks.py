@@ -57,23 +57,35 @@ class RecordSettings:
         refused. [-]
     short_fraction : float
         A record shorter than this fraction of the test's duration is warned of. [-]
+    unit_share : float
+        A sensor column more than this share of whose samples lie beyond
+        ``unit_factor`` x its range's largest magnitude, or (for a range that
+        starts at 0) below it by more than 3 noise deviations, is refused as a
+        likely unit or sign error. [-]
+    unit_factor : float
+        See ``unit_share``. [-]
     """
 
     refuse_outside_spans: float = 10.0
     dead_fraction: float = 1e-3
     time_base_factor: float = 300.0
     short_fraction: float = 0.1
+    unit_share: float = 0.5
+    unit_factor: float = 3.0
 
     @classmethod
     def from_config(cls, cfg: Mapping[str, Any] | None = None) -> RecordSettings:
         """The ``[record]`` table of a settings document (default: the shipped one)."""
         r = (cfg or load_default("isolation.toml"))["record"]
         out = cls(float(r["refuse_outside_spans"]), float(r["dead_fraction"]),
-                  float(r["time_base_factor"]), float(r["short_fraction"]))
+                  float(r["time_base_factor"]), float(r["short_fraction"]),
+                  float(r.get("unit_share", 0.5)), float(r.get("unit_factor", 3.0)))
         if not (out.refuse_outside_spans > 0 and 0 <= out.dead_fraction < 1
-                and out.time_base_factor > 1 and 0 <= out.short_fraction <= 1):
+                and out.time_base_factor > 1 and 0 <= out.short_fraction <= 1
+                and 0 < out.unit_share <= 1 and out.unit_factor > 1):
             raise ConfigError(f"[record]: refuse_outside_spans > 0, 0 <= dead_fraction < 1, "
-                              f"time_base_factor > 1 and 0 <= short_fraction <= 1 (got {out})")
+                              f"time_base_factor > 1, 0 <= short_fraction <= 1, 0 < unit_share <= 1 and "
+                              f"unit_factor > 1 (got {out})")
         return out
 
 
@@ -127,6 +139,7 @@ def validate_plant_record(model: PlantModel, record: pd.DataFrame, source: str =
         y = values[s.name]
         _far_outside(y, s.name, "sensor", s.range, s.unit, source, cfg)
         _dead(y, s.name, s.range, s.noise, s.unit, source, cfg)
+        _unit_or_sign(y, s.name, s.range, s.noise, s.unit, source, cfg)
         lo, hi = s.range
         share = float(np.mean((y < lo) | (y > hi)))
         if share > 0.01:
@@ -155,6 +168,26 @@ def _check_time_base(model: PlantModel, t: FloatArray, source: str, cfg: RecordS
     if duration < cfg.short_fraction * model.test.duration:
         warnings.warn(f"{source}: the record lasts {duration:.3g} s, far less than the test's "
                       f"{model.test.duration:g} s", DataWarning, stacklevel=4)
+
+
+def _unit_or_sign(y: FloatArray, name: str, rng: tuple[float, float], noise: float, unit: str,
+                  source: str, cfg: RecordSettings) -> None:
+    """Refuse a sensor column that mostly reads far beyond its range (a unit
+    error: rpm for rad/s) or below a range that starts at 0 (a sign error)."""
+    lo, hi = rng
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        return
+    big = cfg.unit_factor * max(abs(lo), abs(hi))
+    far = float(np.mean(np.abs(y) > big))
+    if far > cfg.unit_share:
+        raise DataError(f"{source}: {far:.0%} of column {name!r} lies beyond {cfg.unit_factor:g} x "
+                        f"its sensor's range [{lo:g}, {hi:g}] {unit}: likely a unit error "
+                        "(rpm for rad/s? bar for Pa?)")
+    if lo == 0.0:
+        below = float(np.mean(y < -3.0 * noise))
+        if below > cfg.unit_share:
+            raise DataError(f"{source}: {below:.0%} of column {name!r} is negative although its "
+                            f"sensor's range is [{lo:g}, {hi:g}] {unit}: likely a sign error")
 
 
 def _far_outside(y: FloatArray, name: str, what: str, rng: tuple[float, float], unit: str,

@@ -303,3 +303,36 @@ def test_coulomb_model_on_a_rig_without_coulomb_friction(rig: ActuatorRig) -> No
     assert all(r.accepted for r in results), [r.reason for r in results]
     assert any(r.parameters["Tc"] < 0 for r in results) or all(
         abs(r.parameters["Tc"]) < 3 * r.std_errors["Tc"] for r in results)
+
+
+def test_linear_model_on_a_coulomb_rig_says_so(rig: ActuatorRig) -> None:
+    quiet = estimate(simulate_actuator(rig, seed=2))
+    assert not [n for n in quiet.notes if "structure" in n]
+    res = estimate(simulate_actuator(dataclasses.replace(rig, coulomb_friction=0.01), seed=2))
+    assert res.accepted  # kept, and flagged
+    assert any(n.startswith("possible structure mismatch: the residual of omega")
+               and "dc-motor-coulomb" in n for n in res.notes)
+
+
+def test_a_binary_input_is_not_called_saturated(tmp_path: Path) -> None:
+    import warnings
+
+    from scipy.signal import lfilter
+
+    rng = np.random.default_rng(0)
+    u = np.repeat(np.sign(rng.standard_normal(300)), 10)
+    y = lfilter([0.0, 0.01], [1.0, -0.99], u) + 1e-4 * rng.standard_normal(u.size)
+    text = (Path(__file__).parents[1] / "examples" / "template.toml").read_text()
+    df = pd.DataFrame({"t": np.arange(u.size) * 1e-3, "u": u, "pos": y})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        from condmon.io.records import validate_record
+
+        validate_record(df, ["u", "pos"], input_name="u")
+    bad = tmp_path / "typo.toml"
+    bad.write_text(text.replace("[test]", "[tset]"))
+    from condmon.errors import ConfigError
+    from condmon.models import get_model
+
+    with pytest.raises(ConfigError, match="unknown entry 'tset'"):
+        get_model(bad)

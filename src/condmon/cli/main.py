@@ -268,6 +268,9 @@ def check_cmd(
         sym = res.symptoms.get(p, {"high": 0.0, "low": 0.0})
         table.add_row(p, fmt(v), f"{res.percent_change[p]:+.1f}", f"{sym['high']:.2f}", f"{sym['low']:.2f}")
     out.print(table)
+    for note in res.estimate.notes:
+        if note.startswith("possible structure mismatch"):
+            out.print(f"note: {note}", highlight=False, markup=False)
     if res.diagnosis.no_fault:
         out.print("no fault")
     for f in res.diagnosis.faults:

@@ -472,6 +472,13 @@ def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-m
         # The estimators guard every step; this is the last line, never a traceback.
         raise EstimationError(f"{source}: the estimate failed numerically "
                               f"({type(err).__name__}: {err})") from None
+    white = {k.split(" ", 1)[1]: v for k, v in diagnostics.items() if k.startswith("whiteness ")}
+    if chosen in ("linear", "oe") and white and max(white.values()) > spec.residual_warning:
+        worst = max(white, key=lambda k: white[k])
+        notes.append(f"possible structure mismatch: the residual of {worst} is correlated "
+                     f"({white[worst]:.2f} > {spec.residual_warning:g}); the model may miss "
+                     "part of the dynamics" + (f" ({spec.structure_hint})"
+                                               if spec.structure_hint else ""))
     names = spec.report
     if rejection is None or rejection.startswith("structure mismatch"):
         params, pcov = machine.report_values({**consts, **values}, ucov)

@@ -356,7 +356,7 @@ def load_plant_model(model: str | Path = "hst", params: str | Path | Mapping[str
     if str(model) not in list_models() and (Path(model).suffix.lower() == ".toml"
                                             or Path(model).is_file()):
         doc, source = load_toml(model), str(model)
-        plant = _validated(_from_doc(doc, source), source)
+        plant = plant_from_doc(doc, source)
     else:
         # A name: the one registry of machine models (imported here, as the
         # registry itself is built on this module).
@@ -383,8 +383,17 @@ def load_plant_model(model: str | Path = "hst", params: str | Path | Mapping[str
         raise ConfigError(f"{params}: {err}") from None
 
 
+#: Top-level entries a declaration may hold.
+DECLARATION_KEYS = ("name", "description", "parameters", "inputs", "variables", "states",
+                    "sensors", "test", "smoothing", "estimation", "monitor")
+
+
 def plant_from_doc(doc: Mapping[str, Any], source: str) -> PlantModel:
     """Read and validate a declaration already parsed from TOML (``source`` names it)."""
+    unknown = [k for k in doc if k not in DECLARATION_KEYS]
+    if unknown:
+        raise ConfigError(f"{source}: unknown entry {unknown[0]!r}; a declaration holds "
+                          f"{', '.join(DECLARATION_KEYS)}")
     return _validated(_from_doc(doc, source), source)
 
 

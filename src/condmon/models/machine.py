@@ -64,6 +64,12 @@ class EstimationSpec:
     decimate : int
         Keep one sample in ``decimate`` for the inverse-model regression.
     plausibility : Plausibility
+    residual_warning : float
+        Linear and output-error routes: an output residual whose largest
+        normalised autocorrelation (lags 1..20) exceeds this is noted as a
+        possible structure mismatch (the estimate is kept). [-]
+    structure_hint : str
+        What the note suggests then (e.g. a declaration with the missing term).
     deadband : float
         Inverse route: rows where the argument of a ``sign``/``abs`` is within
         this fraction of its RMS are left out (static friction at standstill
@@ -86,6 +92,8 @@ class EstimationSpec:
     plausibility: Plausibility = field(default_factory=Plausibility)
     max_residual_correlation: float = 0.8
     deadband: float = 0.01
+    residual_warning: float = 0.15
+    structure_hint: str = ""
 
 
 @dataclass(frozen=True, eq=False)
@@ -465,7 +473,7 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any],
         raise ConfigError(f"{src}: [estimation] must be a table")
     allowed = {"estimate", "report", "derived", "route", "order", "excitation", "cutoff",
                "decimate", "plausible", "max_change", "min_duration", "sample_interval",
-               "max_residual_correlation", "deadband"}
+               "max_residual_correlation", "deadband", "residual_warning", "structure_hint"}
     unknown = set(est) - allowed
     if unknown:
         raise ConfigError(f"{src}[estimation]: unknown key {sorted(unknown)[0]!r}; "
@@ -516,7 +524,9 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any],
         _names(est.get("excitation", []), f"{src}[estimation].excitation"),
         None if cutoff is None else float(cutoff), decimate,
         parse_plausibility(est, f"{src}[estimation]"), float(corr),
-        _fraction(est.get("deadband", 0.01), f"{src}[estimation].deadband"))
+        _fraction(est.get("deadband", 0.01), f"{src}[estimation].deadband"),
+        _fraction(est.get("residual_warning", 0.15), f"{src}[estimation].residual_warning"),
+        str(est.get("structure_hint", "")))
     machine = Machine(plant, spec, **files)
     machine.derived_functions()  # every derived equation parses
     return machine

@@ -241,6 +241,7 @@ class CheckResult:
             "baseline": None if self.baseline is None else self.baseline.to_dict(),
             "method": est["method"],
             "closed_loop_instruments": est["closed_loop_instruments"],
+            "notes": est["notes"],
         }
 
 

@@ -336,3 +336,26 @@ def test_a_binary_input_is_not_called_saturated(tmp_path: Path) -> None:
 
     with pytest.raises(ConfigError, match="unknown entry 'tset'"):
         get_model(bad)
+
+
+def test_cli_estimates_several_records_together(tmp_path: Path, demo_rig: ActuatorRig,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    import json
+
+    files = []
+    for s in range(2):
+        p = tmp_path / f"r{s}.csv"
+        simulate_actuator(demo_rig, seed=s).to_csv(p, index=False)
+        files.append(str(p))
+    assert main(["estimate", *files, "--model", "dc-motor-coulomb", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["route"] == "oe" and doc["accepted"] and doc["source"] == " + ".join(files)
+    assert "estimated jointly from 2 records" in doc["notes"]
+
+
+def test_a_header_naming_a_column_twice_is_refused(tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    p = tmp_path / "dup.csv"
+    p.write_text("t,V,I,V\n0,1,2,3\n0.001,1,2,3\n")
+    assert main(["estimate", str(p)]) == 2
+    assert "names column 'V' more than once" in capsys.readouterr().err

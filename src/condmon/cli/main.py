@@ -37,13 +37,13 @@ register_plant_commands(app, simulate_app)
 
 ModelOpt = Annotated[str, typer.Option(help="Machine model: a shipped name (dc-motor) or a declaration file (.toml).")]
 UnitModelOpt = Annotated[Optional[str], typer.Option("--model", help="Machine model (name or declaration file); default: the unit's, else dc-motor.")]
-RouteOpt = Annotated[Optional[str], typer.Option(help="Estimation route: auto, linear or inverse (default: the declaration's).")]
+RouteOpt = Annotated[Optional[str], typer.Option(help="Estimation route: auto, linear, inverse or oe (default: the declaration's).")]
 ConstOpt = Annotated[Optional[str], typer.Option(help="Known constants overriding the declaration's, NAME=VALUE,... e.g. gamma=0.9.")]
 
 
 @app.command("estimate")
 def estimate_cmd(
-    record: Annotated[Path, typer.Argument(help="Test record with t and the model's input and sensor columns (DC motor: V, I, omega).")],
+    records: Annotated[list[Path], typer.Argument(help="Test record(s) with t and the model's input and sensor columns (DC motor: V, I, omega); several are estimated together (one set of parameters).")],
     model: ModelOpt = "dc-motor",
     method: Annotated[str, typer.Option(help=f"Estimator: {', '.join(list_estimators())}.")] = "sriv",
     gamma: Annotated[Optional[float], typer.Option(help="Ke/Kt of the motor (default from the model's configuration, 0.95).")] = None,
@@ -54,9 +54,19 @@ def estimate_cmd(
     constants: ConstOpt = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
 ) -> None:
-    """Estimate the physical parameters of one test record."""
-    res, _ = _options(method, gamma, excitation, columns, fit_threshold, model, route,
-                      constants).run(record)
+    """Estimate the physical parameters of one test record (or of several together)."""
+    opts = _options(method, gamma, excitation, columns, fit_threshold, model, route, constants)
+    if len(records) == 1:
+        res, _ = opts.run(records[0])
+    else:
+        from condmon.identify.estimate import estimate_joint
+        from condmon.io.records import read_record
+
+        res = estimate_joint([read_record(r, opts.columns) for r in records],
+                             opts.model or "dc-motor", fit_threshold=fit_threshold,
+                             sources=[str(r) for r in records], route=route,
+                             constants=opts.constants)
+    record = " + ".join(str(r) for r in records)
     if as_json:
         write_json(res.to_dict())
         return

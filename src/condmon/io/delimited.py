@@ -206,6 +206,12 @@ def read_delimited(path: Path) -> RawRecord:
     """
     text, encoding = _read_head(path)
     dialect = sniff_dialect(text, path, path.suffix.lower(), encoding)
+    header = next(csv.reader([text.splitlines()[0] if text else ""], delimiter=dialect.sep), [])
+    names = [h.strip() for h in header]
+    twice = sorted({n for n in names if n and names.count(n) > 1})
+    if twice:
+        raise DataError(f"{path}: the header names column {twice[0]!r} more than once; "
+                        "rename one (condmon would not know which to use)")
     frame = _parse(path, dialect)
     if dialect.sep != "," and _misread(frame, dialect.decimal):
         # the first lines held no decimal mark, later ones the other: read again

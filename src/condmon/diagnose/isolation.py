@@ -206,8 +206,10 @@ class IsolationResult:
             "detected": self.detected,
             "decided": self.decided,
             "reason": self.reason,
-            "detection_time": _finite(self.detection_time),
-            "onset_time": _finite(self.onset_time),
+            # times come from sample grids (k * dt): shown to the nanosecond
+            "detection_time": _finite(None if self.detection_time is None
+                                      else round(self.detection_time, 9)),
+            "onset_time": _finite(None if self.onset_time is None else round(self.onset_time, 9)),
             "fired_residuals": list(self.fired_residuals),
             "fsm": self.fsm.to_dict(),
             "suspects": list(self.suspects),

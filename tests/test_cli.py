@@ -61,7 +61,12 @@ def test_baseline_check_history_report(tmp_path: Path, capsys: pytest.CaptureFix
 
 
 def test_check_without_baseline_is_explained(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from condmon.store import open_store
+
     f = _healthy_files(tmp_path, 1)[0]
+    assert main(["check", f, "--unit", "new", "--db", str(tmp_path / "x.db")]) == 2
+    assert "no history database there" in capsys.readouterr().err
+    open_store(str(tmp_path / "x.db")).close()  # an existing, empty history
     assert main(["check", f, "--unit", "new", "--db", str(tmp_path / "x.db")]) == 2
     err = capsys.readouterr().err
     assert "has 0 accepted healthy test(s); a baseline needs at least 3" in err.replace("\n", " ")

@@ -359,3 +359,26 @@ def test_a_header_naming_a_column_twice_is_refused(tmp_path: Path,
     p.write_text("t,V,I,V\n0,1,2,3\n0.001,1,2,3\n")
     assert main(["estimate", str(p)]) == 2
     assert "names column 'V' more than once" in capsys.readouterr().err
+
+
+def test_read_only_commands_create_no_database(tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    db = tmp_path / "typo.db"
+    rec = tmp_path / "r.csv"
+    simulate_actuator(seed=1).to_csv(rec, index=False)
+    for args in (["history", "--unit", "U"], ["report", "--unit", "U", "--out", str(tmp_path)],
+                 ["check", str(rec), "--unit", "U"]):
+        assert main([*args, "--db", str(db)]) == 2
+        assert "no history database there" in capsys.readouterr().err
+        assert not db.exists()
+
+
+def test_names_with_console_markup_are_printed_as_they_are(
+        unit_db: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    tmp, _ = unit_db
+    db = str(tmp_path / "m.db")
+    files = [str(tmp / f"h{s}.csv") for s in range(3)]
+    assert main(["baseline", "add", *files, "--unit", "EMA[/]7", "--db", db]) == 0
+    assert main(["check", str(tmp / "h3.csv"), "--unit", "EMA[/]7", "--db", db]) == 0
+    assert main(["history", "--unit", "EMA[/]7", "--db", db]) == 0
+    assert "EMA[/]7" in capsys.readouterr().out

@@ -72,11 +72,11 @@ def estimate_cmd(
         return
     how = (("closed-loop instruments" if res.closed_loop_instruments else "direct approach")
            if res.route == "linear" else "inverse model")
-    table = Table(title=f"{record} — {res.model}, {res.method.upper()}, {how}")
+    table = Table(title=escape(f"{record} — {res.model}, {res.method.upper()}, {how}"))
     for col in ("parameter", "value", "std error", "unit"):
         table.add_column(col, justify="right" if col != "parameter" else "left")
     for k, v in res.parameters.items():
-        table.add_row(k, fmt(v), fmt(res.std_errors[k]), res.units[k])
+        table.add_row(escape(k), fmt(v), fmt(res.std_errors[k]), escape(res.units[k]))
     out.print(table)
     fits = ", ".join(f"{k} {v:.1f} %" for k, v in res.fit.fits_percent.items())
     verdict = (f"[green]accepted[/green] (threshold {res.fit.threshold:g} %)" if res.accepted
@@ -103,7 +103,7 @@ def simulate_actuator_cmd(
     rec = simulate_actuator(rig, seed=seed, linear=linear)
     write_record(rec, out_path)
     truth = ", ".join(f"{k}={fmt(v)}" for k, v in rig.physical().items())
-    err.print(f"wrote {len(rec)} samples to {out_path} ({truth})")
+    err.print(f"wrote {len(rec)} samples to {out_path} ({truth})", markup=False)
 
 
 @app.command("demo")
@@ -221,17 +221,18 @@ def baseline_add_cmd(
         if t.refused:
             err.print(f"refused {t.source}: {t.reason}", highlight=False, markup=False, soft_wrap=True)
         elif t.duplicate:
-            err.print(f"skipped {t.source}: already in the history (test #{t.test_id})", highlight=False)
+            err.print(f"skipped {t.source}: already in the history (test #{t.test_id})",
+                      highlight=False, markup=False)
         elif not t.accepted:
-            err.print(f"stored {t.source} as rejected: {t.reason}", highlight=False)
+            err.print(f"stored {t.source} as rejected: {t.reason}", highlight=False, markup=False)
     n_new = sum(1 for t in res.tests if not (t.duplicate or t.refused))
-    out.print(f"{n_new} test(s) added to {unit!r}; {res.message}")
+    out.print(f"{n_new} test(s) added to {unit!r}; {res.message}", markup=False)
     if res.baseline is not None:
-        table = Table(title=f"Baseline of {unit} (N = {res.baseline.n})")
+        table = Table(title=escape(f"Baseline of {unit} (N = {res.baseline.n})"))
         for col in ("parameter", "mean", "std", "std %"):
             table.add_column(col, justify="left" if col == "parameter" else "right")
         for p, m, sd in zip(res.baseline.parameters, res.baseline.mean, res.baseline.std):
-            table.add_row(p, fmt(m), fmt(sd), f"{100 * sd / abs(m):.2f}")
+            table.add_row(escape(p), fmt(m), fmt(sd), f"{100 * sd / abs(m):.2f}")
         out.print(table)
 
 
@@ -261,22 +262,24 @@ def check_cmd(
     opts = _options(method, gamma, excitation, columns, fit_threshold, model, route, constants)
     cfg = load_monitor_config(monitor) if monitor is not None else None
     rb = load_rules(rules) if rules is not None else None
-    with open_store(db) as store:
+    with open_store(db, create=False) as store:
         res = check_test(store, unit, record, opts, cfg, rb)
     if as_json:
         write_json(res.to_dict())
         return
-    out.print(f"{unit} — {record}: {_status_text(res.status)}  "
+    out.print(f"{escape(unit)} — {escape(str(record))}: {_status_text(res.status)}  "
               f"(fit {res.estimate.fit_percent:.1f} %, test #{res.test_id})")
     if res.diagnosis is None:
-        out.print(f"rejected: {res.estimate.reason}; the test is stored but changes no trend. Retest.")
+        out.print(f"rejected: {res.estimate.reason}; the test is stored but changes no trend. "
+                  "Retest.", markup=False)
         return
     table = Table()
     for col in ("parameter", "value", "change %", "SymH", "SymL"):
         table.add_column(col, justify="left" if col == "parameter" else "right")
     for p, v in res.estimate.parameters.items():
         sym = res.symptoms.get(p, {"high": 0.0, "low": 0.0})
-        table.add_row(p, fmt(v), f"{res.percent_change[p]:+.1f}", f"{sym['high']:.2f}", f"{sym['low']:.2f}")
+        table.add_row(escape(p), fmt(v), f"{res.percent_change[p]:+.1f}", f"{sym['high']:.2f}",
+                      f"{sym['low']:.2f}")
     out.print(table)
     for note in res.estimate.notes:
         if note.startswith("possible structure mismatch"):
@@ -284,7 +287,8 @@ def check_cmd(
     if res.diagnosis.no_fault:
         out.print("no fault")
     for f in res.diagnosis.faults:
-        out.print(f"[bold]{f.name}[/] — degree {f.degree:.2f} ({f.severity}): {f.advice}")
+        out.print(f"[bold]{escape(f.name)}[/] — degree {f.degree:.2f} ({escape(f.severity)}): "
+                  f"{escape(f.advice)}")
 
 
 @app.command("history")
@@ -298,7 +302,7 @@ def history_cmd(
 
     from condmon.models.registry import get_model
 
-    with open_store(db) as store:
+    with open_store(db, create=False) as store:
         hist = store.history(unit)
         model = store.unit_model(unit) or "dc-motor"
     # the estimated parameters (derived ones, e.g. Ke = gamma Kt, move with them)
@@ -306,7 +310,7 @@ def history_cmd(
     if as_json:
         sys.stdout.write(hist.reset_index().to_json(orient="records", date_format="iso", indent=2) + "\n")
         return
-    table = Table(title=f"History of {unit} ({model}): change against the baseline [%]",
+    table = Table(title=escape(f"History of {unit} ({model}): change against the baseline [%]"),
                   box=box.SIMPLE_HEAD, padding=(0, 1))
     widths = {"#": 3, "fit": 4, "status": 8}  # fits 80 columns with five parameters
     for col in ("#", "source", "fit", "status", *params):
@@ -323,14 +327,14 @@ def history_cmd(
         changes = [f"{r[f'{p}_change']:+.1f}" if f"{p}_change" in r and pd.notna(r[f"{p}_change"])
                    else "" for p in params]
         fit = f"{r['fit_percent']:.1f}" if pd.notna(r["fit_percent"]) else "—"
-        table.add_row(str(tid), Path(str(r["source"])).name, fit, status, *changes)
+        table.add_row(str(tid), escape(Path(str(r["source"])).name), fit, status, *changes)
         if isinstance(r["summary"], str) and r["role"] == "check":
             notes.append(f"#{tid} {r['summary']}")
         elif not r["accepted"]:
             notes.append(f"#{tid} rejected: {r['reason']}")
     out.print(table)
     for line in notes:
-        out.print(line, highlight=False)
+        out.print(line, highlight=False, markup=False)
 
 
 @app.command("report")
@@ -347,16 +351,16 @@ def report_cmd(
 
     from condmon.models.registry import get_model
 
-    with open_store(db) as store:
+    with open_store(db, create=False) as store:
         model = get_model(store.unit_model(unit) or "dc-motor")
         cfg = load_monitor_config(monitor if monitor is not None else model.breakpoints)
         files = write_report(store, unit, out_dir, cfg)
-    out.print(f"wrote {files.html} and {len(files.figures)} figures")
+    out.print(f"wrote {files.html} and {len(files.figures)} figures", markup=False)
 
 
 def _show_warning(message: Warning | str, category: type[Warning], filename: str,
                   lineno: int, file: Any = None, line: str | None = None) -> None:
-    err.print(f"warning: {message}", highlight=False)
+    err.print(f"warning: {message}", highlight=False, markup=False)
 
 
 def main(argv: list[str] | None = None) -> int:

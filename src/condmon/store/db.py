@@ -339,7 +339,7 @@ class HistoryStore:
         return df
 
 
-def open_store(db: str | Path) -> HistoryStore:
+def open_store(db: str | Path, *, create: bool = True) -> HistoryStore:
     """Open (and create or migrate) a history database.
 
     Parameters
@@ -347,12 +347,23 @@ def open_store(db: str | Path) -> HistoryStore:
     db : str or Path
         A file path (SQLite), ``sqlite://`` (in memory) or a database URL such as
         ``postgresql://user@host/dbname``.
+    create : bool
+        Create a missing SQLite file. False for commands that only read (a
+        mistyped path is then an error, not a new empty history).
 
     Returns
     -------
     HistoryStore
+
+    Raises
+    ------
+    StoreError
+        The database cannot be opened (or, with ``create=False``, does not exist).
     """
     url = _url(db)
+    if not create and url.startswith("sqlite:///") and not Path(url[len("sqlite:///"):]).exists():
+        raise StoreError(f"{db}: no history database there (check the path; `baseline add` "
+                         "creates one)")
     try:
         engine = sa.create_engine(url)
         if engine.dialect.name == "sqlite":

@@ -382,3 +382,25 @@ def test_names_with_console_markup_are_printed_as_they_are(
     assert main(["check", str(tmp / "h3.csv"), "--unit", "EMA[/]7", "--db", db]) == 0
     assert main(["history", "--unit", "EMA[/]7", "--db", db]) == 0
     assert "EMA[/]7" in capsys.readouterr().out
+
+
+def test_dry_run_check_and_the_units_list(unit_db: tuple[Path, Path], tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    import json
+    import shutil
+
+    tmp, db0 = unit_db
+    db = tmp_path / "copy.db"
+    shutil.copy(db0, db)
+    rec = str(tmp / "h3.csv")
+    assert main(["check", rec, "--unit", "U", "--db", str(db), "--dry-run", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["test_id"] == -1
+    assert main(["units", "--db", str(db), "--json"]) == 0
+    before = json.loads(capsys.readouterr().out)["units"]
+    assert [u["unit"] for u in before] == ["U"] and before[0]["status"] == "baseline"
+    # the dry run stored nothing: the same record is checked for real afterwards
+    assert main(["check", rec, "--unit", "U", "--db", str(db), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["test_id"] > 0
+    assert main(["units", "--db", str(db), "--json"]) == 0
+    after = json.loads(capsys.readouterr().out)["units"][0]
+    assert after["tests"] == before[0]["tests"] + 1 and after["status"] == "go"

@@ -251,6 +251,7 @@ def check_cmd(
     model: UnitModelOpt = None,
     route: RouteOpt = None,
     constants: ConstOpt = None,
+    dry_run: Annotated[bool, typer.Option("--dry-run", help="Estimate and diagnose, store nothing.")] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
 ) -> None:
     """Check one test against the unit's baseline: go / advisory / no-go and faults."""
@@ -263,12 +264,15 @@ def check_cmd(
     cfg = load_monitor_config(monitor) if monitor is not None else None
     rb = load_rules(rules) if rules is not None else None
     with open_store(db, create=False) as store:
-        res = check_test(store, unit, record, opts, cfg, rb)
+        res = check_test(store, unit, record, opts, cfg, rb, dry_run=dry_run)
     if as_json:
         write_json(res.to_dict())
         return
+    if dry_run:
+        err.print("dry run: nothing was stored", highlight=False)
     out.print(f"{escape(unit)} — {escape(str(record))}: {_status_text(res.status)}  "
-              f"(fit {res.estimate.fit_percent:.1f} %, test #{res.test_id})")
+              f"(fit {res.estimate.fit_percent:.1f} %"
+              + (f", test #{res.test_id})" if res.test_id >= 0 else ", not stored)"))
     if res.diagnosis is None:
         out.print(f"rejected: {res.estimate.reason}; the test is stored but changes no trend. "
                   "Retest.", markup=False)
@@ -289,6 +293,30 @@ def check_cmd(
     for f in res.diagnosis.faults:
         out.print(f"[bold]{escape(f.name)}[/] — degree {f.degree:.2f} ({escape(f.severity)}): "
                   f"{escape(f.advice)}")
+
+
+@app.command("units")
+def units_cmd(
+    db: DbOpt = "condmon.db",
+    as_json: Annotated[bool, typer.Option("--json", help="Print the units as JSON records.")] = False,
+) -> None:
+    """List the units of a history: model, tests and latest status."""
+    from condmon.store.db import open_store
+
+    with open_store(db, create=False) as store:
+        rows = store.unit_summaries()
+    if as_json:
+        write_json({"units": rows})
+        return
+    table = Table(title=escape(f"Units in {db}"), box=box.SIMPLE_HEAD)
+    for col in ("unit", "model", "tests", "latest", "status"):
+        table.add_column(col, justify="right" if col == "tests" else "left")
+    for r in rows:
+        model = Path(str(r["model"])).name
+        table.add_row(escape(str(r["unit"])), escape(model), str(r["tests"]),
+                      escape(Path(str(r["latest_source"] or "—")).name),
+                      _status_text(str(r["status"])) if r["status"] else "—")
+    out.print(table)
 
 
 @app.command("history")

@@ -247,11 +247,13 @@ class CheckResult:
 
 def check_test(store: HistoryStore, unit: str, record: RecordLike,
                options: EstimateOptions | None = None, monitor: MonitorConfig | None = None,
-               rules: RuleBase | None = None) -> CheckResult:
+               rules: RuleBase | None = None, dry_run: bool = False) -> CheckResult:
     """Estimate a test, store it, compute symptoms against the baseline and diagnose.
 
     The monitor breakpoints and the rule base are the model's own (declared in
     its ``[monitor]`` table), the shipped DC-motor ones otherwise, unless given.
+    ``dry_run``: estimate and diagnose, store nothing (``test_id`` is -1; a
+    record already in the history is checked again).
 
     Raises
     ------
@@ -273,16 +275,19 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
     if why is not None:
         raise DataError(f"{res.source}: refused, {why}; nothing was stored")
     if not res.accepted:
-        tid = store.add_test(unit, res, role="check", digest=digest)
+        tid = -1 if dry_run else store.add_test(unit, res, role="check", digest=digest)
         return CheckResult(unit, tid, res, "retest", baseline)
     values = np.array([res.parameters[p] for p in baseline.parameters])
     ses = np.array([res.std_errors[p] for p in baseline.parameters])
     sym = compute_symptoms(values, baseline, cfg, ses)
     row = sym.row(0)
     diag = diagnose(sym.to_dict(0), rb)
-    bid = store.save_baseline(unit, baseline, ids)
-    tid = store.add_test(unit, res, role="check", digest=digest, symptoms=row,
-                         baseline_id=bid, diagnosis=diag)
+    if dry_run:
+        tid = -1
+    else:
+        bid = store.save_baseline(unit, baseline, ids)
+        tid = store.add_test(unit, res, role="check", digest=digest, symptoms=row,
+                             baseline_id=bid, diagnosis=diag)
     return CheckResult(unit, tid, res, diag.status, baseline,
                        {p: v["percent_change"] for p, v in row.items()},
                        sym.to_dict(0), diag)

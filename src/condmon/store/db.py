@@ -167,6 +167,31 @@ class HistoryStore:
             return None
         return str(row[1]) if row[1] else str(row[0])
 
+    def unit_summaries(self) -> list[dict[str, Any]]:
+        """Every unit with its model, number of tests, latest test and its status
+        ("baseline", "retest" for a rejected check, else the check's status)."""
+        with self.engine.connect() as conn:
+            units = conn.execute(sa.select(S.units.c.id, S.units.c.name, S.units.c.model,
+                                           S.units.c.model_source)
+                                 .order_by(S.units.c.name)).all()
+            out = []
+            for uid, name, model, source in units:
+                t = S.tests
+                n = conn.execute(sa.select(sa.func.count()).select_from(t)
+                                 .where(t.c.unit_id == uid)).scalar_one()
+                last = conn.execute(
+                    sa.select(t.c.source, t.c.role, t.c.accepted, S.diagnoses.c.status)
+                    .outerjoin(S.diagnoses, S.diagnoses.c.test_id == t.c.id)
+                    .where(t.c.unit_id == uid).order_by(t.c.id.desc()).limit(1)).first()
+                status = None
+                if last is not None:
+                    status = ("baseline" if last[1] == "baseline"
+                              else (last[3] if last[2] else "retest"))
+                out.append({"unit": name, "model": source or model, "tests": int(n),
+                            "latest_source": None if last is None else last[0],
+                            "status": status})
+        return out
+
     def units(self) -> list[str]:
         """Names of every unit."""
         with self.engine.connect() as conn:

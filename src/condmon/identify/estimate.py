@@ -443,8 +443,7 @@ def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-m
                 oe_res = oe_route(records, machine, start, constants=consts,
                                   fit_threshold=fit_threshold)
                 values, ucov, fit = oe_res.values, oe_res.covariance, oe_res.fit
-                diagnostics = {**{f"nrmse {k}": v for k, v in oe_res.nrmse.items()},
-                               **{f"whiteness {k}": v for k, v in oe_res.whiteness.items()}}
+                diagnostics = oe_res.diagnostics()
                 notes.append(f"output error: the declared model simulated with its "
                              f"linear part exact (ZOH), started from {how}, "
                              f"{oe_res.evaluations} optimiser evaluations")
@@ -452,9 +451,7 @@ def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-m
                 inv = inverse_route(records, machine, constants=consts,
                                     fit_threshold=fit_threshold)
                 values, ucov, fit = inv.values, inv.covariance, inv.fit
-                diagnostics = {"cutoff_hz": inv.cutoff, "samples": float(inv.samples),
-                               **{f"nrmse {k}": v for k, v in inv.nrmse.items()},
-                               **{f"whiteness {k}": v for k, v in inv.whiteness.items()}}
+                diagnostics = inv.diagnostics()
                 notes.append(f"inverse model (IDIM-LS): zero-phase low-pass at {inv.cutoff:g} Hz, "
                              f"central differences, {inv.samples} samples")
                 worst = max(inv.whiteness, key=lambda k: inv.whiteness[k])

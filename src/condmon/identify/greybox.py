@@ -47,7 +47,8 @@ from condmon.models.declared import substituted_equations, symbols_of
 from condmon.models.machine import InverseStructure, LinearStructure, Machine
 from condmon.models.transfer import ContinuousTF
 
-__all__ = ["LinearRouteResult", "InverseRouteResult", "linear_route", "inverse_route",
+__all__ = ["LinearRouteResult", "RouteResult", "InverseRouteResult", "linear_route",
+           "inverse_route",
            "choose_route"]
 
 FloatArray = NDArray[np.float64]
@@ -287,27 +288,21 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
 
 
 @dataclass(frozen=True, eq=False)
-class InverseRouteResult:
-    """Outcome of the inverse-model route.
+class RouteResult:
+    """What every nonlinear route returns: estimates, covariance and fit figures.
 
     Attributes
     ----------
     values : dict of str to float
         Estimates of the unknowns. [SI]
     covariance : ndarray
+        Covariance of the unknowns, in the declaration's order.
     fit : FitCheck
-        R_T² of each equation: the measured (filtered, differentiated) state
-        derivative against the derivative the estimated model predicts.
+        R_T² per output or equation.
     nrmse : dict of str to float
-        Normalised RMS error of each equation (RMS error / RMS of the measured
-        derivative). [-]
+        RMS error / RMS of the measured signal, per output or equation. [-]
     whiteness : dict of str to float
-        Largest normalised autocorrelation of each equation's residual at lags
-        1..20, resampled at twice the cut-off (the residual's bandwidth). [-]
-    cutoff : float
-        Low-pass cut-off used. [Hz]
-    samples : int
-        Rows of the regression.
+        Largest normalised autocorrelation of each residual, lags 1..20. [-]
     """
 
     values: dict[str, float]
@@ -315,8 +310,36 @@ class InverseRouteResult:
     fit: FitCheck
     nrmse: dict[str, float]
     whiteness: dict[str, float]
+
+    def diagnostics(self) -> dict[str, float]:
+        """``nrmse <name>`` and ``whiteness <name>`` figures, as in the JSON."""
+        return {**{f"nrmse {k}": v for k, v in self.nrmse.items()},
+                **{f"whiteness {k}": v for k, v in self.whiteness.items()}}
+
+
+@dataclass(frozen=True, eq=False)
+class InverseRouteResult(RouteResult):
+    """Outcome of the inverse-model route (see :class:`RouteResult`).
+
+    ``fit`` compares each equation's measured (filtered, differentiated) state
+    derivative with the derivative the estimated model predicts; ``whiteness``
+    is taken at twice the cut-off (the residual's bandwidth).
+
+    Attributes
+    ----------
+    cutoff : float
+        Low-pass cut-off used. [Hz]
+    samples : int
+        Rows of the regression.
+    """
+
     cutoff: float
     samples: int
+
+    def diagnostics(self) -> dict[str, float]:
+        """The shared figures, with ``cutoff_hz`` and ``samples``."""
+        return {"cutoff_hz": self.cutoff, "samples": float(self.samples),
+                **super().diagnostics()}
 
 
 def _lowpass(x: FloatArray, cutoff: float, fs: float) -> FloatArray:

@@ -29,6 +29,7 @@ from scipy.signal import lfilter, ss2tf
 
 from condmon.errors import EstimationError
 from condmon.identify.fit import FitCheck, residual_figures
+from condmon.identify.greybox import RouteResult
 from condmon.io.records import Record
 from condmon.models.machine import Machine
 from condmon.models.semilinear import SemiLinearStructure, semilinear_structure
@@ -39,29 +40,16 @@ FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, eq=False)
-class OERouteResult:
-    """Outcome of the output-error route.
+class OERouteResult(RouteResult):
+    """Outcome of the output-error route (see :class:`~condmon.identify.greybox.RouteResult`;
+    the figures are per sensor, on its simulated output).
 
     Attributes
     ----------
-    values : dict of str to float
-        Estimates of the unknowns. [SI]
-    covariance : ndarray
-    fit : FitCheck
-        R_T² of each sensor's simulated output.
-    nrmse : dict of str to float
-        RMS output error / RMS of the measured output, per sensor. [-]
-    whiteness : dict of str to float
-        Largest normalised autocorrelation of each output error, lags 1..20. [-]
     evaluations : int
         Simulations run by the optimiser.
     """
 
-    values: dict[str, float]
-    covariance: FloatArray
-    fit: FitCheck
-    nrmse: dict[str, float]
-    whiteness: dict[str, float]
     evaluations: int
 
 

@@ -29,6 +29,7 @@ from condmon.identify.sriv import sriv
 from condmon.io.records import Record, validate_record
 from condmon.models.machine import Machine
 from condmon.models.registry import get_model
+from condmon.models.semilinear import semilinear_structure
 from condmon.models.transfer import ContinuousTF
 
 __all__ = ["EstimateResult", "estimate", "estimate_record", "estimate_joint", "list_estimators",
@@ -212,25 +213,14 @@ def _excitation_columns(record: pd.DataFrame | Record, machine: Machine,
 
 
 def _required_columns(machine: Machine, route: str) -> tuple[str, ...]:
+    """Record columns a route needs (inputs, then sensors)."""
     if route == "oe":
-        from condmon.models.semilinear import semilinear_structure
-
         s = semilinear_structure(machine)
         return (*s.inputs, *s.sensors)
     if route == "linear":
         lin = machine.linear()
         return (lin.input, *lin.outputs)
-    inv = machine.inverse()
-    from condmon.models.declared import substituted_equations
-
-    readings = substituted_equations(machine.plant)[2]
-    sensors = [name for name, e in readings.items() if str(e) in inv.signals]
-    used = set()
-    for eq in inv.equations:
-        used |= {str(s) for _, phi in eq.terms for s in phi.free_symbols}
-        used |= {str(s) for s in eq.known.free_symbols}
-    inputs = [u for u in machine.plant.input_names if u in used]
-    return (*inputs, *sensors)
+    return machine.inverse().columns
 
 
 def estimate(record: pd.DataFrame, model: str | Machine = "dc-motor", *,
@@ -250,7 +240,7 @@ def estimate(record: pd.DataFrame, model: str | Machine = "dc-motor", *,
         Constants in ``record.attrs["constants"]`` (e.g. scalars of a .mat
         file) override the declared ones.
     model : str, path or Machine
-        A declared machine: a name from :func:`condmon.models.list_machines`
+        A declared machine: a name from :func:`condmon.models.list_models`
         or a declaration file (.toml).
     method : {"sriv", "oe", "iv", "arx"}
         Discrete estimator of the linear route: SRIV (falls back to
@@ -268,7 +258,7 @@ def estimate(record: pd.DataFrame, model: str | Machine = "dc-motor", *,
         ``{canonical: column}`` renames applied first.
     source : str, optional
         Name of the record in messages and results.
-    route : {"auto", "linear", "inverse"}, optional
+    route : {"auto", "linear", "inverse", "oe"}, optional
         Override the declaration's route.
     constants : mapping, optional
         Known constants overriding the declared ones. [SI]

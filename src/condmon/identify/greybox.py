@@ -45,6 +45,7 @@ from condmon.io.records import Record
 from condmon.models.conversion import d2c_coefficients_fast, tf_d2c
 from condmon.models.declared import substituted_equations, symbols_of
 from condmon.models.machine import InverseStructure, LinearStructure, Machine
+from condmon.models.semilinear import semilinear_structure
 from condmon.models.transfer import ContinuousTF
 
 __all__ = ["LinearRouteResult", "RouteResult", "InverseRouteResult", "linear_route",
@@ -66,8 +67,6 @@ def choose_route(machine: Machine, route: str | None = None) -> str:
     """
     want = route or machine.spec.route
     if want == "oe":
-        from condmon.models.semilinear import semilinear_structure
-
         semilinear_structure(machine)
         return "oe"
     if want == "linear":

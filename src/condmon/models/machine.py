@@ -329,11 +329,14 @@ class InverseStructure:
         differentiating a measured state), in order of derivation.
     derivation : dict of str to str
         ``state -> measured state it is the derivative of`` for derived states.
+    columns : tuple of str
+        Record columns the equations need: inputs, then sensors.
     """
 
     equations: tuple[InverseEquation, ...]
     signals: tuple[str, ...]
     derivation: dict[str, str]
+    columns: tuple[str, ...] = ()
 
 
 @functools.lru_cache(maxsize=32)
@@ -371,11 +374,13 @@ def _inverse(machine: Machine) -> InverseStructure:
     if not equations:
         raise ModelError(f"{where}: no state equation holds an unknown parameter")
     available = measured | set(derivation)
+    used: set[str] = set()
     for eq in equations:
         need = set()
         for _, phi in eq.terms:
             need |= {str(s) for s in phi.free_symbols}
         need |= {str(s) for s in eq.known.free_symbols}
+        used |= need
         states_needed = {s for s in need if s in plant.state_names}
         d_needed = {s[2:] for s in need if s.startswith("d_")}
         missing = sorted((states_needed | d_needed) - available)
@@ -388,7 +393,9 @@ def _inverse(machine: Machine) -> InverseStructure:
         raise ModelError(f"{where}: {', '.join(sorted(set(spec.unknowns) - covered))} "
                          "appear in no usable equation")
     signals = tuple(s for s in plant.state_names if s in available)
-    return InverseStructure(tuple(equations), signals, derivation)
+    columns = (*(u for u in plant.input_names if u in used),
+               *(name for name, e in readings.items() if str(e) in signals))
+    return InverseStructure(tuple(equations), signals, derivation, columns)
 
 
 # -- derived quantities -----------------------------------------------------------------

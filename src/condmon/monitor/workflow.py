@@ -134,10 +134,10 @@ def _unit_options(store: HistoryStore, unit: str, opts: EstimateOptions) -> Esti
 
 def _existing_baseline(store: HistoryStore, unit: str) -> Baseline | None:
     """The unit's current baseline, or None while it has fewer than 3 healthy tests."""
-    ids, table = store.accepted_estimates(unit, role="baseline")
-    if len(ids) < MIN_BASELINE_TESTS:
+    try:
+        return current_baseline(store, unit)[0]
+    except DataError:
         return None
-    return make_baseline(table.to_numpy(), list(table.columns))
 
 
 def _unit_error(res: EstimateResult, baseline: Baseline) -> str | None:

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from _common import table, write_json
-from condmon.demo import load_demo_config
+from condmon.workflows.demo import load_demo_config
 from condmon.identify import estimate
 from condmon.models.dc_motor import dc_motor_from_discrete
 from condmon.simulate import load_actuator_rig, simulate_actuator

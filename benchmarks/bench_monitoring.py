@@ -22,9 +22,9 @@ import time
 import numpy as np
 
 from _common import table, write_json
-from condmon.demo import load_demo_config
+from condmon.workflows.demo import load_demo_config
 from condmon.identify import estimate
-from condmon.monitor.workflow import add_baseline_tests, check_test
+from condmon.workflows.monitoring import add_baseline_tests, check_test
 from condmon.simulate import load_actuator_rig, simulate_actuator
 from condmon.store import open_store
 

@@ -31,7 +31,7 @@ def noisy_record(rig: ActuatorRig) -> pd.DataFrame:
 @pytest.fixture(scope="session")
 def demo_rig(rig: ActuatorRig) -> ActuatorRig:
     """The rig of `condmon demo`: nonlinear effects on."""
-    from condmon.demo import load_demo_config
+    from condmon.workflows.demo import load_demo_config
 
     return dataclasses.replace(rig, **load_demo_config().get("rig", {}))
 

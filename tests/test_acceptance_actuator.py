@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from condmon.demo import DemoResult, run_demo
+from condmon.workflows.demo import DemoResult, run_demo
 from condmon.identify import estimate
-from condmon.monitor.workflow import add_baseline_tests, check_test
+from condmon.workflows.monitoring import add_baseline_tests, check_test
 from condmon.simulate import ActuatorRig, simulate_actuator
 from condmon.store import open_store
 

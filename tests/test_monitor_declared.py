@@ -83,7 +83,7 @@ def test_shipped_coulomb_model_monitors_with_its_own_rules(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     import dataclasses
 
-    from condmon.demo import load_demo_config
+    from condmon.workflows.demo import load_demo_config
     from condmon.simulate import load_actuator_rig, simulate_actuator
 
     rig = dataclasses.replace(load_actuator_rig(), **load_demo_config().get("rig", {}))

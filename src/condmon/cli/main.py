@@ -23,7 +23,7 @@ from condmon.errors import CondmonError
 from condmon.identify.estimate import list_estimators
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD
 from condmon.io.records import parse_column_map
-from condmon.monitor.workflow import EstimateOptions
+from condmon.workflows.monitoring import EstimateOptions
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="Model-based condition monitoring: estimate, trend, diagnose.")
@@ -112,7 +112,7 @@ def demo_cmd(
     config: Annotated[Optional[Path], typer.Option(help="Experiments file (default: the shipped demo.toml).")] = None,
 ) -> None:
     """Reproduce the reference experiments on the simulated test-bed and write a report."""
-    from condmon.demo import run_demo
+    from condmon.workflows.demo import run_demo
 
     with progress() as prog:
         task = prog.add_task("simulating and checking tests", total=None)
@@ -202,7 +202,7 @@ def baseline_add_cmd(
     constants: ConstOpt = None,
 ) -> None:
     """Estimate healthy tests and store them as the unit's baseline."""
-    from condmon.monitor.workflow import add_baseline_tests
+    from condmon.workflows.monitoring import add_baseline_tests
     from condmon.store.db import open_store
 
     opts = _options(method, gamma, excitation, columns, fit_threshold, model, route, constants)
@@ -257,7 +257,7 @@ def check_cmd(
     """Check one test against the unit's baseline: go / advisory / no-go and faults."""
     from condmon.diagnose.rules import load_rules
     from condmon.monitor.fuzzy import load_monitor_config
-    from condmon.monitor.workflow import check_test
+    from condmon.workflows.monitoring import check_test
     from condmon.store.db import open_store
 
     opts = _options(method, gamma, excitation, columns, fit_threshold, model, route, constants)

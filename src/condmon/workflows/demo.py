@@ -22,7 +22,7 @@ from condmon.diagnose.isolation import IsolationResult, healthy_normalisation, i
 from condmon.errors import ConfigError
 from condmon.models.declared import load_plant_model
 from condmon.io.config import load_default, load_toml
-from condmon.monitor.workflow import CheckResult, add_baseline_tests, check_test
+from condmon.workflows.monitoring import CheckResult, add_baseline_tests, check_test
 from condmon.report.html import write_report
 from condmon.report.isolation_figures import write_isolation_figures
 from condmon.simulate.actuator import ActuatorRig, load_actuator_rig, simulate_actuator

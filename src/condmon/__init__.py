@@ -13,13 +13,20 @@ Example
 1.0
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from condmon._lazy import load, names
 from condmon.errors import (
     CondmonError, CondmonWarning, ConfigError, ConversionError, ConvergenceWarning,
     DataError, DataWarning, EstimationError, ModelError,
 )
-from condmon.identify import EstimateResult, estimate
-from condmon.io import read_record
-from condmon.simulate import load_actuator_rig, simulate_actuator
+
+if TYPE_CHECKING:
+    from condmon.identify import EstimateResult, estimate
+    from condmon.io import read_record
+    from condmon.simulate import load_actuator_rig, simulate_actuator
 
 __version__ = "0.1.0"
 
@@ -29,3 +36,16 @@ __all__ = [
     "EstimationError", "CondmonWarning", "DataWarning", "ConvergenceWarning",
     "__version__",
 ]
+
+# Imported on first use (PEP 562): ``import condmon`` stays cheap.
+_EXPORTS = {"estimate": "condmon.identify", "EstimateResult": "condmon.identify",
+            "read_record": "condmon.io", "simulate_actuator": "condmon.simulate",
+            "load_actuator_rig": "condmon.simulate"}
+
+
+def __getattr__(name: str) -> Any:
+    return load(__name__, _EXPORTS, name)
+
+
+def __dir__() -> list[str]:
+    return names(globals(), _EXPORTS)

@@ -9,9 +9,8 @@ from __future__ import annotations
 import sys
 import warnings
 from pathlib import Path
-from typing import Annotated, Any, Optional
+from typing import TYPE_CHECKING, Annotated, Any, Optional
 
-import pandas as pd
 import typer
 from rich import box
 from rich.markup import escape
@@ -20,10 +19,10 @@ from rich.table import Table
 from condmon.cli._console import err, fmt, out, progress, write_json
 from condmon.cli.plant import register as register_plant_commands
 from condmon.errors import CondmonError
-from condmon.identify.estimate import list_estimators
-from condmon.identify.fit import DEFAULT_FIT_THRESHOLD
-from condmon.io.records import parse_column_map
-from condmon.workflows.monitoring import EstimateOptions
+from condmon.identify.defaults import DEFAULT_FIT_THRESHOLD, list_estimators
+
+if TYPE_CHECKING:
+    from condmon.workflows.monitoring import EstimateOptions
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="Model-based condition monitoring: estimate, trend, diagnose.")
@@ -159,6 +158,9 @@ def _status_text(status: str) -> str:
 def _options(method: str, gamma: float | None, excitation: str, columns: str | None,
              fit_threshold: float, model: str | None = None, route: str | None = None,
              constants: str | None = None) -> EstimateOptions:
+    from condmon.io.records import parse_column_map
+    from condmon.workflows.monitoring import EstimateOptions
+
     if method not in list_estimators():
         raise CondmonError(f"unknown --method {method!r}; allowed: {', '.join(list_estimators())}")
     exc: str | tuple[str, ...] | None
@@ -326,6 +328,8 @@ def history_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print the history as JSON records.")] = False,
 ) -> None:
     """Show the unit's tests: fit, status and parameter changes."""
+    import pandas as pd
+
     from condmon.store.db import open_store
 
     from condmon.models.registry import get_model

@@ -20,6 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from condmon.errors import CondmonError, EstimationError, ModelError
 from condmon.identify._common import TFEstimate
+from condmon.identify.defaults import ESTIMATORS, list_estimators
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD, FitCheck
 from condmon.identify.greybox import choose_route, inverse_route, linear_route
 from condmon.identify.ls import arx, iv
@@ -48,11 +49,7 @@ class Estimator(Protocol):
 
 
 _ESTIMATORS: dict[str, Estimator] = {"sriv": sriv, "oe": oe, "iv": iv, "arx": arx}
-
-
-def list_estimators() -> list[str]:
-    """Names accepted by ``method``."""
-    return list(_ESTIMATORS)
+assert tuple(_ESTIMATORS) == ESTIMATORS, "condmon.identify.defaults names every estimator"
 
 
 @dataclass(frozen=True, eq=False)

@@ -8,13 +8,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from condmon.identify.defaults import DEFAULT_FIT_THRESHOLD
 from condmon.models.transfer import DiscreteTF
 
 __all__ = ["FitCheck", "fit_check", "DEFAULT_FIT_THRESHOLD", "ResidualFigures",
            "residual_figures"]
-
-DEFAULT_FIT_THRESHOLD = 90.0
-"""Default acceptance threshold on the percentage fit. [%]"""
 
 
 @dataclass(frozen=True)

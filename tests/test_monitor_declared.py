@@ -67,9 +67,16 @@ def test_a_version_1_history_is_migrated(tmp_path: Path,
     db = tmp_path / "history.db"
     shutil.copy(DATA / "history-v1.db", db)
     with open_store(str(db)) as store:
-        assert store.schema_version == 2
+        assert store.schema_version == 3
         ids, table = store.accepted_estimates("EMA-v1")
         assert ids == [1, 2, 3] and list(table.columns) == ["R", "L", "Ke", "Kt", "J", "D"]
+        hist = store.history("EMA-v1")
+        # v2 -> v3: evaluations keyed by baseline, versions numbered, nothing excluded
+        assert list(hist["status"])[:3] == ["baseline"] * 3
+        assert hist["status"].iloc[3] in ("go", "advisory", "no-go")
+        assert hist["R_change"].notna().iloc[3] and not hist["excluded"].any()
+        assert [b.version for b in store.baselines("EMA-v1")] == [1]
+        assert store.integrity_problems() == []
     con = sqlite3.connect(db)
     cols = [r[1] for r in con.execute("PRAGMA table_info(tests)")]
     constants = [json.loads(r[0]) for r in con.execute("SELECT constants FROM tests")]

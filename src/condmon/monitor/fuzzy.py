@@ -34,7 +34,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from condmon.errors import ConfigError
 from condmon.io.config import load_default, load_toml
-from condmon.monitor.baseline import Baseline, percent_change
+from condmon.monitor.baseline import Baseline, BaselineChecks, percent_change
 
 __all__ = ["MonitorConfig", "load_monitor_config", "symptom_degree", "Symptoms",
            "compute_symptoms"]
@@ -54,12 +54,15 @@ class MonitorConfig:
         Symptom half-width in baseline standard deviations. [-]
     source : str
         File the configuration came from.
+    baseline : BaselineChecks
+        When a baseline is flagged as implausible (optional ``[baseline]`` table).
     """
 
     r1: dict[str, float]
     r2: dict[str, float]
     k: float = 2.0
     source: str = "condmon/data/monitor.toml"
+    baseline: BaselineChecks = BaselineChecks()
 
     def arrays(self, parameters: Sequence[str]) -> tuple[FloatArray, FloatArray]:
         """``r1`` and ``r2`` in the order of ``parameters``."""
@@ -87,16 +90,25 @@ def load_monitor_config(path: str | Path | None = None, k: float | None = None) 
         r1 = {p: float(v["r1"]) for p, v in bp.items()}
         r2 = {p: float(v["r2"]) for p, v in bp.items()}
         kk = float(raw.get("k", 2.0)) if k is None else float(k)
+        table = dict(raw.get("baseline", {}))
+        unknown = sorted(set(table) - {"outlier_z", "outlier_se", "spread_ratio"})
+        if unknown:
+            raise KeyError(f"unknown [baseline] key(s) {unknown}; allowed: outlier_z, "
+                           "outlier_se, spread_ratio")
+        checks = BaselineChecks(**{key: float(v) for key, v in table.items()})
     except (KeyError, TypeError, ValueError) as err:
-        raise ConfigError(f"{src}: expected [breakpoints] P = {{ r1 = .., r2 = .. }} "
-                          f"and k = number ({err})") from None
+        raise ConfigError(f"{src}: expected [breakpoints] P = {{ r1 = .., r2 = .. }}, "
+                          f"k = number and an optional [baseline] table ({err})") from None
+    if not all(np.isfinite(v) and v > 0 for v in (checks.outlier_z, checks.outlier_se,
+                                                   checks.spread_ratio)):
+        raise ConfigError(f"{src}: [baseline] values must be positive numbers")
     for p in r1:
         if not 0 <= r1[p] < r2[p]:
             raise ConfigError(f"{src}: breakpoints of {p} must satisfy 0 <= r1 < r2, "
                               f"got r1={r1[p]}, r2={r2[p]}")
     if kk < 0:
         raise ConfigError(f"{src}: k must be >= 0, got {kk}")
-    return MonitorConfig(r1, r2, kk, src)
+    return MonitorConfig(r1, r2, kk, src, checks)
 
 
 def symptom_degree(r: ArrayLike, width: ArrayLike, r1: ArrayLike, r2: ArrayLike

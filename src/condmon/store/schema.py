@@ -7,11 +7,14 @@ from collections.abc import Callable
 import sqlalchemy as sa
 
 __all__ = ["metadata", "units", "tests", "estimates", "baselines", "baseline_values",
-           "symptoms", "diagnoses", "diagnosis_faults", "meta", "SCHEMA_VERSION",
-           "MIGRATIONS"]
+           "symptoms", "diagnoses", "diagnosis_faults", "isolations", "isolation_estimates",
+           "audit", "meta", "SCHEMA_VERSION", "MIGRATIONS", "NAME_LENGTH"]
 
 #: Version of the schema this code writes.
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
+
+#: Longest unit, fault or baseline name the store keeps (the same on every back-end).
+NAME_LENGTH = 200
 
 metadata = sa.MetaData()
 
@@ -24,10 +27,11 @@ meta = sa.Table(
 units = sa.Table(
     "units", metadata,
     sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
-    sa.Column("name", sa.String(200), nullable=False, unique=True),
+    sa.Column("name", sa.String(NAME_LENGTH), nullable=False, unique=True),
     sa.Column("model", sa.String(64), nullable=False),
     sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
     sa.Column("model_source", sa.Text, nullable=True),        # declaration file, if not shipped
+    sa.Column("baseline_name", sa.String(64), nullable=False, server_default="default"),
 )
 
 tests = sa.Table(
@@ -45,7 +49,14 @@ tests = sa.Table(
     sa.Column("method", sa.String(16), nullable=False),
     sa.Column("closed_loop", sa.Boolean, nullable=False),
     sa.Column("constants", sa.Text, nullable=False),           # JSON {name: value} [SI]
+    # v3: the record's content hash (a re-saved copy is the same test), the
+    # test's own date, and exclusion (a test is never deleted)
+    sa.Column("record_hash", sa.String(64), nullable=False, server_default=""),
+    sa.Column("test_date", sa.DateTime(timezone=True), nullable=True),
+    sa.Column("excluded", sa.Boolean, nullable=False, server_default=sa.false()),
+    sa.Column("excluded_reason", sa.Text, nullable=True),
     sa.UniqueConstraint("unit_id", "file_hash", name="uq_test_file"),
+    sa.Index("uq_test_record", "unit_id", "record_hash", unique=True),
 )
 
 estimates = sa.Table(
@@ -63,6 +74,10 @@ baselines = sa.Table(
     sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
     sa.Column("n", sa.Integer, nullable=False),
     sa.Column("test_ids", sa.Text, nullable=False),            # JSON list
+    sa.Column("name", sa.String(64), nullable=False, server_default="default"),
+    sa.Column("version", sa.Integer, nullable=False, server_default="1"),
+    sa.Column("reason", sa.Text, nullable=True),
+    sa.Column("flags", sa.Text, nullable=False, server_default="[]"),  # JSON [{...}]
 )
 
 baseline_values = sa.Table(
@@ -77,7 +92,7 @@ symptoms = sa.Table(
     "symptoms", metadata,
     sa.Column("test_id", sa.Integer, sa.ForeignKey("tests.id"), primary_key=True),
     sa.Column("parameter", sa.String(32), primary_key=True),
-    sa.Column("baseline_id", sa.Integer, sa.ForeignKey("baselines.id"), nullable=False),
+    sa.Column("baseline_id", sa.Integer, sa.ForeignKey("baselines.id"), primary_key=True),
     sa.Column("percent_change", sa.Float, nullable=False),
     sa.Column("high", sa.Float, nullable=False),
     sa.Column("low", sa.Float, nullable=False),
@@ -86,7 +101,7 @@ symptoms = sa.Table(
 diagnoses = sa.Table(
     "diagnoses", metadata,
     sa.Column("test_id", sa.Integer, sa.ForeignKey("tests.id"), primary_key=True),
-    sa.Column("baseline_id", sa.Integer, sa.ForeignKey("baselines.id"), nullable=False),
+    sa.Column("baseline_id", sa.Integer, sa.ForeignKey("baselines.id"), primary_key=True),
     sa.Column("status", sa.String(16), nullable=False),
     sa.Column("condition", sa.Float, nullable=False),
     sa.Column("summary", sa.Text, nullable=False),
@@ -95,10 +110,60 @@ diagnoses = sa.Table(
 diagnosis_faults = sa.Table(
     "diagnosis_faults", metadata,
     sa.Column("test_id", sa.Integer, sa.ForeignKey("tests.id"), primary_key=True),
-    sa.Column("name", sa.String(200), primary_key=True),
+    sa.Column("baseline_id", sa.Integer, sa.ForeignKey("baselines.id"), primary_key=True),
+    sa.Column("name", sa.String(NAME_LENGTH), primary_key=True),
     sa.Column("degree", sa.Float, nullable=False),
     sa.Column("severity", sa.String(16), nullable=False),
     sa.Column("advice", sa.Text, nullable=False),
+)
+
+isolations = sa.Table(
+    "isolations", metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("unit_id", sa.Integer, sa.ForeignKey("units.id"), nullable=False),
+    sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+    sa.Column("test_date", sa.DateTime(timezone=True), nullable=True),
+    sa.Column("source", sa.Text, nullable=False),
+    sa.Column("file_hash", sa.String(64), nullable=False),
+    sa.Column("record_hash", sa.String(64), nullable=False),
+    sa.Column("model", sa.String(64), nullable=False),
+    sa.Column("detected", sa.Boolean, nullable=False),
+    sa.Column("detection_time", sa.Float, nullable=True),
+    sa.Column("decided", sa.Boolean, nullable=False),
+    sa.Column("reason", sa.Text, nullable=True),
+    sa.Column("statement", sa.Text, nullable=False),
+    sa.Column("suspects", sa.Text, nullable=False),             # JSON list
+    sa.Column("isolated", sa.Text, nullable=False),             # JSON list
+    sa.Column("result", sa.Text, nullable=False),               # JSON: the isolate document
+    sa.Column("excluded", sa.Boolean, nullable=False, server_default=sa.false()),
+    sa.Column("excluded_reason", sa.Text, nullable=True),
+    sa.Index("uq_isolation_record", "unit_id", "record_hash", unique=True),
+)
+
+isolation_estimates = sa.Table(
+    "isolation_estimates", metadata,
+    sa.Column("isolation_id", sa.Integer, sa.ForeignKey("isolations.id"), primary_key=True),
+    sa.Column("parameter", sa.String(32), primary_key=True),
+    sa.Column("value", sa.Float, nullable=True),
+    sa.Column("nominal", sa.Float, nullable=True),
+    sa.Column("change_percent", sa.Float, nullable=True),
+    sa.Column("error_sigma", sa.Float, nullable=True),          # model output error [noise sd]
+    sa.Column("rejected", sa.Text, nullable=True),              # why left out, if it was
+)
+
+#: Every change to a history: who, when, what and why. Nothing is deleted.
+audit = sa.Table(
+    "audit", metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("at", sa.DateTime(timezone=True), nullable=False),
+    sa.Column("actor", sa.String(NAME_LENGTH), nullable=False),  # user@host
+    sa.Column("action", sa.String(32), nullable=False),
+    sa.Column("unit_id", sa.Integer, sa.ForeignKey("units.id"), nullable=True),
+    sa.Column("test_id", sa.Integer, sa.ForeignKey("tests.id"), nullable=True),
+    sa.Column("isolation_id", sa.Integer, sa.ForeignKey("isolations.id"), nullable=True),
+    sa.Column("baseline_id", sa.Integer, sa.ForeignKey("baselines.id"), nullable=True),
+    sa.Column("reason", sa.Text, nullable=True),
+    sa.Column("detail", sa.Text, nullable=True),
 )
 
 #: Upgrades, keyed by the version they start from: MIGRATIONS[v](conn) brings a
@@ -119,4 +184,59 @@ def _v1_to_v2(conn: sa.Connection) -> None:
     conn.execute(sa.text("ALTER TABLE tests DROP COLUMN gamma"))
 
 
-MIGRATIONS: dict[int, Callable[[sa.Connection], None]] = {1: _v1_to_v2}
+def _rebuild(conn: sa.Connection, table: sa.Table, columns: list[str]) -> None:
+    """Re-create ``table`` with its current definition (a new primary key),
+    keeping its rows: new table under a temporary name, copy, drop, rename."""
+    md = sa.MetaData()
+    for t in (units, tests, baselines):
+        t.to_metadata(md)
+    tmp = table.to_metadata(md, name=f"{table.name}_v3")
+    tmp.create(conn)
+    cols = ", ".join(columns)
+    conn.execute(sa.text(f"INSERT INTO {tmp.name} ({cols}) SELECT {cols} FROM {table.name}"))
+    conn.execute(sa.text(f"DROP TABLE {table.name}"))
+    conn.execute(sa.text(f"ALTER TABLE {tmp.name} RENAME TO {table.name}"))
+
+
+def _v2_to_v3(conn: sa.Connection) -> None:
+    """Content-addressed tests with their own date and exclusion; named,
+    versioned baselines with flags; a check's evaluation kept per baseline."""
+    false = "false" if conn.dialect.name == "postgresql" else "0"
+    for ddl in (
+        "ALTER TABLE units ADD COLUMN baseline_name VARCHAR(64) NOT NULL DEFAULT 'default'",
+        "ALTER TABLE tests ADD COLUMN record_hash VARCHAR(64) NOT NULL DEFAULT ''",
+        "ALTER TABLE tests ADD COLUMN test_date TIMESTAMP",
+        f"ALTER TABLE tests ADD COLUMN excluded BOOLEAN NOT NULL DEFAULT {false}",
+        "ALTER TABLE tests ADD COLUMN excluded_reason TEXT",
+        # records stored before v3 are known by their file's hash only
+        "UPDATE tests SET record_hash = file_hash",
+        "CREATE UNIQUE INDEX uq_test_record ON tests (unit_id, record_hash)",
+        "ALTER TABLE baselines ADD COLUMN name VARCHAR(64) NOT NULL DEFAULT 'default'",
+        "ALTER TABLE baselines ADD COLUMN version INTEGER NOT NULL DEFAULT 1",
+        "ALTER TABLE baselines ADD COLUMN reason TEXT",
+        "ALTER TABLE baselines ADD COLUMN flags TEXT NOT NULL DEFAULT '[]'",
+    ):
+        conn.execute(sa.text(ddl))
+    rows = conn.execute(sa.text("SELECT id, unit_id FROM baselines ORDER BY id")).all()
+    seen: dict[int, int] = {}
+    for bid, uid in rows:
+        seen[uid] = seen.get(uid, 0) + 1
+        conn.execute(sa.text("UPDATE baselines SET version = :v WHERE id = :i"),
+                     {"v": seen[uid], "i": bid})
+    _rebuild(conn, symptoms, ["test_id", "parameter", "baseline_id", "percent_change",
+                              "high", "low"])
+    _rebuild(conn, diagnoses, ["test_id", "baseline_id", "status", "condition", "summary"])
+    md = sa.MetaData()
+    for t in (units, tests, baselines):
+        t.to_metadata(md)
+    tmp = diagnosis_faults.to_metadata(md, name="diagnosis_faults_v3")
+    tmp.create(conn)
+    conn.execute(sa.text(
+        "INSERT INTO diagnosis_faults_v3 (test_id, baseline_id, name, degree, severity, advice) "
+        "SELECT f.test_id, d.baseline_id, f.name, f.degree, f.severity, f.advice "
+        "FROM diagnosis_faults f JOIN diagnoses d ON d.test_id = f.test_id"))
+    conn.execute(sa.text("DROP TABLE diagnosis_faults"))
+    conn.execute(sa.text("ALTER TABLE diagnosis_faults_v3 RENAME TO diagnosis_faults"))
+
+
+MIGRATIONS: dict[int, Callable[[sa.Connection], None]] = {1: _v1_to_v2, 2: _v2_to_v3}

@@ -3,6 +3,10 @@
 run test -> estimate -> fit >= threshold? (else store as rejected and report)
 -> physical parameters -> store in history -> symptoms against the baseline
 -> diagnose -> go / advisory / no-go for the operator, faults for maintenance.
+
+A unit's baseline is a named, versioned set of tests in the store; a check is
+evaluated against its latest version (see :mod:`condmon.workflows.manage` for
+excluding tests and rebuilding baselines).
 """
 
 from __future__ import annotations
@@ -10,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -21,17 +26,81 @@ from condmon.diagnose.rules import RuleBase, load_rules
 from condmon.errors import DataError
 from condmon.identify.estimate import EstimateResult, estimate
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD
+from condmon.io.digest import content_hash, file_hash
 from condmon.io.records import read_record
 from condmon.models.registry import get_model
-from condmon.monitor.baseline import MIN_BASELINE_TESTS, Baseline, make_baseline
+from condmon.monitor.baseline import (
+    MIN_BASELINE_TESTS, Baseline, assess_baseline, make_baseline,
+)
 from condmon.monitor.fuzzy import MonitorConfig, compute_symptoms, load_monitor_config
-from condmon.store.db import DuplicateTestError, HistoryStore, file_hash, frame_hash
+from condmon.store.baselines import StoredBaseline
+from condmon.store.base import as_utc
+from condmon.store.db import DuplicateTestError, HistoryStore
 
-__all__ = ["EstimateOptions", "AddedTest", "BaselineAddResult", "CheckResult",
-           "add_baseline_tests", "current_baseline", "check_test", "RecordLike"]
+__all__ = ["EstimateOptions", "AddedTest", "BaselineAddResult", "CheckResult", "RecordKey",
+           "add_baseline_tests", "current_baseline", "check_test", "RecordLike",
+           "unit_monitor", "save_current_baseline", "reevaluate", "parse_date", "record_key"]
 
 RecordLike = str | Path | pd.DataFrame
 Progress = Callable[[int, int, str], None]
+
+
+@dataclass(frozen=True)
+class RecordKey:
+    """How a record is known in the history.
+
+    Attributes
+    ----------
+    content : str
+        Content hash (:func:`condmon.io.digest.content_hash`): the same data in
+        another file, format or line-end convention is the same test.
+    file : str
+        SHA-256 of the file's bytes (of the content for an in-memory record).
+    test_date : datetime or None
+        When the test was run (UTC): given, else read from the record's
+        metadata (a date-time time column, a TDMS start time), else unknown.
+    """
+
+    content: str
+    file: str
+    test_date: datetime | None
+
+
+def parse_date(text: str | datetime | None, what: str = "--date") -> datetime | None:
+    """A test date from ISO 8601 text (``2026-03-01`` or ``2026-03-01T14:30``;
+    without a zone it is UTC), as an aware UTC datetime.
+
+    Raises
+    ------
+    DataError
+        Not a date.
+
+    Example
+    -------
+    >>> parse_date("2026-03-01T14:30").isoformat()
+    '2026-03-01T14:30:00+00:00'
+    """
+    if text is None or isinstance(text, datetime):
+        return as_utc(text)
+    try:
+        ts: Any = pd.Timestamp(str(text).strip())
+    except (ValueError, TypeError):
+        ts = None
+    if ts is None or pd.isna(ts) or not 1900 <= ts.year <= 2200:
+        raise DataError(f"{what}: {text!r} is not a date; give ISO 8601, e.g. 2026-03-01 or "
+                        "2026-03-01T14:30 (UTC unless a zone is given)")
+    return as_utc(ts)
+
+
+def record_key(df: pd.DataFrame, path: str | Path | None = None,
+               test_date: str | datetime | None = None) -> RecordKey:
+    """The :class:`RecordKey` of a parsed record (``path``: its file, if any)."""
+    digest = content_hash(df)
+    when = parse_date(test_date)
+    if when is None and df.attrs.get("start_time"):
+        when = parse_date(str(df.attrs["start_time"]), f"{df.attrs.get('source', 'record')}: "
+                          "start time")
+    return RecordKey(digest, file_hash(path) if path is not None else digest, when)
 
 
 @dataclass(frozen=True)
@@ -51,18 +120,20 @@ class EstimateOptions:
     route: str | None = None
     constants: dict[str, float] | None = None
 
-    def run(self, record: RecordLike) -> tuple[EstimateResult, str]:
-        """Read (if a path), estimate; returns the result and the record's SHA-256."""
+    def run(self, record: RecordLike, test_date: str | datetime | None = None
+            ) -> tuple[EstimateResult, RecordKey]:
+        """Read (if a path), estimate; returns the result and how the record is known."""
         if isinstance(record, pd.DataFrame):
-            df, digest = record, frame_hash(record)
+            df, key = record, record_key(record, None, test_date)
             source = str(record.attrs.get("source", "record"))
         else:
-            df, digest, source = read_record(record, self.columns), file_hash(record), str(record)
+            df = read_record(record, self.columns)
+            key, source = record_key(df, record, test_date), str(record)
         res = estimate(df, self.model or "dc-motor", method=self.method, gamma=self.gamma,
                        excitation=self.excitation, fit_threshold=self.fit_threshold,
                        columns=self.columns if isinstance(record, pd.DataFrame) else None,
                        source=source, route=self.route, constants=self.constants)
-        return res, digest
+        return res, key
 
 
 @dataclass(frozen=True)
@@ -93,28 +164,121 @@ class BaselineAddResult:
         accepted healthy tests exist).
     baseline_id : int or None
     message : str
+    flags : tuple of dict
+        Why the baseline may not be trustworthy (see
+        :func:`condmon.monitor.assess_baseline`); empty when nothing is suspicious.
     """
 
     tests: tuple[AddedTest, ...]
     baseline: Baseline | None
     baseline_id: int | None
     message: str
+    flags: tuple[dict[str, Any], ...] = ()
+
+
+def unit_monitor(store: HistoryStore, unit: str) -> MonitorConfig:
+    """The monitor configuration of the unit's model (its ``[monitor]`` breakpoints)."""
+    return load_monitor_config(get_model(store.unit_model(unit) or "dc-motor").breakpoints)
+
+
+def _members(store: HistoryStore, unit: str) -> tuple[list[int], StoredBaseline | None]:
+    """Tests of the unit's active baseline (its latest version without the
+    tests excluded or rejected since), or every accepted, not excluded healthy
+    test while no version exists; with that latest version."""
+    if store.unit_model(unit) is None:  # a new unit: no tests yet
+        return [], None
+    latest = store.latest_baseline(unit)
+    usable, _ = store.accepted_estimates(unit, role=None)
+    if latest is None:
+        ids, _ = store.accepted_estimates(unit, role="baseline")
+        return ids, None
+    keep = set(usable)
+    return [i for i in latest.test_ids if i in keep], latest
+
+
+def _baseline_of(store: HistoryStore, unit: str, ids: Sequence[int]) -> Baseline:
+    values, _ = store.estimates_of(ids)
+    order = store.parameter_order(unit, list(values.columns))
+    return make_baseline(values[order].to_numpy(), order)
 
 
 def current_baseline(store: HistoryStore, unit: str) -> tuple[Baseline, list[int]]:
-    """Baseline of a unit from its accepted healthy tests (and their ids).
+    """Baseline of a unit (its active baseline's tests) and their ids.
 
     Raises
     ------
     DataError
-        Fewer than 3 accepted healthy tests.
+        Fewer than 3 usable tests.
     """
-    ids, table = store.accepted_estimates(unit, role="baseline")
+    ids, latest = _members(store, unit)
     if len(ids) < MIN_BASELINE_TESTS:
-        raise DataError(f"unit {unit!r} has {len(ids)} accepted healthy test(s); a baseline "
-                        f"needs at least {MIN_BASELINE_TESTS}: add them with "
+        why = ("" if latest is None else
+               f" (baseline {latest.name!r} v{latest.version} after exclusions)")
+        raise DataError(f"unit {unit!r} has {len(ids)} accepted healthy test(s){why}; a "
+                        f"baseline needs at least {MIN_BASELINE_TESTS}: add them with "
                         f"`condmon baseline add REC... --unit {unit}`")
-    return make_baseline(table.to_numpy(), list(table.columns)), ids
+    if latest is not None and list(latest.test_ids) == ids:
+        return latest.baseline, ids
+    return _baseline_of(store, unit, ids), ids
+
+
+def save_current_baseline(store: HistoryStore, unit: str, ids: Sequence[int], *,
+                          name: str | None = None, reason: str | None = None,
+                          monitor: MonitorConfig | None = None
+                          ) -> tuple[StoredBaseline, bool]:
+    """Store the baseline of tests ``ids`` as the next version of ``name`` (the
+    unit's active baseline by default), with its plausibility flags; returns
+    it and whether it is a new version. Checks are not re-evaluated here (see
+    :func:`reevaluate`).
+
+    Raises
+    ------
+    DataError
+        Fewer than 3 tests.
+    """
+    base = _baseline_of(store, unit, ids)
+    values, ses = store.estimates_of(ids)
+    cfg = monitor or unit_monitor(store, unit)
+    flags = assess_baseline(values[list(base.parameters)].to_numpy(),
+                            ses[list(base.parameters)].to_numpy(), list(ids),
+                            base.parameters, cfg.baseline)
+    before = store.latest_baseline(unit, name)
+    bid = store.save_baseline(unit, base, ids, name=name, reason=reason, flags=flags)
+    latest = store.latest_baseline(unit, name)
+    assert latest is not None and latest.id == bid
+    return latest, before is None or before.id != bid
+
+
+def reevaluate(store: HistoryStore, unit: str, baseline: StoredBaseline,
+               monitor: MonitorConfig | None = None, rules: RuleBase | None = None
+               ) -> dict[int, tuple[str | None, str]]:
+    """Evaluate every accepted, not excluded check of the unit against
+    ``baseline`` (the evaluations against earlier baselines are kept).
+
+    Returns
+    -------
+    dict
+        ``{test_id: (status before, status now)}`` of the checks evaluated anew.
+    """
+    machine = get_model(store.unit_model(unit) or "dc-motor")
+    cfg = monitor or load_monitor_config(machine.breakpoints)
+    rb = rules or load_rules(machine.rules)
+    hist = store.history(unit)
+    todo = hist[(hist["role"] == "check") & hist["accepted"] & ~hist["excluded"]
+                & (hist["baseline_id"] != baseline.id)]
+    if todo.empty:
+        return {}
+    params = list(baseline.baseline.parameters)
+    values, ses = store.estimates_of(list(todo.index))
+    sym = compute_symptoms(values[params].to_numpy(), baseline.baseline, cfg,
+                           ses[params].to_numpy())
+    changed: dict[int, tuple[str | None, str]] = {}
+    for i, tid in enumerate(todo.index):
+        diag = diagnose(sym.to_dict(i), rb)
+        if store.save_evaluation(unit, int(tid), baseline.id, sym.row(i), diag):
+            before = todo.loc[tid, "status"]
+            changed[int(tid)] = (None if before == "unchecked" else str(before), diag.status)
+    return changed
 
 
 def _unit_options(store: HistoryStore, unit: str, opts: EstimateOptions) -> EstimateOptions:
@@ -134,6 +298,8 @@ def _unit_options(store: HistoryStore, unit: str, opts: EstimateOptions) -> Esti
 
 def _existing_baseline(store: HistoryStore, unit: str) -> Baseline | None:
     """The unit's current baseline, or None while it has fewer than 3 healthy tests."""
+    if store.unit_model(unit) is None:
+        return None
     try:
         return current_baseline(store, unit)[0]
     except DataError:
@@ -149,13 +315,17 @@ def _unit_error(res: EstimateResult, baseline: Baseline) -> str | None:
 
 def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordLike],
                        options: EstimateOptions | None = None,
-                       progress: Progress | None = None) -> BaselineAddResult:
+                       progress: Progress | None = None,
+                       test_date: str | datetime | None = None) -> BaselineAddResult:
     """Estimate healthy records and store them as the unit's baseline tests.
 
     Each record is committed on its own, so an interruption keeps every record
-    finished before it. A record already in the unit's history is skipped. The
-    baseline (mean, sample standard deviation) is recomputed from every
-    accepted healthy test once at least 3 exist.
+    finished before it. A record already in the unit's history (the same
+    content, whatever the file) is skipped. Once at least 3 accepted healthy
+    tests exist, the new ones join the unit's active baseline (a new version,
+    with its plausibility flags) and the unit's checks are evaluated against it.
+    ``test_date`` applies to every record (default: each record's own date,
+    if its metadata has one).
     """
     opts = _unit_options(store, unit, options or EstimateOptions())
     added = []
@@ -163,27 +333,41 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
         name = str(rec) if not isinstance(rec, pd.DataFrame) else rec.attrs.get("source", f"record {i}")
         if progress is not None:
             progress(i, len(records), str(name))
-        res, digest = opts.run(rec)
+        res, key = opts.run(rec, test_date)
         prior = _existing_baseline(store, unit) if res.accepted else None
         why = None if prior is None else _unit_error(res, prior)
         if why is not None:
             added.append(AddedTest(res.source, -1, False, False, why, refused=True))
             continue
         try:
-            tid = store.add_test(unit, res, role="baseline", digest=digest)
+            tid = store.add_test(unit, res, role="baseline", digest=key.content,
+                                 file_digest=key.file, test_date=key.test_date)
             added.append(AddedTest(res.source, tid, res.accepted, False, res.reason))
         except DuplicateTestError as dup:
             added.append(AddedTest(res.source, dup.test_id, res.accepted, True,
                                    "already in the history"))
     if progress is not None:
         progress(len(records), len(records), "")
-    try:
-        baseline, ids = current_baseline(store, unit)
-    except DataError as err:
-        return BaselineAddResult(tuple(added), None, None, str(err))
-    bid = store.save_baseline(unit, baseline, ids)
-    return BaselineAddResult(tuple(added), baseline, bid,
-                             f"baseline of {unit!r} from {baseline.n} accepted healthy tests")
+    new = [t.test_id for t in added if t.accepted and not (t.duplicate or t.refused)]
+    if store.unit_model(unit) is None:  # nothing stored: every record refused
+        return BaselineAddResult(tuple(added), None, None, str(_too_few(unit, 0)))
+    ids, latest = _members(store, unit)
+    ids = sorted(set(ids) | set(new))
+    if len(ids) < MIN_BASELINE_TESTS:
+        return BaselineAddResult(tuple(added), None, None, str(_too_few(unit, len(ids))))
+    stored, fresh = save_current_baseline(
+        store, unit, ids, reason=f"{len(new)} healthy test(s) added" if latest else "first baseline")
+    if fresh:
+        reevaluate(store, unit, stored)
+    return BaselineAddResult(tuple(added), stored.baseline, stored.id,
+                             f"baseline of {unit!r} from {stored.baseline.n} accepted healthy "
+                             f"tests ({stored.name!r} v{stored.version})", stored.flags)
+
+
+def _too_few(unit: str, n: int) -> DataError:
+    return DataError(f"unit {unit!r} has {n} accepted healthy test(s); a baseline needs at "
+                     f"least {MIN_BASELINE_TESTS}: add them with "
+                     f"`condmon baseline add REC... --unit {unit}`")
 
 
 @dataclass(frozen=True)
@@ -204,6 +388,10 @@ class CheckResult:
     symptoms : dict
         ``{param: {"high", "low"}}`` before preprocessing.
     diagnosis : Diagnosis or None
+    baseline_flags : tuple of dict
+        Why the baseline may not be trustworthy (empty when nothing is suspicious).
+    test_date : datetime or None
+        When the test was run, if known (UTC).
     """
 
     unit: str
@@ -214,6 +402,8 @@ class CheckResult:
     percent_change: dict[str, float] = field(default_factory=dict)
     symptoms: dict[str, dict[str, float]] = field(default_factory=dict)
     diagnosis: Diagnosis | None = None
+    baseline_flags: tuple[dict[str, Any], ...] = ()
+    test_date: datetime | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready result (the ``condmon check --json`` document)."""
@@ -222,6 +412,7 @@ class CheckResult:
             "unit": self.unit,
             "test_id": self.test_id,
             "source": self.estimate.source,
+            "test_date": None if self.test_date is None else self.test_date.isoformat(),
             "status": self.status,
             "accepted": self.estimate.accepted,
             "reason": self.estimate.reason,
@@ -239,6 +430,7 @@ class CheckResult:
             "preprocessing_applied": ([] if self.diagnosis is None
                                       else list(self.diagnosis.applied)),
             "baseline": None if self.baseline is None else self.baseline.to_dict(),
+            "baseline_flags": list(self.baseline_flags),
             "method": est["method"],
             "closed_loop_instruments": est["closed_loop_instruments"],
             "notes": est["notes"],
@@ -247,13 +439,15 @@ class CheckResult:
 
 def check_test(store: HistoryStore, unit: str, record: RecordLike,
                options: EstimateOptions | None = None, monitor: MonitorConfig | None = None,
-               rules: RuleBase | None = None, dry_run: bool = False) -> CheckResult:
+               rules: RuleBase | None = None, dry_run: bool = False,
+               test_date: str | datetime | None = None) -> CheckResult:
     """Estimate a test, store it, compute symptoms against the baseline and diagnose.
 
     The monitor breakpoints and the rule base are the model's own (declared in
     its ``[monitor]`` table), the shipped DC-motor ones otherwise, unless given.
     ``dry_run``: estimate and diagnose, store nothing (``test_id`` is -1; a
-    record already in the history is checked again).
+    record already in the history is checked again). ``test_date``: when the
+    test was run (default: from the record's metadata, if any).
 
     Raises
     ------
@@ -270,13 +464,17 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
     rb = rules or load_rules(machine.rules)
     baseline, ids = current_baseline(store, unit)
     rb.check_parameters(baseline.parameters)
-    res, digest = opts.run(record)
+    res, key = opts.run(record, test_date)
     why = _unit_error(res, baseline) if res.accepted else None
     if why is not None:
         raise DataError(f"{res.source}: refused, {why}; nothing was stored")
+    latest = store.latest_baseline(unit)
+    flags = latest.flags if latest is not None and list(latest.test_ids) == ids else ()
     if not res.accepted:
-        tid = -1 if dry_run else store.add_test(unit, res, role="check", digest=digest)
-        return CheckResult(unit, tid, res, "retest", baseline)
+        tid = -1 if dry_run else store.add_test(unit, res, role="check", digest=key.content,
+                                                file_digest=key.file, test_date=key.test_date)
+        return CheckResult(unit, tid, res, "retest", baseline, baseline_flags=flags,
+                           test_date=key.test_date)
     values = np.array([res.parameters[p] for p in baseline.parameters])
     ses = np.array([res.std_errors[p] for p in baseline.parameters])
     sym = compute_symptoms(values, baseline, cfg, ses)
@@ -285,9 +483,13 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
     if dry_run:
         tid = -1
     else:
-        bid = store.save_baseline(unit, baseline, ids)
-        tid = store.add_test(unit, res, role="check", digest=digest, symptoms=row,
-                             baseline_id=bid, diagnosis=diag)
+        if latest is None or list(latest.test_ids) != ids:
+            latest, _ = save_current_baseline(store, unit, ids, monitor=cfg,
+                                              reason="baseline of the first check")
+            flags = latest.flags
+        tid = store.add_test(unit, res, role="check", digest=key.content, file_digest=key.file,
+                             test_date=key.test_date, symptoms=row, baseline_id=latest.id,
+                             diagnosis=diag)
     return CheckResult(unit, tid, res, diag.status, baseline,
                        {p: v["percent_change"] for p, v in row.items()},
-                       sym.to_dict(0), diag)
+                       sym.to_dict(0), diag, flags, key.test_date)

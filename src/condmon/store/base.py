@@ -1,0 +1,202 @@
+"""What every part of the history store shares: the engine, transactions, units, audit."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from datetime import datetime, timezone
+from typing import Any, TypeVar
+
+import numpy as np
+import pandas as pd
+import sqlalchemy as sa
+
+from condmon.errors import ConfigError
+from condmon.store import schema as S
+from condmon.store.engine import actor, run_read, run_write
+
+__all__ = ["StoreBase", "now", "num", "check_name", "as_utc", "utc_column"]
+
+T = TypeVar("T")
+
+
+def now() -> datetime:
+    """The current time, UTC."""
+    return datetime.now(timezone.utc)
+
+
+def as_utc(value: Any) -> datetime | None:
+    """A stored or given date as an aware UTC datetime (None stays None).
+
+    SQLite returns naive datetimes: they were written as UTC.
+    """
+    if value is None or (isinstance(value, float) and np.isnan(value)):
+        return None
+    ts = pd.Timestamp(value)
+    if pd.isna(ts):
+        return None
+    if ts.tzinfo is None:
+        ts = ts.tz_localize("UTC")
+    return ts.tz_convert("UTC").to_pydatetime()
+
+
+def utc_column(values: Any) -> pd.Series:
+    """Stored times as one UTC datetime column (microseconds; missing ones NaT)."""
+    return pd.to_datetime(pd.Series(values), utc=True).astype("datetime64[us, UTC]")
+
+
+def num(x: Any) -> float | None:
+    """A finite float, or None (stored as NULL)."""
+    return float(x) if x is not None and np.isfinite(x) else None
+
+
+def check_name(name: str, what: str = "unit name", limit: int = S.NAME_LENGTH) -> str:
+    """``name`` if the store can keep it the same on every back-end.
+
+    Raises
+    ------
+    ConfigError
+        Empty, longer than :data:`~condmon.store.schema.NAME_LENGTH` characters,
+        or with control characters.
+    """
+    if not isinstance(name, str) or not name.strip():
+        raise ConfigError(f"{what} is empty")
+    if len(name) > limit:
+        raise ConfigError(f"{what} {name[:40]!r}... is {len(name)} characters long; at most "
+                          f"{limit} are kept")
+    if any(ord(c) < 32 or ord(c) == 127 for c in name):
+        raise ConfigError(f"{what} {name!r} contains control characters")
+    return name
+
+
+class StoreBase:
+    """Engine, transactions, units and the audit trail (see :class:`HistoryStore`)."""
+
+    def __init__(self, engine: sa.Engine, db: str, timeout: float) -> None:
+        self.engine = engine
+        self.url = db
+        self.timeout = timeout
+
+    def close(self) -> None:
+        """Release every pooled connection."""
+        self.engine.dispose()
+
+    def __enter__(self) -> Any:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- transactions -------------------------------------------------------------------
+    def _read(self, fn: Callable[[sa.Connection], T]) -> T:
+        return run_read(self.engine, fn, db=self.url, timeout=self.timeout)
+
+    def _write(self, fn: Callable[[sa.Connection], T], lock: str | None) -> T:
+        """One write transaction holding ``lock`` (a unit name; None: the schema)."""
+        return run_write(self.engine, fn, db=self.url, timeout=self.timeout, lock=lock)
+
+    def _log(self, conn: sa.Connection, action: str, *, unit_id: int | None = None,
+             test_id: int | None = None, isolation_id: int | None = None,
+             baseline_id: int | None = None, reason: str | None = None,
+             detail: dict[str, Any] | None = None) -> None:
+        """One audit row, inside the caller's transaction."""
+        conn.execute(sa.insert(S.audit).values(
+            at=now(), actor=actor(), action=action, unit_id=unit_id, test_id=test_id,
+            isolation_id=isolation_id, baseline_id=baseline_id, reason=reason,
+            detail=None if detail is None else json.dumps(detail, default=str)))
+
+    # -- units --------------------------------------------------------------------------
+    def _unit_row(self, conn: sa.Connection, name: str) -> Any:
+        return conn.execute(sa.select(S.units).where(S.units.c.name == name)).first()
+
+    def _unknown_unit(self, conn: sa.Connection, name: str) -> ConfigError:
+        known = [r[0] for r in conn.execute(sa.select(S.units.c.name).order_by(S.units.c.name))]
+        shown = known if len(known) <= 20 else known[:20] + [f"... {len(known) - 20} more"]
+        return ConfigError(f"unknown unit {name!r} in {self.url}; units: {shown or 'none yet'}")
+
+    def unit_id(self, name: str, *, create: bool = False, model: str = "dc-motor",
+                conn: sa.Connection | None = None, model_source: str | None = None) -> int:
+        """Id of unit ``name``; created when ``create`` (else an error naming the units).
+
+        Example
+        -------
+        >>> from condmon.store import open_store
+        >>> with open_store("sqlite://") as store:        # in memory
+        ...     store.unit_id("EMA-1", create=True)
+        1
+        """
+        check_name(name)
+
+        def run(c: sa.Connection) -> int:
+            row = self._unit_row(c, name)
+            if row is not None:
+                return int(row.id)
+            if not create:
+                raise self._unknown_unit(c, name)
+            res = c.execute(sa.insert(S.units).values(name=name, model=model, created_at=now(),
+                                                      model_source=model_source))
+            uid = int(res.inserted_primary_key[0])  # type: ignore[index]
+            self._log(c, "unit created", unit_id=uid, detail={"unit": name, "model": model})
+            return uid
+
+        if conn is not None:
+            return run(conn)
+        if create:
+            return self._write(run, lock=name)
+        return self._read(run)
+
+    def unit_model(self, unit: str) -> str | None:
+        """The unit's model: its declaration file when it is not a shipped model,
+        else its name (None for an unknown unit)."""
+        row = self._read(lambda c: c.execute(
+            sa.select(S.units.c.model, S.units.c.model_source)
+            .where(S.units.c.name == unit)).first())
+        if row is None:
+            return None
+        return str(row[1]) if row[1] else str(row[0])
+
+    def _ordered(self, unit: str, names: list[str], conn: sa.Connection | None = None
+                 ) -> list[str]:
+        """Parameter names in the unit's model order (unknown ones last, sorted)."""
+        from condmon.errors import ModelError
+        from condmon.models.registry import get_model
+
+        if conn is not None:
+            row = conn.execute(sa.select(S.units.c.model, S.units.c.model_source)
+                               .where(S.units.c.name == unit)).first()
+            model = None if row is None else str(row[1] or row[0])
+        else:
+            model = self.unit_model(unit)
+        try:
+            order = list(get_model(model).spec.report) if model else []
+        except (ModelError, ConfigError):
+            order = []
+        return [p for p in order if p in names] + sorted(p for p in names if p not in order)
+
+    def parameter_order(self, unit: str, names: list[str]) -> list[str]:
+        """``names`` in the order the unit's model reports its parameters."""
+        return self._ordered(unit, names)
+
+    def units(self) -> list[str]:
+        """Names of every unit."""
+        return self._read(lambda c: [r[0] for r in c.execute(
+            sa.select(S.units.c.name).order_by(S.units.c.name))])
+
+    def audit(self, unit: str | None = None) -> pd.DataFrame:
+        """The audit trail (oldest first): ``at, actor, action, unit, test_id,
+        isolation_id, baseline_id, reason, detail``."""
+        def run(c: sa.Connection) -> list[Any]:
+            q = (sa.select(S.audit.c.id, S.audit.c.at, S.audit.c.actor, S.audit.c.action,
+                           S.units.c.name, S.audit.c.test_id, S.audit.c.isolation_id,
+                           S.audit.c.baseline_id, S.audit.c.reason, S.audit.c.detail)
+                 .outerjoin(S.units, S.units.c.id == S.audit.c.unit_id))
+            if unit is not None:
+                if self._unit_row(c, unit) is None:
+                    raise self._unknown_unit(c, unit)
+                q = q.where(S.units.c.name == unit)
+            return list(c.execute(q.order_by(S.audit.c.id)).all())
+
+        rows = self._read(run)
+        return pd.DataFrame(rows, columns=["id", "at", "actor", "action", "unit", "test_id",
+                                           "isolation_id", "baseline_id", "reason",
+                                           "detail"]).set_index("id")

@@ -1,0 +1,161 @@
+"""Baselines as named, versioned sets of tests (nothing is overwritten)."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Any
+
+import sqlalchemy as sa
+
+from condmon.monitor.baseline import Baseline
+from condmon.store import schema as S
+from condmon.store.base import StoreBase, as_utc, check_name, now
+
+__all__ = ["BaselinesMixin", "StoredBaseline", "DEFAULT_BASELINE"]
+
+#: Name of a unit's baseline until another is chosen.
+DEFAULT_BASELINE = "default"
+
+
+@dataclass(frozen=True)
+class StoredBaseline:
+    """One version of a unit's named baseline.
+
+    Attributes
+    ----------
+    id : int
+    unit, name : str
+    version : int
+        1, 2, ... within the name.
+    created_at : datetime
+        UTC.
+    test_ids : tuple of int
+        The tests it is computed from.
+    baseline : Baseline
+        Mean and sample standard deviation of each parameter. [parameter units]
+    reason : str or None
+        Why this version was made.
+    flags : tuple of dict
+        Warnings found when it was made (``{"kind", "parameter", "tests", "message"}``):
+        robust outliers, a spread far above the estimates' own standard errors.
+    """
+
+    id: int
+    unit: str
+    name: str
+    version: int
+    created_at: datetime
+    test_ids: tuple[int, ...]
+    baseline: Baseline
+    reason: str | None
+    flags: tuple[dict[str, Any], ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return {"id": self.id, "name": self.name, "version": self.version,
+                "created_at": self.created_at.isoformat(), "test_ids": list(self.test_ids),
+                "reason": self.reason, "flags": list(self.flags), **self.baseline.to_dict()}
+
+
+class BaselinesMixin(StoreBase):
+    """Baseline versions (part of :class:`HistoryStore`)."""
+
+    def active_baseline_name(self, unit: str) -> str:
+        """The name of the baseline checks of ``unit`` are compared with."""
+        def run(c: sa.Connection) -> str:
+            row = self._unit_row(c, unit)
+            if row is None:
+                raise self._unknown_unit(c, unit)
+            return str(row.baseline_name or DEFAULT_BASELINE)
+
+        return self._read(run)
+
+    def save_baseline(self, unit: str, baseline: Baseline, test_ids: Sequence[int], *,
+                      name: str | None = None, reason: str | None = None,
+                      flags: Sequence[dict[str, Any]] = (), activate: bool = True) -> int:
+        """Store a baseline version; returns its id.
+
+        ``name`` None: the unit's active baseline. When the latest version of
+        that name has the same tests, its id is returned and nothing is
+        written; otherwise a new version is added (and, with ``activate``, the
+        name becomes the unit's active baseline). Audited.
+        """
+        ids = sorted({int(i) for i in test_ids})
+        doc = json.dumps(ids)
+        if name is not None:
+            check_name(name, "baseline name", limit=64)
+        flag_doc = json.dumps(list(flags), default=str)
+
+        def run(conn: sa.Connection) -> int:
+            uid = self.unit_id(unit, create=True, conn=conn)
+            urow = conn.execute(sa.select(S.units.c.baseline_name)
+                                .where(S.units.c.id == uid)).first()
+            label = name or (urow[0] if urow is not None else None) or DEFAULT_BASELINE
+            b = S.baselines
+            last = conn.execute(sa.select(b.c.id, b.c.test_ids, b.c.version)
+                                .where(b.c.unit_id == uid, b.c.name == label)
+                                .order_by(b.c.version.desc()).limit(1)).first()
+            if activate and urow is not None and urow[0] != label:
+                conn.execute(sa.update(S.units).where(S.units.c.id == uid)
+                             .values(baseline_name=label))
+                self._log(conn, "baseline chosen", unit_id=uid, reason=reason,
+                          detail={"name": label})
+            if last is not None and json.loads(last[1]) == ids:
+                return int(last[0])
+            version = 1 if last is None else int(last[2]) + 1
+            res = conn.execute(sa.insert(b).values(
+                unit_id=uid, created_at=now(), n=int(baseline.n), test_ids=doc, name=label,
+                version=version, reason=reason, flags=flag_doc))
+            bid = int(res.inserted_primary_key[0])  # type: ignore[index]
+            conn.execute(sa.insert(S.baseline_values), [
+                {"baseline_id": bid, "parameter": p, "mean": m, "std": s}
+                for p, m, s in zip(baseline.parameters, baseline.mean, baseline.std)])
+            self._log(conn, "baseline saved", unit_id=uid, baseline_id=bid, reason=reason,
+                      detail={"name": label, "version": version, "test_ids": ids,
+                              "flags": len(flags)})
+            return bid
+
+        return self._write(run, lock=unit)
+
+    def _stored(self, conn: sa.Connection, unit: str, row: Any) -> StoredBaseline:
+        vals = conn.execute(sa.select(S.baseline_values.c.parameter, S.baseline_values.c.mean,
+                                      S.baseline_values.c.std)
+                            .where(S.baseline_values.c.baseline_id == row.id)).all()
+        order = self._ordered(unit, [v[0] for v in vals], conn)
+        by = {v[0]: v for v in vals}
+        base = Baseline(tuple(order), tuple(float(by[p][1]) for p in order),
+                        tuple(float(by[p][2]) for p in order), int(row.n))
+        created = as_utc(row.created_at)
+        assert created is not None
+        return StoredBaseline(int(row.id), unit, str(row.name), int(row.version), created,
+                              tuple(json.loads(row.test_ids)), base, row.reason,
+                              tuple(json.loads(row.flags or "[]")))
+
+    def baselines(self, unit: str) -> list[StoredBaseline]:
+        """Every version of every named baseline of the unit, oldest first."""
+        def run(c: sa.Connection) -> list[StoredBaseline]:
+            urow = self._unit_row(c, unit)
+            if urow is None:
+                raise self._unknown_unit(c, unit)
+            rows = c.execute(sa.select(S.baselines).where(S.baselines.c.unit_id == urow.id)
+                             .order_by(S.baselines.c.id)).all()
+            return [self._stored(c, unit, r) for r in rows]
+
+        return self._read(run)
+
+    def latest_baseline(self, unit: str, name: str | None = None) -> StoredBaseline | None:
+        """The latest version of ``name`` (default: the unit's active baseline), or None."""
+        def run(c: sa.Connection) -> StoredBaseline | None:
+            urow = self._unit_row(c, unit)
+            if urow is None:
+                raise self._unknown_unit(c, unit)
+            label = name or urow.baseline_name or DEFAULT_BASELINE
+            row = c.execute(sa.select(S.baselines)
+                            .where(S.baselines.c.unit_id == urow.id, S.baselines.c.name == label)
+                            .order_by(S.baselines.c.version.desc()).limit(1)).first()
+            return None if row is None else self._stored(c, unit, row)
+
+        return self._read(run)

@@ -1,0 +1,240 @@
+"""Tests in the history: adding, excluding, their evaluations, and reading them back."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from datetime import datetime
+from typing import Any
+
+import pandas as pd
+import sqlalchemy as sa
+
+from condmon.errors import CondmonError, ConfigError
+from condmon.store import schema as S
+from condmon.store.base import StoreBase, as_utc, check_name, now, num
+
+__all__ = ["TestsMixin", "DuplicateTestError", "TestInfo"]
+
+
+class DuplicateTestError(CondmonError, ValueError):
+    """The same record (same content) is already in the unit's history."""
+
+    def __init__(self, message: str, test_id: int) -> None:
+        super().__init__(message)
+        self.test_id = test_id
+
+
+class TestInfo(dict):  # type: ignore[type-arg]
+    """One test's row (``id, unit, role, accepted, excluded, source, ...``)."""
+
+    __test__ = False  # not a pytest class
+
+
+ROLES = ("baseline", "check")
+
+
+class TestsMixin(StoreBase):
+    """Tests, their estimates and evaluations (part of :class:`HistoryStore`)."""
+
+    def _duplicate(self, conn: sa.Connection, uid: int, record_hash: str,
+                   file_digest: str) -> Any:
+        t = S.tests
+        return conn.execute(sa.select(t.c.id, t.c.excluded).where(
+            t.c.unit_id == uid,
+            sa.or_(t.c.record_hash == record_hash, t.c.file_hash == file_digest))
+            .order_by(t.c.id).limit(1)).first()
+
+    def find_test(self, unit: str, digest: str) -> int | None:
+        """Id of the unit's test with this content (or file) hash, if any."""
+        def run(c: sa.Connection) -> int | None:
+            row = self._unit_row(c, unit)
+            if row is None:
+                return None
+            dup = self._duplicate(c, int(row.id), digest, digest)
+            return None if dup is None else int(dup[0])
+
+        return self._read(run)
+
+    def add_test(self, unit: str, result: Any, *, role: str, digest: str,
+                 file_digest: str | None = None, test_date: datetime | None = None,
+                 symptoms: Mapping[str, Mapping[str, float]] | None = None,
+                 baseline_id: int | None = None, diagnosis: Any = None) -> int:
+        """Write one test and everything derived from it in one transaction.
+
+        Parameters
+        ----------
+        unit : str
+            Unit name (created on first use).
+        result : EstimateResult
+            The estimate.
+        role : {"baseline", "check"}
+        digest : str
+            Content hash of the record (:func:`condmon.io.digest.content_hash`):
+            the same data in another file is the same test.
+        file_digest : str, optional
+            SHA-256 of the file's bytes (information; default ``digest``).
+        test_date : datetime, optional
+            When the test was run (default: unknown; shown by when it was stored).
+        symptoms : mapping, optional
+            ``{param: {"percent_change", "high", "low"}}`` against ``baseline_id``.
+        baseline_id : int, optional
+        diagnosis : Diagnosis, optional
+
+        Returns
+        -------
+        int
+            The new test's id.
+
+        Raises
+        ------
+        DuplicateTestError
+            The record is already in the unit's history (nothing is written).
+        """
+        if role not in ROLES:
+            raise ConfigError(f"role must be 'baseline' or 'check', got {role!r}")
+        check_name(unit)
+        fdig = file_digest or digest
+        when = as_utc(test_date)
+
+        def run(conn: sa.Connection) -> int:
+            uid = self.unit_id(unit, create=True, model=result.model, conn=conn,
+                               model_source=getattr(result, "model_source", None))
+            dup = self._duplicate(conn, uid, digest, fdig)
+            if dup is not None:
+                note = " (excluded; `condmon include` restores it)" if dup[1] else ""
+                raise DuplicateTestError(f"{result.source}: already in the history of {unit!r} "
+                                         f"(test #{dup[0]}{note}); not added again", int(dup[0]))
+            res = conn.execute(sa.insert(S.tests).values(
+                unit_id=uid, created_at=now(), source=result.source, file_hash=fdig,
+                record_hash=digest, test_date=when,
+                role=role, accepted=bool(result.accepted), reason=result.reason,
+                fit_percent=num(result.fit_percent),
+                fits=json.dumps({k: num(v) for k, v in result.fit.fits_percent.items()}),
+                method=result.method, closed_loop=bool(result.closed_loop_instruments),
+                constants=json.dumps({k: num(v) for k, v in
+                                      dict(getattr(result, "constants", {})).items()})))
+            tid = int(res.inserted_primary_key[0])  # type: ignore[index]
+            conn.execute(sa.insert(S.estimates), [
+                {"test_id": tid, "parameter": p, "value": num(v),
+                 "std_error": num(result.std_errors[p])}
+                for p, v in result.parameters.items()])
+            if baseline_id is not None and (symptoms is not None or diagnosis is not None):
+                self._insert_evaluation(conn, tid, baseline_id, symptoms or {}, diagnosis)
+            self._log(conn, "test added", unit_id=uid, test_id=tid,
+                      reason=None if result.accepted else result.reason,
+                      detail={"source": result.source, "role": role,
+                              "accepted": bool(result.accepted)})
+            return tid
+
+        return self._write(run, lock=unit)
+
+    def _insert_evaluation(self, conn: sa.Connection, tid: int, baseline_id: int,
+                           symptoms: Mapping[str, Mapping[str, float]], diagnosis: Any) -> None:
+        if symptoms:
+            conn.execute(sa.insert(S.symptoms), [
+                {"test_id": tid, "parameter": p, "baseline_id": baseline_id,
+                 "percent_change": float(v["percent_change"]), "high": float(v["high"]),
+                 "low": float(v["low"])} for p, v in symptoms.items()])
+        if diagnosis is not None:
+            conn.execute(sa.insert(S.diagnoses).values(
+                test_id=tid, baseline_id=baseline_id, status=diagnosis.status,
+                condition=float(diagnosis.condition), summary=diagnosis.summary))
+            if diagnosis.faults:
+                for f in diagnosis.faults:
+                    check_name(f.name, "fault name")
+                conn.execute(sa.insert(S.diagnosis_faults), [
+                    {"test_id": tid, "baseline_id": baseline_id, "name": f.name,
+                     "degree": float(f.degree), "severity": f.severity, "advice": f.advice}
+                    for f in diagnosis.faults])
+
+    def save_evaluation(self, unit: str, test_id: int, baseline_id: int,
+                        symptoms: Mapping[str, Mapping[str, float]], diagnosis: Any) -> bool:
+        """Store a check's symptoms and diagnosis against another baseline
+        version (a re-evaluation after the baseline changed). The evaluations
+        against earlier baselines are kept. Returns False when one against
+        ``baseline_id`` already exists (nothing written)."""
+        def run(conn: sa.Connection) -> bool:
+            have = conn.execute(sa.select(S.diagnoses.c.test_id).where(
+                S.diagnoses.c.test_id == test_id,
+                S.diagnoses.c.baseline_id == baseline_id)).first()
+            if have is not None:
+                return False
+            self._insert_evaluation(conn, test_id, baseline_id, symptoms, diagnosis)
+            return True
+
+        return self._write(run, lock=unit)
+
+    def test_info(self, test_id: int) -> TestInfo:
+        """One test's row with its unit's name.
+
+        Raises
+        ------
+        ConfigError
+            No such test.
+        """
+        def run(c: sa.Connection) -> Any:
+            t = S.tests
+            return c.execute(sa.select(t, S.units.c.name.label("unit"))
+                             .join(S.units, S.units.c.id == t.c.unit_id)
+                             .where(t.c.id == int(test_id))).mappings().first()
+
+        row = self._read(run)
+        if row is None:
+            raise ConfigError(f"no test #{test_id} in {self.url} (`condmon history --unit U` "
+                              "lists a unit's tests)")
+        return TestInfo(row)
+
+    def set_excluded(self, test_id: int, excluded: bool, reason: str | None) -> TestInfo:
+        """Exclude a test from baselines and trends (or include it again).
+
+        Nothing is deleted: the test stays, marked, and the change is audited.
+        Returns the test's row as it was before.
+        """
+        info = self.test_info(test_id)
+
+        def run(conn: sa.Connection) -> None:
+            conn.execute(sa.update(S.tests).where(S.tests.c.id == int(test_id)).values(
+                excluded=bool(excluded), excluded_reason=reason if excluded else None))
+            self._log(conn, "test excluded" if excluded else "test included",
+                      unit_id=int(info["unit_id"]), test_id=int(test_id), reason=reason,
+                      detail={"source": info["source"]})
+
+        self._write(run, lock=str(info["unit"]))
+        return info
+
+    def estimates_of(self, test_ids: Sequence[int]) -> tuple[pd.DataFrame, pd.DataFrame]:
+        """Values and standard errors (rows: tests in the given order, columns: parameters)."""
+        ids = [int(i) for i in test_ids]
+        if not ids:
+            return pd.DataFrame(), pd.DataFrame()
+        rows = self._read(lambda c: c.execute(
+            sa.select(S.estimates.c.test_id, S.estimates.c.parameter, S.estimates.c.value,
+                      S.estimates.c.std_error).where(S.estimates.c.test_id.in_(ids))).all())
+        df = pd.DataFrame(rows, columns=["test_id", "parameter", "value", "se"])
+        val = df.pivot(index="test_id", columns="parameter", values="value").reindex(ids)
+        se = df.pivot(index="test_id", columns="parameter", values="se").reindex(ids)
+        return val, se
+
+    def accepted_estimates(self, unit: str, role: str | None = "baseline"
+                           ) -> tuple[list[int], pd.DataFrame]:
+        """Ids and parameter table (rows: tests, columns: parameters) of the
+        unit's accepted, not excluded tests of ``role`` (None: every role),
+        oldest first."""
+        def run(c: sa.Connection) -> list[Any]:
+            q = (sa.select(S.tests.c.id, S.estimates.c.parameter, S.estimates.c.value)
+                 .join(S.units, S.units.c.id == S.tests.c.unit_id)
+                 .join(S.estimates, S.estimates.c.test_id == S.tests.c.id)
+                 .where(S.units.c.name == unit, S.tests.c.accepted.is_(True),
+                        S.tests.c.excluded.is_(False)))
+            if role is not None:
+                q = q.where(S.tests.c.role == role)
+            return list(c.execute(q.order_by(S.tests.c.id)).all())
+
+        rows = self._read(run)
+        if not rows:
+            return [], pd.DataFrame()
+        df = pd.DataFrame(rows, columns=["test_id", "parameter", "value"])
+        wide = df.pivot(index="test_id", columns="parameter", values="value")
+        return [int(i) for i in wide.index], wide[self._ordered(unit, list(wide.columns))]
+

@@ -1,0 +1,150 @@
+"""Fault isolations of plant-model units (``condmon isolate --unit``) in the history."""
+
+from __future__ import annotations
+
+import json
+from datetime import datetime
+from typing import Any
+
+import pandas as pd
+import sqlalchemy as sa
+
+from condmon.store import schema as S
+from condmon.store.base import StoreBase, as_utc, check_name, now, num, utc_column
+from condmon.store.history import DuplicateTestError
+
+__all__ = ["IsolationsMixin", "isolation_status"]
+
+
+def isolation_status(detected: bool, decided: bool) -> str:
+    """The operator's status of an isolation: ``go`` (no fault detected),
+    ``no-go`` (a fault detected, isolated or not) or ``retest`` (undecided).
+
+    Example
+    -------
+    >>> isolation_status(True, True), isolation_status(False, False)
+    ('no-go', 'retest')
+    """
+    if not decided and not detected:
+        return "retest"
+    return "no-go" if detected else "go"
+
+
+class IsolationsMixin(StoreBase):
+    """Isolations (part of :class:`HistoryStore`)."""
+
+    def add_isolation(self, unit: str, result: Any, *, model: str, source: str, digest: str,
+                      file_digest: str | None = None, test_date: datetime | None = None,
+                      model_source: str | None = None) -> int:
+        """Store one isolation (detection, suspects, estimates, statement).
+
+        Parameters
+        ----------
+        unit : str
+            Unit name (created on first use, with ``model``).
+        result : IsolationResult
+        model : str
+            The plant model's name.
+        source : str
+            The record's file.
+        digest : str
+            Content hash of the record; the same data twice is refused.
+        file_digest : str, optional
+        test_date : datetime, optional
+        model_source : str, optional
+            The declaration file, when the model is not a shipped one.
+
+        Returns
+        -------
+        int
+            The isolation's id.
+
+        Raises
+        ------
+        DuplicateTestError
+            The record is already among the unit's isolations.
+        """
+        check_name(unit)
+        doc = result.to_dict()
+        fdig = file_digest or digest
+
+        def run(conn: sa.Connection) -> int:
+            uid = self.unit_id(unit, create=True, model=model, conn=conn,
+                               model_source=model_source)
+            i = S.isolations
+            dup = conn.execute(sa.select(i.c.id).where(
+                i.c.unit_id == uid, sa.or_(i.c.record_hash == digest, i.c.file_hash == fdig))
+            ).first()
+            if dup is not None:
+                raise DuplicateTestError(f"{source}: already in the history of {unit!r} "
+                                         f"(isolation #{dup[0]}); not added again", int(dup[0]))
+            res = conn.execute(sa.insert(i).values(
+                unit_id=uid, created_at=now(), test_date=as_utc(test_date), source=source,
+                file_hash=fdig, record_hash=digest, model=model,
+                detected=bool(result.detected), detection_time=num(result.detection_time),
+                decided=bool(result.decided), reason=result.reason, statement=result.statement,
+                suspects=json.dumps(list(result.suspects)),
+                isolated=json.dumps(list(result.isolated)),
+                result=json.dumps(doc, default=str)))
+            iid = int(res.inserted_primary_key[0])  # type: ignore[index]
+            rows = [{"isolation_id": iid, "parameter": p, "value": num(e.value),
+                     "nominal": num(e.nominal), "change_percent": num(e.change_percent),
+                     "error_sigma": num(result.errors.get(p)),
+                     "rejected": result.rejected.get(p)}
+                    for p, e in result.estimates.items()]
+            if rows:
+                conn.execute(sa.insert(S.isolation_estimates), rows)
+            self._log(conn, "isolation added", unit_id=uid, isolation_id=iid,
+                      detail={"source": source, "statement": result.statement})
+            return iid
+
+        return self._write(run, lock=unit)
+
+    def isolations(self, unit: str) -> pd.DataFrame:
+        """One row per isolation of the unit, oldest first.
+
+        Columns: ``isolation_id`` (index), ``created_at, test_date, date`` (the
+        test date, else when stored), ``source, detected, detection_time,
+        decided, status, reason, statement, suspects, isolated, excluded``, then
+        for each suspect ever estimated ``<p>`` (estimate), ``<p>_change`` [%]
+        and ``<p>_error`` (model output error [noise sd]).
+        """
+        def run(c: sa.Connection) -> tuple[list[Any], list[Any]]:
+            urow = self._unit_row(c, unit)
+            if urow is None:
+                raise self._unknown_unit(c, unit)
+            i = S.isolations
+            base = c.execute(sa.select(i.c.id, i.c.created_at, i.c.test_date, i.c.source,
+                                       i.c.detected, i.c.detection_time, i.c.decided,
+                                       i.c.reason, i.c.statement, i.c.suspects, i.c.isolated,
+                                       i.c.excluded)
+                             .where(i.c.unit_id == urow.id).order_by(i.c.id)).all()
+            est = c.execute(sa.select(S.isolation_estimates.c.isolation_id,
+                                      S.isolation_estimates.c.parameter,
+                                      S.isolation_estimates.c.value,
+                                      S.isolation_estimates.c.change_percent,
+                                      S.isolation_estimates.c.error_sigma)
+                            .join(i, i.c.id == S.isolation_estimates.c.isolation_id)
+                            .where(i.c.unit_id == urow.id)).all()
+            return list(base), list(est)
+
+        base, est = self._read(run)
+        cols = ["isolation_id", "created_at", "test_date", "source", "detected",
+                "detection_time", "decided", "reason", "statement", "suspects", "isolated",
+                "excluded"]
+        df = pd.DataFrame(base, columns=cols).set_index("isolation_id")
+        df["created_at"] = utc_column(df["created_at"])
+        df["test_date"] = utc_column(df["test_date"])
+        df["date"] = df["test_date"].fillna(df["created_at"])
+        df["status"] = [isolation_status(bool(d), bool(k))
+                        for d, k in zip(df["detected"], df["decided"])]
+        for col in ("suspects", "isolated"):
+            df[col] = [json.loads(v) for v in df[col]]
+        if est:
+            e = pd.DataFrame(est, columns=["isolation_id", "parameter", "value", "change",
+                                           "error"])
+            for col, suffix in (("value", ""), ("change", "_change"), ("error", "_error")):
+                w = e.pivot(index="isolation_id", columns="parameter", values=col)
+                w.columns = [f"{c}{suffix}" for c in w.columns]
+                df = df.join(w)
+        return df

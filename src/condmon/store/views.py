@@ -1,0 +1,164 @@
+"""Reading a history back: a unit's tests as one table, every unit's latest status."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import pandas as pd
+import sqlalchemy as sa
+
+from condmon.store import schema as S
+from condmon.store.base import StoreBase, as_utc, utc_column
+from condmon.store.isolations import isolation_status
+
+__all__ = ["ViewsMixin", "test_status"]
+
+
+def test_status(role: str, accepted: bool, excluded: bool, status: Any) -> str:
+    """What a test row shows: ``excluded``, ``baseline``, ``rejected`` (a
+    rejected baseline test), ``retest`` (a rejected check) or the check's
+    go / advisory / no-go.
+
+    Example
+    -------
+    >>> test_status("check", True, False, "no-go"), test_status("check", False, False, None)
+    ('no-go', 'retest')
+    """
+    if excluded:
+        return "excluded"
+    if role == "baseline":
+        return "baseline" if accepted else "rejected"
+    if not accepted:
+        return "retest"
+    return str(status) if isinstance(status, str) else "unchecked"
+
+
+class ViewsMixin(StoreBase):
+    """History tables (part of :class:`HistoryStore`)."""
+
+    def _latest_evaluation(self, table: sa.Table) -> Any:
+        """Per test, the newest baseline it was evaluated against."""
+        return (sa.select(table.c.test_id, sa.func.max(table.c.baseline_id).label("bid"))
+                .group_by(table.c.test_id).subquery())
+
+    def history(self, unit: str) -> pd.DataFrame:
+        """One row per test of the unit, oldest first.
+
+        Columns: ``test_id`` (index), ``created_at`` (when stored, UTC),
+        ``test_date`` (when run, if known), ``date`` (the test date, else when
+        stored), ``source, role, accepted, excluded, excluded_reason, reason,
+        fit_percent, fits, method, status`` (see :func:`test_status`),
+        ``summary, baseline_id`` (of the evaluation shown: the newest), then
+        each parameter's value, ``<param>_se`` (its standard error) and, for
+        checked tests, ``<param>_change`` [%], ``<param>_high``, ``<param>_low``.
+        """
+        def run(c: sa.Connection) -> tuple[list[Any], list[Any], list[Any]]:
+            urow = self._unit_row(c, unit)
+            if urow is None:
+                raise self._unknown_unit(c, unit)
+            t, d = S.tests, S.diagnoses
+            ld = self._latest_evaluation(d)
+            base = c.execute(
+                sa.select(t.c.id, t.c.created_at, t.c.test_date, t.c.source, t.c.role,
+                          t.c.accepted, t.c.excluded, t.c.excluded_reason, t.c.reason,
+                          t.c.fit_percent, t.c.fits, t.c.method, d.c.status, d.c.summary,
+                          d.c.baseline_id)
+                .outerjoin(ld, ld.c.test_id == t.c.id)
+                .outerjoin(d, sa.and_(d.c.test_id == t.c.id, d.c.baseline_id == ld.c.bid))
+                .where(t.c.unit_id == urow.id).order_by(t.c.id)).all()
+            est = c.execute(
+                sa.select(S.estimates.c.test_id, S.estimates.c.parameter, S.estimates.c.value,
+                          S.estimates.c.std_error)
+                .join(t, t.c.id == S.estimates.c.test_id).where(t.c.unit_id == urow.id)).all()
+            s = S.symptoms
+            ls = self._latest_evaluation(s)
+            sym = c.execute(
+                sa.select(s.c.test_id, s.c.parameter, s.c.percent_change, s.c.high, s.c.low)
+                .join(ls, sa.and_(ls.c.test_id == s.c.test_id, ls.c.bid == s.c.baseline_id))
+                .join(t, t.c.id == s.c.test_id).where(t.c.unit_id == urow.id)).all()
+            return list(base), list(est), list(sym)
+
+        base, est, sym = self._read(run)
+        cols = ["test_id", "created_at", "test_date", "source", "role", "accepted", "excluded",
+                "excluded_reason", "reason", "fit_percent", "fits", "method", "status",
+                "summary", "baseline_id"]
+        df = pd.DataFrame(base, columns=cols).set_index("test_id")
+        df["created_at"] = utc_column(df["created_at"])
+        df["test_date"] = utc_column(df["test_date"])
+        df.insert(2, "date", df["test_date"].fillna(df["created_at"]))
+        df["accepted"] = df["accepted"].astype(bool)
+        df["excluded"] = df["excluded"].astype(bool)
+        df["status"] = [test_status(r, a, x, s) for r, a, x, s in
+                        zip(df["role"], df["accepted"], df["excluded"], df["status"])]
+        if est:
+            e = pd.DataFrame(est, columns=["test_id", "parameter", "value", "se"])
+            val = e.pivot(index="test_id", columns="parameter", values="value")
+            order = self._ordered(unit, list(val.columns))
+            se = e.pivot(index="test_id", columns="parameter", values="se")[order]
+            se.columns = [f"{c}_se" for c in se.columns]
+            df = df.join(val[order]).join(se)
+        if sym:
+            s = pd.DataFrame(sym, columns=["test_id", "parameter", "change", "high", "low"])
+            for col in ("change", "high", "low"):
+                w = s.pivot(index="test_id", columns="parameter", values=col)
+                w.columns = [f"{c}_{col}" for c in w.columns]
+                df = df.join(w)
+        return df
+
+    def unit_summaries(self) -> list[dict[str, Any]]:
+        """Every unit with its model, number of tests and isolations, its
+        latest test or isolation (by date), that one's status, and the
+        active baseline's flags (``baseline_flags``: how many warnings)."""
+        def run(c: sa.Connection) -> list[dict[str, Any]]:
+            t, i, d = S.tests, S.isolations, S.diagnoses
+            ld = self._latest_evaluation(d)
+            out = []
+            units = c.execute(sa.select(S.units).order_by(S.units.c.name)).all()
+            for u in units:
+                n = c.execute(sa.select(sa.func.count()).select_from(t)
+                              .where(t.c.unit_id == u.id)).scalar_one()
+                m = c.execute(sa.select(sa.func.count()).select_from(i)
+                              .where(i.c.unit_id == u.id)).scalar_one()
+                last = c.execute(
+                    sa.select(t.c.id, t.c.source, t.c.role, t.c.accepted, t.c.excluded,
+                              d.c.status, sa.func.coalesce(t.c.test_date, t.c.created_at),
+                              d.c.summary, t.c.reason)
+                    .outerjoin(ld, ld.c.test_id == t.c.id)
+                    .outerjoin(d, sa.and_(d.c.test_id == t.c.id, d.c.baseline_id == ld.c.bid))
+                    .where(t.c.unit_id == u.id, t.c.excluded.is_(False))
+                    .order_by(sa.func.coalesce(t.c.test_date, t.c.created_at).desc(),
+                              t.c.id.desc()).limit(1)).first()
+                iso = c.execute(
+                    sa.select(i.c.id, i.c.source, i.c.detected, i.c.decided, i.c.statement,
+                              sa.func.coalesce(i.c.test_date, i.c.created_at))
+                    .where(i.c.unit_id == u.id, i.c.excluded.is_(False))
+                    .order_by(sa.func.coalesce(i.c.test_date, i.c.created_at).desc(),
+                              i.c.id.desc()).limit(1)).first()
+                status, source, when, summary = None, None, None, None
+                if last is not None:
+                    status = test_status(last[2], bool(last[3]), bool(last[4]), last[5])
+                    source, when = last[1], last[6]
+                    summary = last[7] if last[3] else last[8]
+                if iso is not None and (when is None or _after(iso[5], when)):
+                    status = isolation_status(bool(iso[2]), bool(iso[3]))
+                    source, when, summary = iso[1], iso[5], iso[4]
+                flags = c.execute(
+                    sa.select(S.baselines.c.flags)
+                    .where(S.baselines.c.unit_id == u.id,
+                           S.baselines.c.name == (u.baseline_name or "default"))
+                    .order_by(S.baselines.c.version.desc()).limit(1)).scalar()
+                stamp = as_utc(when)
+                out.append({"unit": u.name, "model": u.model_source or u.model,
+                            "tests": int(n), "isolations": int(m), "latest_source": source,
+                            "latest_date": None if stamp is None else stamp.isoformat(),
+                            "status": status, "summary": summary,
+                            "baseline_flags": len(json.loads(flags)) if flags else 0})
+            return out
+
+        return self._read(run)
+
+
+def _after(a: Any, b: Any) -> bool:
+    ta, tb = as_utc(a), as_utc(b)
+    return ta is not None and tb is not None and ta >= tb

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from datetime import datetime, timezone
 from typing import Any, TypeVar
 
@@ -13,7 +14,7 @@ import sqlalchemy as sa
 
 from condmon.errors import ConfigError
 from condmon.store import schema as S
-from condmon.store.engine import actor, run_read, run_write
+from condmon.store.engine import SCHEMA_LOCK, actor, run_read, run_write, store_error
 
 __all__ = ["StoreBase", "now", "num", "check_name", "as_utc", "utc_column"]
 
@@ -76,6 +77,7 @@ class StoreBase:
         self.engine = engine
         self.url = db
         self.timeout = timeout
+        self._batch: sa.Connection | None = None
 
     def close(self) -> None:
         """Release every pooled connection."""
@@ -89,11 +91,61 @@ class StoreBase:
 
     # -- transactions -------------------------------------------------------------------
     def _read(self, fn: Callable[[sa.Connection], T]) -> T:
+        if self._batch is not None:
+            return self._in_batch(fn)
         return run_read(self.engine, fn, db=self.url, timeout=self.timeout)
 
     def _write(self, fn: Callable[[sa.Connection], T], lock: str | None) -> T:
         """One write transaction holding ``lock`` (a unit name; None: the schema)."""
+        if self._batch is not None:
+            return self._in_batch(fn)
         return run_write(self.engine, fn, db=self.url, timeout=self.timeout, lock=lock)
+
+    def _in_batch(self, fn: Callable[[sa.Connection], T]) -> T:
+        assert self._batch is not None
+        try:
+            with self._batch.begin_nested():  # a failed write undoes only itself
+                return fn(self._batch)
+        except sa.exc.SQLAlchemyError as err:
+            raise store_error(err, self.url, self.timeout) from None
+
+    @contextmanager
+    def batch(self) -> Iterator[None]:
+        """Every read and write inside the block in one transaction.
+
+        For a client writing many results at once (a fleet run): one commit
+        per batch instead of one per test. A write that fails inside the block
+        (a duplicate, say) is undone alone and its error raised; leaving the
+        block with an exception undoes the whole batch. The batch holds the
+        database's write lock (SQLite) or the schema lock (PostgreSQL) until it
+        ends, so keep it to writes.
+
+        Example
+        -------
+        >>> from condmon.store import open_store
+        >>> with open_store("sqlite://") as store:
+        ...     with store.batch():
+        ...         ids = [store.unit_id(f"U{i}", create=True) for i in range(3)]
+        ...     store.units()
+        ['U0', 'U1', 'U2']
+        """
+        if self._batch is not None:
+            raise RuntimeError("batches do not nest")
+        def hold(conn: sa.Connection) -> None:
+            self._batch = conn
+        try:
+            with self.engine.connect().execution_options(condmon_write=True) as conn:
+                with conn.begin():
+                    if conn.dialect.name == "postgresql":
+                        conn.exec_driver_sql(
+                            f"SET LOCAL lock_timeout = {int(self.timeout * 1000)}")
+                        conn.execute(sa.select(sa.func.pg_advisory_xact_lock(SCHEMA_LOCK)))
+                    hold(conn)
+                    yield
+        except sa.exc.SQLAlchemyError as err:
+            raise store_error(err, self.url, self.timeout) from None
+        finally:
+            self._batch = None
 
     def _log(self, conn: sa.Connection, action: str, *, unit_id: int | None = None,
              test_id: int | None = None, isolation_id: int | None = None,

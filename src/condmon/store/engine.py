@@ -26,7 +26,7 @@ import sqlalchemy as sa
 from condmon.errors import CondmonError
 
 __all__ = ["StoreError", "StoreBusyError", "database_url", "make_engine", "store_error",
-           "run_write", "run_read", "actor", "DEFAULT_TIMEOUT", "sqlite_path"]
+           "run_write", "run_read", "actor", "DEFAULT_TIMEOUT", "sqlite_path", "SCHEMA_LOCK"]
 
 T = TypeVar("T")
 
@@ -34,8 +34,8 @@ T = TypeVar("T")
 #: gives up (environment variable ``CONDMON_DB_TIMEOUT`` overrides it).
 DEFAULT_TIMEOUT = 60.0
 
-# a lock-wait key for schema creation and migration (any fixed 64-bit number)
-_SCHEMA_LOCK = 0x636F6E646D6F6E
+#: Advisory-lock key of schema creation, migration and batches on PostgreSQL.
+SCHEMA_LOCK = 0x636F6E646D6F6E
 
 
 class StoreError(CondmonError, RuntimeError):
@@ -183,7 +183,7 @@ def run_write(engine: sa.Engine, fn: Callable[[sa.Connection], T], *, db: str,
                 with conn.begin():
                     if conn.dialect.name == "postgresql":
                         conn.exec_driver_sql(f"SET LOCAL lock_timeout = {int(timeout * 1000)}")
-                        key = _SCHEMA_LOCK if lock is None else zlib.crc32(lock.encode()) + (1 << 40)
+                        key = SCHEMA_LOCK if lock is None else zlib.crc32(lock.encode()) + (1 << 40)
                         conn.execute(sa.select(sa.func.pg_advisory_xact_lock(key)))
                     return fn(conn)
         except sa.exc.SQLAlchemyError as err:

@@ -39,7 +39,8 @@ from condmon.store.db import DuplicateTestError, HistoryStore
 
 __all__ = ["EstimateOptions", "AddedTest", "BaselineAddResult", "CheckResult", "RecordKey",
            "add_baseline_tests", "current_baseline", "check_test", "RecordLike",
-           "unit_monitor", "save_current_baseline", "reevaluate", "parse_date", "record_key"]
+           "unit_monitor", "save_current_baseline", "reevaluate", "parse_date", "record_key",
+           "evaluate"]
 
 RecordLike = str | Path | pd.DataFrame
 Progress = Callable[[int, int, str], None]
@@ -281,6 +282,22 @@ def reevaluate(store: HistoryStore, unit: str, baseline: StoredBaseline,
     return changed
 
 
+def evaluate(res: EstimateResult, baseline: Baseline, monitor: MonitorConfig,
+             rules: RuleBase) -> tuple[dict[str, dict[str, float]], Diagnosis]:
+    """Symptoms and diagnosis of one accepted estimate against a baseline (no store).
+
+    Returns
+    -------
+    row : dict
+        ``{param: {"percent_change", "high", "low"}}`` (what the store keeps).
+    diagnosis : Diagnosis
+    """
+    values = np.array([res.parameters[p] for p in baseline.parameters])
+    ses = np.array([res.std_errors[p] for p in baseline.parameters])
+    sym = compute_symptoms(values, baseline, monitor, ses)
+    return sym.row(0), diagnose(sym.to_dict(0), rules)
+
+
 def _unit_options(store: HistoryStore, unit: str, opts: EstimateOptions) -> EstimateOptions:
     """Options with the unit's model filled in; refuses a record offered with
     another model than the one the unit's history was started with."""
@@ -475,11 +492,7 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
                                                 file_digest=key.file, test_date=key.test_date)
         return CheckResult(unit, tid, res, "retest", baseline, baseline_flags=flags,
                            test_date=key.test_date)
-    values = np.array([res.parameters[p] for p in baseline.parameters])
-    ses = np.array([res.std_errors[p] for p in baseline.parameters])
-    sym = compute_symptoms(values, baseline, cfg, ses)
-    row = sym.row(0)
-    diag = diagnose(sym.to_dict(0), rb)
+    row, diag = evaluate(res, baseline, cfg, rb)
     if dry_run:
         tid = -1
     else:
@@ -492,4 +505,5 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
                              diagnosis=diag)
     return CheckResult(unit, tid, res, diag.status, baseline,
                        {p: v["percent_change"] for p, v in row.items()},
-                       sym.to_dict(0), diag, flags, key.test_date)
+                       {p: {"high": v["high"], "low": v["low"]} for p, v in row.items()},
+                       diag, flags, key.test_date)

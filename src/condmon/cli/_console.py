@@ -22,7 +22,7 @@ def fmt(value: float) -> str:
     return f"{value:.5g}"
 
 
-def write_json(doc: dict[str, Any]) -> None:
+def write_json(doc: Any) -> None:
     """Print ``doc`` as JSON. Never raises on the content: a non-finite number
     (NaN, ±inf) becomes null, numpy scalars and arrays become numbers and lists,
     anything else unknown its text."""

@@ -17,6 +17,8 @@ from rich.markup import escape
 from rich.table import Table
 
 from condmon.cli._console import err, fmt, out, progress, write_json
+from condmon.cli.history import print_flags
+from condmon.cli.history import register as register_history_commands
 from condmon.cli.plant import register as register_plant_commands
 from condmon.errors import CondmonError
 from condmon.identify.defaults import DEFAULT_FIT_THRESHOLD, list_estimators
@@ -31,6 +33,7 @@ app.add_typer(simulate_app, name="simulate")
 baseline_app = typer.Typer(no_args_is_help=True, help="Build a unit's healthy baseline.")
 app.add_typer(baseline_app, name="baseline")
 register_plant_commands(app, simulate_app)
+register_history_commands(app, baseline_app)
 
 
 
@@ -180,6 +183,7 @@ def _options(method: str, gamma: float | None, excitation: str, columns: str | N
                            parse_column_map(columns) or None, route, consts or None)
 
 
+DateOpt = Annotated[Optional[str], typer.Option(help="When the test was run, ISO 8601 (2026-03-01 or 2026-03-01T14:30, UTC unless a zone is given); default: the record's own date, if it has one.")]
 DbOpt = Annotated[str, typer.Option("--db", help="History database: a SQLite file or a postgresql:// URL.")]
 UnitOpt = Annotated[str, typer.Option("--unit", help="Unit (machine) name.")]
 MethodOpt = Annotated[str, typer.Option(help=f"Estimator: {', '.join(list_estimators())}.")]
@@ -202,6 +206,7 @@ def baseline_add_cmd(
     model: UnitModelOpt = None,
     route: RouteOpt = None,
     constants: ConstOpt = None,
+    date: DateOpt = None,
 ) -> None:
     """Estimate healthy tests and store them as the unit's baseline."""
     from condmon.workflows.monitoring import add_baseline_tests
@@ -216,9 +221,9 @@ def baseline_add_cmd(
                 def tick(done: int, total: int, label: str) -> None:
                     prog.update(task, completed=done, description=Path(label).name or "done")
 
-                res = add_baseline_tests(store, unit, records, opts, tick)
+                res = add_baseline_tests(store, unit, records, opts, tick, test_date=date)
         else:
-            res = add_baseline_tests(store, unit, records, opts)
+            res = add_baseline_tests(store, unit, records, opts, test_date=date)
     for t in res.tests:
         if t.refused:
             err.print(f"refused {t.source}: {t.reason}", highlight=False, markup=False, soft_wrap=True)
@@ -236,6 +241,7 @@ def baseline_add_cmd(
         for p, m, sd in zip(res.baseline.parameters, res.baseline.mean, res.baseline.std):
             table.add_row(escape(p), fmt(m), fmt(sd), f"{100 * sd / abs(m):.2f}")
         out.print(table)
+    print_flags(res.flags, unit)
 
 
 @app.command("check")
@@ -253,6 +259,7 @@ def check_cmd(
     model: UnitModelOpt = None,
     route: RouteOpt = None,
     constants: ConstOpt = None,
+    date: DateOpt = None,
     dry_run: Annotated[bool, typer.Option("--dry-run", help="Estimate and diagnose, store nothing.")] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
 ) -> None:
@@ -266,12 +273,13 @@ def check_cmd(
     cfg = load_monitor_config(monitor) if monitor is not None else None
     rb = load_rules(rules) if rules is not None else None
     with open_store(db, create=False) as store:
-        res = check_test(store, unit, record, opts, cfg, rb, dry_run=dry_run)
+        res = check_test(store, unit, record, opts, cfg, rb, dry_run=dry_run, test_date=date)
     if as_json:
         write_json(res.to_dict())
         return
     if dry_run:
         err.print("dry run: nothing was stored", highlight=False)
+    print_flags(res.baseline_flags, unit)
     out.print(f"{escape(unit)} — {escape(str(record))}: {_status_text(res.status)}  "
               f"(fit {res.estimate.fit_percent:.1f} %"
               + (f", test #{res.test_id})" if res.test_id >= 0 else ", not stored)"))
@@ -327,46 +335,89 @@ def history_cmd(
     db: DbOpt = "condmon.db",
     as_json: Annotated[bool, typer.Option("--json", help="Print the history as JSON records.")] = False,
 ) -> None:
-    """Show the unit's tests: fit, status and parameter changes."""
+    """Show the unit's tests (fit, status, parameter changes) or isolations."""
+    import json
+
     import pandas as pd
 
-    from condmon.store.db import open_store
-
     from condmon.models.registry import get_model
+    from condmon.store.db import open_store
 
     with open_store(db, create=False) as store:
         hist = store.history(unit)
+        isos = store.isolations(unit)
         model = store.unit_model(unit) or "dc-motor"
+        baseline = store.latest_baseline(unit)
+    if as_json:
+        docs = json.loads(hist.reset_index().to_json(orient="records", date_format="iso"))
+        docs = [{"kind": "test", **d} for d in docs]
+        docs += [{"kind": "isolation", **d} for d in
+                 json.loads(isos.reset_index().to_json(orient="records", date_format="iso"))]
+        write_json(docs)
+        return
+    name = escape(Path(model).name)
+    if len(isos):
+        _print_isolations(unit, name, isos)
+    if len(hist) == 0:
+        if not len(isos):
+            out.print(f"{escape(unit)} has no tests yet")
+        return
     # the estimated parameters (derived ones, e.g. Ke = gamma Kt, move with them)
     params = [p for p in get_model(model).spec.unknowns if p in hist.columns]
-    if as_json:
-        sys.stdout.write(hist.reset_index().to_json(orient="records", date_format="iso", indent=2) + "\n")
-        return
-    table = Table(title=escape(f"History of {unit} ({model}): change against the baseline [%]"),
-                  box=box.SIMPLE_HEAD, padding=(0, 1))
-    widths = {"#": 3, "fit": 4, "status": 8}  # fits 80 columns with five parameters
-    for col in ("#", "source", "fit", "status", *params):
-        table.add_column(col, justify="left" if col in ("source", "status") else "right",
-                         no_wrap=True, overflow="ellipsis",
-                         min_width=widths.get(col, 5) if col != "source" else 8,
-                         max_width=14 if col == "source" else None)
+    dated = hist["test_date"].notna().any()
+    table = Table(title=escape(f"History of {unit} ({Path(model).name}): change against the "
+                               "baseline [%]"), box=box.SIMPLE_HEAD, padding=(0, 1),
+                  pad_edge=False, collapse_padding=True)
+    # fits 80 columns with a date and five parameters
+    widths = {"#": 3, "fit": 4, "status": 8, "date": 8, "source": 8}
+    for col in ("#", *(("date",) if dated else ()), "source", "fit", "status", *params):
+        table.add_column(col, justify="left" if col in ("source", "status", "date") else "right",
+                         no_wrap=True, overflow="ellipsis", min_width=widths.get(col, 5),
+                         max_width={"source": 10 if dated else 14, "date": 8}.get(col))
     notes = []
     for tid, r in hist.iterrows():
-        if r["role"] == "check":
-            status = _status_text(r["status"] if r["accepted"] else "retest")
-        else:
-            status = "baseline" if r["accepted"] else "[red]rejected[/]"
-        changes = [f"{r[f'{p}_change']:+.1f}" if f"{p}_change" in r and pd.notna(r[f"{p}_change"])
-                   else "" for p in params]
+        status = r["status"]
+        shown = (_status_text(status) if status in ("go", "advisory", "no-go", "retest")
+                 else {"rejected": "[red]rejected[/]", "excluded": "[dim]excluded[/]"}.get(
+                     status, escape(str(status))))
+        changes = ([] if status == "excluded" else
+                   [f"{r[f'{p}_change']:+.1f}" if f"{p}_change" in r and pd.notna(r[f"{p}_change"])
+                    else "" for p in params])
+        changes += [""] * (len(params) - len(changes))
         fit = f"{r['fit_percent']:.1f}" if pd.notna(r["fit_percent"]) else "—"
-        table.add_row(str(tid), escape(Path(str(r["source"])).name), fit, status, *changes)
-        if isinstance(r["summary"], str) and r["role"] == "check":
+        when = ((f"{r['test_date']:%y-%m-%d}" if pd.notna(r["test_date"]) else "—",)
+                if dated else ())
+        table.add_row(str(tid), *when, escape(Path(str(r["source"])).name), fit, shown, *changes)
+        if status == "excluded":
+            notes.append(f"#{tid} excluded: {r['excluded_reason']}")
+        elif isinstance(r["summary"], str) and r["role"] == "check":
             notes.append(f"#{tid} {r['summary']}")
         elif not r["accepted"]:
             notes.append(f"#{tid} rejected: {r['reason']}")
     out.print(table)
     for line in notes:
         out.print(line, highlight=False, markup=False)
+    if baseline is not None:
+        out.print(f"baseline {baseline.name!r} v{baseline.version} (N = {baseline.baseline.n}): "
+                  + ", ".join(f"#{i}" for i in baseline.test_ids), highlight=False, markup=False)
+        print_flags(baseline.flags, unit)
+
+
+def _print_isolations(unit: str, model: str, isos: Any) -> None:
+    import pandas as pd
+
+    table = Table(title=escape(f"Isolations of {unit} ({model})"), box=box.SIMPLE_HEAD)
+    for col in ("#", "date", "source", "status", "detected", "isolated"):
+        table.add_column(col, no_wrap=col != "isolated", overflow="fold")
+    for iid, r in isos.iterrows():
+        det = f"{r['detection_time']:.2f} s" if pd.notna(r["detection_time"]) else "—"
+        status = "[dim]excluded[/]" if r["excluded"] else _status_text(str(r["status"]))
+        table.add_row(f"i{iid}", f"{r['date']:%Y-%m-%d %H:%M}",
+                      escape(Path(str(r["source"])).name), status, det,
+                      escape(", ".join(r["isolated"]) or "—"))
+    out.print(table)
+    for iid, r in isos.iterrows():
+        out.print(f"i{iid} {r['statement']}", highlight=False, markup=False)
 
 
 @app.command("report")

@@ -51,10 +51,13 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
         settings: Annotated[Optional[Path], typer.Option(help="Detection/estimation/isolation settings TOML (default: the shipped isolation.toml).")] = None,
         workers: Annotated[Optional[int], typer.Option(help="Processes for the suspects' models (1: one after the other).")] = None,
         plots: Annotated[Optional[Path], typer.Option(help="Folder for the residual and model-error figures.")] = None,
+        unit: Annotated[Optional[str], typer.Option("--unit", help="Store the isolation in this unit's history (with --db).")] = None,
+        db: Annotated[str, typer.Option("--db", help="History database for --unit: a SQLite file or a postgresql:// URL.")] = "condmon.db",
+        date: Annotated[Optional[str], typer.Option(help="When the test was run, ISO 8601 (UTC unless a zone is given); default: the record's own date, if any.")] = None,
         as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
     ) -> None:
         """Detect a fault, estimate each suspect at steady state and isolate it by
-        parallel multi-model simulation."""
+        parallel multi-model simulation; with --unit, keep it in the unit's history."""
         from condmon.diagnose.isolation import IsolationSettings, healthy_normalisation, isolate
         from condmon.diagnose.structure import RESIDUAL_KINDS
         from condmon.errors import ConfigError
@@ -67,6 +70,12 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
         plant = load_plant_model(model, params)
         cfg = IsolationSettings.load(settings)
         rec = read_record(record, mapping)
+        if unit is not None:
+            from condmon.store.base import check_name
+            from condmon.workflows.monitoring import parse_date
+
+            check_name(unit)
+            parse_date(date)  # a bad date is refused before the long run
         norm = None
         with progress() as prog:
             if healthy:
@@ -89,10 +98,25 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
             measured = rec[list(plant.sensor_names)].to_numpy(dtype=float)
             files = write_isolation_figures(res, plant, measured, plots)
             err.print(f"wrote {', '.join(str(f) for f in files)}", highlight=False)
+        kept = None
+        if unit is not None:
+            from condmon.store.db import open_store
+            from condmon.workflows.isolation import store_isolation
+
+            with open_store(db) as store:
+                kept = store_isolation(store, unit, res, rec, record, model, date)
         if as_json:
-            write_json(res.to_dict())
+            doc = res.to_dict()
+            if kept is not None:
+                doc.update(unit=kept.unit, isolation_id=kept.isolation_id,
+                           stored=not kept.duplicate)
+            write_json(doc)
             return
         _print_isolation(res)
+        if kept is not None:
+            what = ("already in the history of" if kept.duplicate else "stored in the history of")
+            out.print(f"isolation i{kept.isolation_id} {what} {kept.unit!r} ({db})",
+                      highlight=False, markup=False)
 
 
 def _simulate(model: str, out_path: Path, fault: list[str] | None, params: Path | None,

@@ -40,7 +40,7 @@ from condmon.store.db import DuplicateTestError, HistoryStore
 __all__ = ["EstimateOptions", "AddedTest", "BaselineAddResult", "CheckResult", "RecordKey",
            "add_baseline_tests", "current_baseline", "check_test", "RecordLike",
            "unit_monitor", "save_current_baseline", "reevaluate", "parse_date", "record_key",
-           "evaluate"]
+           "evaluate", "baseline_members"]
 
 RecordLike = str | Path | pd.DataFrame
 Progress = Callable[[int, int, str], None]
@@ -182,7 +182,7 @@ def unit_monitor(store: HistoryStore, unit: str) -> MonitorConfig:
     return load_monitor_config(get_model(store.unit_model(unit) or "dc-motor").breakpoints)
 
 
-def _members(store: HistoryStore, unit: str) -> tuple[list[int], StoredBaseline | None]:
+def baseline_members(store: HistoryStore, unit: str) -> tuple[list[int], StoredBaseline | None]:
     """Tests of the unit's active baseline (its latest version without the
     tests excluded or rejected since), or every accepted, not excluded healthy
     test while no version exists; with that latest version."""
@@ -211,7 +211,7 @@ def current_baseline(store: HistoryStore, unit: str) -> tuple[Baseline, list[int
     DataError
         Fewer than 3 usable tests.
     """
-    ids, latest = _members(store, unit)
+    ids, latest = baseline_members(store, unit)
     if len(ids) < MIN_BASELINE_TESTS:
         why = ("" if latest is None else
                f" (baseline {latest.name!r} v{latest.version} after exclusions)")
@@ -368,7 +368,7 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
     new = [t.test_id for t in added if t.accepted and not (t.duplicate or t.refused)]
     if store.unit_model(unit) is None:  # nothing stored: every record refused
         return BaselineAddResult(tuple(added), None, None, str(_too_few(unit, 0)))
-    ids, latest = _members(store, unit)
+    ids, latest = baseline_members(store, unit)
     ids = sorted(set(ids) | set(new))
     if len(ids) < MIN_BASELINE_TESTS:
         return BaselineAddResult(tuple(added), None, None, str(_too_few(unit, len(ids))))

@@ -1,0 +1,172 @@
+"""Commands that manage a history: exclude, include, baseline rebuild/list, audit."""
+
+from __future__ import annotations
+
+import json
+from typing import TYPE_CHECKING, Annotated, Any, Optional
+
+import typer
+from rich import box
+from rich.markup import escape
+from rich.table import Table
+
+from condmon.cli._console import err, fmt, out, write_json
+
+if TYPE_CHECKING:
+    from condmon.workflows.manage import ChangeResult
+
+__all__ = ["register", "print_flags"]
+
+DbOpt = Annotated[str, typer.Option("--db", help="History database: a SQLite file or a postgresql:// URL.")]
+JsonOpt = Annotated[bool, typer.Option("--json", help="Print the result as JSON.")]
+
+
+def print_flags(flags: Any, unit: str) -> None:
+    """Warn (stderr) about a baseline's plausibility flags, with the tests to look at."""
+    for f in flags:
+        err.print(f"warning: baseline of {unit}: {f['message']} — look at "
+                  f"{', '.join(f'#{t}' for t in f['tests'])}; `condmon exclude TEST --reason "
+                  "...` takes a wrong one out", highlight=False, markup=False, soft_wrap=True)
+
+
+def _print_change(res: ChangeResult) -> None:
+    out.print(f"{res.unit}: {res.message}", highlight=False, markup=False, soft_wrap=True)
+    if res.reevaluated:
+        moved = res.changed_status
+        out.print(f"{len(res.reevaluated)} check(s) evaluated against the new baseline; "
+                  f"{len(moved)} changed status"
+                  + ("" if not moved else ": " + ", ".join(
+                      f"#{k} {b} -> {a}" for k, (b, a) in sorted(moved.items()))),
+                  highlight=False, markup=False, soft_wrap=True)
+    if res.baseline is not None:
+        print_flags(res.baseline.flags, res.unit)
+
+
+def register(app: typer.Typer, baseline_app: typer.Typer) -> None:
+    """Add the history-management commands to the CLI."""
+
+    @app.command("exclude")
+    def exclude_cmd(
+        test: Annotated[int, typer.Argument(help="Test id (`condmon history` shows them as #N).")],
+        reason: Annotated[str, typer.Option(help="Why (kept in the audit trail).")],
+        db: DbOpt = "condmon.db",
+        as_json: JsonOpt = False,
+    ) -> None:
+        """Exclude a wrong test from baselines, trends and reports (kept, marked, audited)."""
+        from condmon.store.db import open_store
+        from condmon.workflows.manage import exclude_test
+
+        with open_store(db, create=False) as store:
+            res = exclude_test(store, test, reason)
+        if as_json:
+            write_json(res.to_dict())
+            return
+        _print_change(res)
+
+    @app.command("include")
+    def include_cmd(
+        test: Annotated[int, typer.Argument(help="Test id of an excluded test.")],
+        reason: Annotated[Optional[str], typer.Option(help="Why (kept in the audit trail).")] = None,
+        db: DbOpt = "condmon.db",
+        as_json: JsonOpt = False,
+    ) -> None:
+        """Include an excluded test again (back into the baseline it was in)."""
+        from condmon.store.db import open_store
+        from condmon.workflows.manage import include_test
+
+        with open_store(db, create=False) as store:
+            res = include_test(store, test, reason)
+        if as_json:
+            write_json(res.to_dict())
+            return
+        _print_change(res)
+
+    @baseline_app.command("rebuild")
+    def rebuild_cmd(
+        unit: Annotated[str, typer.Option("--unit", help="Unit (machine) name.")],
+        reason: Annotated[str, typer.Option(help="Why (kept in the audit trail).")],
+        name: Annotated[Optional[str], typer.Option(help="Baseline name (default: the unit's active one, 'default' at first); it becomes the active one.")] = None,
+        tests: Annotated[Optional[str], typer.Option(help="Test ids to build it from, e.g. 3,4,5 (default: every accepted, not excluded healthy test).")] = None,
+        db: DbOpt = "condmon.db",
+        as_json: JsonOpt = False,
+    ) -> None:
+        """A new baseline version from chosen tests; checks are evaluated against it."""
+        from condmon.errors import ConfigError
+        from condmon.store.db import open_store
+        from condmon.workflows.manage import rebuild_baseline
+
+        ids = None
+        if tests is not None:
+            try:
+                ids = [int(t.strip().lstrip("#")) for t in tests.split(",") if t.strip()]
+            except ValueError:
+                raise ConfigError(f"--tests: {tests!r} is not a list of test ids "
+                                  "(e.g. 3,4,5)") from None
+        with open_store(db, create=False) as store:
+            res = rebuild_baseline(store, unit, reason=reason, name=name, test_ids=ids)
+        if as_json:
+            write_json(res.to_dict())
+            return
+        _print_change(res)
+
+    @baseline_app.command("list")
+    def list_cmd(
+        unit: Annotated[str, typer.Option("--unit", help="Unit (machine) name.")],
+        db: DbOpt = "condmon.db",
+        as_json: JsonOpt = False,
+    ) -> None:
+        """Every version of the unit's baselines: tests, reason, flags (* = active)."""
+        from condmon.store.db import open_store
+
+        with open_store(db, create=False) as store:
+            versions = store.baselines(unit)
+            active = store.active_baseline_name(unit)
+        latest = {b.name: b.id for b in versions}
+        if as_json:
+            write_json({"unit": unit, "active": active,
+                        "baselines": [b.to_dict() for b in versions]})
+            return
+        table = Table(title=escape(f"Baselines of {unit} (* = in use)"), box=box.SIMPLE_HEAD)
+        for col in ("", "name", "v", "created", "N", "tests", "flags", "reason"):
+            table.add_column(col, overflow="fold")
+        for b in versions:
+            mark = "*" if b.name == active and latest[b.name] == b.id else ""
+            table.add_row(mark, escape(b.name), str(b.version), f"{b.created_at:%Y-%m-%d %H:%M}",
+                          str(b.baseline.n), ",".join(f"#{i}" for i in b.test_ids),
+                          str(len(b.flags)) if b.flags else "", escape(b.reason or ""))
+        out.print(table)
+        current = [b for b in versions if b.name == active and latest[b.name] == b.id]
+        if current:
+            b = current[0]
+            for p, m, sd in zip(b.baseline.parameters, b.baseline.mean, b.baseline.std):
+                out.print(f"  {p}: {fmt(m)} ± {fmt(sd)}", highlight=False, markup=False)
+            print_flags(b.flags, unit)
+
+    @app.command("audit")
+    def audit_cmd(
+        unit: Annotated[Optional[str], typer.Option("--unit", help="Only this unit.")] = None,
+        db: DbOpt = "condmon.db",
+        as_json: JsonOpt = False,
+    ) -> None:
+        """Every change to the history: when, who, what, why."""
+        from condmon.store.db import open_store
+
+        with open_store(db, create=False) as store:
+            trail = store.audit(unit)
+        if as_json:
+            rows = json.loads(trail.reset_index().to_json(orient="records", date_format="iso"))
+            for r in rows:
+                r["detail"] = json.loads(r["detail"]) if r["detail"] else None
+            write_json({"audit": rows})
+            return
+        table = Table(title=escape(f"Audit trail of {unit or db}"), box=box.SIMPLE_HEAD)
+        for col in ("at (UTC)", "who", "action", "unit", "test", "reason"):
+            table.add_column(col, overflow="fold", no_wrap=col in ("at (UTC)", "action", "test"))
+        for _, r in trail.iterrows():
+            def text(key: str) -> str:
+                return "" if r[key] is None or r[key] != r[key] else escape(str(r[key]))
+
+            tid = r["test_id"]
+            table.add_row(str(r["at"])[:16], text("actor"), text("action"), text("unit"),
+                          "" if tid is None or tid != tid else f"#{int(tid)}", text("reason"))
+        out.print(table)

@@ -1,0 +1,187 @@
+"""Managing a history: exclude a wrong test, include it again, rebuild a baseline.
+
+Nothing is deleted. An excluded test stays in the history, marked, with the
+reason; a baseline change is a new version; every change is in the audit trail
+(who, when, why). After the active baseline changes, the unit's checks are
+evaluated against the new version (their earlier evaluations are kept), so the
+trends, symptoms and reports follow the change, and an ``include`` restores
+them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from condmon.errors import ConfigError, DataError
+from condmon.monitor.baseline import MIN_BASELINE_TESTS
+from condmon.store.baselines import StoredBaseline
+from condmon.store.db import HistoryStore
+from condmon.workflows.monitoring import baseline_members, reevaluate, save_current_baseline
+
+__all__ = ["ChangeResult", "exclude_test", "include_test", "rebuild_baseline"]
+
+
+@dataclass(frozen=True)
+class ChangeResult:
+    """What a history change did.
+
+    Attributes
+    ----------
+    unit : str
+    message : str
+        One sentence for the user.
+    baseline : StoredBaseline or None
+        The unit's active baseline afterwards (None when too few tests remain).
+    new_version : bool
+        Whether the change made a new baseline version.
+    reevaluated : dict of int to (str or None, str)
+        Checks evaluated against the new baseline: ``{test_id: (status before, now)}``.
+    """
+
+    unit: str
+    message: str
+    baseline: StoredBaseline | None
+    new_version: bool
+    reevaluated: dict[int, tuple[str | None, str]] = field(default_factory=dict)
+
+    @property
+    def changed_status(self) -> dict[int, tuple[str | None, str]]:
+        """The re-evaluated checks whose status changed."""
+        return {k: v for k, v in self.reevaluated.items() if v[0] != v[1]}
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return {"unit": self.unit, "message": self.message,
+                "baseline": None if self.baseline is None else self.baseline.to_dict(),
+                "new_version": self.new_version,
+                "reevaluated": {str(k): {"before": b, "now": a}
+                                for k, (b, a) in self.reevaluated.items()}}
+
+
+def _reason(reason: str | None, what: str) -> str:
+    text = (reason or "").strip()
+    if not text:
+        raise ConfigError(f"{what} needs a reason (--reason TEXT): it is kept in the audit trail")
+    return text
+
+
+def _apply(store: HistoryStore, unit: str, ids: Sequence[int], reason: str,
+           name: str | None = None) -> ChangeResult:
+    """Make ``ids`` the next version of the unit's baseline (or ``name``) and
+    evaluate the checks against it."""
+    ids = sorted(set(int(i) for i in ids))
+    if len(ids) < MIN_BASELINE_TESTS:
+        return ChangeResult(unit, f"the baseline of {unit!r} would keep {len(ids)} test(s); "
+                            f"checks need at least {MIN_BASELINE_TESTS} (add healthy tests "
+                            "or include one again)", None, False)
+    stored, fresh = save_current_baseline(store, unit, ids, name=name, reason=reason)
+    changed = reevaluate(store, unit, stored)
+    what = (f"baseline {stored.name!r} v{stored.version} from {stored.baseline.n} tests"
+            if fresh else f"baseline {stored.name!r} v{stored.version} unchanged")
+    return ChangeResult(unit, what, stored, fresh, changed)
+
+
+def exclude_test(store: HistoryStore, test_id: int, reason: str | None) -> ChangeResult:
+    """Exclude a test from its unit's baseline, trends and reports (kept, marked).
+
+    A baseline test leaves the active baseline (a new version); the unit's
+    checks are then evaluated against it.
+
+    Raises
+    ------
+    ConfigError
+        No such test, or no reason given.
+    DataError
+        The test is already excluded.
+    """
+    why = _reason(reason, "exclude")
+    info = store.test_info(test_id)
+    if info["excluded"]:
+        raise DataError(f"test #{test_id} of {info['unit']!r} is already excluded "
+                        f"({info['excluded_reason']})")
+    unit = str(info["unit"])
+    store.set_excluded(test_id, True, why)
+    ids, latest = baseline_members(store, unit)
+    if latest is None or int(test_id) not in latest.test_ids:
+        return ChangeResult(unit, f"test #{test_id} excluded; the baseline is unchanged",
+                            latest, False)
+    res = _apply(store, unit, ids, f"test #{test_id} excluded: {why}")
+    return ChangeResult(unit, f"test #{test_id} excluded; {res.message}", res.baseline,
+                        res.new_version, res.reevaluated)
+
+
+def include_test(store: HistoryStore, test_id: int, reason: str | None = None) -> ChangeResult:
+    """Include an excluded test again; a test that was in the active baseline
+    before its exclusion goes back into it (a new version).
+
+    Raises
+    ------
+    ConfigError
+        No such test.
+    DataError
+        The test is not excluded.
+    """
+    info = store.test_info(test_id)
+    if not info["excluded"]:
+        raise DataError(f"test #{test_id} of {info['unit']!r} is not excluded")
+    unit = str(info["unit"])
+    why = (reason or "").strip() or "included again"
+    store.set_excluded(test_id, False, why)
+    ids, latest = baseline_members(store, unit)
+    active = store.active_baseline_name(unit)
+    was_member = any(int(test_id) in b.test_ids for b in store.baselines(unit)
+                     if b.name == active)
+    if not was_member or not info["accepted"]:
+        changed = ({} if latest is None or list(latest.test_ids) != ids
+                   else reevaluate(store, unit, latest))  # an included check is evaluated
+        return ChangeResult(unit, f"test #{test_id} included; the baseline is unchanged",
+                            latest, False, changed)
+    res = _apply(store, unit, [*ids, int(test_id)], f"test #{test_id} included: {why}")
+    return ChangeResult(unit, f"test #{test_id} included; {res.message}", res.baseline,
+                        res.new_version, res.reevaluated)
+
+
+def rebuild_baseline(store: HistoryStore, unit: str, *, reason: str | None,
+                     name: str | None = None, test_ids: Sequence[int] | None = None
+                     ) -> ChangeResult:
+    """A new baseline version from chosen tests (default: every accepted, not
+    excluded healthy test of the unit), made the unit's active baseline under
+    ``name`` (default: the active one's name); checks are evaluated against it.
+
+    Raises
+    ------
+    ConfigError
+        No reason, or an unknown unit.
+    DataError
+        A chosen test is not the unit's, rejected or excluded, or fewer than 3.
+    """
+    why = _reason(reason, "baseline rebuild")
+    store.unit_id(unit)  # the error names the known units
+    hist = store.history(unit)
+    if test_ids is None:
+        usable = hist[(hist["role"] == "baseline") & hist["accepted"] & ~hist["excluded"]]
+        ids = [int(i) for i in usable.index]
+    else:
+        ids = sorted(set(int(i) for i in test_ids))
+        bad = [f"#{i} ({_why_unusable(hist, i, unit)})" for i in ids
+               if _why_unusable(hist, i, unit)]
+        if bad:
+            raise DataError(f"cannot build a baseline of {unit!r} from {', '.join(bad)}")
+    if len(ids) < MIN_BASELINE_TESTS:
+        raise DataError(f"a baseline needs at least {MIN_BASELINE_TESTS} accepted tests; "
+                        f"{len(ids)} chosen for {unit!r}")
+    res = _apply(store, unit, ids, why, name=name)
+    return res
+
+
+def _why_unusable(hist: Any, test_id: int, unit: str) -> str:
+    if test_id not in hist.index:
+        return f"not a test of {unit!r}"
+    row = hist.loc[test_id]
+    if row["excluded"]:
+        return "excluded"
+    if not row["accepted"]:
+        return "rejected"
+    return ""

@@ -1,0 +1,84 @@
+"""Many writers at once, some killed: nothing reported as stored is lost or doubled."""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from condmon.simulate import ActuatorRig, simulate_actuator
+from condmon.store import open_store
+
+WORKER = Path(__file__).with_name("_stress_worker.py")
+N_PROCESSES = 8
+N_RECORDS = 20
+
+
+@pytest.fixture(scope="module")
+def pool(tmp_path_factory: pytest.TempPathFactory, rig: ActuatorRig) -> list[str]:
+    """12 records, and Parquet copies of 4 of them (the same tests in other files)."""
+    d = tmp_path_factory.mktemp("pool")
+    files = []
+    for s in range(12):
+        p = d / f"r{s}.csv"
+        simulate_actuator(rig, seed=300 + s).to_csv(p, index=False)
+        files.append(str(p))
+    for s in range(4):
+        q = d / f"r{s}.parquet"
+        pd.read_csv(files[s]).to_parquet(q)
+        files.append(str(q))
+    return files
+
+
+def test_eight_writers_with_kills(store_url: str, pool: list[str], tmp_path: Path) -> None:
+    rng = random.Random(7)
+    procs = []
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+    for k in range(N_PROCESSES):
+        # shared units (overlapping files) and a unit of the process's own
+        plan = [(rng.choice(["EMA-A", "EMA-B", f"EMA-own-{k}"]), rng.choice(pool))
+                for _ in range(N_RECORDS)]
+        plan_file = tmp_path / f"plan{k}.json"
+        plan_file.write_text(json.dumps(plan))
+        procs.append(subprocess.Popen(
+            [sys.executable, str(WORKER), store_url, str(plan_file)],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env))
+    # kill three of them at random moments while they write
+    victims = rng.sample(range(N_PROCESSES), 3)
+    for v in victims:
+        time.sleep(rng.uniform(0.5, 3.0))
+        procs[v].send_signal(signal.SIGKILL)
+    reported: list[tuple[str, int]] = []
+    killed = 0
+    for k, p in enumerate(procs):
+        out, err = p.communicate(timeout=300)
+        assert "Traceback" not in err, err
+        if k not in victims:
+            assert p.returncode == 0, err
+            assert err.strip() == "", err
+        killed += p.returncode == -signal.SIGKILL
+        assert not [line for line in out.splitlines() if line.startswith("ERROR")], out
+        for line in out.splitlines():
+            if line.startswith("STORED"):
+                _, unit, tid = line.split()
+                reported.append((unit, int(tid)))
+    assert len(reported) >= N_RECORDS  # the survivors did store
+    assert killed >= 1  # at least one writer died in the middle of its work
+    with open_store(store_url) as store:
+        assert store.integrity_problems() == []
+        by_unit = {u: store.history(u) for u in store.units()}
+        for unit, tid in reported:
+            assert tid in by_unit[unit].index, (unit, tid)
+        # exactly once: each test id reported by one process only, and no content twice
+        assert len(set(reported)) == len(reported)
+        for unit, hist in by_unit.items():
+            assert len(hist) <= len(pool) - 4  # 12 distinct contents at most
+            assert hist["role"].eq("baseline").all()

@@ -70,3 +70,41 @@ def test_a_users_own_declaration_is_simulated_and_isolated(tmp_path: Path,
     assert main(["isolate", str(model), str(rec), "--json", "--workers", "1"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["model"] == "my-hst" and doc["isolated"] == ["Dm"]
+
+
+def test_isolations_are_kept_in_the_units_history(tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    db = str(tmp_path / "h.db")
+    healthy, faulty = tmp_path / "ok.csv", tmp_path / "rv.csv"
+    assert main(["simulate", "hst", "--out", str(healthy), "--seed", "5"]) == 0
+    assert main(["simulate", "hst", "--out", str(faulty), "--fault", "Rv=+40%@10s",
+                 "--seed", "3"]) == 0
+    for rec, date in ((healthy, "2026-04-01"), (faulty, "2026-04-08")):
+        assert main(["isolate", "hst", str(rec), "--unit", "HST-1", "--db", db, "--date", date,
+                     "--workers", "1"]) == 0
+    assert "stored in the history of 'HST-1'" in capsys.readouterr().out
+    # the same content again (as Parquet) is recognised, not stored twice
+    copy = tmp_path / "rv.parquet"
+    pd.read_csv(faulty).to_parquet(copy)
+    assert main(["isolate", "hst", str(copy), "--unit", "HST-1", "--db", db, "--json",
+                 "--workers", "1"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["stored"] is False and doc["isolation_id"] == 2
+    assert main(["history", "--unit", "HST-1", "--db", db, "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    assert [(r["kind"], r["status"], r["isolated"]) for r in rows] == [
+        ("isolation", "go", []), ("isolation", "no-go", ["Rv"])]
+    assert rows[1]["Rv_change"] == pytest.approx(40, abs=3)
+    assert rows[1]["test_date"].startswith("2026-04-08")
+    assert main(["history", "--unit", "HST-1", "--db", db]) == 0
+    assert "fault isolated: Rv" in capsys.readouterr().out
+    assert main(["units", "--db", db, "--json"]) == 0
+    unit = json.loads(capsys.readouterr().out)["units"][0]
+    assert (unit["status"], unit["isolations"], unit["tests"]) == ("no-go", 2, 0)
+    # an actuator record offered to the HST unit is refused
+    from condmon.simulate import simulate_actuator
+
+    act = tmp_path / "a.csv"
+    simulate_actuator(seed=1).to_csv(act, index=False)
+    assert main(["baseline", "add", str(act), "--unit", "HST-1", "--db", db]) == 2
+    assert "is monitored with plant model 'hst': its records are isolated" in capsys.readouterr().err

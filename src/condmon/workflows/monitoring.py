@@ -302,6 +302,10 @@ def _unit_options(store: HistoryStore, unit: str, opts: EstimateOptions) -> Esti
     """Options with the unit's model filled in; refuses a record offered with
     another model than the one the unit's history was started with."""
     stored = store.unit_model(unit)
+    if stored is not None and not get_model(stored).spec.unknowns:
+        raise DataError(f"unit {unit!r} is monitored with plant model {stored!r}: its records "
+                        f"are isolated (`condmon isolate {stored} REC --unit {unit}`), not "
+                        "estimated")
     if opts.model is None:
         return dataclasses.replace(opts, model=stored or "dc-motor")
     if stored is not None:

@@ -319,14 +319,23 @@ def units_cmd(
         write_json({"units": rows})
         return
     table = Table(title=escape(f"Units in {db}"), box=box.SIMPLE_HEAD)
-    for col in ("unit", "model", "tests", "latest", "status"):
-        table.add_column(col, justify="right" if col == "tests" else "left")
+    for col in ("unit", "model", "tests", "latest", "date", "status"):
+        table.add_column(col, justify="right" if col == "tests" else "left",
+                         no_wrap=col in ("date", "status"))
+    flagged = []
     for r in rows:
         model = Path(str(r["model"])).name
-        table.add_row(escape(str(r["unit"])), escape(model), str(r["tests"]),
+        count = str(r["tests"]) if not r["isolations"] else f"{r['isolations']} iso"
+        table.add_row(escape(str(r["unit"])), escape(model), count,
                       escape(Path(str(r["latest_source"] or "—")).name),
+                      str(r["latest_date"] or "—")[:10],
                       _status_text(str(r["status"])) if r["status"] else "—")
+        if r["baseline_flags"]:
+            flagged.append(str(r["unit"]))
     out.print(table)
+    if flagged:
+        err.print(f"warning: baseline flagged for {', '.join(flagged)} (`condmon baseline list "
+                  "--unit U` shows why)", highlight=False, markup=False, soft_wrap=True)
 
 
 @app.command("history")

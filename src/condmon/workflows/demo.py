@@ -22,6 +22,7 @@ from condmon.diagnose.isolation import IsolationResult, healthy_normalisation, i
 from condmon.errors import ConfigError
 from condmon.models.declared import load_plant_model
 from condmon.io.config import load_default, load_toml
+from condmon.workflows.isolation import store_isolation
 from condmon.workflows.monitoring import CheckResult, add_baseline_tests, check_test
 from condmon.report.html import write_report
 from condmon.report.isolation_figures import write_isolation_figures
@@ -198,7 +199,7 @@ def _run(store: HistoryStore, cfg: dict[str, Any], out: Path, db: Path,
                 progress(done, total, unit)
         files = write_report(store, unit, out)
         pages.append((unit, str(exp.get("title", "")), files.html.name))
-    isolations = _run_hst(cfg.get("hst"), out, progress)
+    isolations = _run_hst(cfg.get("hst"), out, progress, store)
     index = out / "index.html"
     links = "".join(f"<li><a href='{html.escape(p)}'>{html.escape(u)}</a> — {html.escape(t)}</li>"
                     for u, t, p in pages)
@@ -211,8 +212,10 @@ def _run(store: HistoryStore, cfg: dict[str, Any], out: Path, db: Path,
     return DemoResult(tuple(checks), db, index, isolations)
 
 
-def _run_hst(cfg: dict[str, Any] | None, out: Path, progress: Progress | None
-             ) -> tuple[DemoIsolation, ...]:
+def _run_hst(cfg: dict[str, Any] | None, out: Path, progress: Progress | None,
+             store: HistoryStore | None = None) -> tuple[DemoIsolation, ...]:
+    """The HST experiments; each fault's isolation is kept in the history of a
+    unit named after the faulty parameter (``HST-Rv``, ...)."""
     if not cfg:
         return ()
     model = load_plant_model(str(cfg.get("model", "hst")))
@@ -226,7 +229,11 @@ def _run_hst(cfg: dict[str, Any] | None, out: Path, progress: Progress | None
     done = []
     for k, (fault, step) in enumerate(zip(faults, steps)):
         rec = simulate_plant(model, [fault], seed=9100 + k)
+        rec.attrs["source"] = f"HST {fault}"
         res = isolate(rec, model, normalisation=norm, source=fault)
+        if store is not None:
+            store_isolation(store, f"HST-{step.name}", res, rec, None,
+                            str(cfg.get("model", "hst")))
         folder = out / "hst" / f"{k + 1}-{step.name}"
         figs = write_isolation_figures(res, model, rec[list(model.sensor_names)].to_numpy(),
                                        folder)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Annotated, Any, Optional
 
 import typer
@@ -13,6 +14,7 @@ from rich.table import Table
 from condmon.cli._console import err, fmt, out, write_json
 
 if TYPE_CHECKING:
+    from condmon.store.db import HistoryStore
     from condmon.workflows.manage import ChangeResult
 
 __all__ = ["register", "print_flags"]
@@ -42,6 +44,18 @@ def _print_change(res: ChangeResult) -> None:
         print_flags(res.baseline.flags, res.unit)
 
 
+def _change(db: str, as_json: bool, run: Callable[[HistoryStore], ChangeResult]) -> None:
+    """Open the (existing) history, make one change, print what it did."""
+    from condmon.store.db import open_store
+
+    with open_store(db, create=False) as store:
+        res = run(store)
+    if as_json:
+        write_json(res.to_dict())
+        return
+    _print_change(res)
+
+
 def register(app: typer.Typer, baseline_app: typer.Typer) -> None:
     """Add the history-management commands to the CLI."""
 
@@ -53,15 +67,9 @@ def register(app: typer.Typer, baseline_app: typer.Typer) -> None:
         as_json: JsonOpt = False,
     ) -> None:
         """Exclude a wrong test from baselines, trends and reports (kept, marked, audited)."""
-        from condmon.store.db import open_store
         from condmon.workflows.manage import exclude_test
 
-        with open_store(db, create=False) as store:
-            res = exclude_test(store, test, reason)
-        if as_json:
-            write_json(res.to_dict())
-            return
-        _print_change(res)
+        _change(db, as_json, lambda store: exclude_test(store, test, reason))
 
     @app.command("include")
     def include_cmd(
@@ -71,15 +79,9 @@ def register(app: typer.Typer, baseline_app: typer.Typer) -> None:
         as_json: JsonOpt = False,
     ) -> None:
         """Include an excluded test again (back into the baseline it was in)."""
-        from condmon.store.db import open_store
         from condmon.workflows.manage import include_test
 
-        with open_store(db, create=False) as store:
-            res = include_test(store, test, reason)
-        if as_json:
-            write_json(res.to_dict())
-            return
-        _print_change(res)
+        _change(db, as_json, lambda store: include_test(store, test, reason))
 
     @baseline_app.command("rebuild")
     def rebuild_cmd(
@@ -92,7 +94,6 @@ def register(app: typer.Typer, baseline_app: typer.Typer) -> None:
     ) -> None:
         """A new baseline version from chosen tests; checks are evaluated against it."""
         from condmon.errors import ConfigError
-        from condmon.store.db import open_store
         from condmon.workflows.manage import rebuild_baseline
 
         ids = None
@@ -102,12 +103,8 @@ def register(app: typer.Typer, baseline_app: typer.Typer) -> None:
             except ValueError:
                 raise ConfigError(f"--tests: {tests!r} is not a list of test ids "
                                   "(e.g. 3,4,5)") from None
-        with open_store(db, create=False) as store:
-            res = rebuild_baseline(store, unit, reason=reason, name=name, test_ids=ids)
-        if as_json:
-            write_json(res.to_dict())
-            return
-        _print_change(res)
+        _change(db, as_json, lambda store: rebuild_baseline(store, unit, reason=reason,
+                                                             name=name, test_ids=ids))
 
     @baseline_app.command("list")
     def list_cmd(

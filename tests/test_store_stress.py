@@ -82,3 +82,30 @@ def test_eight_writers_with_kills(store_url: str, pool: list[str], tmp_path: Pat
         for unit, hist in by_unit.items():
             assert len(hist) <= len(pool) - 4  # 12 distinct contents at most
             assert hist["role"].eq("baseline").all()
+
+
+OPEN_AT = """
+import sys, time
+from condmon.store import open_store
+start = float(sys.argv[2])
+time.sleep(max(0.0, start - time.time()))
+with open_store(sys.argv[1], timeout=60) as store:
+    store.unit_id(f"U{sys.argv[3]}", create=True)
+print("OK", flush=True)
+"""
+
+
+def test_first_use_of_an_empty_database_from_eight_processes(store_url: str) -> None:
+    """Schema creation is serialised: every process starts, none fails."""
+    import condmon.store  # noqa: F401  (warm the import cache before timing the start)
+
+    start = time.time() + 4.0
+    procs = [subprocess.Popen([sys.executable, "-c", OPEN_AT, store_url, str(start), str(k)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for k in range(N_PROCESSES)]
+    results = [p.communicate(timeout=120) for p in procs]
+    assert all(p.returncode == 0 for p in procs), [e for _, e in results]
+    assert all(o.strip() == "OK" and e.strip() == "" for o, e in results), results
+    with open_store(store_url) as store:
+        assert store.units() == [f"U{k}" for k in range(N_PROCESSES)]
+        assert store.integrity_problems() == []

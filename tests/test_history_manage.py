@@ -282,8 +282,24 @@ def test_long_names_and_busy_database(store_url: str, rig: ActuatorRig) -> None:
         with pytest.raises(CondmonError, match="is 201 characters long; at most 200"):
             store.add_test("E" * 201, res, role="baseline", digest="a")
         assert store.add_test("E" * 200, res, role="baseline", digest="a") > 0
-    if "://" in store_url:
-        pytest.skip("the busy case needs a second writer holding a SQLite lock")
+    if "://" in store_url:  # PostgreSQL: another session holds the unit's lock
+        import zlib
+
+        from condmon.store.engine import database_url
+
+        engine = sa.create_engine(database_url(store_url))
+        key = zlib.crc32(b"U") + (1 << 40)
+        with engine.connect() as holder:
+            holder.execute(sa.select(sa.func.pg_advisory_lock(key)))
+            try:
+                with open_store(store_url, timeout=0.3) as store:
+                    with pytest.raises(StoreBusyError, match="busy for more than 0.3 s"):
+                        store.add_test("U", res, role="baseline", digest="b")
+            finally:
+                holder.execute(sa.select(sa.func.pg_advisory_unlock(key)))
+                holder.commit()
+        engine.dispose()
+        return
     holder = sqlite3.connect(store_url, isolation_level=None)
     holder.execute("BEGIN IMMEDIATE")
     try:

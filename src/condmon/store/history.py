@@ -216,6 +216,20 @@ class TestsMixin(StoreBase):
         se = df.pivot(index="test_id", columns="parameter", values="se").reindex(ids)
         return val, se
 
+    def usable_tests(self, unit: str, role: str | None = None) -> list[int]:
+        """Ids of the unit's accepted, not excluded tests of ``role`` (None:
+        every role), oldest first; empty for an unknown unit."""
+        def run(c: sa.Connection) -> list[int]:
+            t = S.tests
+            q = (sa.select(t.c.id).join(S.units, S.units.c.id == t.c.unit_id)
+                 .where(S.units.c.name == unit, t.c.accepted.is_(True),
+                        t.c.excluded.is_(False)))
+            if role is not None:
+                q = q.where(t.c.role == role)
+            return [int(r[0]) for r in c.execute(q.order_by(t.c.id))]
+
+        return self._read(run)
+
     def accepted_estimates(self, unit: str, role: str | None = "baseline"
                            ) -> tuple[list[int], pd.DataFrame]:
         """Ids and parameter table (rows: tests, columns: parameters) of the

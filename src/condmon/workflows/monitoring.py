@@ -189,11 +189,9 @@ def baseline_members(store: HistoryStore, unit: str) -> tuple[list[int], StoredB
     if store.unit_model(unit) is None:  # a new unit: no tests yet
         return [], None
     latest = store.latest_baseline(unit)
-    usable, _ = store.accepted_estimates(unit, role=None)
     if latest is None:
-        ids, _ = store.accepted_estimates(unit, role="baseline")
-        return ids, None
-    keep = set(usable)
+        return store.usable_tests(unit, role="baseline"), None
+    keep = set(store.usable_tests(unit))
     return [i for i in latest.test_ids if i in keep], latest
 
 

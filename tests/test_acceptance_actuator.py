@@ -153,6 +153,10 @@ def test_demo_files_are_a_report_a_person_can_open(demo: DemoResult) -> None:
         page = (demo.report.parent / f"{unit}.html").read_text()
         assert "<img src=" in page and "Latest check" in page
         assert Path(demo.report.parent / f"{unit}-symptoms.png").exists()
+    # the HST isolations are in the history, on the fleet index and on their pages
+    assert "<a href='HST-Rv.html'>HST-Rv</a></td><td class='l'><span class=\"status no-go\">" in index
+    page = (demo.report.parent / "HST-Rv.html").read_text()
+    assert "<h2>Isolations</h2>" in page and "fault isolated: Rv" in page
 
 
 def test_demo_isolates_the_hydrostatic_transmission_faults(demo: DemoResult) -> None:

@@ -431,23 +431,34 @@ def _print_isolations(unit: str, model: str, isos: Any) -> None:
 
 @app.command("report")
 def report_cmd(
-    unit: UnitOpt,
-    out_dir: Annotated[Path, typer.Option("--out", help="Folder for the HTML page and PNG figures.")],
+    out_dir: Annotated[Path, typer.Option("--out", help="Folder for the HTML pages and PNG figures.")],
+    unit: Annotated[Optional[str], typer.Option("--unit", help="Only this unit's page (default: every unit); the fleet index is refreshed either way.")] = None,
     db: DbOpt = "condmon.db",
-    monitor: Annotated[Optional[Path], typer.Option(help="Monitor breakpoints TOML.")] = None,
+    monitor: Annotated[Optional[Path], typer.Option(help="Monitor breakpoints TOML (default: each unit's model's).")] = None,
 ) -> None:
-    """Write an HTML report with trend, fit and symptom figures."""
+    """Write HTML pages (a fleet index and a page per unit) with trend, fit and symptom figures."""
     from condmon.monitor.fuzzy import load_monitor_config
-    from condmon.report.html import write_report
+    from condmon.report.html import write_fleet_index, write_report
     from condmon.store.db import open_store
 
-    from condmon.models.registry import get_model
-
+    cfg = load_monitor_config(monitor) if monitor is not None else None
     with open_store(db, create=False) as store:
-        model = get_model(store.unit_model(unit) or "dc-motor")
-        cfg = load_monitor_config(monitor if monitor is not None else model.breakpoints)
-        files = write_report(store, unit, out_dir, cfg)
-    out.print(f"wrote {files.html} and {len(files.figures)} figures", markup=False)
+        units = [unit] if unit is not None else store.units()
+        if unit is not None:
+            store.unit_id(unit)  # an unknown unit: the error names the known ones
+        pages = []
+        with progress() as prog:
+            task = prog.add_task("writing pages", total=len(units))
+            for u in units:
+                prog.update(task, description=escape(u[:40]))
+                pages.append(write_report(store, u, out_dir, cfg))
+                prog.advance(task)
+        index = write_fleet_index(store, out_dir)
+    if len(pages) == 1:
+        out.print(f"wrote {pages[0].html} ({len(pages[0].figures)} figures) and {index}",
+                  markup=False, highlight=False)
+    else:
+        out.print(f"wrote {len(pages)} unit pages and {index}", markup=False, highlight=False)
 
 
 def _show_warning(message: Warning | str, category: type[Warning], filename: str,

@@ -106,8 +106,9 @@ class IsolationsMixin(StoreBase):
         Columns: ``isolation_id`` (index), ``created_at, test_date, date`` (the
         test date, else when stored), ``source, detected, detection_time,
         decided, status, reason, statement, suspects, isolated, excluded``, then
-        for each suspect ever estimated ``<p>`` (estimate), ``<p>_change`` [%]
-        and ``<p>_error`` (model output error [noise sd]).
+        for each suspect ever estimated ``<p>`` (estimate), ``<p>_change`` [%],
+        ``<p>_error`` (model output error [noise sd]) and ``<p>_rejected``
+        (left out of the comparison: implausible, not converged, ...).
         """
         def run(c: sa.Connection) -> tuple[list[Any], list[Any]]:
             urow = self._unit_row(c, unit)
@@ -123,7 +124,8 @@ class IsolationsMixin(StoreBase):
                                       S.isolation_estimates.c.parameter,
                                       S.isolation_estimates.c.value,
                                       S.isolation_estimates.c.change_percent,
-                                      S.isolation_estimates.c.error_sigma)
+                                      S.isolation_estimates.c.error_sigma,
+                                      S.isolation_estimates.c.rejected.isnot(None))
                             .join(i, i.c.id == S.isolation_estimates.c.isolation_id)
                             .where(i.c.unit_id == urow.id)).all()
             return list(base), list(est)
@@ -142,8 +144,9 @@ class IsolationsMixin(StoreBase):
             df[col] = [json.loads(v) for v in df[col]]
         if est:
             e = pd.DataFrame(est, columns=["isolation_id", "parameter", "value", "change",
-                                           "error"])
-            for col, suffix in (("value", ""), ("change", "_change"), ("error", "_error")):
+                                           "error", "rejected"])
+            for col, suffix in (("value", ""), ("change", "_change"), ("error", "_error"),
+                                ("rejected", "_rejected")):
                 w = e.pivot(index="isolation_id", columns="parameter", values=col)
                 w.columns = [f"{c}{suffix}" for c in w.columns]
                 df = df.join(w)

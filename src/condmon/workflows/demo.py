@@ -24,7 +24,7 @@ from condmon.models.declared import load_plant_model
 from condmon.io.config import load_default, load_toml
 from condmon.workflows.isolation import store_isolation
 from condmon.workflows.monitoring import CheckResult, add_baseline_tests, check_test
-from condmon.report.html import write_report
+from condmon.report.html import write_fleet_index, write_report
 from condmon.report.isolation_figures import write_isolation_figures
 from condmon.simulate.actuator import ActuatorRig, load_actuator_rig, simulate_actuator
 from condmon.simulate.faults import parse_fault
@@ -200,15 +200,15 @@ def _run(store: HistoryStore, cfg: dict[str, Any], out: Path, db: Path,
         files = write_report(store, unit, out)
         pages.append((unit, str(exp.get("title", "")), files.html.name))
     isolations = _run_hst(cfg.get("hst"), out, progress, store)
-    index = out / "index.html"
-    links = "".join(f"<li><a href='{html.escape(p)}'>{html.escape(u)}</a> — {html.escape(t)}</li>"
-                    for u, t, p in pages)
-    index.write_text("<!doctype html><html><head><meta charset='utf-8'><title>condmon demo</title>"
-                     "<style>body{font-family:system-ui,sans-serif;margin:2em}"
-                     "td,th{padding:2px 10px;text-align:left}</style></head><body>"
-                     "<h1>condmon demo: the reference experiments</h1>"
-                     "<h2>Electromechanical actuator: parameter estimation and fuzzy diagnosis</h2>"
-                     f"<ul>{links}</ul>{_hst_section(isolations)}</body></html>", encoding="utf-8")
+    for unit in store.units():  # the HST units too: their isolations
+        if unit not in {u for u, _, _ in pages}:
+            write_report(store, unit, out)
+    titles = "".join(f"<li><a href='{html.escape(p)}'>{html.escape(u)}</a> — {html.escape(t)}</li>"
+                     for u, t, p in pages)
+    index = write_fleet_index(
+        store, out, "condmon demo: the reference experiments",
+        "<h2>Electromechanical actuator: parameter estimation and fuzzy diagnosis</h2>"
+        f"<ul>{titles}</ul>{_hst_section(isolations)}")
     return DemoResult(tuple(checks), db, index, isolations)
 
 

@@ -187,7 +187,11 @@ def run_write(engine: sa.Engine, fn: Callable[[sa.Connection], T], *, db: str,
                         conn.execute(sa.select(sa.func.pg_advisory_xact_lock(key)))
                     return fn(conn)
         except sa.exc.SQLAlchemyError as err:
-            if _retryable(err) and time.monotonic() < deadline and attempts < 50:
+            # a unique-key race resolves on the next attempt (the re-check sees the
+            # other's row); another integrity error would only repeat itself
+            races = isinstance(err, sa.exc.IntegrityError)
+            if (_retryable(err) and time.monotonic() < deadline
+                    and attempts < (3 if races else 50)):
                 time.sleep(delay)
                 delay = min(delay * 2, 1.0)
                 continue

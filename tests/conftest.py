@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import atexit
 import dataclasses
+import os
+import shutil
+import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -10,6 +14,12 @@ import pandas as pd
 import pytest
 
 from condmon.simulate import ActuatorRig, load_actuator_rig, simulate_actuator
+
+# The derived-structure cache of this run: a fresh folder (the structures are
+# derived once, then restored, as on a user's machine), never the user's own.
+if "CONDMON_CACHE_DIR" not in os.environ:
+    os.environ["CONDMON_CACHE_DIR"] = tempfile.mkdtemp(prefix="condmon-test-cache-")
+    atexit.register(shutil.rmtree, os.environ["CONDMON_CACHE_DIR"], True)
 
 
 @pytest.fixture(scope="session")

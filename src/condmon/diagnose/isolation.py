@@ -37,7 +37,6 @@ from typing import Any
 import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
-from scipy import stats
 
 from condmon.diagnose.checks import RecordSettings, validate_plant_record
 from condmon.diagnose.residuals import (
@@ -295,7 +294,8 @@ def isolate(record: pd.DataFrame, model: PlantModel, *,
     settings : IsolationSettings, optional
     workers : int, optional
         Processes for the suspects' models; 1 runs them one after the other.
-        Default: one per suspect, at most the number of CPUs.
+        Default: one after the other unless a process pool pays (the first
+        suspect's run timed; see :func:`condmon.diagnose.suspects.run_suspects`).
     progress : callable, optional
         ``progress(done, total, label)`` after each stage.
     source : str
@@ -494,7 +494,9 @@ def _conclude(sus: Sequence[str], errors: Mapping[str, float], n: int, alpha: fl
     best = min(usable, key=lambda p: errors[p])
     # mean squared errors of white noise: their ratio is F(n, n) when both models
     # explain the data; beyond the (1 - alpha) quantile a model is significantly worse
-    limit = float(stats.f.ppf(1.0 - alpha, n, n))
+    from scipy.special import fdtri  # the F quantile, without scipy.stats' import (~0.5 s)
+
+    limit = float(fdtri(n, n, 1.0 - alpha))
     floor = max(errors[best], 1e-300)
     isolated = tuple(sorted((p for p in usable if (errors[p] / floor) ** 2 <= limit),
                             key=lambda p: errors[p]))

@@ -22,19 +22,26 @@ say "isolable".
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
-import sympy as sp
 from numpy.typing import NDArray
 
 from condmon.errors import ConfigError, ModelError
+from condmon.models import derived_cache
 from condmon.models.declared import (
     PlantModel, equations_of, substituted_equations, symbols_of,
 )
+
+if TYPE_CHECKING:
+    import sympy as sp
+
+# The analysis (sympy, the toolbox with scikit-learn and matplotlib) runs once
+# per set of equations: its results are kept in condmon.models.derived_cache.
 
 __all__ = ["ResidualGenerator", "FaultSignature", "RESIDUAL_KINDS", "residual_generators",
            "fault_signature", "suspects"]
@@ -143,6 +150,8 @@ class _Relations:
 
 
 def _relations(model: PlantModel) -> _Relations:
+    import sympy as sp
+
     variables, derivs, readings = equations_of(model)
     sym = symbols_of(model)
     labels: list[str] = []
@@ -182,6 +191,8 @@ def _states_in(expr: sp.Expr, model: PlantModel) -> set[str]:
 
 def _generator(model: PlantModel, r: _Relations, eqs: Iterable[int]) -> ResidualGenerator | None:
     """The residual generator computing an equation set by integration, or None."""
+    import sympy as sp
+
     labels = [r.labels[i] for i in sorted(eqs)]
     integrated = [lab[4:] for lab in labels if lab.startswith("der:")]
     sensors = [lab[7:] for lab in labels if lab.startswith("sensor:")]
@@ -236,6 +247,18 @@ def residual_generators(model: PlantModel, kind: ResidualKind = "simulation"
     >>> [g.name for g in residual_generators(load_plant_model("hst"))]
     ['r_Ps', 'r_omega_m']
     """
+    if kind not in RESIDUAL_KINDS:
+        raise ConfigError(f"unknown residual kind {kind!r}; allowed: {', '.join(RESIDUAL_KINDS)}")
+    return derived_cache.cached(
+        derived_cache.plant_key(model), f"generators:{kind}",
+        lambda: _derive_generators(model, kind),
+        lambda gens: [dataclasses.asdict(g) for g in gens],
+        lambda data: tuple(ResidualGenerator(
+            str(d["name"]), str(d["sensor"]), *(tuple(str(v) for v in d[k]) for k in (
+                "integrated", "inputs", "equations", "faults"))) for d in data))
+
+
+def _derive_generators(model: PlantModel, kind: ResidualKind) -> tuple[ResidualGenerator, ...]:
     r = _relations(model)
     n = len(r.labels)
     sensor_rows = {lab[7:]: i for i, lab in enumerate(r.labels) if lab.startswith("sensor:")}
@@ -273,6 +296,21 @@ def fault_signature(model: PlantModel, kind: ResidualKind = "simulation") -> Fau
     >>> fsm.signature("Rv"), fsm.mb["Rv"], fsm.ib["Rv"]
     ((1, 1), 1, 0)
     """
+    return derived_cache.cached(
+        derived_cache.plant_key(model), f"signature:{kind}",
+        lambda: _derive_signature(model, kind),
+        lambda f: {"faults": list(f.faults), "residuals": list(f.residuals),
+                   "matrix": f.matrix.tolist(), "isolable": f.isolable.tolist(),
+                   "model_isolable": f.model_isolable.tolist()},
+        lambda d: FaultSignature(
+            tuple(str(v) for v in d["faults"]), tuple(str(v) for v in d["residuals"]),
+            np.array(d["matrix"], dtype=np.int64).reshape(len(d["faults"]), len(d["residuals"])),
+            np.array(d["isolable"], dtype=np.bool_).reshape(len(d["faults"]), len(d["faults"])),
+            np.array(d["model_isolable"], dtype=np.bool_).reshape(len(d["faults"]),
+                                                                  len(d["faults"]))))
+
+
+def _derive_signature(model: PlantModel, kind: ResidualKind) -> FaultSignature:
     gens = residual_generators(model, kind)
     r = _relations(model)
     fdt_model = _fdt_model(r, range(len(r.labels)))

@@ -25,12 +25,10 @@ from condmon.identify.fit import DEFAULT_FIT_THRESHOLD, FitCheck
 from condmon.identify.greybox import choose_route, inverse_route, linear_route
 from condmon.identify.ls import arx, iv
 from condmon.identify.oe import oe
-from condmon.identify.oe_route import oe_route
 from condmon.identify.sriv import sriv
 from condmon.io.records import Record, validate_record
 from condmon.models.machine import Machine
 from condmon.models.registry import get_model
-from condmon.models.semilinear import semilinear_structure
 from condmon.models.transfer import ContinuousTF
 
 __all__ = ["EstimateResult", "estimate", "estimate_record", "estimate_joint", "list_estimators",
@@ -212,6 +210,8 @@ def _excitation_columns(record: pd.DataFrame | Record, machine: Machine,
 def _required_columns(machine: Machine, route: str) -> tuple[str, ...]:
     """Record columns a route needs (inputs, then sensors)."""
     if route == "oe":
+        from condmon.models.semilinear import semilinear_structure  # sympy: only for this route
+
         s = semilinear_structure(machine)
         return (*s.inputs, *s.sensors)
     if route == "linear":
@@ -426,6 +426,8 @@ def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-m
                 diagnostics = dict(lin.diagnostics)
                 notes += list(lin.discrete.notes)
             elif chosen == "oe":
+                from condmon.identify.oe_route import oe_route  # sympy, scipy: only this route
+
                 start, how = _oe_start(records, machine, consts, fit_threshold)
                 oe_res = oe_route(records, machine, start, constants=consts,
                                   fit_threshold=fit_threshold)

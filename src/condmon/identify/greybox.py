@@ -30,13 +30,10 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import sympy as sp
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
-from scipy.signal import butter, sosfiltfilt
 
 from condmon.errors import ConversionError, EstimationError, ModelError
 from condmon.identify._common import TFEstimate
@@ -45,8 +42,13 @@ from condmon.io.records import Record
 from condmon.models.conversion import d2c_coefficients_fast, tf_d2c
 from condmon.models.declared import substituted_equations, symbols_of
 from condmon.models.machine import InverseStructure, LinearStructure, Machine
-from condmon.models.semilinear import semilinear_structure
 from condmon.models.transfer import ContinuousTF
+
+if TYPE_CHECKING:
+    import sympy as sp
+
+# sympy and scipy are imported by the routes and fall-backs that use them: the
+# linear route of a cached declaration (condmon.models.derived_cache) needs neither.
 
 __all__ = ["LinearRouteResult", "RouteResult", "InverseRouteResult", "linear_route",
            "inverse_route",
@@ -67,6 +69,8 @@ def choose_route(machine: Machine, route: str | None = None) -> str:
     """
     want = route or machine.spec.route
     if want == "oe":
+        from condmon.models.semilinear import semilinear_structure
+
         semilinear_structure(machine)
         return "oe"
     if want == "linear":
@@ -146,6 +150,8 @@ def _solve_coefficients(lin: LinearStructure, target: FloatArray, start: FloatAr
     for x0 in (start, -start):
         p = _newton(res, jac, x0)
         if p is None or float(np.sum(res(p) ** 2)) > 1e-20:
+            from scipy.optimize import least_squares
+
             try:
                 with np.errstate(all="ignore"):
                     sol = least_squares(res, x0, jac=jac, method="trf",
@@ -342,6 +348,8 @@ class InverseRouteResult(RouteResult):
 
 
 def _lowpass(x: FloatArray, cutoff: float, fs: float) -> FloatArray:
+    from scipy.signal import butter, sosfiltfilt
+
     sos = butter(4, cutoff, fs=fs, output="sos")
     return np.asarray(sosfiltfilt(sos, x), dtype=np.float64)
 
@@ -427,6 +435,8 @@ def _inverse_signals(rec: Record, machine: Machine, inv: InverseStructure,
                      ) -> tuple[dict[str, FloatArray], NDArray[np.intp]]:
     """One record's filtered signals and derivatives, and the rows to use
     (filter edges and standstill left out)."""
+    import sympy as sp
+
     plant, spec = machine.plant, machine.spec
     fs = 1.0 / rec.dt
     column_of = {str(e): sensor for sensor, e in substituted_equations(plant)[2].items()
@@ -457,6 +467,8 @@ def _inverse_signals(rec: Record, machine: Machine, inv: InverseStructure,
 
 def _switch_arguments(inv: InverseStructure) -> list[sp.Expr]:
     """Arguments of the sign/abs functions in the equations (unique)."""
+    import sympy as sp
+
     found: list[sp.Expr] = []
     for eq in inv.equations:
         for expr in (*(phi for _, phi in eq.terms), eq.known):
@@ -468,6 +480,8 @@ def _switch_arguments(inv: InverseStructure) -> list[sp.Expr]:
 
 def _evaluate(expr: sp.Expr, sig: Mapping[str, FloatArray], consts: Mapping[str, float],
               rows: NDArray[np.intp]) -> FloatArray:
+    import sympy as sp
+
     names = sorted(str(s) for s in expr.free_symbols)
     args: list[FloatArray | float] = []
     for n in names:

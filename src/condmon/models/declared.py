@@ -28,15 +28,21 @@ import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import sympy as sp
 from numpy.typing import NDArray
 
 from condmon.errors import ConfigError, ModelError
 from condmon.io.config import load_default, load_toml
-from condmon.models.expressions import parse_expression, smoothed
+from condmon.models import derived_cache
+
+if TYPE_CHECKING:
+    import sympy as sp
+
+# sympy (and condmon.models.expressions, built on it) is imported where the
+# equations are first needed: a declaration whose derived structure is in the
+# cache (condmon.models.derived_cache) is used without it.
 
 __all__ = ["Parameter", "Input", "Variable", "State", "Sensor", "InputStep", "BuiltInTest",
            "PlantModel", "CompiledModel", "load_plant_model", "list_plant_models", "plant_from_doc",
@@ -255,6 +261,8 @@ class CompiledModel:
 
 def symbols_of(model: PlantModel) -> dict[str, sp.Symbol]:
     """One real sympy symbol per declared name."""
+    import sympy as sp
+
     names = (*model.parameter_names, *model.input_names,
              *(v.name for v in model.variables), *model.state_names)
     return {n: sp.Symbol(n, real=True) for n in names}
@@ -264,6 +272,8 @@ def symbols_of(model: PlantModel) -> dict[str, sp.Symbol]:
 def equations_of(model: PlantModel) -> tuple[dict[str, sp.Expr], dict[str, sp.Expr],
                                              dict[str, sp.Expr]]:
     """Parsed equations: (variables, state derivatives, sensor readings), as written."""
+    from condmon.models.expressions import parse_expression
+
     sym = symbols_of(model)
     allowed_v = {k: s for k, s in sym.items()}
     variables: dict[str, sp.Expr] = {}
@@ -296,27 +306,51 @@ def substituted_equations(model: PlantModel) -> tuple[dict[str, sp.Expr], dict[s
 
 @functools.lru_cache(maxsize=32)
 def _compile(model: PlantModel) -> CompiledModel:
+    eps = model.smoothing if model.smoothing is not None else \
+        float(load_default("isolation.toml")["simulation"]["smoothing_eps"])
+    rhs, outputs, variables = derived_cache.cached(
+        derived_cache.plant_key(model), f"compiled:{eps!r}",
+        lambda: _lambdified(model, eps), lambda fns: _dump_compiled(model, fns),
+        lambda data: tuple(derived_cache.restore_function(data[k])
+                           for k in ("rhs", "outputs", "variables")))
+
+    def make(fn: Callable[..., Any]) -> Callable[[FloatArray, FloatArray, FloatArray], FloatArray]:
+        def call(x: FloatArray, u: FloatArray, p: FloatArray) -> FloatArray:
+            return np.array(fn(x, u, p), dtype=np.float64)
+        return call
+
+    return CompiledModel(model, make(rhs), make(outputs), make(variables), outputs, variables)
+
+
+def _lambdified(model: PlantModel, eps: float) -> tuple[Callable[..., Any], ...]:
+    """The model's right-hand side, sensor readings and variables as numpy
+    functions of (states, inputs, parameters), the non-smooth functions smoothed."""
+    import sympy as sp
+
+    from condmon.models.expressions import smoothed
+
     sym = symbols_of(model)
     xs = [sym[n] for n in model.state_names]
     us = [sym[n] for n in model.input_names]
     ps = [sym[n] for n in model.parameter_names]
-    eps = model.smoothing if model.smoothing is not None else \
-        float(load_default("isolation.toml")["simulation"]["smoothing_eps"])
     var_exprs, deriv_exprs, out_exprs = ([smoothed(e, eps) for e in d.values()]
                                          for d in substituted_equations(model))
 
     def raw(exprs: list[sp.Expr]) -> Callable[..., Any]:
         return sp.lambdify((xs, us, ps), exprs, modules="numpy", cse=True)  # type: ignore[no-any-return]
 
-    def make(exprs: list[sp.Expr]) -> Callable[[FloatArray, FloatArray, FloatArray], FloatArray]:
-        fn = raw(exprs)
+    return raw(deriv_exprs), raw(out_exprs), raw(var_exprs)
 
-        def call(x: FloatArray, u: FloatArray, p: FloatArray) -> FloatArray:
-            return np.array(fn(x, u, p), dtype=np.float64)
-        return call
 
-    return CompiledModel(model, make(deriv_exprs), make(out_exprs), make(var_exprs),
-                         raw(out_exprs), raw(var_exprs))
+def _dump_compiled(model: PlantModel, fns: tuple[Callable[..., Any], ...]
+                   ) -> dict[str, Any] | None:
+    probe = ([s.initial + 0.5 for s in model.states],
+             [model.input_nominal(u.name) for u in model.inputs],
+             [p.value for p in model.parameters])
+    kept = [derived_cache.portable(fn, *probe) for fn in fns]
+    if any(k is None for k in kept):
+        return None
+    return dict(zip(("rhs", "outputs", "variables"), kept))
 
 
 # -- loading and validation ------------------------------------------------------------
@@ -525,10 +559,19 @@ def _validated(m: PlantModel, src: str) -> PlantModel:
         if step.input not in m.input_names:
             raise ConfigError(f"{src}[test].schedule: unknown input {step.input!r}; "
                               f"allowed: {', '.join(m.input_names) or '(none declared)'}")
-    variables, derivs, readings = equations_of(m)  # every equation parses, known names only
+    # every equation parses, known names only (checked once per set of equations)
+    derived_cache.cached(derived_cache.plant_key(m), "equations", lambda: _check_equations(m, src),
+                         lambda ok: ok, lambda data: bool(data))
+    return m
+
+
+def _check_equations(m: PlantModel, src: str) -> bool:
+    import sympy as sp
+
+    variables, derivs, readings = equations_of(m)
     for kind, eqs in (("variables", variables), ("states", derivs), ("sensors", readings)):
         for name, expr in eqs.items():
             if expr.has(sp.zoo, sp.nan, sp.oo, -sp.oo):
                 raise ConfigError(f"{src}[{kind}.{name}]: the equation is infinite or undefined "
                                   f"as written ({expr}): a division by zero?")
-    return m
+    return True

@@ -15,19 +15,26 @@ Two structures are derived symbolically (sympy), with no code per machine:
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable, Mapping
+import json
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, overload
 
 import numpy as np
-import sympy as sp
 from numpy.typing import NDArray
 
 from condmon.errors import ConfigError, ModelError
+from condmon.models import derived_cache
 from condmon.models.declared import PlantModel, substituted_equations, symbols_of
-from condmon.models.expressions import parse_expression
 from condmon.models.plausibility import Plausibility, parse_plausibility
+
+if TYPE_CHECKING:
+    import sympy as sp
+
+# sympy is imported where a structure is derived: the linear structure and the
+# derived quantities of a declaration are kept in condmon.models.derived_cache,
+# so estimating a cached model needs no sympy.
 
 __all__ = ["EstimationSpec", "Machine", "LinearStructure", "InverseStructure",
            "InverseEquation", "machine_from_doc", "ROUTES"]
@@ -180,8 +187,9 @@ class Machine:
                 g[unknowns.index(name)] = 1.0
                 values[name] = float(params[name])
             else:
-                values[name] = float(self.derived_functions()[name][1](params))
-                g = _derived_gradients(self)[name](params)
+                value, gradient = _derived_numeric(self)[name]
+                values[name] = float(value(params))
+                g = gradient(params)
             rows.append(g)
         G = np.array(rows)
         return values, G @ cov @ G.T
@@ -202,10 +210,11 @@ class LinearStructure:
         The input column.
     outputs : tuple of str
         Sensor (record column) names, in numerator order.
-    coefficients : tuple of sympy.Expr
+    coefficients : sequence of sympy.Expr
         ``[a_1..a_n, b_11..b_1n, ..., b_m1..b_mn]`` of
         ``(b_j1 s^(n-1) + ... + b_jn) / (s^n + a_1 s^(n-1) + ... + a_n)``,
-        as functions of the parameters.
+        as functions of the parameters (derived on first access when the
+        structure came from the cache).
     free : tuple of int
         Indices of the coefficients not identically zero (the equations solved).
     values : callable
@@ -217,13 +226,87 @@ class LinearStructure:
     order: int
     input: str
     outputs: tuple[str, ...]
-    coefficients: tuple[sp.Expr, ...]
+    coefficients: Sequence[sp.Expr]
     free: tuple[int, ...]
     values: Callable[[FloatArray, FloatArray], FloatArray]
     jacobian: Callable[[FloatArray, FloatArray], FloatArray]
+    # the lambdified functions behind values and jacobian (kept in the cache)
+    raw: tuple[Callable[..., Any], ...] = field(default=(), repr=False, compare=False)
+
+
+class _Deferred(Sequence["sp.Expr"]):
+    """A sequence computed on first access (the symbolic coefficients of a cached
+    linear structure, derived only when someone reads them)."""
+
+    def __init__(self, compute: Callable[[], Sequence[sp.Expr]]) -> None:
+        self._compute = compute
+        self._items: tuple[sp.Expr, ...] | None = None
+
+    def _get(self) -> tuple[sp.Expr, ...]:
+        if self._items is None:
+            self._items = tuple(self._compute())
+        return self._items
+
+    @overload
+    def __getitem__(self, i: int) -> sp.Expr: ...
+
+    @overload
+    def __getitem__(self, i: slice) -> Sequence[sp.Expr]: ...
+
+    def __getitem__(self, i: int | slice) -> sp.Expr | Sequence[sp.Expr]:
+        return self._get()[i]
+
+    def __len__(self) -> int:
+        return len(self._get())
+
+    def __iter__(self) -> Iterator[sp.Expr]:
+        return iter(self._get())
+
+    def __repr__(self) -> str:
+        return repr(self._get())
+
+
+def _spec_item(machine: Machine, kind: str) -> str:
+    """Cache item name of a structure that depends on the ``[estimation]`` table."""
+    spec = machine.spec
+    return f"{kind}:" + json.dumps([spec.unknowns, sorted(spec.derived.items())])
+
+
+def _wrap(fn: Callable[..., Any]) -> Callable[[FloatArray, FloatArray], FloatArray]:
+    return lambda p, k: np.asarray(fn(list(p), list(k)), dtype=np.float64)
+
+
+def _probe(machine: Machine) -> tuple[list[float], list[float]]:
+    """(unknowns, constants) at their declared values: where cached functions are checked."""
+    unknowns = machine.nominal()
+    consts = machine.constants()
+    return ([unknowns[k] for k in machine.spec.unknowns],
+            [consts[p] for p in machine.plant.parameter_names if p not in machine.spec.unknowns])
+
+
+def _dump_linear(machine: Machine, lin: LinearStructure) -> dict[str, Any] | None:
+    if len(lin.raw) != 2:
+        return None
+    probe = _probe(machine)
+    values, jacobian = (derived_cache.portable(fn, *probe) for fn in lin.raw)
+    if values is None or jacobian is None:
+        return None
+    return {"order": lin.order, "input": lin.input, "outputs": list(lin.outputs),
+            "free": list(lin.free), "values": values, "jacobian": jacobian}
+
+
+def _restore_linear(machine: Machine, data: dict[str, Any]) -> LinearStructure:
+    f_val = derived_cache.restore_function(data["values"])
+    f_jac = derived_cache.restore_function(data["jacobian"])
+    return LinearStructure(
+        int(data["order"]), str(data["input"]), tuple(str(o) for o in data["outputs"]),
+        _Deferred(lambda: _derive_linear(machine).coefficients),
+        tuple(int(i) for i in data["free"]), _wrap(f_val), _wrap(f_jac), (f_val, f_jac))
 
 
 def _is_linear_in(expr: sp.Expr, syms: list[sp.Symbol]) -> bool:
+    import sympy as sp
+
     if expr.has(sp.sign, sp.Abs, sp.Min, sp.Max, sp.Heaviside):
         return False
     for s in syms:
@@ -235,6 +318,15 @@ def _is_linear_in(expr: sp.Expr, syms: list[sp.Symbol]) -> bool:
 
 @functools.lru_cache(maxsize=32)
 def _linear(machine: Machine) -> LinearStructure:
+    return derived_cache.cached(
+        derived_cache.plant_key(machine.plant), _spec_item(machine, "linear"),
+        lambda: _derive_linear(machine), lambda lin: _dump_linear(machine, lin),
+        lambda data: _restore_linear(machine, data))
+
+
+def _derive_linear(machine: Machine) -> LinearStructure:
+    import sympy as sp
+
     plant, spec = machine.plant, machine.spec
     sym = symbols_of(plant)
     _, derivs, readings = substituted_equations(plant)
@@ -285,10 +377,8 @@ def _linear(machine: Machine) -> LinearStructure:
     if len(free) < len(unknowns):
         raise ModelError(f"{where}: {len(free)} transfer-function coefficients cannot "
                          f"determine {len(unknowns)} unknowns; fix some as constants")
-    return LinearStructure(
-        n, used_inputs[0], plant.sensor_names, tuple(coeffs), free,
-        lambda p, k: np.asarray(f_val(list(p), list(k)), dtype=np.float64),
-        lambda p, k: np.asarray(f_jac(list(p), list(k)), dtype=np.float64))
+    return LinearStructure(n, used_inputs[0], plant.sensor_names, tuple(coeffs), free,
+                           _wrap(f_val), _wrap(f_jac), (f_val, f_jac))
 
 
 # -- the inverse-model structure --------------------------------------------------------
@@ -341,6 +431,8 @@ class InverseStructure:
 
 @functools.lru_cache(maxsize=32)
 def _inverse(machine: Machine) -> InverseStructure:
+    import sympy as sp
+
     plant, spec = machine.plant, machine.spec
     sym = symbols_of(plant)
     _, derivs, readings = substituted_equations(plant)
@@ -403,6 +495,10 @@ def _inverse(machine: Machine) -> InverseStructure:
 
 @functools.lru_cache(maxsize=32)
 def _derived(machine: Machine) -> dict[str, tuple[sp.Expr, Callable[..., Any]]]:
+    import sympy as sp
+
+    from condmon.models.expressions import parse_expression
+
     sym = symbols_of(machine.plant)
     params = {k: sym[k] for k in machine.plant.parameter_names}
     out = {}
@@ -414,19 +510,55 @@ def _derived(machine: Machine) -> dict[str, tuple[sp.Expr, Callable[..., Any]]]:
     return out
 
 
-@functools.lru_cache(maxsize=32)
-def _derived_gradients(machine: Machine) -> dict[str, Callable[..., Any]]:
-    """Gradient of each derived quantity with respect to the unknowns, lambdified."""
+DerivedRaw = dict[str, tuple[Callable[..., Any], Callable[..., Any]]]
+
+
+def _derive_raw(machine: Machine) -> DerivedRaw:
+    """Each derived quantity and its gradient with respect to the unknowns, as
+    numpy functions of every parameter (declaration order)."""
+    import sympy as sp
+
     sym = symbols_of(machine.plant)
     params = [sym[k] for k in machine.plant.parameter_names]
-    names = list(machine.plant.parameter_names)
     out = {}
     for name, (expr, _) in _derived(machine).items():
         grad = [sp.diff(expr, sym[u]) for u in machine.spec.unknowns]
-        fn = sp.lambdify(params, grad, modules="numpy")
-        out[name] = (lambda f, ns: lambda d: np.asarray(f(*[d[k] for k in ns]),
-                                                        dtype=np.float64))(fn, names)
+        out[name] = (sp.lambdify(params, expr, modules="numpy"),
+                     sp.lambdify(params, grad, modules="numpy"))
     return out
+
+
+def _dump_derived(machine: Machine, raw: DerivedRaw) -> dict[str, Any] | None:
+    probe = [p.value for p in machine.plant.parameters]
+    out = {}
+    for name, fns in raw.items():
+        kept = [derived_cache.portable(fn, *probe) for fn in fns]
+        if kept[0] is None or kept[1] is None:
+            return None
+        out[name] = kept
+    return out
+
+
+@functools.lru_cache(maxsize=32)
+def _derived_numeric(machine: Machine) -> dict[str, tuple[Callable[[Mapping[str, float]], Any],
+                                                          Callable[[Mapping[str, float]],
+                                                                   FloatArray]]]:
+    """Each derived quantity as (value, gradient with respect to the unknowns),
+    functions of a parameter dict; from the cache when the declaration is in it."""
+    raw = derived_cache.cached(
+        derived_cache.plant_key(machine.plant), _spec_item(machine, "derived"),
+        lambda: _derive_raw(machine), lambda r: _dump_derived(machine, r),
+        lambda data: {k: (derived_cache.restore_function(v[0]),
+                          derived_cache.restore_function(v[1])) for k, v in data.items()})
+    names = list(machine.plant.parameter_names)
+
+    def value(f: Callable[..., Any]) -> Callable[[Mapping[str, float]], Any]:
+        return lambda d: f(*[d[k] for k in names])
+
+    def gradient(f: Callable[..., Any]) -> Callable[[Mapping[str, float]], FloatArray]:
+        return lambda d: np.asarray(f(*[d[k] for k in names]), dtype=np.float64)
+
+    return {k: (value(fv), gradient(fg)) for k, (fv, fg) in raw.items()}
 
 
 # -- reading the [estimation] table ---------------------------------------------------
@@ -535,5 +667,5 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any],
         _fraction(est.get("residual_warning", 0.15), f"{src}[estimation].residual_warning"),
         str(est.get("structure_hint", "")))
     machine = Machine(plant, spec, **files)
-    machine.derived_functions()  # every derived equation parses
+    _derived_numeric(machine)  # every derived equation parses
     return machine

@@ -12,7 +12,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import skfuzzy as fuzz
 from numpy.typing import NDArray
 
 from condmon.diagnose.rules import RuleBase, evaluate, load_rules
@@ -95,6 +94,8 @@ class Diagnosis:
 
 
 def _mf(points: tuple[float, ...]) -> FloatArray:
+    import skfuzzy as fuzz  # with its scipy imports: only when a test is diagnosed
+
     if len(points) == 3:
         return np.asarray(fuzz.trimf(_UNIVERSE, list(points)), dtype=np.float64)
     return np.asarray(fuzz.trapmf(_UNIVERSE, list(points)), dtype=np.float64)
@@ -163,6 +164,8 @@ def diagnose(symptoms: Mapping[str, Mapping[str, float]], rules: RuleBase | None
     minor = max((f.degree for f in faults if f.severity == "minor"), default=0.0)
     agg = np.maximum.reduce([np.minimum(go_mf, 1.0 - worst), np.minimum(adv_mf, minor),
                              np.minimum(nogo_mf, major)])
+    import skfuzzy as fuzz
+
     condition = float(fuzz.defuzz(_UNIVERSE, agg, "centroid"))
     memberships = [float(np.interp(condition, _UNIVERSE, m)) for m in (go_mf, adv_mf, nogo_mf)]
     status = STATUSES[int(np.argmax(memberships))]

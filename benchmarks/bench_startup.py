@@ -1,0 +1,108 @@
+"""Start-up time of the command line against ``python -c "import numpy"``.
+
+    python benchmarks/bench_startup.py [--runs 9]
+
+Each command runs in a fresh process, ``--runs`` times, the commands taking
+turns; the table gives the median wall time and its ratio to the numpy import
+measured in the same run. Targets: ``condmon --help`` <= 3x, ``condmon estimate``
+(a simulated actuator record) <= 8x, ``condmon isolate`` (a simulated HST record
+with a fault) <= 15x. The derived-structure cache is a fresh folder, filled by
+one warm-up run (the first run of a declaration, which derives it, is shown
+apart: "cold"). Prints the table and writes results/startup.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from _common import table, write_json
+
+TARGETS = {"condmon --help": 3.0, "condmon estimate": 8.0, "condmon isolate": 15.0}
+
+
+def _condmon() -> list[str]:
+    """The console script beside this interpreter, else the module."""
+    script = Path(sys.executable).with_name("condmon")
+    if script.exists():
+        return [str(script)]
+    found = shutil.which("condmon")
+    return [found] if found else [sys.executable, "-m", "condmon.cli.main"]
+
+
+def _time(cmd: list[str], env: dict[str, str]) -> float:
+    start = time.perf_counter()
+    done = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env,
+                          check=False)
+    elapsed = time.perf_counter() - start
+    if done.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd)} failed ({done.returncode}): "
+                         f"{done.stderr.decode(errors='replace')}")
+    return elapsed
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--runs", type=int, default=9)
+    args = ap.parse_args()
+    condmon = _condmon()
+    with tempfile.TemporaryDirectory(prefix="condmon-startup-") as tmp:
+        work = Path(tmp)
+        env = {**os.environ, "CONDMON_CACHE_DIR": str(work / "cache")}
+        act, hst = work / "actuator.csv", work / "hst.csv"
+        subprocess.run([*condmon, "simulate", "actuator", "--out", str(act), "--seed", "1"],
+                       env=env, check=True, capture_output=True)
+        subprocess.run([*condmon, "simulate", "hst", "--out", str(hst), "--seed", "1",
+                        "--fault", "Rv=+40%@10s"], env=env, check=True, capture_output=True)
+        commands = {
+            'python -c "import numpy"': [sys.executable, "-c", "import numpy"],
+            "condmon --help": [*condmon, "--help"],
+            "condmon estimate": [*condmon, "estimate", str(act)],
+            "condmon isolate": [*condmon, "isolate", "hst", str(hst)],
+        }
+        cold = {name: _time(cmd, {**env, "CONDMON_CACHE_DIR": str(work / f"cold{i}")})
+                for i, (name, cmd) in enumerate(commands.items())
+                if name in ("condmon estimate", "condmon isolate")}
+        for cmd in commands.values():  # warm-up: caches, the OS's file cache
+            _time(cmd, env)
+        times: dict[str, list[float]] = {name: [] for name in commands}
+        for _ in range(args.runs):
+            for name, cmd in commands.items():
+                times[name].append(_time(cmd, env))
+    base = statistics.median(times['python -c "import numpy"'])
+    rows, doc = [], {}
+    for name, ts in times.items():
+        med = statistics.median(ts)
+        ratio = med / base
+        target = TARGETS.get(name)
+        met = None if target is None else bool(ratio <= target)
+        rows.append({"command": name, "median s": med, "min s": min(ts), "x numpy": ratio,
+                     "target": "" if target is None else f"<= {target:g}x",
+                     "met": "" if met is None else ("yes" if met else "NO")})
+        doc[name] = {"median_s": med, "min_s": min(ts), "runs_s": ts, "ratio": ratio,
+                     "target_ratio": target, "target_met": met}
+    for name, t in cold.items():
+        rows.append({"command": f"{name} (cold cache)", "median s": t, "min s": t,
+                     "x numpy": t / base, "target": "", "met": ""})
+        doc[f"{name} (cold cache)"] = {"seconds": t, "ratio": t / base}
+    print(table(rows, f"Start-up: wall time of fresh processes, median of {args.runs} runs, "
+                      f"as a multiple of the numpy import ({os.cpu_count()} CPUs)"))
+    print()
+    for name, target in TARGETS.items():
+        state = "met" if doc[name]["target_met"] else "NOT met"
+        print(f"{name}: {doc[name]['ratio']:.1f}x numpy (target <= {target:g}x): {state}")
+    path = write_json("startup", {"runs": args.runs, "results": doc,
+                                  "targets_met": all(doc[n]["target_met"] for n in TARGETS)})
+    print(f"wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

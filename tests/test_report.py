@@ -1,126 +1,285 @@
-"""Reports that do not mislead: one numbering, escaped names, distinct files,
-excluded tests shown but never trended, flags shown, links both ways."""
+"""Reports that do not mislead: the trend agrees with the stored status, one
+numbering by test id, a time axis, excluded tests shown but never trended,
+baseline flags shown, a fleet index linked both ways, escaped names and a file
+of its own for every unit, isolation units, a read-only command."""
 
 from __future__ import annotations
 
+import dataclasses
 import re
+import shutil
 from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
 
+import numpy as np
 import pandas as pd
 import pytest
 
 from condmon.cli.main import main
-from condmon.report.figures import trend_data
-from condmon.report.html import page_name, write_fleet_report
+from condmon.monitor.fuzzy import load_monitor_config, symptom_degree
+from condmon.report import FleetReport, ReportFiles, page_name, write_fleet_report, write_report
+from condmon.report.trends import trend_data
 from condmon.simulate import ActuatorRig, simulate_actuator
-from condmon.store import HistoryStore, open_store
+from condmon.store import open_store
 from condmon.workflows.manage import exclude_test
-from condmon.workflows.monitoring import add_baseline_tests, check_test
+from condmon.workflows.monitoring import EstimateOptions, add_baseline_tests, check_test
 
 ODD = "<b>EMA[/]7</b>"
+HST = "HST <1> & 'x'"
+LONG = "É" * 200  # 400 bytes in UTF-8
+OTHERS = ("EMA/7", "EMA:7", LONG, "index")
 
 
-def _records(rig: ActuatorRig, faults: list[str], seeds: range, label: str) -> list[pd.DataFrame]:
+def _records(rig: ActuatorRig, faults: list[str], seeds: range, label: str,
+             month: int | None = None) -> list[pd.DataFrame]:
+    """Simulated records; with ``month``, each carries a start time on day ``seed``."""
     out = []
     for s in seeds:
         df = simulate_actuator(rig.with_faults(faults), seed=s)
         df.attrs["source"] = f"{label}{s}.csv"
+        if month is not None:
+            df.attrs["start_time"] = f"2026-{month:02d}-{s:02d}T08:00:00+00:00"
         out.append(df)
     return out
 
 
+def _isolation(statement: str, isolated: tuple[str, ...], changes: dict[str, float],
+               rejected: dict[str, str]) -> Any:
+    """What the store keeps of an isolation result (stored directly, no simulation)."""
+    estimates = {p: SimpleNamespace(value=1.0 + c / 100, nominal=1.0, change_percent=c)
+                 for p, c in changes.items()}
+    return SimpleNamespace(detected=bool(isolated), detection_time=10.5 if isolated else None,
+                           decided=True, reason=None, statement=statement,
+                           suspects=tuple(changes), isolated=isolated, estimates=estimates,
+                           errors={p: 1.0 for p in changes}, rejected=rejected,
+                           to_dict=lambda: {"statement": statement})
+
+
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory: pytest.TempPathFactory, rig: ActuatorRig) -> tuple[str, dict[str, int]]:
+    """One flagged actuator unit with dated checks (one excluded, one rejected,
+    one stored late with an early date), four odd names, one isolation unit."""
     db = str(tmp_path_factory.mktemp("rep") / "h.db")
     ids: dict[str, int] = {}
     with open_store(db) as store:
-        healthy = _records(rig, [], range(1, 5), "h")
-        worn = _records(rig, ["D=*7"], range(9, 10), "worn")
+        healthy = _records(rig, [], range(1, 5), "h", month=1)
+        worn = _records(rig, ["D=*7"], range(9, 10), "worn", month=1)
         added = add_baseline_tests(store, ODD, [*healthy, *worn])
         ids["worn"] = added.tests[-1].test_id
-        ids["ok"] = check_test(store, ODD, _records(rig, [], range(21, 22), "c")[0],
-                               test_date="2026-05-02").test_id
-        ids["bad"] = check_test(store, ODD, _records(rig, ["D=*7"], range(22, 23), "c")[0],
-                                test_date="2026-05-09").test_id
-        for name in ("EMA/7", "EMA:7", "E" * 200):
-            add_baseline_tests(store, name, healthy[:3])
+        checks = _records(rig, [], range(21, 22), "c") + _records(rig, ["D=*7"], range(22, 23), "c")
+        ids["ok"] = check_test(store, ODD, checks[0], test_date="2026-05-02").test_id
+        ids["bad"] = check_test(store, ODD, checks[1], test_date="2026-05-09").test_id
+        late = _records(rig, [], range(23, 26), "c")
+        ids["gone"] = check_test(store, ODD, late[0], test_date="2026-05-05").test_id
+        exclude_test(store, ids["gone"], "sensor <unplugged>")
+        ids["retest"] = check_test(store, ODD, late[1], test_date="2026-05-06",
+                                   options=EstimateOptions(fit_threshold=99.9)).test_id
+        ids["early"] = check_test(store, ODD, late[2], test_date="2026-04-20").test_id
+        undated = _records(rig, [], range(1, 4), "h")
+        for name in OTHERS:
+            add_baseline_tests(store, name, undated)
+        for k, (when, isolated, changes) in enumerate([
+                ("2026-03-01", ("Rv",), {"Rv": 25.0, "Dm": -3.0, "Tld": 1e30}),
+                ("2026-02-01", (), {})]):
+            res = _isolation(f"fault isolated: {', '.join(isolated) or 'none'}", isolated,
+                             changes, {"Tld": "implausible"} if changes else {})
+            store.add_isolation(HST, res, model="hst", source=f"run <{k}>.csv",
+                                digest=f"d{k}", test_date=pd.Timestamp(when, tz="UTC"))
     return db, ids
 
 
-def test_names_are_escaped_and_files_distinct(fleet: tuple[str, dict[str, int]],
-                                              tmp_path: Path) -> None:
+@pytest.fixture(scope="module")
+def report(fleet: tuple[str, dict[str, int]], tmp_path_factory: pytest.TempPathFactory
+           ) -> FleetReport:
     db, _ = fleet
     with open_store(db, create=False) as store:
-        rep = write_fleet_report(store, tmp_path)
-    names = [p.html.name for p in rep.pages]
-    assert len(set(names)) == 4 and all(len(n.encode()) < 255 for n in names)
-    assert page_name("EMA/7") != page_name("EMA:7")
-    index = rep.index.read_text()
+        return write_fleet_report(store, tmp_path_factory.mktemp("out"))
+
+
+def _page(report: FleetReport, unit: str) -> ReportFiles:
+    return next(p for p in report.pages if p.unit == unit)
+
+
+def _row(html: str, test_id: int) -> str:
+    found = re.search(rf"<tr id='t{test_id}'.*?</tr>", html)
+    assert found is not None, test_id
+    return found.group(0)
+
+
+def test_names_are_escaped_and_every_unit_has_its_own_file(report: FleetReport) -> None:
+    files = [p.html.name for p in report.pages]
+    assert len(set(files)) == len(files) == 2 + len(OTHERS)
+    assert all(len(f.encode()) < 255 and re.fullmatch(r"[A-Za-z0-9._-]+", f) for f in files)
+    assert page_name("EMA/7") != page_name("EMA:7") and "index.html" not in files
+    index = report.index.read_text()
+    assert "<h1>Fleet</h1>" in index  # the unit named "index" did not overwrite it
     assert "<b>EMA" not in index and "&lt;b&gt;EMA[/]7&lt;/b&gt;" in index
-    for page in rep.pages:  # links both ways
-        assert f"href='{page.html.name}'" in index
-        assert "href='index.html'" in page.html.read_text()
+    assert "HST &lt;1&gt; &amp; &#x27;x&#x27;" in index
+    odd = _page(report, ODD).html.read_text()
+    assert "<title>condmon — &lt;b&gt;EMA[/]7&lt;/b&gt;</title>" in odd and "<b>EMA" not in odd
+    assert "alt='&lt;b&gt;EMA[/]7&lt;/b&gt;: trends'" in odd  # attributes too
+    assert "sensor &lt;unplugged&gt;" in odd and "run &lt;0&gt;.csv" in (
+        _page(report, HST).html.read_text())
+
+
+def test_index_and_pages_link_both_ways(report: FleetReport) -> None:
+    index = report.index.read_text()
+    for page in report.pages:
+        assert f"<a href='{page.html.name}'>" in index
+        assert "<a href='index.html'>" in page.html.read_text()
         for fig in page.figures:
-            assert fig.exists() and fig.name.startswith(page.html.stem)
+            assert fig.exists() and fig.name.startswith(page.html.stem + "-")
+            assert f"<img src='{fig.name}'" in page.html.read_text()
+    # latest status, date, model, tests and flags per unit
+    row = re.search(rf"<a href='{page_name(ODD)}.html'>.*?</tr>", index)
+    assert row is not None
+    assert "2026-05-09 00:00" in row.group(0) and "dc-motor" in row.group(0)
+    assert f"<a href='{page_name(ODD)}.html#flags'>⚠ 2</a>" in row.group(0)
+    hst = re.search(rf"<a href='{page_name(HST)}.html'>.*?</tr>", index)
+    assert hst is not None and '<span class="status no-go">' in hst.group(0)
+    assert "2026-03-01 00:00" in hst.group(0) and ">hst<" in hst.group(0)
 
 
-def test_excluded_tests_are_shown_not_trended_and_flags_shown(
-        fleet: tuple[str, dict[str, int]], tmp_path: Path) -> None:
+def test_trend_agrees_with_the_stored_status(fleet: tuple[str, dict[str, int]],
+                                             report: FleetReport) -> None:
     db, ids = fleet
+    page = _page(report, ODD)
     with open_store(db, create=False) as store:
-        page = write_fleet_report(store, tmp_path, [ODD]).pages[0].html.read_text()
-        # the contaminated baseline is flagged with the test to look at
-        assert "may not be trustworthy" in page and f"#{ids['worn']}" in page
         hist = store.history(ODD)
-    # one numbering: tests by their id, dates where known
-    assert f"<td>#{ids['bad']}</td><td class='l'>2026-05-09 00:00</td>" in page
-    assert " (stored)" in page  # the baseline tests have no test date
-    base = _baseline(db, ODD)
-    d = trend_data(hist, "D", *base["D"], k=2.0)
-    assert d.test_ids == (ids["ok"], ids["bad"])
-    assert d.status == tuple(hist.loc[list(d.test_ids), "status"])
-    assert all(d.width >= d.spread - 1e-9)  # the symptom width is never below the spread
+    # excluded and rejected tests are not trended; by date, not by id
+    trended = (ids["early"], ids["ok"], ids["bad"])
+    assert all(d.test_ids == trended for d in page.trends)
+    assert [d.parameter for d in page.trends] == ["R", "L", "Ke", "Kt", "J", "D"]
+    for d in page.trends:
+        assert d.status == tuple(hist.loc[list(trended), "status"])
+        assert d.xlabel == "test date (UTC)"
+        assert list(d.x) == sorted(d.x)
+        # the drawn bar implies exactly the symptom the status was computed from
+        np.testing.assert_allclose(d.implied, d.symptom, atol=1e-9)
+        assert np.all(d.width >= d.spread - 1e-9)
+    assert page.notes == {}
+    # the fit figure: every test but the excluded one, the rejected one included
+    assert page.fits is not None
+    assert ids["gone"] not in page.fits.test_ids and ids["retest"] in page.fits.test_ids
+    assert page.fits.status[page.fits.test_ids.index(ids["retest"])] == "retest"
 
 
-def test_exclude_changes_the_report(fleet: tuple[str, dict[str, int]], tmp_path: Path) -> None:
+def test_tables_number_tests_by_id_and_grey_excluded_ones(
+        fleet: tuple[str, dict[str, int]], report: FleetReport) -> None:
+    _, ids = fleet
+    html = _page(report, ODD).html.read_text()
+    assert re.search(r"checked test \d|test 1\b", html) is None
+    gone = _row(html, ids["gone"])
+    assert "class='excluded'" in gone and "excluded: sensor &lt;unplugged&gt;" in gone
+    assert '<span class="status excluded">' in gone and "title='SymH" not in gone
+    assert f"<td>#{ids['bad']}</td><td class='l'>2026-05-09 00:00</td>" in _row(html, ids["bad"])
+    assert '<span class="status retest">' in _row(html, ids["retest"])
+    assert "2026-01-09 08:00" in _row(html, ids["worn"])
+    other = _page(report, "EMA/7")
+    assert "(stored)" in other.html.read_text()  # no test date: when it was stored
+    assert other.fits is not None and other.fits.xlabel == "test # (no test dates recorded)"
+    assert f"Latest check <a href='#t{ids['bad']}'>#{ids['bad']}</a>" in html
+
+
+def test_flags_and_baseline_are_shown(fleet: tuple[str, dict[str, int]],
+                                      report: FleetReport) -> None:
+    _, ids = fleet
+    html = _page(report, ODD).html.read_text()
+    box = re.search(r"<div class='warn' id='flags'>.*?</div>", html)
+    assert box is not None and "may not be trustworthy (2 warnings)" in box.group(0)
+    assert f"<a href='#t{ids['worn']}'>#{ids['worn']}</a>" in box.group(0)
+    assert "<h2 id='baseline'>Baseline default v1</h2>" in html and "N = 5" in html
+    assert re.search(r"<td class='l'>D</td><td>[0-9.e-]+ ± [0-9.e-]+</td>", html)
+
+
+def test_excluding_the_worn_test_changes_the_report(fleet: tuple[str, dict[str, int]],
+                                                    tmp_path: Path) -> None:
     db, ids = fleet
-    import shutil
-
     copy = tmp_path / "copy.db"
     shutil.copy(db, copy)
-    with open_store(str(copy)) as store:
+    with open_store(str(copy), create=False) as store:
         exclude_test(store, ids["worn"], "worn unit fitted")
-        rep = write_fleet_report(store, tmp_path / "r", [ODD])
-        hist = store.history(ODD)
-    page = rep.pages[0].html.read_text()
-    row = re.search(rf"<tr id='t{ids['worn']}' class='excluded'>.*?</tr>", page)
-    assert row is not None and "excluded: worn unit fitted" in row.group(0)
-    assert "may not be trustworthy" not in page  # the new baseline is clean
-    assert hist.loc[ids["bad"], "status"] == "no-go"
-    assert f"Baseline default v2" in page
+        page = write_report(store, ODD, tmp_path / "r")
+    html = page.html.read_text()
+    assert "excluded: worn unit fitted" in _row(html, ids["worn"])
+    assert "may not be trustworthy" not in html and "Baseline default v2" in html
+    d = next(t for t in page.trends if t.parameter == "D")
+    i = d.test_ids.index(ids["bad"])
+    assert d.status[i] == "no-go" and d.reaches_r1[i] and d.symptom[i] == 1.0
+    np.testing.assert_allclose(d.implied, d.symptom, atol=1e-9)
 
 
-def test_report_cli_all_units_and_read_only(fleet: tuple[str, dict[str, int]], tmp_path: Path,
-                                            capsys: pytest.CaptureFixture[str]) -> None:
+def test_other_breakpoints_than_the_evaluation_are_explained(
+        fleet: tuple[str, dict[str, int]], tmp_path: Path) -> None:
+    db, ids = fleet
+    cfg = load_monitor_config()
+    narrow = dataclasses.replace(cfg, r1={**cfg.r1, "R": 0.01}, r2={**cfg.r2, "R": 0.02})
+    with open_store(db, create=False) as store:
+        page = write_report(store, ODD, tmp_path, narrow)
+    assert set(page.notes) == set(page.trends[0].test_ids)
+    assert all("stored symptom of R disagrees" in n for n in page.notes.values())
+    assert "<div class='note'><b>Read with the table:</b>" in page.html.read_text()
+
+
+def test_isolation_unit_page(report: FleetReport) -> None:
+    page = _page(report, HST)
+    html = page.html.read_text()
+    assert "<h2>Isolations</h2>" in html and "fault isolated: Rv" in html
+    assert "<td class='l'>Rv</td>" in html and "<b>+25.0</b>" in html
+    assert "title='estimate +1e+30 %, left out of the comparison'>rejected</td>" in html
+    iso = page.isolations
+    assert iso is not None and iso.isolation_ids == (2, 1)  # by date
+    assert iso.xlabel == "test date (UTC)"
+    assert np.isnan(iso.change["Tld"]).all()  # rejected from the comparison: not drawn
+    assert iso.isolated["Rv"].tolist() == [False, True]
+    assert page.trends == () and [f.name for f in page.figures] == [
+        f"{page_name(HST)}-isolations.png"]
+
+
+def test_undated_history_is_numbered_by_test_id() -> None:
+    h = pd.DataFrame({"role": ["check", "check", "check"], "accepted": [True, False, True],
+                      "excluded": [False, False, True], "status": ["no-go", "retest", "excluded"],
+                      "baseline_id": [1, 1, 1], "R_change": [30.0, 0.0, 90.0],
+                      "R_se": [0.001] * 3, "R_high": [2 / 3, 0.0, 1.0], "R_low": [0.0] * 3,
+                      "test_date": [pd.NaT] * 3}, index=[4, 5, 6])
+    from condmon.monitor.baseline import Baseline
+
+    d = trend_data(h, "R", {1: Baseline(("R",), (1.0,), (0.05,), 5)}, 20.0, 40.0, 2.0)
+    assert d.test_ids == (4,) and d.x.tolist() == [4.0]
+    assert d.xlabel == "test # (no test dates recorded)"
+    assert d.width.tolist() == pytest.approx([10.0])  # k·σ/mean·100, above the SE's 0.2
+    high, _ = symptom_degree(30.0, 10.0, 20.0, 40.0)  # what the monitor computes
+    assert d.implied.tolist() == pytest.approx([float(high)]) == [2 / 3]
+
+
+def test_report_cli_all_units_one_unit_and_read_only(
+        fleet: tuple[str, dict[str, int]], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
     db, _ = fleet
     assert main(["report", "--db", db, "--out", str(tmp_path / "all")]) == 0
-    assert "wrote 4 unit pages" in capsys.readouterr().out
-    assert (tmp_path / "all" / "index.html").exists()
-    assert main(["report", "--db", db, "--out", str(tmp_path / "one"), "--unit", "EMA/7"]) == 0
-    assert (tmp_path / "one" / f"{page_name('EMA/7')}.html").exists()
+    printed = capsys.readouterr().out
+    assert "wrote 6 unit pages and the fleet index" in printed and "for EMA/7" in printed
+    assert len(list((tmp_path / "all").glob("*.html"))) == 7
+    one = tmp_path / "one"
+    assert main(["report", "--db", db, "--out", str(one), "--unit", "EMA:7"]) == 0
+    assert "wrote 1 unit page and the fleet index" in capsys.readouterr().out
+    assert sorted(p.name for p in one.glob("*.html")) == sorted(
+        [f"{page_name('EMA:7')}.html", "index.html"])
+    index = (one / "index.html").read_text()
+    assert f"<a href='{page_name('EMA:7')}.html'>" in index and "(no page written)" in index
+    assert main(["report", "--db", db, "--out", str(one), "--unit", "nope"]) == 2
+    assert "nope" in capsys.readouterr().err
     assert main(["report", "--db", str(tmp_path / "none.db"), "--out", str(tmp_path)]) == 2
     assert not (tmp_path / "none.db").exists()
 
 
-def _baseline(db: str, unit: str) -> dict[str, tuple[float, float]]:
-    with open_store(db, create=False) as store:
-        stored = store.latest_baseline(unit)
-        assert stored is not None
-        b = stored.baseline
-    return {p: (m, s) for p, m, s in zip(b.parameters, b.mean, b.std)}
-
-
-def test_page_name_is_stable() -> None:
-    assert page_name("EMA-7") == "EMA-7"
-    assert page_name("a b") == "a_b-" + page_name("a b").rsplit("-", 1)[1]
-    assert isinstance(HistoryStore, type)
+@pytest.mark.parametrize("name", ["EMA-7", "EMA/7", "EMA:7", "a b", LONG, "x" * 200, "index",
+                                  "INDEX", "con", "..", "Ölpumpe", "EMA-7.v2"])
+def test_page_name_is_short_safe_and_keeps_plain_names(name: str) -> None:
+    got = page_name(name)
+    assert re.fullmatch(r"[A-Za-z0-9._-]+", got) and len(got) <= 91
+    assert not got.startswith(".")
+    plain = re.fullmatch(r"[A-Za-z0-9_-][A-Za-z0-9._-]{0,79}", name) is not None
+    assert (got == name) == (plain and name.lower() not in ("index", "con"))
+    assert page_name(name) == got  # stable

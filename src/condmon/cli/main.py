@@ -438,27 +438,31 @@ def report_cmd(
 ) -> None:
     """Write HTML pages (a fleet index and a page per unit) with trend, fit and symptom figures."""
     from condmon.monitor.fuzzy import load_monitor_config
-    from condmon.report.html import write_fleet_index, write_report
+    from condmon.report.html import write_fleet_report
     from condmon.store.db import open_store
 
     cfg = load_monitor_config(monitor) if monitor is not None else None
-    with open_store(db, create=False) as store:
-        units = [unit] if unit is not None else store.units()
+    with open_store(db, create=False) as store:  # read only: never makes a database
         if unit is not None:
             store.unit_id(unit)  # an unknown unit: the error names the known ones
-        pages = []
+        total = 1 if unit is not None else len(store.units())
         with progress() as prog:
-            task = prog.add_task("writing pages", total=len(units))
-            for u in units:
-                prog.update(task, description=escape(u[:40]))
-                pages.append(write_report(store, u, out_dir, cfg))
-                prog.advance(task)
-        index = write_fleet_index(store, out_dir)
-    if len(pages) == 1:
-        out.print(f"wrote {pages[0].html} ({len(pages[0].figures)} figures) and {index}",
-                  markup=False, highlight=False)
-    else:
-        out.print(f"wrote {len(pages)} unit pages and {index}", markup=False, highlight=False)
+            task = prog.add_task("writing pages", total=total)
+
+            def step(done: int, _total: int, name: str) -> None:
+                prog.update(task, completed=done, description=escape(name[:40]))
+
+            rep = write_fleet_report(store, out_dir, None if unit is None else [unit],
+                                     monitor=cfg, progress=step)
+    for p in rep.pages[:20]:
+        figs = f"{len(p.figures)} figure{'s' if len(p.figures) != 1 else ''}"
+        out.print(f"wrote {p.html} ({figs}) for {p.unit}", markup=False,
+                  highlight=False, soft_wrap=True)
+    if len(rep.pages) > 20:
+        out.print(f"... and {len(rep.pages) - 20} more unit pages in {Path(out_dir)}",
+                  markup=False, highlight=False, soft_wrap=True)
+    out.print(f"wrote {len(rep.pages)} unit page{'s' if len(rep.pages) != 1 else ''} and the "
+              f"fleet index {rep.index}", markup=False, highlight=False, soft_wrap=True)
 
 
 def _show_warning(message: Warning | str, category: type[Warning], filename: str,

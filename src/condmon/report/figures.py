@@ -1,27 +1,31 @@
 """Figures of a unit's history (like the reference paper's Figs. 4-6).
 
-Every figure numbers tests by their id in the history (``#12``) and, when the
-tests carry dates, puts them on a time axis. The trend figure draws what a
-check's status depends on: the r1/r2 bands, the baseline's own spread (±k·σ),
-and for each test the symptom half-width ±k·max(σ, SE) around its change; each
-point is coloured by the status stored for it, so the picture and the table
-agree. Excluded and rejected tests are never trended.
+Each figure draws one of the results of :mod:`condmon.report.trends`, so its
+content can be checked without pixels. Tests are numbered by their id in the
+history (``#12``) everywhere and, when the tests carry dates, placed on a time
+axis. The trend figure draws what a check's status depends on: the r1/r2
+bands, the active baseline's spread (±k·σ) around 0, and for each check the
+symptom half-width ±k·max(σ, SE) of its evaluation as an error bar; each point
+is coloured by the status stored for it and filled when this parameter's
+symptom is above 0, so the picture agrees with the table. Excluded tests are
+never drawn; rejected ones only in the fit figure.
+
+matplotlib is imported when a figure is drawn (Agg back-end, files only).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any, TypeVar
+from typing import IO, TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
-import pandas as pd
 
-from condmon.monitor.fuzzy import MonitorConfig
+if TYPE_CHECKING:
+    from condmon.report.trends import FitData, IsolationTrend, TrendData
 
 __all__ = ["plot_trends", "plot_fits", "plot_symptoms", "plot_isolation_trends",
-           "trend_data", "TrendData", "STATUS_COLOURS"]
+           "STATUS_COLOURS"]
 
 #: Colour of each status in every figure and page.
 STATUS_COLOURS = {"go": "#2e7d32", "advisory": "#ef6c00", "no-go": "#c62828",
@@ -40,250 +44,235 @@ def _pyplot() -> Any:
     return plt
 
 
-def _x(rows: pd.DataFrame, dated: bool) -> tuple[Any, str]:
-    """The x values of ``rows``: dates when the history has test dates, else test ids."""
-    if dated:
-        return rows["date"].dt.tz_convert("UTC").dt.tz_localize(None).to_numpy(), "test date (UTC)"
-    return np.asarray(rows.index, dtype=float), "test # (no test dates recorded)"
+def _dated(x: np.ndarray[Any, Any]) -> bool:
+    return np.issubdtype(x.dtype, np.datetime64)
 
 
-def _dated(history: pd.DataFrame) -> bool:
-    return "test_date" in history and bool(history["test_date"].notna().any())
-
-
-@dataclass(frozen=True)
-class TrendData:
-    """What the trend figure draws for one parameter (in percent of the baseline mean).
-
-    Attributes
-    ----------
-    test_ids : tuple of int
-        The checks drawn (accepted, not excluded), in history order.
-    change : ndarray
-        Change against the baseline. [%]
-    width : ndarray
-        Symptom half-width ``k·max(σ_baseline, SE)/|mean|·100``. [%]
-    se : ndarray
-        Each estimate's standard error. [%]
-    status : tuple of str
-        The status stored for each test.
-    spread : float
-        ``k·σ_baseline/|mean|·100``, the baseline's own band. [%]
-    """
-
-    test_ids: tuple[int, ...]
-    change: np.ndarray[Any, np.dtype[np.float64]]
-    width: np.ndarray[Any, np.dtype[np.float64]]
-    se: np.ndarray[Any, np.dtype[np.float64]]
-    status: tuple[str, ...]
-    spread: float
-
-
-def _checked(history: pd.DataFrame) -> pd.DataFrame:
-    """Accepted, not excluded checks with an evaluation: what trends."""
-    ok = (history["role"] == "check") & history["accepted"].astype(bool)
-    if "excluded" in history:
-        ok &= ~history["excluded"].astype(bool)
-    return history[ok]
-
-
-def trend_data(history: pd.DataFrame, parameter: str, mean: float, std: float,
-               k: float) -> TrendData:
-    """The numbers :func:`plot_trends` draws for ``parameter``.
-
-    Parameters
-    ----------
-    history : DataFrame
-        :meth:`HistoryStore.history` of the unit.
-    parameter : str
-    mean, std : float
-        The baseline's mean and standard deviation of the parameter. [its unit]
-    k : float
-        Symptom width in standard deviations (the monitor's ``k``).
-
-    Example
-    -------
-    >>> h = pd.DataFrame({"role": ["check"], "accepted": [True], "excluded": [False],
-    ...                   "status": ["go"], "R_change": [5.0], "R_se": [0.01]}, index=[7])
-    >>> d = trend_data(h, "R", 1.0, 0.02, 2.0)
-    >>> d.test_ids, float(d.width[0]), d.spread
-    ((7,), 4.0, 4.0)
-    """
-    chk = _checked(history)
-    scale = 100.0 / abs(mean) if mean else np.nan
-    change = (chk[f"{parameter}_change"].to_numpy(dtype=float) if f"{parameter}_change" in chk
-              else np.full(len(chk), np.nan))
-    se = (chk[f"{parameter}_se"].to_numpy(dtype=float) * scale if f"{parameter}_se" in chk
-          else np.full(len(chk), np.nan))
-    width = k * np.fmax(std * scale, np.nan_to_num(se, nan=0.0))
-    return TrendData(tuple(int(i) for i in chk.index), change, width, se,
-                     tuple(str(s) for s in chk["status"]), float(k * std * scale))
+def _label_tests(axes: Sequence[Any], x: np.ndarray[Any, Any], ids: Sequence[int],
+                 y: Sequence[np.ndarray[Any, Any]] | None = None, prefix: str = "#") -> None:
+    """Number the points by id: as tick labels on an id axis, next to each
+    point (``y`` per axis) on a date axis."""
+    if not len(ids):
+        return
+    if not _dated(x):
+        for ax in axes:
+            ax.set_xticks(x)
+            ax.set_xticklabels([f"{prefix}{i}" for i in ids], fontsize=7)
+        return
+    for ax, yy in zip(axes, y or []):
+        for xi, yi, i in zip(x, yy, ids):
+            if np.isfinite(yi):
+                ax.annotate(f"{prefix}{i}", (xi, yi), xytext=(3, 3),
+                            textcoords="offset points", fontsize=6, color="0.25")
 
 
 def _bands(ax: Any, r1: float, r2: float, top: float, steps: int = 6) -> None:
     """r1..r2 shaded darker towards r2 (the HIGH/LOW degree rises from 0 to 1
-    across it), beyond r2 the fault band."""
+    across it), beyond r2 the fault band; inside ±r1 left white (normal)."""
     edges = np.linspace(r1, r2, steps + 1)
     for i in range(steps):
         alpha = 0.1 + 0.5 * (i + 0.5) / steps
-        label = "developing (r1..r2; degree 0 to 1)" if i == steps - 1 else None
+        label = "developing: r1..r2 (symptom 0 to 1)" if i == steps - 1 else None
         ax.axhspan(edges[i], edges[i + 1], color="#f6b93b", alpha=alpha, lw=0, label=label)
         ax.axhspan(-edges[i + 1], -edges[i], color="#f6b93b", alpha=alpha, lw=0)
-    ax.axhspan(r2, top, color="#f28b82", alpha=0.55, lw=0, label="fault (> r2)")
+    ax.axhspan(r2, top, color="#f28b82", alpha=0.55, lw=0, label="fault: beyond r2")
     ax.axhspan(-top, -r2, color="#f28b82", alpha=0.55, lw=0)
 
 
-def plot_trends(history: pd.DataFrame, parameters: Sequence[str], cfg: MonitorConfig,
-                path: Target, baseline: Any = None) -> Target:
-    """Percent change of each parameter over the checks, against time or test id.
-
-    ``baseline`` (a :class:`~condmon.monitor.Baseline`) gives the spread band
-    and the symptom widths; without it only the changes and the r1/r2 bands
-    are drawn.
-    """
-    plt = _pyplot()
-    chk = _checked(history)
-    dated = _dated(history)
-    x, xlabel = _x(chk, dated)
-    n = len(parameters)
-    fig, axes = plt.subplots((n + 1) // 2, 2, figsize=(10, 2.6 * ((n + 1) // 2)),
-                             sharex=True, squeeze=False)
-    stats = {} if baseline is None else {
-        p: (m, s) for p, m, s in zip(baseline.parameters, baseline.mean, baseline.std)}
-    for ax, p in zip(axes.ravel(), parameters):
-        r1, r2 = cfg.r1[p], cfg.r2[p]
-        m, s = stats.get(p, (1.0, 0.0))
-        d = trend_data(history, p, m, s if p in stats else 0.0, cfg.k)
-        reach = np.abs(d.change) + (d.width if p in stats else 0)
-        top = max(r2 * 1.15, float(np.nanmax(reach)) * 1.1 if np.isfinite(reach).any() else 0)
-        _bands(ax, r1, r2, top)
-        if p in stats:
-            ax.axhspan(-d.spread, d.spread, color="#90caf9", alpha=0.5, lw=0,
-                       label=f"baseline ±{cfg.k:g}σ")
-        ax.axhline(0, color="0.5", lw=0.8)
-        if len(chk):
-            ax.plot(x, d.change, "-", color="0.6", lw=0.8, zorder=2)
-            for status in dict.fromkeys(d.status):
-                sel = np.array([st == status for st in d.status])
-                ax.errorbar(x[sel], d.change[sel], yerr=d.width[sel] if p in stats else None,
-                            fmt="o", ms=4, color=STATUS_COLOURS.get(status, "k"), capsize=2,
-                            lw=0.8, zorder=3, label=status)
-        ax.set_ylim(-top, top)
-        ax.set_ylabel(f"{p} change [%]")
-        ax.grid(alpha=0.3)
-    for ax in axes.ravel()[n:]:
-        ax.axis("off")
-    for ax in axes[-1]:
-        ax.set_xlabel(xlabel)
-    if dated:
-        fig.autofmt_xdate()
-    elif len(chk):
-        for ax in axes.ravel()[:n]:
-            ax.set_xticks(x)
-            ax.set_xticklabels([f"#{i}" for i in chk.index], fontsize=7)
-    handles, labels = axes[0, 0].get_legend_handles_labels()
-    seen = dict(zip(labels, handles))
-    axes[0, 0].legend(seen.values(), seen.keys(), loc="upper left", fontsize=6, ncol=2)
-    fig.suptitle("Change against the healthy baseline; bars: symptom width "
-                 f"±{cfg.k:g}·max(σ baseline, SE)", fontsize=10)
+def _finish(plt: Any, fig: Any, path: Target) -> Target:
     fig.tight_layout()
     fig.savefig(path, dpi=110, format="png")
     plt.close(fig)
     return path
 
 
-def plot_fits(history: pd.DataFrame, threshold: float, path: Target) -> Target:
-    """Percentage fit of every test (excluded ones greyed), with the threshold."""
+def plot_trends(trends: Sequence[TrendData], path: Target) -> Target:
+    """Percent change of each parameter over the trended checks.
+
+    Parameters
+    ----------
+    trends : sequence of TrendData
+        One per parameter (:func:`condmon.report.trends.trend_data`), same tests.
+    path : str, Path or binary file
+        Where the PNG goes.
+
+    Returns
+    -------
+    The ``path`` given.
+    """
+    from matplotlib.lines import Line2D
+
+    plt = _pyplot()
+    n = max(len(trends), 1)
+    rows = (n + 1) // 2
+    fig, axes = plt.subplots(rows, 2, figsize=(10, 2.6 * rows + 0.4), sharex=True,
+                             squeeze=False)
+    statuses: dict[str, None] = {}
+    for ax, d in zip(axes.ravel(), trends):
+        reach = np.abs(d.change) + np.nan_to_num(d.width)
+        top = max(d.r2 * 1.15, float(np.nanmax(reach)) * 1.1 if np.isfinite(reach).any() else 0)
+        _bands(ax, d.r1, d.r2, top)
+        if np.isfinite(d.spread):
+            ax.axhspan(-d.spread, d.spread, color="#90caf9", alpha=0.5, lw=0,
+                       label=f"baseline ±{d.k:g}σ")
+        ax.axhline(0, color="0.5", lw=0.8)
+        ax.plot(d.x, d.change, "-", color="0.6", lw=0.8, zorder=2)
+        filled = d.reaches_r1
+        for status in dict.fromkeys(d.status):
+            statuses[status] = None
+            sel = np.array([s == status for s in d.status], dtype=bool)
+            colour = STATUS_COLOURS.get(status, "k")
+            ax.errorbar(d.x[sel], d.change[sel], yerr=np.nan_to_num(d.width[sel]), fmt="none",
+                        ecolor=colour, capsize=2, lw=0.8, zorder=3)
+            for fill in (True, False):
+                pick = sel & (filled == fill)
+                if pick.any():
+                    ax.plot(d.x[pick], d.change[pick], "o", ms=5, mec=colour,
+                            mfc=colour if fill else "white", zorder=4)
+        ax.set_ylim(-top, top)
+        ax.set_ylabel(f"{d.parameter} change [%]")
+        ax.grid(alpha=0.3)
+    for ax in axes.ravel()[len(trends):]:
+        ax.axis("off")
+    if trends:
+        _label_tests(axes.ravel()[:len(trends)], trends[0].x, trends[0].test_ids,
+                     [d.change for d in trends])
+        for ax in axes[-1]:
+            ax.set_xlabel(trends[0].xlabel)
+        if _dated(trends[0].x):
+            fig.autofmt_xdate()
+        handles, labels = axes[0, 0].get_legend_handles_labels()
+        seen = dict(zip(labels, handles))
+        for status in statuses:
+            seen[status] = Line2D([], [], ls="", marker="o", color=STATUS_COLOURS.get(status, "k"))
+        seen["filled: this symptom > 0"] = Line2D([], [], ls="", marker="o", color="0.3")
+        seen["open: this symptom = 0"] = Line2D([], [], ls="", marker="o", mec="0.3", mfc="white")
+        axes[0, 0].legend(seen.values(), seen.keys(), loc="upper left", fontsize=6, ncol=2)
+    k = trends[0].k if trends else float("nan")
+    fig.suptitle("Change against the healthy baseline; bars: symptom width "
+                 f"±{k:g}·max(σ baseline, SE); excluded and rejected tests not drawn",
+                 fontsize=9)
+    return _finish(plt, fig, path)
+
+
+def plot_fits(data: FitData, threshold: float, path: Target) -> Target:
+    """Percentage fit of every test that is not excluded, with the threshold.
+
+    Parameters
+    ----------
+    data : FitData
+    threshold : float
+        Fit below which a test is rejected. [%]
+    path : str, Path or binary file
+
+    Returns
+    -------
+    The ``path`` given.
+    """
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(10, 2.8))
-    dated = _dated(history)
-    x, xlabel = _x(history, dated)
-    fit = history["fit_percent"].to_numpy(dtype=float)
-    status = history["status"].astype(str).to_numpy()
     ax.axhline(threshold, color="#c0392b", ls="--", lw=1, label=f"threshold {threshold:g} %")
-    for st in dict.fromkeys(status):
+    status = np.asarray(data.status, dtype=object)
+    for st in dict.fromkeys(data.status):
         sel = status == st
-        ax.plot(x[sel], np.nan_to_num(fit[sel], nan=0.0),
-                "x" if st in ("rejected", "retest") else "o", ms=5,
-                color=STATUS_COLOURS.get(st, "k"), label=st)
-    ax.set_xlabel(xlabel)
-    if not dated and len(history):
-        ax.set_xticks(x)
-        ax.set_xticklabels([f"#{i}" for i in history.index], fontsize=7)
+        ax.plot(data.x[sel], data.fit[sel], "x" if st in ("rejected", "retest") else "o",
+                ms=5, color=STATUS_COLOURS.get(st, "k"), label=st)
+    _label_tests([ax], data.x, data.test_ids, [data.fit])
+    ax.set_xlabel(data.xlabel)
+    if _dated(data.x):
+        fig.autofmt_xdate()
     ax.set_ylabel("fit [%]")
-    lo = float(np.nanmin(fit)) - 2 if np.isfinite(fit).any() else 80.0
+    lo = float(np.nanmin(data.fit)) - 2 if np.isfinite(data.fit).any() else 80.0
     ax.set_ylim(min(80.0, lo), 100.5)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="lower left", ncol=4)
-    ax.set_title("Model fit per test (R_T², mean over outputs)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110, format="png")
-    plt.close(fig)
-    return path
+    ax.set_title("Model fit per test (R_T², mean over outputs; excluded tests not drawn)",
+                 fontsize=10)
+    return _finish(plt, fig, path)
 
 
-def plot_symptoms(history: pd.DataFrame, parameters: Sequence[str], path: Target) -> Target:
-    """SymH (up) and SymL (down) of each parameter for every trended check."""
+def plot_symptoms(trends: Sequence[TrendData], path: Target) -> Target:
+    """SymH (up) and SymL (down) of each parameter for every trended check.
+
+    Parameters
+    ----------
+    trends : sequence of TrendData
+    path : str, Path or binary file
+
+    Returns
+    -------
+    The ``path`` given.
+    """
     plt = _pyplot()
-    chk = _checked(history)
     fig, ax = plt.subplots(figsize=(10, 3.2))
-    n, m = len(chk), len(parameters)
+    ids = trends[0].test_ids if trends else ()
+    n, m = len(ids), len(trends)
     width = 0.8 / max(m, 1)
     colors = plt.get_cmap("tab10")
-    for j, p in enumerate(parameters):
+    for j, d in enumerate(trends):
         xs = np.arange(n) + (j - (m - 1) / 2) * width
-        hi = chk[f"{p}_high"].to_numpy(dtype=float) if f"{p}_high" in chk else np.zeros(n)
-        lo = chk[f"{p}_low"].to_numpy(dtype=float) if f"{p}_low" in chk else np.zeros(n)
-        ax.bar(xs, np.nan_to_num(hi), width, color=colors(j), label=p)
-        ax.bar(xs, -np.nan_to_num(lo), width, color=colors(j), alpha=0.5)
+        ax.bar(xs, np.nan_to_num(d.high), width, color=colors(j % 10), label=d.parameter)
+        ax.bar(xs, -np.nan_to_num(d.low), width, color=colors(j % 10), alpha=0.5)
     ax.axhline(0, color="0.3", lw=0.8)
     ax.set_ylim(-1.05, 1.05)
-    ax.set_xlabel("test #")
+    ax.set_xlabel("test # (in the order of the trend figure)")
     ax.set_ylabel("SymL (down) / SymH (up)")
     ax.set_xticks(np.arange(n))
-    ax.set_xticklabels([f"#{i}" for i in chk.index], fontsize=7)
-    ax.legend(ncol=max(m, 1), fontsize=7, loc="lower left")
+    ax.set_xticklabels([f"#{i}" for i in ids], fontsize=7)
+    if m:
+        ax.legend(ncol=m, fontsize=7, loc="lower left")
     ax.grid(alpha=0.3, axis="y")
-    ax.set_title("Fuzzy symptoms per check")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110, format="png")
-    plt.close(fig)
-    return path
+    ax.set_title("Fuzzy symptoms per check", fontsize=10)
+    return _finish(plt, fig, path)
 
 
-def plot_isolation_trends(isolations: pd.DataFrame, path: Target) -> Target:
-    """Each suspect's estimated change in every isolation of a unit (bars per
-    isolation, the isolated suspect outlined; rejected estimates left out)."""
+def plot_isolation_trends(data: IsolationTrend, path: Target) -> Target:
+    """Each suspect's estimated change over the isolations of a unit.
+
+    Points of one suspect are joined; the suspect an isolation named is drawn
+    large with a black edge. Every isolation is marked on the zero line in
+    the colour of its status (also one that estimated nothing). Estimates
+    rejected from the comparison and excluded isolations are not drawn.
+
+    Parameters
+    ----------
+    data : IsolationTrend
+    path : str, Path or binary file
+
+    Returns
+    -------
+    The ``path`` given.
+    """
     plt = _pyplot()
-    iso = isolations[~isolations["excluded"].astype(bool)] if len(isolations) else isolations
-    params = sorted(c[:-len("_change")] for c in iso.columns if c.endswith("_change"))
-    fig, ax = plt.subplots(figsize=(10, 3.2))
-    n, m = len(iso), len(params)
-    width = 0.8 / max(m, 1)
+    fig, ax = plt.subplots(figsize=(10, 3.4))
     colors = plt.get_cmap("tab10")
-    biggest = 0.0
-    for j, p in enumerate(params):
-        y = iso[f"{p}_change"].to_numpy(dtype=float)
-        if f"{p}_rejected" in iso:
-            y = np.where(iso[f"{p}_rejected"].fillna(False).astype(bool), np.nan, y)
-        isolated = np.array([p in list(v) for v in iso["isolated"]], dtype=bool)
-        xs = np.arange(n) + (j - (m - 1) / 2) * width
-        ax.bar(xs, np.nan_to_num(y), width, color=colors(j % 10), label=p,
-               edgecolor=np.where(isolated, "black", "none").tolist(), linewidth=1.5)
-        if np.isfinite(y).any():
+    biggest, named = 0.0, False
+    for j, (p, y) in enumerate(data.change.items()):
+        colour = colors(j % 10)
+        shown = bool(np.isfinite(y).any())
+        ax.plot(data.x, y, "-o", ms=4, lw=1.0, color=colour,
+                label=p if shown else f"{p} (rejected or not estimated)")
+        hit = data.isolated[p] & np.isfinite(y)
+        if hit.any():
+            named = True
+            ax.plot(data.x[hit], y[hit], "o", ms=10, mfc=colour, mec="black", mew=1.8, zorder=4)
+        if shown:
             biggest = max(biggest, float(np.nanmax(np.abs(y))))
     if biggest > 200:
         ax.set_yscale("symlog", linthresh=50)
     ax.axhline(0, color="0.3", lw=0.8)
-    ax.set_xticks(np.arange(n))
-    ax.set_xticklabels([f"i{i}\n{d:%Y-%m-%d}\n{s}" for i, d, s in
-                        zip(iso.index, iso["date"], iso["status"])], fontsize=7)
+    status = np.asarray(data.status, dtype=object)
+    for st in dict.fromkeys(data.status):  # every isolation on the zero line, by status
+        sel = status == st
+        ax.plot(data.x[sel], np.zeros(int(sel.sum())), "s", ms=6, mec="0.2",
+                color=STATUS_COLOURS.get(st, "k"), label=f"isolation: {st}", zorder=3)
+    _label_tests([ax], data.x, data.isolation_ids, [np.zeros(len(data.x))], prefix="i")
+    if _dated(data.x):
+        fig.autofmt_xdate()
+    ax.set_xlabel(data.xlabel)
     ax.set_ylabel("estimate change [%]")
-    ax.grid(alpha=0.3, axis="y")
-    if params:
-        ax.legend(fontsize=7, ncol=min(m, 8), loc="upper left")
-    ax.set_title("Suspects' steady-state estimates against nominal (outlined: isolated)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110, format="png")
-    plt.close(fig)
-    return path
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, ncol=8, loc="upper left")
+    ax.set_title("Suspects' steady-state estimates against nominal"
+                 + (" (large, black edge: isolated)" if named else ""), fontsize=10)
+    return _finish(plt, fig, path)

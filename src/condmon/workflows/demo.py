@@ -24,7 +24,8 @@ from condmon.models.declared import load_plant_model
 from condmon.io.config import load_default, load_toml
 from condmon.workflows.isolation import store_isolation
 from condmon.workflows.monitoring import CheckResult, add_baseline_tests, check_test
-from condmon.report.html import write_fleet_index, write_report
+from condmon.report.html import write_fleet_report
+from condmon.report.names import page_name
 from condmon.report.isolation_figures import write_isolation_figures
 from condmon.simulate.actuator import ActuatorRig, load_actuator_rig, simulate_actuator
 from condmon.simulate.faults import parse_fault
@@ -197,18 +198,14 @@ def _run(store: HistoryStore, cfg: dict[str, Any], out: Path, db: Path,
             done += 1
             if progress is not None:
                 progress(done, total, unit)
-        files = write_report(store, unit, out)
-        pages.append((unit, str(exp.get("title", "")), files.html.name))
+        pages.append((unit, str(exp.get("title", ""))))
     isolations = _run_hst(cfg.get("hst"), out, progress, store)
-    for unit in store.units():  # the HST units too: their isolations
-        if unit not in {u for u, _, _ in pages}:
-            write_report(store, unit, out)
-    titles = "".join(f"<li><a href='{html.escape(p)}'>{html.escape(u)}</a> — {html.escape(t)}</li>"
-                     for u, t, p in pages)
-    index = write_fleet_index(
-        store, out, "condmon demo: the reference experiments",
-        "<h2>Electromechanical actuator: parameter estimation and fuzzy diagnosis</h2>"
-        f"<ul>{titles}</ul>{_hst_section(isolations)}")
+    titles = "".join(f"<li><a href='{html.escape(page_name(u))}.html'>{html.escape(u)}</a> — "
+                     f"{html.escape(t)}</li>" for u, t in pages)
+    index = write_fleet_report(  # every unit's page (the HST units' too) and the index
+        store, out, title="condmon demo: the reference experiments",
+        extra="<h2>Electromechanical actuator: parameter estimation and fuzzy diagnosis</h2>"
+              f"<ul>{titles}</ul>{_hst_section(isolations)}").index
     return DemoResult(tuple(checks), db, index, isolations)
 
 

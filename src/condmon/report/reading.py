@@ -1,0 +1,62 @@
+"""Reads a report needs that the store has no method for (read-only)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+__all__ = ["CheckFault", "check_faults"]
+
+
+@dataclass(frozen=True)
+class CheckFault:
+    """One fault of a check's diagnosis.
+
+    Attributes
+    ----------
+    name : str
+    degree : float
+        Degree of the fault's condition. [0..1]
+    severity : str
+        ``major`` or ``minor``.
+    advice : str
+    """
+
+    name: str
+    degree: float
+    severity: str
+    advice: str
+
+
+def check_faults(store: Any, test_id: int, baseline_id: Any) -> tuple[CheckFault, ...]:
+    """The faults of test ``test_id``'s evaluation against baseline ``baseline_id``,
+    largest degree first.
+
+    A check keeps one evaluation per baseline it was evaluated against; the
+    one a report shows is the history row's ``baseline_id``. Without one (an
+    unchecked test) there are no faults.
+
+    Parameters
+    ----------
+    store : HistoryStore
+    test_id : int
+    baseline_id : int or None
+
+    Returns
+    -------
+    tuple of CheckFault
+    """
+    import pandas as pd
+    import sqlalchemy as sa
+
+    from condmon.store import schema as S
+
+    if baseline_id is None or pd.isna(baseline_id):
+        return ()
+    f = S.diagnosis_faults
+    q = (sa.select(f.c.name, f.c.degree, f.c.severity, f.c.advice)
+         .where(f.c.test_id == int(test_id), f.c.baseline_id == int(baseline_id))
+         .order_by(f.c.degree.desc(), f.c.name))
+    with store.engine.connect() as conn:
+        rows = conn.execute(q).all()
+    return tuple(CheckFault(str(r[0]), float(r[1]), str(r[2]), str(r[3])) for r in rows)

@@ -1,0 +1,335 @@
+"""The numbers the report's figures draw, computed from a unit's stored history.
+
+Every figure of a unit page is drawn from one of these frozen results, so what
+a figure shows can be checked without looking at pixels:
+
+* :func:`trend_data`: per parameter, each trended check's change against the
+  baseline it was evaluated with, the symptom half-width that evaluation used
+  (``k·max(σ_baseline, SE)``), the stored symptoms and status, on a common
+  x axis (test dates when any test has one, else test ids);
+* :func:`fit_data`: every test that is not excluded, with its fit and status;
+* :func:`isolation_trend`: each suspect's estimated change in every isolation.
+
+Which tests trend: accepted checks that are not excluded. Excluded tests are
+never drawn; rejected tests (``rejected``, ``retest``) appear in the fit figure
+only.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from condmon.monitor.baseline import Baseline
+
+__all__ = ["TrendData", "FitData", "IsolationTrend", "trend_data", "fit_data",
+           "isolation_trend", "unexplained", "axis_label"]
+
+FloatArray = np.ndarray[Any, np.dtype[np.float64]]
+
+#: Statuses that ground a unit or call for attention.
+_ALARM = ("advisory", "no-go")
+
+
+def _dated(frame: pd.DataFrame) -> bool:
+    return "test_date" in frame and bool(frame["test_date"].notna().any())
+
+
+def axis_label(frame: pd.DataFrame) -> str:
+    """What the x axis of ``frame``'s figures shows.
+
+    Test dates when any test has one (a test without one is placed at the
+    time it was stored, and the label says so), else test ids.
+
+    Examples
+    --------
+    >>> axis_label(pd.DataFrame({"test_date": [pd.NaT]}))
+    'test # (no test dates recorded)'
+    """
+    if not _dated(frame):
+        return "test # (no test dates recorded)"
+    if bool(frame["test_date"].isna().any()):
+        return "date (UTC): test date, else when stored"
+    return "test date (UTC)"
+
+
+def _ordered(rows: pd.DataFrame, dated: bool) -> tuple[pd.DataFrame, np.ndarray[Any, Any]]:
+    """``rows`` in the order of the x axis, and their x values (dates or ids)."""
+    if not dated:
+        rows = rows.sort_index()
+        return rows, np.asarray(rows.index, dtype=np.float64)
+    rows = rows.sort_index().sort_values("date", kind="stable")
+    return rows, rows["date"].dt.tz_convert("UTC").dt.tz_localize(None).to_numpy()
+
+
+def _trended(history: pd.DataFrame) -> pd.DataFrame:
+    """Accepted checks that are not excluded: the tests a trend draws."""
+    if not len(history):
+        return history
+    ok = (history["role"] == "check") & history["accepted"].astype(bool)
+    ok &= ~history["excluded"].astype(bool)
+    return history[ok]
+
+
+def _column(rows: pd.DataFrame, name: str) -> FloatArray:
+    if name in rows:
+        return rows[name].to_numpy(dtype=np.float64, na_value=np.nan)
+    return np.full(len(rows), np.nan)
+
+
+@dataclass(frozen=True)
+class TrendData:
+    """What the trend figure draws for one parameter (in percent of the baseline mean).
+
+    Attributes
+    ----------
+    parameter : str
+    test_ids : tuple of int
+        The trended checks (accepted, not excluded), in the order of ``x``.
+    x : ndarray
+        Test dates (``datetime64``, UTC) or test ids, see ``xlabel``.
+    xlabel : str
+        What ``x`` is.
+    change : ndarray
+        Change against the baseline the check was evaluated with. [%]
+    width : ndarray
+        Symptom half-width of that evaluation, ``k·max(σ_baseline, SE)/|mean|·100``. [%]
+    se : ndarray
+        Each estimate's standard error. [%]
+    high, low : ndarray
+        Stored SymH and SymL. [-]
+    status : tuple of str
+        The status stored for each test.
+    spread : float
+        ``k·σ/|mean|·100`` of the active baseline (NaN without one). [%]
+    r1, r2 : float
+        Breakpoints of the HIGH/LOW ramps. [%]
+    k : float
+        Symptom width in standard deviations. [-]
+    """
+
+    parameter: str
+    test_ids: tuple[int, ...]
+    x: np.ndarray[Any, Any]
+    xlabel: str
+    change: FloatArray
+    width: FloatArray
+    se: FloatArray
+    high: FloatArray
+    low: FloatArray
+    status: tuple[str, ...]
+    spread: float
+    r1: float
+    r2: float
+    k: float
+
+    @property
+    def symptom(self) -> FloatArray:
+        """The larger of SymH and SymL (0 where none is stored). [-]"""
+        return np.fmax(np.nan_to_num(self.high), np.nan_to_num(self.low))
+
+    @property
+    def implied(self) -> FloatArray:
+        """The symptom the drawn bar implies: where ``|change| + width`` lies
+        on the r1..r2 ramp, ``(|change| + width - r1)/(width + r2 - r1)`` clipped
+        to [0, 1] (the monitor's triangle-and-ramp composition). [-]
+        """
+        ramp = (np.abs(self.change) + self.width - self.r1) / (self.width + self.r2 - self.r1)
+        return np.nan_to_num(np.clip(ramp, 0.0, 1.0))
+
+    @property
+    def reaches_r1(self) -> np.ndarray[Any, np.dtype[np.bool_]]:
+        """Whether the drawn bar ``change ± width`` passes ``±r1`` (the symptom is above 0)."""
+        return np.asarray(self.implied > 1e-12, dtype=bool)
+
+
+def trend_data(history: pd.DataFrame, parameter: str, baselines: Mapping[int, Baseline],
+               r1: float, r2: float, k: float, active: int | None = None) -> TrendData:
+    """The numbers the trend figure draws for ``parameter``.
+
+    Parameters
+    ----------
+    history : DataFrame
+        :meth:`HistoryStore.history` of the unit.
+    parameter : str
+    baselines : mapping of int to Baseline
+        The unit's baselines by id; each check's width comes from the one its
+        shown evaluation used (``baseline_id``).
+    r1, r2 : float
+        Breakpoints of ``parameter``. [%]
+    k : float
+        Symptom width in standard deviations (the monitor's ``k``). [-]
+    active : int, optional
+        Id of the active baseline, whose spread is drawn around 0 (default:
+        the newest in ``baselines``).
+
+    Returns
+    -------
+    TrendData
+
+    Examples
+    --------
+    >>> h = pd.DataFrame({"role": ["check"], "accepted": [True], "excluded": [False],
+    ...                   "status": ["go"], "baseline_id": [1], "R_change": [5.0],
+    ...                   "R_se": [0.01], "test_date": [pd.NaT]}, index=[7])
+    >>> d = trend_data(h, "R", {1: Baseline(("R",), (1.0,), (0.02,), 5)}, 20.0, 40.0, 2.0)
+    >>> d.test_ids, float(d.width[0]), d.spread, bool(d.reaches_r1[0])
+    ((7,), 4.0, 4.0, False)
+    """
+    rows, x = _ordered(_trended(history), _dated(history))
+
+    def stats(bid: Any) -> tuple[float, float]:
+        b = baselines.get(int(bid)) if pd.notna(bid) else None
+        if b is None or parameter not in b.parameters:
+            return np.nan, np.nan
+        j = b.parameters.index(parameter)
+        return abs(b.mean[j]), b.std[j]
+
+    ms = np.array([stats(b) for b in rows["baseline_id"]], dtype=np.float64).reshape(-1, 2)
+    scale = np.where(ms[:, 0] > 0, 100.0 / ms[:, 0], np.nan)
+    se = _column(rows, f"{parameter}_se") * scale
+    width = k * np.fmax(ms[:, 1] * scale, np.nan_to_num(se, nan=0.0))
+    spread = np.nan
+    if baselines:
+        m, s = stats(max(baselines) if active is None else active)
+        spread = k * s * 100.0 / m if m > 0 else np.nan
+    return TrendData(parameter, tuple(int(i) for i in rows.index), x, axis_label(history),
+                     _column(rows, f"{parameter}_change"), width, se,
+                     _column(rows, f"{parameter}_high"), _column(rows, f"{parameter}_low"),
+                     tuple(str(s) for s in rows["status"]), float(spread), float(r1),
+                     float(r2), float(k))
+
+
+def unexplained(trends: Sequence[TrendData]) -> dict[int, str]:
+    """Tests whose status or symptoms the trend figure does not explain by itself.
+
+    * an alarm (advisory, no-go) with no parameter's bar beyond ``r1``;
+    * ``go`` although a parameter's symptom is full (beyond ``r2``): the rule
+      base makes no fault of it (or preprocessing cleared it);
+    * a stored symptom that disagrees with the drawn bar (evaluated with other
+      breakpoints or another ``k`` than the figure's).
+
+    Returns
+    -------
+    dict of int to str
+        Test id to an explanation to print next to the figure.
+    """
+    if not trends:
+        return {}
+    out: dict[int, list[str]] = {}
+    ids = trends[0].test_ids
+    for i, tid in enumerate(ids):
+        status = trends[0].status[i]
+        drawn = [t.parameter for t in trends if t.reaches_r1[i]]
+        full = [t.parameter for t in trends if t.symptom[i] >= 1.0]
+        notes = []
+        if status in _ALARM and not drawn:
+            notes.append(f"{status} with no parameter beyond r1 in the figure")
+        if status == "go" and full:
+            notes.append(f"go although {', '.join(full)} beyond r2: the rule base makes "
+                         "no fault of it here (see the diagnosis)")
+        differ = [t.parameter for t in trends if np.isfinite(t.change[i])
+                  and abs(t.implied[i] - t.symptom[i]) > 1e-6]
+        if differ:
+            notes.append(f"stored symptom of {', '.join(differ)} disagrees with the drawn "
+                         "bar (evaluated with other breakpoints or k)")
+        if notes:
+            out[tid] = notes
+    return {tid: "; ".join(notes) for tid, notes in out.items()}
+
+
+@dataclass(frozen=True)
+class FitData:
+    """What the fit figure draws: every test that is not excluded.
+
+    Attributes
+    ----------
+    test_ids : tuple of int
+    x : ndarray
+        Test dates (``datetime64``, UTC) or test ids.
+    xlabel : str
+    fit : ndarray
+        Percentage fit (NaN where none was computed). [%]
+    status : tuple of str
+    """
+
+    test_ids: tuple[int, ...]
+    x: np.ndarray[Any, Any]
+    xlabel: str
+    fit: FloatArray
+    status: tuple[str, ...]
+
+
+def fit_data(history: pd.DataFrame) -> FitData:
+    """Fit of every test that is not excluded (rejected ones included).
+
+    Examples
+    --------
+    >>> h = pd.DataFrame({"excluded": [False, True], "fit_percent": [95.0, 97.0],
+    ...                   "status": ["rejected", "excluded"], "test_date": [pd.NaT] * 2},
+    ...                  index=[3, 4])
+    >>> fit_data(h).test_ids
+    (3,)
+    """
+    kept = history[~history["excluded"].astype(bool)] if len(history) else history
+    rows, x = _ordered(kept, _dated(history))
+    return FitData(tuple(int(i) for i in rows.index), x, axis_label(history),
+                   _column(rows, "fit_percent"), tuple(str(s) for s in rows["status"]))
+
+
+@dataclass(frozen=True)
+class IsolationTrend:
+    """What the isolation figure draws: each suspect's estimated change per isolation.
+
+    Attributes
+    ----------
+    isolation_ids : tuple of int
+        Isolations that are not excluded, in the order of ``x``.
+    x : ndarray
+        Test dates (``datetime64``, UTC) or isolation ids.
+    xlabel : str
+    status : tuple of str
+    change : dict of str to ndarray
+        Per suspect, its steady-state estimate against nominal (NaN when not
+        estimated or rejected from the comparison). [%]
+    isolated : dict of str to ndarray of bool
+        Per suspect, whether that isolation named it.
+    """
+
+    isolation_ids: tuple[int, ...]
+    x: np.ndarray[Any, Any]
+    xlabel: str
+    status: tuple[str, ...]
+    change: dict[str, FloatArray]
+    isolated: dict[str, np.ndarray[Any, np.dtype[np.bool_]]]
+
+
+def isolation_trend(isolations: pd.DataFrame) -> IsolationTrend:
+    """Each suspect's change over a unit's isolations (excluded ones left out).
+
+    Parameters
+    ----------
+    isolations : DataFrame
+        :meth:`HistoryStore.isolations` of the unit.
+
+    Returns
+    -------
+    IsolationTrend
+    """
+    kept = isolations[~isolations["excluded"].astype(bool)] if len(isolations) else isolations
+    rows, x = _ordered(kept, _dated(isolations))
+    label = axis_label(isolations).replace("test #", "isolation #")
+    params = sorted(c[: -len("_change")] for c in rows.columns if c.endswith("_change"))
+    change, isolated = {}, {}
+    for p in params:
+        y = _column(rows, f"{p}_change")
+        if f"{p}_rejected" in rows:
+            y = np.where(rows[f"{p}_rejected"].fillna(False).astype(bool), np.nan, y)
+        change[p] = y
+        isolated[p] = np.array([p in list(v) for v in rows["isolated"]], dtype=bool)
+    return IsolationTrend(tuple(int(i) for i in rows.index), x, label,
+                          tuple(str(s) for s in rows["status"]), change, isolated)

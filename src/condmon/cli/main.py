@@ -17,6 +17,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from condmon.cli._console import err, fmt, out, progress, write_json
+from condmon.cli.fleet import register as register_fleet_commands
 from condmon.cli.history import print_flags
 from condmon.cli.history import register as register_history_commands
 from condmon.cli.plant import register as register_plant_commands
@@ -34,6 +35,7 @@ baseline_app = typer.Typer(no_args_is_help=True, help="Build a unit's healthy ba
 app.add_typer(baseline_app, name="baseline")
 register_plant_commands(app, simulate_app)
 register_history_commands(app, baseline_app)
+register_fleet_commands(app)
 
 
 

@@ -1,0 +1,233 @@
+"""Fleet runs: an inbox of many units on a dask.distributed cluster, one history."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import pytest
+
+from condmon.cli.main import main
+from condmon.errors import ConfigError
+from condmon.store import open_store
+from condmon.workflows.fleet import (
+    OUTCOMES, RecordTask, inbox_records, local_cluster, process_record, read_manifest, run_fleet,
+)
+from condmon.workflows.inbox import SimulatedUnit, simulated_inbox
+from condmon.workflows.monitoring import add_baseline_tests, check_test
+
+FLEET = [SimulatedUnit("EMA-1"), SimulatedUnit("EMA-2"), SimulatedUnit("EMA-3", fault="D=*7"),
+         SimulatedUnit("EMA-4")]
+
+
+@pytest.fixture(scope="module")
+def inbox(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """4 actuator units x 5 records (EMA-3: friction x7 from its 4th), a record
+    without omega, a Parquet copy of a record, one short HST record with a fault."""
+    root = tmp_path_factory.mktemp("fleet") / "inbox"
+    files = simulated_inbox(root, FLEET, seed=100)
+    simulated_inbox(root, [SimulatedUnit("HST-1", "hst", records=1, fault="Dm=-25%@5s",
+                                         fault_from=1, duration=16)], seed=200)
+    pd.read_csv(files["EMA-2"][0]).drop(columns="omega").to_csv(root / "EMA-2" / "rec-06-bad.csv",
+                                                                 index=False)
+    pd.read_csv(files["EMA-1"][1]).to_parquet(root / "EMA-1" / "rec-02-copy.parquet")
+    return root
+
+
+@pytest.fixture(scope="module")
+def first_run(inbox: Path, tmp_path_factory: pytest.TempPathFactory
+              ) -> tuple[Path, dict[str, Any], float]:
+    db = tmp_path_factory.mktemp("fleetdb") / "fleet.db"
+    started = time.perf_counter()
+    doc = _run_json(["fleet", "run", str(inbox), "--db", str(db), "--workers", "1"])
+    return db, doc, time.perf_counter() - started
+
+
+def _run_json(args: list[str]) -> dict[str, Any]:
+    import contextlib
+    import io
+
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        assert main([*args, "--json"]) == 0
+    return dict(json.loads(buf.getvalue()))
+
+
+def _by_file(doc: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    return {f"{Path(r['file']).parent.name}/{Path(r['file']).name}": r for r in doc["records"]}
+
+
+def test_every_record_is_accounted_for(first_run: tuple[Path, dict[str, Any], float]) -> None:
+    _, doc, seconds = first_run
+    recs = _by_file(doc)
+    assert len(recs) == 23 and sum(doc[o] for o in OUTCOMES) == 23
+    assert (doc["stored"], doc["skipped"], doc["rejected"], doc["refused"]) == (21, 1, 0, 1)
+    assert doc["workers"] == 1 and doc["engine"] == "local"
+    print(f"\nfleet of 23 records, 1 worker: {seconds:.1f} s")
+
+
+def test_the_faulty_unit_is_flagged_and_the_healthy_ones_are_go(
+        first_run: tuple[Path, dict[str, Any], float]) -> None:
+    db, doc, _ = first_run
+    recs = _by_file(doc)
+    for unit in ("EMA-1", "EMA-2", "EMA-3", "EMA-4"):
+        assert [recs[f"{unit}/rec-0{i}.csv"]["status"] for i in (1, 2, 3)] == ["baseline"] * 3
+    assert [recs[f"EMA-3/rec-0{i}.csv"]["status"] for i in (4, 5)] == ["no-go", "no-go"]
+    assert "friction" in recs["EMA-3/rec-04.csv"]["reason"]
+    for unit in ("EMA-1", "EMA-2", "EMA-4"):
+        assert [recs[f"{unit}/rec-0{i}.csv"]["status"] for i in (4, 5)] == ["go", "go"]
+    units = {u["unit"]: u for u in doc["units"]}
+    assert {u: units[u]["status"] for u in units} == {
+        "EMA-1": "go", "EMA-2": "go", "EMA-3": "no-go", "EMA-4": "go", "HST-1": "no-go"}
+    hst = recs["HST-1/rec-01.csv"]
+    assert (hst["kind"], hst["status"], hst["reason"]) == ("isolation", "no-go",
+                                                           "fault isolated: Dm")
+    with open_store(db, create=False) as store:
+        assert store.latest_baseline("EMA-3") is not None
+        hist = store.history("EMA-3")
+        assert list(hist["status"]) == ["baseline"] * 3 + ["no-go"] * 2
+        assert hist["D_change"].iloc[3:].min() > 400
+        assert store.unit_model("HST-1") == "hst" and len(store.isolations("HST-1")) == 1
+
+
+def test_bad_file_is_refused_and_copy_skipped_with_reasons(
+        first_run: tuple[Path, dict[str, Any], float]) -> None:
+    _, doc, _ = first_run
+    recs = _by_file(doc)
+    bad = recs["EMA-2/rec-06-bad.csv"]
+    assert bad["outcome"] == "refused" and bad["status"] is None
+    assert "rec-06-bad.csv" in bad["reason"] and "omega" in bad["reason"]
+    assert len(bad["reason"].splitlines()) == 1
+    copy = recs["EMA-1/rec-02-copy.parquet"]
+    assert copy["outcome"] == "skipped" and "EMA-1/rec-02.csv" in copy["reason"]
+
+
+def test_running_again_stores_nothing(inbox: Path,
+                                      first_run: tuple[Path, dict[str, Any], float]) -> None:
+    db, first, _ = first_run
+    again = run_fleet(inbox, db, workers=1)
+    assert (again.stored, again.count("rejected"), again.count("refused")) == (0, 0, 1)
+    assert again.skipped == 22
+    with open_store(db, create=False) as store:
+        assert sum(s["tests"] + s["isolations"] for s in store.unit_summaries()) == 21
+
+
+def test_the_fleet_answers_as_baseline_add_and_check(
+        inbox: Path, first_run: tuple[Path, dict[str, Any], float], tmp_path: Path) -> None:
+    """The same records through the one-record flows give the same statuses and changes."""
+    db, _, _ = first_run
+    files = sorted((inbox / "EMA-3").glob("rec-0*.csv"))
+    with open_store(tmp_path / "one.db") as store:
+        add_baseline_tests(store, "EMA-3", files[:3])
+        for f in files[3:]:
+            check_test(store, "EMA-3", f)
+        solo = store.history("EMA-3")
+    with open_store(db, create=False) as store:
+        fleet = store.history("EMA-3")
+    assert list(fleet["status"]) == list(solo["status"])
+    cols = [c for c in solo.columns if c.endswith(("_change", "_high", "_low", "_se"))]
+    pd.testing.assert_frame_equal(fleet[cols].reset_index(drop=True),
+                                  solo[cols].reset_index(drop=True))
+
+
+def test_manifest_dates_order_the_baseline_on_an_existing_cluster(
+        inbox: Path, tmp_path: Path, store_url: str) -> None:
+    """Dates given in reverse name order: the three earliest build the baseline.
+    A unit offered with another model than its history's is refused."""
+    names = ["rec-05.csv", "rec-04.csv", "rec-03.csv", "rec-02.csv"]
+    rows = ["unit,file,model,date"]
+    rows += [f"EMA-9,{inbox / 'EMA-4' / n},,2026-03-0{i + 1}" for i, n in enumerate(names)]
+    rows += [f"EMA-8,{inbox / 'EMA-1' / 'rec-01.csv'},dc-motor,"]
+    (tmp_path / "m.csv").write_text("\n".join(rows) + "\n")
+    with local_cluster(1) as client:
+        address = str(client.scheduler.address)  # type: ignore[union-attr]
+        res = run_fleet(tmp_path / "m.csv", store_url, scheduler=address)
+    assert res.engine == address and res.workers == 1
+    got = {Path(r.file).name: r for r in res.records if r.unit == "EMA-9"}
+    assert [got[n].status for n in names] == ["baseline", "baseline", "baseline", "go"]
+    assert got["rec-03.csv"].test_date is not None
+    assert res.records[0].unit == "EMA-8" and res.records[0].outcome == "stored"
+    (tmp_path / "m2.csv").write_text(f"unit,file,model\nEMA-8,{inbox / 'HST-1' / 'rec-01.csv'},hst\n")
+    again = run_fleet(tmp_path / "m2.csv", store_url, workers=1)
+    (only,) = again.records
+    assert only.outcome == "refused" and "monitored with model 'dc-motor'" in str(only.reason)
+    assert str(inbox / "HST-1" / "rec-01.csv") in str(only.reason)
+
+
+# -- without an engine -----------------------------------------------------------------
+
+
+def test_manifest_csv_and_toml(tmp_path: Path) -> None:
+    (tmp_path / "m.toml").write_text(
+        '[[records]]\nunit = "A"\nfile = "r/a1.csv"\nmodel = "my.toml"\ndate = 2026-03-01\n'
+        '[[records]]\nunit = "A"\nfile = "/abs/a2.csv"\nmodel = "my.toml"\n')
+    a1, a2 = read_manifest(tmp_path / "m.toml")
+    assert a1.path == tmp_path / "r" / "a1.csv" and a2.path == Path("/abs/a2.csv")
+    assert a1.model == str(tmp_path / "my.toml") and a1.test_date is not None
+    (tmp_path / "m.csv").write_text("unit,file,date\nA,a.csv,yesterday\n\nB,b.csv,\n")
+    a, b = read_manifest(tmp_path / "m.csv")
+    assert a.error is not None and "row 2: date" in a.error and b.error is None
+
+
+@pytest.mark.parametrize("text,message", [
+    ("unit,path\nA,a.csv\n", "missing column 'file'"),
+    ("unit,file,colour\nA,a.csv,red\n", "row 2: unknown column 'colour'"),
+    ("unit,file,model\nA,a.csv,dc-motor\nA,b.csv,hst\n", "row 3: unit 'A' has model 'hst'"),
+    ("unit,file\nA,\n", "row 2: needs a unit and a file"),
+])
+def test_bad_manifest_is_a_usage_error(tmp_path: Path, text: str, message: str) -> None:
+    (tmp_path / "m.csv").write_text(text)
+    with pytest.raises(ConfigError, match=message):
+        read_manifest(tmp_path / "m.csv")
+
+
+def test_inbox_layout(tmp_path: Path) -> None:
+    for name in ("U1/rec-10.csv", "U1/rec-9.parquet", "U1/2026/rec-1.csv", "U1/notes.md",
+                 "U1/.hidden.csv", "U2/x.csv", "stray.csv", "README.md"):
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text("t\n")
+    (tmp_path / "U2" / "unit.toml").write_text('model = "hst"\n')
+    recs = inbox_records(tmp_path)
+    assert [(r.unit, str(r.path.relative_to(tmp_path))) for r in recs] == [
+        ("U1", "U1/2026/rec-1.csv"), ("U1", "U1/rec-9.parquet"), ("U1", "U1/rec-10.csv"),
+        ("U2", "U2/x.csv"), ("", "stray.csv")]
+    assert recs[3].fallback_model == "hst" and recs[4].error is not None
+    with pytest.raises(ConfigError, match="not a folder"):
+        inbox_records(tmp_path / "none")
+
+
+def test_a_failing_record_is_an_outcome_not_an_exception(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,V,I,omega\n0,1,2,3\n0.001,1,2,x\n")
+    out = process_record(RecordTask("U", str(bad), "estimate", "dc-motor"))
+    assert out.error is not None and str(bad) in out.error and len(out.error.splitlines()) == 1
+    out = process_record(RecordTask("U", str(bad), "estimate", "no-such-model"))
+    assert out.error is not None and str(bad) in out.error
+
+
+@pytest.mark.parametrize("args,message", [
+    (["fleet", "run", "--db", "{db}"], "give an INBOX folder or --manifest FILE"),
+    (["fleet", "run", "{inbox}", "--db", "{db}", "--baseline-count", "2"],
+     "baseline count must be >= 3, got 2"),
+    (["fleet", "run", "{missing}", "--db", "{db}"], "not a folder"),
+    (["fleet", "run", "--manifest", "{missing}", "--db", "{db}"], "manifest not found"),
+    (["fleet", "run", "{inbox}", "--db", "{db}", "--workers", "0"], "workers must be >= 1"),
+    (["fleet", "run", "{inbox}", "--db", "{db}", "--workers", "2", "--scheduler",
+      "tcp://127.0.0.1:9"], "an existing cluster"),
+])
+def test_usage_errors_give_one_line_and_status_2(tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str],
+                                                 args: list[str], message: str) -> None:
+    paths = {"db": tmp_path / "f.db", "inbox": tmp_path, "missing": tmp_path / "none.csv"}
+    assert main([a.format(**{k: str(v) for k, v in paths.items()}) for a in args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1 and "Traceback" not in err
+
+
+def test_an_empty_inbox_needs_no_engine(tmp_path: Path,
+                                        capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["fleet", "run", str(tmp_path), "--db", str(tmp_path / "f.db")]) == 0
+    assert "no records" in capsys.readouterr().out

@@ -127,7 +127,9 @@ class ViewsMixin(StoreBase):
                     .outerjoin(ld, ld.c.test_id == t.c.id)
                     .outerjoin(d, sa.and_(d.c.test_id == t.c.id, d.c.baseline_id == ld.c.bid))
                     .where(t.c.unit_id == u.id, t.c.excluded.is_(False))
-                    .order_by(sa.func.coalesce(t.c.test_date, t.c.created_at).desc(),
+                    # a unit's status is its latest check's; baseline tests only without checks
+                    .order_by((t.c.role == "check").desc(),
+                              sa.func.coalesce(t.c.test_date, t.c.created_at).desc(),
                               t.c.id.desc()).limit(1)).first()
                 iso = c.execute(
                     sa.select(i.c.id, i.c.source, i.c.detected, i.c.decided, i.c.statement,

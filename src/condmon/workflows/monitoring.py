@@ -83,10 +83,15 @@ def parse_date(text: str | datetime | None, what: str = "--date") -> datetime | 
     """
     if text is None or isinstance(text, datetime):
         return as_utc(text)
-    try:
-        ts: Any = pd.Timestamp(str(text).strip())
-    except (ValueError, TypeError):
-        ts = None
+    import re
+
+    raw = str(text).strip()
+    ts: Any = None
+    if re.fullmatch(r"\d{4}-\d{2}-\d{2}([T ][0-9:.]+)?(Z|[+-]\d{2}:?\d{2})?", raw):
+        try:  # ISO 8601 only: 01/03/2026 is refused, not guessed
+            ts = pd.Timestamp(raw)
+        except (ValueError, TypeError):
+            ts = None
     if ts is None or pd.isna(ts) or not 1900 <= ts.year <= 2200:
         raise DataError(f"{what}: {text!r} is not a date; give ISO 8601, e.g. 2026-03-01 or "
                         "2026-03-01T14:30 (UTC unless a zone is given)")

@@ -21,6 +21,7 @@ from condmon.cli.fleet import register as register_fleet_commands
 from condmon.cli.history import print_flags
 from condmon.cli.history import register as register_history_commands
 from condmon.cli.plant import register as register_plant_commands
+from condmon.cli.serve import register as register_serve_command
 from condmon.errors import CondmonError
 from condmon.identify.defaults import DEFAULT_FIT_THRESHOLD, list_estimators
 
@@ -35,6 +36,7 @@ baseline_app = typer.Typer(no_args_is_help=True, help="Build a unit's healthy ba
 app.add_typer(baseline_app, name="baseline")
 register_plant_commands(app, simulate_app)
 register_history_commands(app, baseline_app)
+register_serve_command(app)
 register_fleet_commands(app)
 
 

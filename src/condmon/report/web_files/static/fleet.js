@@ -1,0 +1,64 @@
+// The fleet index: filter as you type or tick a status, and reload the table
+// every few seconds (the history may change under the page). The server
+// renders every row; this script only swaps the table for a fresh one.
+(function () {
+  "use strict";
+  var form = document.getElementById("filter");
+  if (!form || !window.fetch || !window.DOMParser) { return; }
+  var every = parseFloat(form.getAttribute("data-refresh")) || 0;
+  var timer = null;
+  var pending = null;
+
+  function query() {
+    var params = new URLSearchParams();
+    form.querySelectorAll("input[name=status]:checked").forEach(function (box) {
+      params.append("status", box.value);
+    });
+    var q = form.elements.q.value.trim();
+    if (q) { params.set("q", q); }
+    var text = params.toString();
+    return form.getAttribute("action") + (text ? "?" + text : "");
+  }
+
+  function swap(html) {
+    var doc = new DOMParser().parseFromString(html, "text/html");
+    ["units", "shown"].forEach(function (id) {
+      var fresh = doc.getElementById(id);
+      var old = document.getElementById(id);
+      if (fresh && old) { old.replaceWith(fresh); }
+    });
+    doc.querySelectorAll("[data-count]").forEach(function (fresh) {
+      var old = document.querySelector('[data-count="' + fresh.getAttribute("data-count") + '"]');
+      if (old) { old.textContent = fresh.textContent; }
+    });
+  }
+
+  function reload(remember) {
+    var url = query();
+    if (pending) { pending.abort(); }
+    pending = new AbortController();
+    return fetch(url, { cache: "no-store", signal: pending.signal })
+      .then(function (resp) { return resp.ok ? resp.text() : Promise.reject(resp.status); })
+      .then(function (html) {
+        swap(html);
+        document.body.classList.remove("stale");
+        if (remember) { history.replaceState(null, "", url); }
+      })
+      .catch(function (why) {
+        if (why && why.name === "AbortError") { return; }
+        document.body.classList.add("stale");
+      });
+  }
+
+  form.addEventListener("input", function () {
+    clearTimeout(timer);
+    timer = setTimeout(function () { reload(true); }, 150);
+  });
+  form.addEventListener("submit", function (event) {
+    event.preventDefault();
+    reload(true);
+  });
+  if (every > 0) {
+    setInterval(function () { if (!document.hidden) { reload(false); } }, every * 1000);
+  }
+}());

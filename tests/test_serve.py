@@ -1,0 +1,372 @@
+"""The live fleet page: JSON API equal to the CLI's, names encoded and escaped,
+read-only, a clean stop, and the page in a real (headless) browser."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import urllib.request
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+from urllib.parse import quote
+
+import pandas as pd
+import pytest
+
+from condmon.cli.main import main
+from condmon.report.web import create_app, readonly_url
+from condmon.simulate import ActuatorRig, simulate_actuator
+from condmon.store import open_store
+from condmon.store.engine import StoreError
+from condmon.workflows.manage import exclude_test
+from condmon.workflows.monitoring import add_baseline_tests, check_test
+
+#: A name with everything a URL or a page could trip over.
+ODD = "<b>EMA/7: x</b>"
+#: Names a browser would fold (a ``..`` segment) or a router drop (a leading slash).
+DOTTED, LEADING = "a/../b", "/lead"
+
+
+def _records(rig: ActuatorRig, faults: list[str], seeds: range, label: str) -> list[pd.DataFrame]:
+    out = []
+    for s in seeds:
+        df = simulate_actuator(rig.with_faults(faults), seed=s)
+        df.attrs["source"] = f"{label}{s}.csv"
+        out.append(df)
+    return out
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory: pytest.TempPathFactory, rig: ActuatorRig) -> dict[str, Any]:
+    """A history: an actuator with dated go / no-go / excluded checks, an HST
+    unit with one stored isolation, empty units with awkward names."""
+    from condmon.diagnose.isolation import isolate
+    from condmon.io.digest import content_hash
+    from condmon.models.declared import load_plant_model
+    from condmon.simulate.plant import simulate_plant
+
+    db = str(tmp_path_factory.mktemp("serve") / "fleet.db")
+    ids: dict[str, int] = {}
+    with open_store(db) as store:
+        add_baseline_tests(store, ODD, _records(rig, [], range(1, 5), "h"), test_date="2026-03-01")
+        for key, faults, seed, date in (("ok", [], 21, "2026-04-01"),
+                                        ("bad", ["D=*7"], 22, "2026-05-01"),
+                                        ("wrong", [], 23, "2026-05-02")):
+            rec = _records(rig, faults, range(seed, seed + 1), "c")[0]
+            ids[key] = check_test(store, ODD, rec, test_date=date).test_id
+        exclude_test(store, ids["wrong"], "sensor <unplugged>")
+        hst = load_plant_model("hst")
+        rec = simulate_plant(hst, ["Rv=+40%@10s"], seed=3)
+        store.add_isolation("HST-1", isolate(rec, hst, workers=1), model="hst",
+                            source="hst-rv.csv", digest=content_hash(rec))
+        for name in (DOTTED, LEADING):
+            store.unit_id(name, create=True)
+    return {"db": db, "ids": ids}
+
+
+@pytest.fixture(scope="module")
+def client(fleet: dict[str, Any]) -> Any:
+    return create_app(fleet["db"]).test_client()
+
+
+def _cli_json(capsys: pytest.CaptureFixture[str], *argv: str) -> Any:
+    capsys.readouterr()
+    assert main(list(argv)) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def _api(client: Any, url: str, status: int = 200) -> Any:
+    resp = client.get(url)
+    assert resp.status_code == status, resp.get_data(as_text=True)
+    assert resp.mimetype == "application/json"
+    return resp.get_json()
+
+
+# -- the JSON API ------------------------------------------------------------------------
+def test_api_units_is_the_cli_units_json(fleet: dict[str, Any], client: Any,
+                                         capsys: pytest.CaptureFixture[str]) -> None:
+    doc = _api(client, "/api/units")
+    assert doc == _cli_json(capsys, "units", "--db", fleet["db"], "--json")
+    status = {u["unit"]: u["status"] for u in doc["units"]}
+    assert status == {ODD: "no-go", "HST-1": "no-go", DOTTED: None, LEADING: None}
+
+
+def test_api_filters(client: Any) -> None:
+    names = lambda url: [u["unit"] for u in _api(client, url)["units"]]  # noqa: E731
+    assert names("/api/units?status=no-go&q=ema") == [ODD]
+    assert names("/api/units?status=none") == [LEADING, DOTTED]
+    assert names("/api/units?status=go,none&status=advisory") == [LEADING, DOTTED]
+    assert names("/api/units?q=%2F..%2F") == [DOTTED]
+    err = _api(client, "/api/units?status=broken", 400)["error"]
+    assert err.startswith("unknown status broken; allowed: no-go, advisory")
+
+
+def test_api_unit_is_the_cli_history_json(fleet: dict[str, Any], client: Any,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    ids = fleet["ids"]
+    doc = _api(client, "/api/units/" + quote(ODD, safe="/"))
+    for entry in _api(client, "/api/units")["units"]:  # the overview is the fleet's entry
+        assert _api(client, "/api/unit?name=" + quote(entry["unit"]))["overview"] == entry
+    cli = _cli_json(capsys, "history", "--unit", ODD, "--db", fleet["db"], "--json")
+    assert doc["tests"] == [{k: v for k, v in d.items() if k != "kind"} for d in cli]
+    status = {d["test_id"]: d["status"] for d in doc["tests"]}
+    assert (status[ids["ok"]], status[ids["bad"]], status[ids["wrong"]]) == (
+        "go", "no-go", "excluded")
+    assert doc["overview"]["status"] == "no-go" and doc["isolations"] == []
+    assert doc["baseline"]["test_ids"] == [1, 2, 3, 4] and doc["baseline"]["n"] == 4
+    # the advice is the latest check that counts (the excluded one is later)
+    assert doc["advice"]["test_id"] == ids["bad"]
+    assert doc["advice"]["faults"][0]["name"] == "friction increase"
+    iso = _api(client, "/api/units/HST-1")
+    cli = _cli_json(capsys, "history", "--unit", "HST-1", "--db", fleet["db"], "--json")
+    assert iso["isolations"] == [{k: v for k, v in d.items() if k != "kind"} for d in cli]
+    assert iso["isolations"][0]["isolated"] == ["Rv"] and iso["tests"] == []
+    assert iso["baseline"] is None and iso["advice"] is None
+
+
+# -- pages -------------------------------------------------------------------------------
+def test_names_are_encoded_and_escaped(client: Any) -> None:
+    page = client.get("/").get_data(as_text=True)
+    assert "<b>EMA" not in page and "&lt;b&gt;EMA/7: x&lt;/b&gt;" in page
+    links = dict((html_unescape(t), h) for h, t in
+                 re.findall(r'<a href="([^"]*)">([^<]*)</a></td>', page))
+    assert links[ODD] == "/units/%3Cb%3EEMA/7:%20x%3C/b%3E"
+    assert links[LEADING] == "/units//lead"
+    assert links[DOTTED] == "/unit?name=a/../b"
+    for name, href in links.items():
+        unit = client.get(href).get_data(as_text=True)
+        assert f"<h1>{escape(name)}</h1>" in unit, href
+    assert _api(client, "/api/unit?name=a/../b")["unit"] == DOTTED
+    missing = client.get("/units/EMA%2F8")
+    assert missing.status_code == 404 and "unknown unit &#39;EMA/8&#39;" in missing.get_data(
+        as_text=True)
+    assert _api(client, "/api/units/nope", 404) == {"error": "unknown unit 'nope'"}
+
+
+def test_index_filters_by_query(client: Any) -> None:
+    page = client.get("/?status=no-go&q=HST").get_data(as_text=True)
+    rows = re.findall(r'<tr data-unit="([^"]*)" data-status="([^"]*)">', page)
+    assert rows == [("HST-1", "no-go")]
+    assert 'value="no-go" checked' in page and 'value="HST"' in page
+    bad = client.get("/?status=<x>")
+    assert bad.status_code == 400 and "<x>" not in bad.get_data(as_text=True)
+
+
+def test_unit_page_shows_trends_advice_tests_and_isolations(fleet: dict[str, Any],
+                                                            client: Any) -> None:
+    ids = fleet["ids"]
+    page = client.get("/units/" + quote(ODD, safe="/")).get_data(as_text=True)
+    panels = re.findall(r'<svg class="trend".*?</svg>', page, re.S)
+    assert len(panels) >= 5  # R, L, Kt, J, D
+    d_panel = next(p for p in panels if "D change [%]" in p)
+    # the 4 baseline tests and the 2 checks that count; the excluded one is not drawn
+    assert len(re.findall(r"<circle ", d_panel)) == 6
+    assert f'href="#t{ids["bad"]}"' in d_panel and f'href="#t{ids["wrong"]}"' not in d_panel
+    assert 'class="band fault"' in d_panel and 'class="band spread"' in d_panel
+    assert "2026-05-01" in d_panel  # a time axis: the tests carry dates
+    assert re.search(rf'<tr id="t{ids["wrong"]}" class="excluded"', page)
+    assert "excluded: sensor &lt;unplugged&gt;" in page
+    assert "Friction at the motor shaft" in page  # the fault advice
+    assert "Not trended: #7 excluded." in page
+    hst = client.get("/units/HST-1").get_data(as_text=True)
+    assert '<section id="isolations">' in hst and "fault isolated: Rv" in hst
+    assert '<svg class="trend"' not in hst
+
+
+# -- read-only ---------------------------------------------------------------------------
+def test_never_writes_or_creates(fleet: dict[str, Any], client: Any, tmp_path: Path,
+                                 capsys: pytest.CaptureFixture[str]) -> None:
+    db = Path(fleet["db"])
+    before = (db.read_bytes(), db.stat().st_mtime_ns)
+    for url in ("/", "/api/units", "/units/HST-1", "/api/units/" + quote(ODD, safe="/")):
+        assert client.get(url).status_code == 200
+    assert (db.read_bytes(), db.stat().st_mtime_ns) == before
+    missing = tmp_path / "none.db"
+    with pytest.raises(StoreError, match=r"none\.db: no history database there"):
+        create_app(missing)
+    capsys.readouterr()
+    assert main(["serve", "--db", str(missing), "--port", "0"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("error: ") and not missing.exists()
+    foreign = tmp_path / "foreign.db"
+    import sqlite3
+
+    with sqlite3.connect(foreign) as conn:
+        conn.execute("create table t (x)")
+    conn.close()
+    with pytest.raises(StoreError, match="not a condmon history"):
+        create_app(foreign)
+
+
+def test_read_only_on_each_backend(store_url: str, rig: ActuatorRig) -> None:
+    import sqlalchemy as sa
+
+    from condmon.store.engine import database_url
+
+    if store_url.startswith("postgresql"):  # an empty database is refused, not filled
+        with pytest.raises(StoreError, match="no condmon history there yet"):
+            create_app(store_url)
+        engine = sa.create_engine(database_url(store_url))
+        assert sa.inspect(engine).get_table_names() == []
+        engine.dispose()
+    with open_store(store_url) as store:
+        add_baseline_tests(store, "EMA 1", _records(rig, [], range(1, 4), "h"))
+    client = create_app(store_url).test_client()
+    assert [u["status"] for u in _api(client, "/api/units")["units"]] == ["baseline"]
+    with open_store(readonly_url(store_url)) as store:  # the schema is there: only reads
+        with pytest.raises(StoreError, match="read-only"):
+            store.unit_id("EMA 2", create=True)
+
+
+def html_unescape(text: str) -> str:
+    import html
+
+    return html.unescape(text)
+
+
+def escape(text: str) -> str:
+    import html
+
+    return html.escape(text, quote=True)
+
+
+# -- the server and a real browser -------------------------------------------------------
+def _start(db: str) -> tuple[subprocess.Popen[str], str]:
+    """``condmon serve --port 0`` in a child process; its URL once it listens."""
+    proc = subprocess.Popen([sys.executable, "-c", "from condmon.cli.main import run; run()",
+                             "serve", "--db", db, "--port", "0", "--refresh", "1"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "COLUMNS": "200"})
+    assert proc.stdout is not None
+    line = proc.stdout.readline()
+    match = re.search(r"(http://127\.0\.0\.1:\d+/)", line)
+    if match is None:
+        proc.kill()
+        out, err = proc.communicate()
+        pytest.fail(f"server did not start: {line}{out}{err}")
+    return proc, match.group(1)
+
+
+def _stop(proc: subprocess.Popen[str]) -> tuple[int, str, str]:
+    proc.send_signal(signal.SIGINT)
+    try:
+        out, err = proc.communicate(timeout=10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out, err = proc.communicate()
+    return proc.returncode, out, err
+
+
+def test_serve_prints_its_url_and_stops_on_ctrl_c(fleet: dict[str, Any]) -> None:
+    proc, url = _start(fleet["db"])
+    try:
+        with urllib.request.urlopen(url + "api/units", timeout=10) as resp:
+            assert {u["unit"] for u in json.load(resp)["units"]} == {ODD, "HST-1", DOTTED,
+                                                                       LEADING}
+    finally:
+        code, out, err = _stop(proc)
+    assert code == 0 and out.strip().endswith("stopped"), (out, err)
+    assert "Traceback" not in err
+
+
+def test_a_port_in_use_is_one_line(fleet: dict[str, Any],
+                                   capsys: pytest.CaptureFixture[str]) -> None:
+    import socket
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        capsys.readouterr()
+        assert main(["serve", "--db", fleet["db"], "--port", str(port)]) == 2
+    err = capsys.readouterr().err
+    assert err == (f"error: cannot listen on 127.0.0.1:{port}: Address already in use; "
+                   "choose another --port or --host\n")
+
+
+def _chromium() -> str | None:
+    """Debian's Chromium (or ``CONDMON_CHROMIUM``) when it and Playwright are installed."""
+    exe = os.environ.get("CONDMON_CHROMIUM") or shutil.which("chromium") or shutil.which(
+        "chromium-browser")
+    try:
+        import playwright.sync_api  # noqa: F401
+    except ImportError:
+        return None
+    return exe if exe is not None and Path(exe).is_file() else None
+
+
+@pytest.fixture(scope="module")
+def browser_page(fleet: dict[str, Any]) -> Iterator[tuple[Any, str]]:
+    """A headless Chromium page (driven by Playwright) and the server's URL."""
+    exe = _chromium()
+    if exe is None:
+        why = ("no browser: needs Debian's chromium (apt-get install chromium; .ci/browser.sh "
+               "does it) and the playwright package (pip install condmon[test])")
+        if os.environ.get("CONDMON_REQUIRE_BROWSER") == "1":
+            pytest.fail(f"CONDMON_REQUIRE_BROWSER=1 but {why}")
+        pytest.skip(why)
+    from playwright.sync_api import sync_playwright
+
+    proc, url = _start(fleet["db"])
+    profile = tempfile.mkdtemp(prefix="condmon-chromium-")
+    try:
+        with sync_playwright() as pw:
+            ctx = pw.chromium.launch_persistent_context(
+                profile, executable_path=exe, headless=True,
+                args=["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+                      "--no-first-run", "--disable-background-networking",
+                      "--disable-component-update", "--disable-sync"])
+            try:
+                page = ctx.new_page()
+                page.set_default_timeout(10_000)
+                yield page, url
+            finally:
+                ctx.close()
+    finally:
+        _stop(proc)
+        shutil.rmtree(profile, ignore_errors=True)
+
+
+def test_in_a_browser(fleet: dict[str, Any], browser_page: tuple[Any, str],
+                      capsys: pytest.CaptureFixture[str]) -> None:
+    from playwright.sync_api import expect
+
+    page, url = browser_page
+    started = time.monotonic()
+    page.goto(url)
+    rows = page.locator("#units-body tr")
+    listed = {r.get_attribute("data-unit"): r.get_attribute("data-status")
+              for r in rows.all()}
+    assert listed == {ODD: "no-go", "HST-1": "no-go", DOTTED: "none", LEADING: "none"}
+    assert page.locator(f'tr[data-unit="HST-1"] .status.no-go').inner_text() == "no-go"
+    # filter as you type: the table is fetched again, the URL remembers it
+    page.fill("input[name=q]", "hst")
+    expect(rows).to_have_count(1)
+    expect(page).to_have_url(url + "?q=hst")
+    page.fill("input[name=q]", "")
+    expect(rows).to_have_count(4)
+    # the odd name's link leads to its page, with the trend figure drawn
+    page.get_by_role("link", name=ODD).click()
+    page.wait_for_selector("svg.trend circle")
+    assert page.locator("h1").inner_text() == ODD
+    box = page.locator("svg.trend").first.bounding_box()
+    assert box is not None and box["width"] > 200 and box["height"] > 100
+    assert page.locator("svg.trend circle").count() >= 5 * 6
+    assert page.locator(f"#t{fleet['ids']['wrong']}.excluded").count() == 1
+    # the API, asked by the page itself, agrees with `condmon history --json`
+    api = page.evaluate("(u) => fetch(u).then(r => r.json())",
+                        url + "api/units/" + quote(ODD, safe="/"))
+    cli = _cli_json(capsys, "history", "--unit", ODD, "--db", fleet["db"], "--json")
+    assert [(t["test_id"], t["status"]) for t in api["tests"]] == [
+        (d["test_id"], d["status"]) for d in cli]
+    page.goto(url + "units/HST-1")
+    assert "fault isolated: Rv" in page.locator("#isolations").inner_text()
+    assert time.monotonic() - started < 20

@@ -231,3 +231,84 @@ def test_an_empty_inbox_needs_no_engine(tmp_path: Path,
                                         capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["fleet", "run", str(tmp_path), "--db", str(tmp_path / "f.db")]) == 0
     assert "no records" in capsys.readouterr().out
+
+
+# -- acceptance study --------------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_acceptance_50_units_x_8_records_mixed(tmp_path: Path) -> None:
+    """34 actuator units (4 with friction x7, 4 with R +40 % from record 5) and 16
+    HST units (2 with Dm -25 %, 2 with Rv +40 % from record 5), 8 records each;
+    5 bad files and 3 Parquet copies besides: every record accounted for, the
+    faulty units flagged, the healthy ones not; running again stores nothing."""
+    import numpy as np
+
+    ema = [SimulatedUnit(f"EMA-{i:02d}", records=8, fault_from=5,
+                         fault="D=*7" if i <= 4 else "R=+40%" if i <= 8 else None)
+           for i in range(1, 35)]
+    hst = [SimulatedUnit(f"HST-{i:02d}", "hst", records=8, fault_from=5,
+                         fault="Dm=-25%@10s" if i <= 2 else "Rv=+40%@10s" if i <= 4 else None)
+           for i in range(1, 17)]
+    t0 = time.perf_counter()
+    files = simulated_inbox(tmp_path / "inbox", [*ema, *hst], seed=5000)
+    inbox = tmp_path / "inbox"
+    df = pd.read_csv(files["EMA-10"][0])
+    df.drop(columns="I").to_csv(inbox / "EMA-10" / "rec-09-no-current.csv", index=False)
+    df.assign(t=df["t"] * 1000).to_csv(inbox / "EMA-11" / "rec-09-ms.csv", index=False)
+    (inbox / "EMA-12" / "rec-09-empty.csv").write_text("")
+    (inbox / "EMA-13" / "rec-09-garbage.parquet").write_bytes(b"\x00not parquet" * 10)
+    h = pd.read_csv(files["HST-10"][0])
+    h.loc[100:110, "Ps"] = np.nan
+    h.to_csv(inbox / "HST-10" / "rec-09-nan.csv", index=False)
+    for unit in ("EMA-20", "EMA-21", "HST-11"):
+        pd.read_csv(files[unit][2]).to_parquet(inbox / unit / "rec-03-copy.parquet")
+    made = time.perf_counter() - t0
+
+    db = tmp_path / "fleet.db"
+    t0 = time.perf_counter()
+    res = run_fleet(inbox, db, workers=2)
+    took = time.perf_counter() - t0
+    total = 50 * 8 + 5 + 3
+    counts = {o: res.count(o) for o in OUTCOMES}
+    assert len(res.records) == total and sum(counts.values()) == total
+    assert counts["refused"] == 5 and counts["skipped"] == 3
+    refused = [r for r in res.records if r.outcome == "refused"]
+    assert all(Path(r.file).name in str(r.reason) and "\n" not in str(r.reason) for r in refused)
+    assert {Path(r.file).name for r in refused} == {
+        "rec-09-no-current.csv", "rec-09-ms.csv", "rec-09-empty.csv",
+        "rec-09-garbage.parquet", "rec-09-nan.csv"}
+
+    def statuses(unit: str) -> list[str | None]:
+        return [r.status for r in res.records if r.unit == unit and r.outcome != "refused"
+                and "copy" not in r.file]
+
+    faulty = [u.name for u in [*ema, *hst] if u.fault is not None]
+    flagged = sum(s == "no-go" for u in faulty for s in statuses(u)[4:])
+    early_alarms = sum(s == "no-go" for u in faulty for s in statuses(u)[:4])
+    healthy_checks = [s for u in [*ema, *hst] if u.fault is None
+                      for s in statuses(u.name) if s not in ("baseline", None)]
+    false_nogo = sum(s == "no-go" for s in healthy_checks)
+    advisory = sum(s == "advisory" for s in healthy_checks)
+    units = {u.unit: u.status for u in res.units}
+    missed = [(r.unit, Path(r.file).name, r.status, r.reason) for u in faulty
+              for r in [x for x in res.records if x.unit == u and x.outcome != "refused"
+                        and "copy" not in x.file][4:] if r.status != "no-go"]
+    print(f"\n50 units x 8 records (+5 bad, +3 copies): {total} records, generated in "
+          f"{made:.0f} s, run in {took:.0f} s on {res.workers} workers "
+          f"({total / took:.1f} records/s); {counts}; faulty records flagged no-go "
+          f"{flagged}/{4 * len(faulty)} (no-go before the fault: {early_alarms}); healthy "
+          f"checks {len(healthy_checks)}: no-go {false_nogo}, advisory {advisory}; "
+          f"units no-go {sum(s == 'no-go' for s in units.values())}; missed: {missed}")
+    for r in refused:
+        print(f"refused {r.reason}")
+    assert flagged >= 0.95 * 4 * len(faulty) and early_alarms == 0
+    assert all(units[u] == "no-go" for u in faulty)
+    assert false_nogo <= 0.02 * len(healthy_checks)
+    assert all(units[u.name] == "go" for u in [*ema, *hst] if u.fault is None)
+
+    t0 = time.perf_counter()
+    again = run_fleet(inbox, db, workers=2)
+    print(f"again: {again.to_dict()['stored']} stored, {again.skipped} skipped, "
+          f"{again.count('refused')} refused in {time.perf_counter() - t0:.0f} s")
+    assert again.stored == 0 and again.skipped == total - 5 and again.count("refused") == 5

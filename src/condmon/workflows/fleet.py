@@ -58,7 +58,7 @@ if TYPE_CHECKING:
     from condmon.store.baselines import StoredBaseline
     from condmon.store.db import HistoryStore
 
-__all__ = ["DEFAULT_MODEL", "OUTCOMES", "BLAS_ENV", "FleetRecord", "RecordTask", "RecordOutcome",
+__all__ = ["EngineError", "DEFAULT_MODEL", "OUTCOMES", "BLAS_ENV", "FleetRecord", "RecordTask", "RecordOutcome",
            "RecordReport", "UnitReport", "FleetResult", "inbox_records", "read_manifest",
            "process_record", "local_cluster", "run_fleet"]
 
@@ -77,6 +77,12 @@ BLAS_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREAD
 UNIT_FILE = "unit.toml"
 
 Kind = Literal["estimate", "isolate"]
+
+
+class EngineError(CondmonError, RuntimeError):
+    """The distributed engine cannot be started or reached."""
+
+
 Progress = Callable[[int, int, str], None]
 
 
@@ -583,7 +589,9 @@ class FleetResult:
 def local_cluster(workers: int | None = None) -> Iterator[Client]:
     """A dask.distributed client of a local cluster: ``workers`` processes
     (default: the machine's cores), one thread each, BLAS limited to one
-    thread (:data:`BLAS_ENV`), no dashboard; shut down when the block ends.
+    thread (:data:`BLAS_ENV`); its HTTP endpoints on a free port (never the
+    dashboard's 8787, which another cluster may hold); shut down when the
+    block ends.
 
     Example
     -------
@@ -595,11 +603,15 @@ def local_cluster(workers: int | None = None) -> Iterator[Client]:
     n = workers if workers is not None else (os.cpu_count() or 1)
     if n < 1:
         raise ConfigError(f"workers must be >= 1, got {n}")
-    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True,  # type: ignore[no-untyped-call]
-                      dashboard_address=None, silence_logs=logging.ERROR,
-                      env=dict(BLAS_ENV)) as cluster:
-        with Client(cluster, set_as_default=False) as client:  # type: ignore[no-untyped-call]
-            yield client
+    try:
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1,  # type: ignore[no-untyped-call]
+                               processes=True, dashboard_address=":0",
+                               silence_logs=logging.ERROR, env=dict(BLAS_ENV))
+    except (OSError, RuntimeError, TimeoutError) as exc:
+        raise EngineError(f"cannot start a local cluster of {n} worker(s): "
+                          f"{_one_line(exc)}") from None
+    with cluster, Client(cluster, set_as_default=False) as client:  # type: ignore[no-untyped-call]
+        yield client
 
 
 @contextmanager
@@ -613,7 +625,7 @@ def _engine(workers: int | None, scheduler: str | None) -> Iterator[Client]:
     try:
         client = Client(scheduler, set_as_default=False, timeout="10s")  # type: ignore[no-untyped-call]
     except (OSError, TimeoutError, ValueError) as exc:
-        raise ConfigError(f"cannot reach the scheduler {scheduler!r}: {_one_line(exc)}") from None
+        raise EngineError(f"cannot reach the scheduler {scheduler!r}: {_one_line(exc)}") from None
     with client:
         yield client
 
@@ -933,7 +945,9 @@ def run_fleet(source: str | Path, db: str | Path, *, manifest: bool | None = Non
     ------
     ConfigError
         A bad manifest or inbox, ``baseline_count`` below 3, ``workers`` with
-        ``scheduler``, an unreachable scheduler.
+        ``scheduler``.
+    EngineError
+        The local cluster cannot be started, the scheduler cannot be reached.
     StoreError
         The history cannot be opened or written.
 

@@ -13,6 +13,7 @@ import sqlalchemy as sa
 from condmon.monitor.baseline import Baseline
 from condmon.store import schema as S
 from condmon.store.base import StoreBase, as_utc, check_name, now
+from condmon.store.engine import StoreError
 
 __all__ = ["BaselinesMixin", "StoredBaseline", "DEFAULT_BASELINE"]
 
@@ -143,6 +144,27 @@ class BaselinesMixin(StoreBase):
             rows = c.execute(sa.select(S.baselines).where(S.baselines.c.unit_id == urow.id)
                              .order_by(S.baselines.c.id)).all()
             return [self._stored(c, unit, r) for r in rows]
+
+        return self._read(run)
+
+    def baseline_by_id(self, unit: str, baseline_id: int) -> StoredBaseline:
+        """The stored baseline version ``baseline_id`` of the unit.
+
+        Raises
+        ------
+        StoreError
+            No such version for this unit.
+        """
+        def run(c: sa.Connection) -> StoredBaseline:
+            urow = self._unit_row(c, unit)
+            if urow is None:
+                raise self._unknown_unit(c, unit)
+            row = c.execute(sa.select(S.baselines)
+                            .where(S.baselines.c.unit_id == urow.id,
+                                   S.baselines.c.id == int(baseline_id))).first()
+            if row is None:
+                raise StoreError(f"unit {unit!r} has no baseline with id {baseline_id}")
+            return self._stored(c, unit, row)
 
         return self._read(run)
 

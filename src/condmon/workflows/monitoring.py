@@ -248,9 +248,9 @@ def save_current_baseline(store: HistoryStore, unit: str, ids: Sequence[int], *,
                             base.parameters, cfg.baseline)
     before = store.latest_baseline(unit, name)
     bid = store.save_baseline(unit, base, ids, name=name, reason=reason, flags=flags)
-    latest = store.latest_baseline(unit, name)
-    assert latest is not None and latest.id == bid
-    return latest, before is None or before.id != bid
+    # read back by id: another writer may have saved a later version meanwhile
+    saved = store.baseline_by_id(unit, bid)
+    return saved, before is None or before.id != bid
 
 
 def reevaluate(store: HistoryStore, unit: str, baseline: StoredBaseline,

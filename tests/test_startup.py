@@ -22,16 +22,18 @@ NEVER = ("sqlalchemy", "matplotlib", "sklearn", "faultdiagnosistoolbox")
 
 
 def _loaded(code: str, cache: Path, *, check: bool = True) -> set[str]:
-    """Top-level packages of NEVER (and scipy, sympy, pandas) imported by ``code``."""
+    """Top-level packages of NEVER (and scipy, sympy, pandas) imported by ``code``,
+    and the heavy scipy subpackages (``scipy.signal``, ``scipy.stats``)."""
     probe = (f"{code}\nimport json, sys\n"
-             "print(json.dumps(sorted({m.split('.')[0] for m in sys.modules})))")
+             "print(json.dumps(sorted({m.split('.')[0] for m in sys.modules}\n"
+             "    | {m for m in sys.modules if m in ('scipy.signal', 'scipy.stats')})))")
     env = {**os.environ, "CONDMON_CACHE_DIR": str(cache)}
     done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
                           env=env, check=False)
     if check:
         assert done.returncode == 0, done.stderr
     return set(json.loads(done.stdout.strip().splitlines()[-1])) & {
-        *NEVER, "scipy", "sympy", "pandas"}
+        *NEVER, "scipy", "sympy", "pandas", "scipy.signal", "scipy.stats"}
 
 
 @pytest.fixture(scope="module")
@@ -80,15 +82,14 @@ def test_the_estimate_command_imports_no_plots(record: Path, warm_cache: Path) -
                                             "sympy"}
 
 
-@pytest.mark.xfail(strict=True, reason="condmon.workflows.monitoring (EstimateOptions, used "
-                   "by the estimate command) imports condmon.store, hence sqlalchemy, at the "
-                   "top; remove this mark once it no longer does")
 def test_the_estimate_command_imports_no_store(record: Path, warm_cache: Path) -> None:
     code = ("from condmon.cli.main import main\n"
             "import contextlib, io\n"
             "with contextlib.redirect_stdout(io.StringIO()):\n"
             f"    assert main(['estimate', {str(record)!r}]) == 0")
-    assert "sqlalchemy" not in _loaded(code, warm_cache)
+    loaded = _loaded(code, warm_cache)
+    assert "sqlalchemy" not in loaded  # no database for an estimate
+    assert "scipy.signal" not in loaded and "scipy.stats" not in loaded  # ~1 s of imports
 
 
 # --- the process pool only when it pays --------------------------------------------

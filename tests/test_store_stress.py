@@ -56,10 +56,17 @@ def test_eight_writers_with_kills(store_url: str, pool: list[str], tmp_path: Pat
     for v in victims:
         time.sleep(rng.uniform(0.5, 3.0))
         procs[v].send_signal(signal.SIGKILL)
+    # every process waited for (and its pipes closed) before anything is asserted
+    try:
+        outputs = [p.communicate(timeout=300) for p in procs]
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+                p.communicate()
     reported: list[tuple[str, int]] = []
     killed = 0
-    for k, p in enumerate(procs):
-        out, err = p.communicate(timeout=300)
+    for k, (p, (out, err)) in enumerate(zip(procs, outputs)):
         assert "Traceback" not in err, err
         if k not in victims:
             assert p.returncode == 0, err
@@ -103,7 +110,13 @@ def test_first_use_of_an_empty_database_from_eight_processes(store_url: str) -> 
     procs = [subprocess.Popen([sys.executable, "-c", OPEN_AT, store_url, str(start), str(k)],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
              for k in range(N_PROCESSES)]
-    results = [p.communicate(timeout=120) for p in procs]
+    try:
+        results = [p.communicate(timeout=120) for p in procs]
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+                p.communicate()
     assert all(p.returncode == 0 for p in procs), [e for _, e in results]
     assert all(o.strip() == "OK" and e.strip() == "" for o, e in results), results
     with open_store(store_url) as store:

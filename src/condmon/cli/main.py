@@ -26,7 +26,7 @@ from condmon.errors import CondmonError
 from condmon.identify.defaults import DEFAULT_FIT_THRESHOLD, list_estimators
 
 if TYPE_CHECKING:
-    from condmon.workflows.monitoring import EstimateOptions
+    from condmon.workflows.records import EstimateOptions
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="Model-based condition monitoring: estimate, trend, diagnose.")
@@ -166,7 +166,7 @@ def _options(method: str, gamma: float | None, excitation: str, columns: str | N
              fit_threshold: float, model: str | None = None, route: str | None = None,
              constants: str | None = None) -> EstimateOptions:
     from condmon.io.records import parse_column_map
-    from condmon.workflows.monitoring import EstimateOptions
+    from condmon.workflows.records import EstimateOptions
 
     if method not in list_estimators():
         raise CondmonError(f"unknown --method {method!r}; allowed: {', '.join(list_estimators())}")

@@ -72,7 +72,7 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
         rec = read_record(record, mapping)
         if unit is not None:
             from condmon.store.base import check_name
-            from condmon.workflows.monitoring import parse_date
+            from condmon.io.dates import parse_date
 
             check_name(unit)
             parse_date(date)  # a bad date is refused before the long run

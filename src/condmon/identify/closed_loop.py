@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.signal import lfilter
 
+from condmon._filter import lfilter
 from condmon.errors import DataError, EstimationError
 
 __all__ = ["noise_free_input"]

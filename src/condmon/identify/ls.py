@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.signal import lfilter
 
+from condmon._filter import lfilter
 from condmon.identify._common import (
     TFEstimate, covariance, normal_equations, prepare, simulate_outputs, solve, stabilise,
     to_model,

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.signal import lfilter  # noqa: F401  (used in the docstring example)
 
+from condmon._filter import lfilter  # noqa: F401  (used in the docstring example)
 from condmon.errors import EstimationError
 from condmon.identify._common import TFEstimate, prepare, to_model
 from condmon.identify.closed_loop import noise_free_input

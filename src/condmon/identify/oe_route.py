@@ -24,9 +24,8 @@ import numpy as np
 import sympy as sp
 from numpy.typing import NDArray
 from scipy.linalg import expm
-from scipy.optimize import least_squares
-from scipy.signal import lfilter, ss2tf
 
+from condmon._filter import lfilter
 from condmon.errors import EstimationError
 from condmon.identify.fit import FitCheck, residual_figures
 from condmon.identify.greybox import RouteResult
@@ -70,6 +69,8 @@ class _Simulator:
         if not (np.all(np.isfinite(Ad)) and np.all(np.abs(np.linalg.eigvals(Ad)) < 1.0)):
             return np.full((self.w.shape[0], C.shape[0]), np.inf)
         y = np.zeros((self.w.shape[0], C.shape[0]))
+        from scipy.signal import ss2tf  # only this route needs it (~1 s of imports)
+
         with np.errstate(all="ignore"):
             for i in range(r):
                 num, den = ss2tf(Ad, Bd[:, i:i + 1], C, np.zeros((C.shape[0], 1)))
@@ -121,6 +122,7 @@ def oe_route(rec: Record | Sequence[Record], machine: Machine, start: Mapping[st
     EstimationError
         When no stable model simulates the records or the sensitivities are singular.
     """
+    from scipy.optimize import least_squares  # ~0.25 s of imports: only when refining
     s = semilinear_structure(machine)
     spec = machine.spec
     consts = machine.constants(constants)

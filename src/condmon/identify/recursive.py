@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.signal import lfilter
 
+from condmon._filter import lfilter
 from condmon.errors import ModelError
 from condmon.identify._common import TFEstimate, prepare, simulate_outputs, to_model
 from condmon.identify.ls import _names, output_error_variance

@@ -36,9 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import least_squares
-from scipy.signal import lfilter
 
+from condmon._filter import lfilter
 from condmon.errors import EstimationError
 from condmon.identify._common import stabilise
 from condmon.identify.ls import output_error_variance
@@ -158,6 +157,7 @@ def refine_output_error(u: ArrayLike, y: ArrayLike, order: int, theta0: ArrayLik
     >>> bool(np.allclose(fit.theta, [-1.2, 0.5, 0.5, 0.2], atol=0.03)), fit.success
     (True, True)
     """
+    from scipy.optimize import least_squares  # ~0.25 s of imports: only when refining
     u_a = np.asarray(u, dtype=np.float64)
     y_a = np.asarray(y, dtype=np.float64)
     if y_a.ndim == 1:

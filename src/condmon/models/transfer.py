@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal
 
+from condmon._filter import lfilter
 from condmon.errors import ModelError
 
 __all__ = ["DiscreteTF", "ContinuousTF"]
@@ -125,8 +125,8 @@ class DiscreteTF:
     def simulate(self, u: FloatArray) -> FloatArray:
         """Noise-free output for input ``u`` from rest, shape (len(u), n_outputs)."""
         u = np.asarray(u, dtype=np.float64)
-        x = signal.lfilter([1.0], self.den, u)
-        return np.column_stack([signal.lfilter(b, [1.0], x) for b in self.nums])
+        x = lfilter([1.0], self.den, u)
+        return np.column_stack([lfilter(b, [1.0], x) for b in self.nums])
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""

@@ -13,6 +13,7 @@ import pandas as pd
 import sqlalchemy as sa
 
 from condmon.errors import ConfigError
+from condmon.io.dates import as_utc
 from condmon.store import schema as S
 from condmon.store.engine import SCHEMA_LOCK, actor, run_read, run_write, store_error
 
@@ -24,21 +25,6 @@ T = TypeVar("T")
 def now() -> datetime:
     """The current time, UTC."""
     return datetime.now(timezone.utc)
-
-
-def as_utc(value: Any) -> datetime | None:
-    """A stored or given date as an aware UTC datetime (None stays None).
-
-    SQLite returns naive datetimes: they were written as UTC.
-    """
-    if value is None or (isinstance(value, float) and np.isnan(value)):
-        return None
-    ts = pd.Timestamp(value)
-    if pd.isna(ts):
-        return None
-    if ts.tzinfo is None:
-        ts = ts.tz_localize("UTC")
-    return ts.tz_convert("UTC").to_pydatetime()
 
 
 def utc_column(values: Any) -> pd.Series:

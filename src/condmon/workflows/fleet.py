@@ -42,9 +42,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 from condmon.errors import CondmonError, ConfigError, DataError
+from condmon.io.dates import parse_date
 from condmon.io.digest import file_hash
 from condmon.io.readers import READABLE_SUFFIXES
-from condmon.workflows.monitoring import EstimateOptions, RecordKey, parse_date
+from condmon.workflows.records import EstimateOptions, RecordKey
 
 if TYPE_CHECKING:
     from distributed import Client

@@ -15,7 +15,6 @@ import dataclasses
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -24,122 +23,23 @@ import pandas as pd
 from condmon.diagnose.diagnoser import Diagnosis, diagnose
 from condmon.diagnose.rules import RuleBase, load_rules
 from condmon.errors import DataError
-from condmon.identify.estimate import EstimateResult, estimate
-from condmon.identify.fit import DEFAULT_FIT_THRESHOLD
-from condmon.io.digest import content_hash, file_hash
-from condmon.io.records import read_record
+from condmon.identify.estimate import EstimateResult
+from condmon.io.dates import parse_date
 from condmon.models.registry import get_model
 from condmon.monitor.baseline import (
     MIN_BASELINE_TESTS, Baseline, assess_baseline, make_baseline,
 )
 from condmon.monitor.fuzzy import MonitorConfig, compute_symptoms, load_monitor_config
 from condmon.store.baselines import StoredBaseline
-from condmon.store.base import as_utc
 from condmon.store.db import DuplicateTestError, HistoryStore
+from condmon.workflows.records import EstimateOptions, RecordKey, RecordLike, record_key
 
 __all__ = ["EstimateOptions", "AddedTest", "BaselineAddResult", "CheckResult", "RecordKey",
            "add_baseline_tests", "current_baseline", "check_test", "RecordLike",
            "unit_monitor", "save_current_baseline", "reevaluate", "parse_date", "record_key",
            "evaluate", "baseline_members"]
 
-RecordLike = str | Path | pd.DataFrame
 Progress = Callable[[int, int, str], None]
-
-
-@dataclass(frozen=True)
-class RecordKey:
-    """How a record is known in the history.
-
-    Attributes
-    ----------
-    content : str
-        Content hash (:func:`condmon.io.digest.content_hash`): the same data in
-        another file, format or line-end convention is the same test.
-    file : str
-        SHA-256 of the file's bytes (of the content for an in-memory record).
-    test_date : datetime or None
-        When the test was run (UTC): given, else read from the record's
-        metadata (a date-time time column, a TDMS start time), else unknown.
-    """
-
-    content: str
-    file: str
-    test_date: datetime | None
-
-
-def parse_date(text: str | datetime | None, what: str = "--date") -> datetime | None:
-    """A test date from ISO 8601 text (``2026-03-01`` or ``2026-03-01T14:30``;
-    without a zone it is UTC), as an aware UTC datetime.
-
-    Raises
-    ------
-    DataError
-        Not a date.
-
-    Example
-    -------
-    >>> parse_date("2026-03-01T14:30").isoformat()
-    '2026-03-01T14:30:00+00:00'
-    """
-    if text is None or isinstance(text, datetime):
-        return as_utc(text)
-    import re
-
-    raw = str(text).strip()
-    ts: Any = None
-    if re.fullmatch(r"\d{4}-\d{2}-\d{2}([T ][0-9:.]+)?(Z|[+-]\d{2}:?\d{2})?", raw):
-        try:  # ISO 8601 only: 01/03/2026 is refused, not guessed
-            ts = pd.Timestamp(raw)
-        except (ValueError, TypeError):
-            ts = None
-    if ts is None or pd.isna(ts) or not 1900 <= ts.year <= 2200:
-        raise DataError(f"{what}: {text!r} is not a date; give ISO 8601, e.g. 2026-03-01 or "
-                        "2026-03-01T14:30 (UTC unless a zone is given)")
-    return as_utc(ts)
-
-
-def record_key(df: pd.DataFrame, path: str | Path | None = None,
-               test_date: str | datetime | None = None) -> RecordKey:
-    """The :class:`RecordKey` of a parsed record (``path``: its file, if any)."""
-    digest = content_hash(df)
-    when = parse_date(test_date)
-    if when is None and df.attrs.get("start_time"):
-        when = parse_date(str(df.attrs["start_time"]), f"{df.attrs.get('source', 'record')}: "
-                          "start time")
-    return RecordKey(digest, file_hash(path) if path is not None else digest, when)
-
-
-@dataclass(frozen=True)
-class EstimateOptions:
-    """How each record is estimated (see :func:`condmon.estimate`).
-
-    ``model`` None: the unit's model (the one its history was started with),
-    else ``dc-motor``.
-    """
-
-    model: str | None = None
-    method: str = "sriv"
-    gamma: float | None = None
-    excitation: Sequence[str] | str | None = "auto"
-    fit_threshold: float = DEFAULT_FIT_THRESHOLD
-    columns: dict[str, str] | None = None
-    route: str | None = None
-    constants: dict[str, float] | None = None
-
-    def run(self, record: RecordLike, test_date: str | datetime | None = None
-            ) -> tuple[EstimateResult, RecordKey]:
-        """Read (if a path), estimate; returns the result and how the record is known."""
-        if isinstance(record, pd.DataFrame):
-            df, key = record, record_key(record, None, test_date)
-            source = str(record.attrs.get("source", "record"))
-        else:
-            df = read_record(record, self.columns)
-            key, source = record_key(df, record, test_date), str(record)
-        res = estimate(df, self.model or "dc-motor", method=self.method, gamma=self.gamma,
-                       excitation=self.excitation, fit_threshold=self.fit_threshold,
-                       columns=self.columns if isinstance(record, pd.DataFrame) else None,
-                       source=source, route=self.route, constants=self.constants)
-        return res, key
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,142 @@
+"""Fleet runs on dask.distributed: records per second against workers, and the
+engine's cost per record against a plain loop over the same worker function.
+
+    python benchmarks/bench_fleet.py [--units 12] [--records 5] [--repeat 3]
+
+The workload is the estimate of actuator records (4 s at 1 kHz, the built-in
+test), ``units`` x ``records`` of them, the first three of each unit building
+its baseline and the others checked against it, every result written to a
+fresh SQLite history. Each timed run uses a local cluster already started and
+warmed up (its workers have imported condmon and estimated one record), so
+the figure is the steady rate; the cluster's start-up is reported apart.
+The machine's load before each run is recorded: a second core busy with other
+work makes the 2-worker figure meaningless. Prints tables and writes
+results/fleet.json. Target: 2 workers >= 1.6 x 1 worker.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import contextlib  # noqa: E402
+import shutil  # noqa: E402
+import statistics  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import psutil  # noqa: E402
+
+from _common import table, write_json  # noqa: E402
+from condmon.workflows.fleet import (  # noqa: E402
+    RecordTask, _run_tasks, local_cluster, process_record, run_fleet,
+)
+from condmon.workflows.inbox import SimulatedUnit, simulated_inbox  # noqa: E402
+
+
+def _load() -> dict[str, float]:
+    """Load average (1 min) and the busiest core's use over half a second [%]."""
+    per_core = psutil.cpu_percent(interval=0.5, percpu=True)
+    return {"loadavg_1min": os.getloadavg()[0], "busiest_core_percent": max(per_core),
+            "idlest_core_percent": min(per_core)}
+
+
+def _warm(path: str) -> float:
+    """Import and estimate once in a worker (the first record pays the imports)."""
+    t0 = time.perf_counter()
+    process_record(RecordTask("warm", path, "estimate", "dc-motor"))
+    return time.perf_counter() - t0
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--units", type=int, default=12)
+    ap.add_argument("--records", type=int, default=5, help="records per unit")
+    ap.add_argument("--repeat", type=int, default=3, help="timed runs per worker count")
+    args = ap.parse_args()
+    work = Path(tempfile.mkdtemp(prefix="bench-fleet-"))
+    units = [SimulatedUnit(f"EMA-{i + 1:02d}", records=args.records,
+                           fault="D=*7" if i % 4 == 3 else None) for i in range(args.units)]
+    files = simulated_inbox(work / "inbox", units, seed=1000)
+    n = sum(len(v) for v in files.values())
+    tasks = [RecordTask(u, str(p), "estimate", "dc-motor") for u, ps in files.items() for p in ps]
+    print(f"{n} actuator records in {args.units} units; cores: {os.cpu_count()}")
+
+    # both clusters up at once (idle workers cost nothing); the runs alternate
+    # between the plain loop, 1 worker and 2 workers, so a load that comes and
+    # goes touches each alike; each figure is the best of its repeats
+    _warm(tasks[0].path)
+    loop_s, loads = [], []
+    times: dict[int, list[float]] = {1: [], 2: []}
+    engine: dict[int, list[float]] = {1: [], 2: []}
+    compute: dict[int, list[float]] = {1: [], 2: []}
+    starts: dict[int, float] = {}
+    with contextlib.ExitStack() as stack:
+        clients = {}
+        for workers in (1, 2):
+            t0 = time.perf_counter()
+            clients[workers] = stack.enter_context(local_cluster(workers))
+            starts[workers] = time.perf_counter() - t0
+            clients[workers].run(_warm, tasks[0].path)
+        for rep in range(args.repeat):
+            loads.append(_load())
+            t0 = time.perf_counter()
+            for t in tasks:
+                out = process_record(t)
+                assert out.error is None, out.error
+            loop_s.append(time.perf_counter() - t0)
+            for workers, client in clients.items():
+                # the engine alone: the same tasks through dask, nothing written
+                t0 = time.perf_counter()
+                outs = list(_run_tasks(client, tasks))
+                engine[workers].append(time.perf_counter() - t0)
+                compute[workers].append(sum(o.seconds for o in outs))
+                assert all(o.error is None for o in outs)
+                address = str(client.scheduler.address)  # type: ignore[union-attr]
+                t0 = time.perf_counter()
+                res = run_fleet(work / "inbox", work / f"w{workers}-{rep}.db", scheduler=address)
+                times[workers].append(time.perf_counter() - t0)
+                assert res.stored == n, res.to_dict()["stored"]
+    rate = {w: n / min(times[w]) for w in (1, 2)}
+    rows = [{"workers": w, "records/s": rate[w], "median s": statistics.median(times[w]),
+             "engine-only s": min(engine[w]), "worker compute s": min(compute[w]),
+             "cluster start s": starts[w]} for w in (1, 2)]
+    print(table(rows, f"Fleet run of {n} records (estimate, check, store), best of "
+                      f"{args.repeat}"))
+    ratio = rate[2] / rate[1]
+    overhead_ms = 1e3 * (min(engine[1]) - min(loop_s)) / n
+    print(table([
+        {"path": "plain loop (in process)", "ms/record": 1e3 * min(loop_s) / n},
+        {"path": "dask, 1 worker, engine only", "ms/record": 1e3 * min(engine[1]) / n},
+        {"path": "  of which in the worker function",
+         "ms/record": 1e3 * min(compute[1]) / n},
+        {"path": "fleet run, 1 worker (+ store)", "ms/record": 1e3 / rate[1]},
+    ], "Time per record"))
+    load1 = statistics.mean(x["loadavg_1min"] for x in loads)
+    idle = min(x["idlest_core_percent"] for x in loads)
+    busy = load1 > 1.0 or idle > 30
+    print(f"\n2 workers / 1 worker: {ratio:.2f} (target >= 1.6: {ratio >= 1.6}); "
+          f"engine overhead {overhead_ms:+.1f} ms/record; before the runs: load average "
+          f"{load1:.2f}, least busy core {idle:.0f} % -> second core "
+          f"{'BUSY with other work' if busy else 'free'}")
+    doc = {"records": n, "units": args.units, "repeat": args.repeat,
+           "plain_loop_seconds": loop_s,
+           "runs": {str(w): {"seconds": times[w], "records_per_s": rate[w],
+                             "engine_only_seconds": engine[w],
+                             "worker_compute_seconds": compute[w],
+                             "cluster_start_seconds": starts[w]} for w in (1, 2)},
+           "ratio_2_to_1": ratio, "engine_overhead_ms_per_record": overhead_ms,
+           "target_met": ratio >= 1.6, "load_before": loads, "second_core_busy": busy}
+    shutil.rmtree(work, ignore_errors=True)
+    path = write_json("fleet", doc)
+    print(f"wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

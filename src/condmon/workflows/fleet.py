@@ -21,42 +21,40 @@ the order they were run, by the same steps as
 :func:`condmon.workflows.monitoring.add_baseline_tests` (while the unit has no
 baseline) and :func:`condmon.workflows.monitoring.check_test` (afterwards), so
 the fleet gives the answers those give for the same records.
+
+This module holds the engine, :func:`run_fleet` and its results; finding the
+records is :mod:`condmon.workflows.fleet_inbox`, the worker's unit of work
+:mod:`condmon.workflows.fleet_work`, and committing a unit's outcomes
+:mod:`condmon.workflows.fleet_commit` (every public name is importable from
+here too).
 """
 
 from __future__ import annotations
 
-import csv
-import dataclasses
-import functools
 import logging
 import os
-import re
 import time
-import tomllib
-import warnings
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field
-from datetime import datetime
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any
 
 from condmon.errors import CondmonError, ConfigError, DataError
-from condmon.io.dates import parse_date
 from condmon.io.digest import file_hash
-from condmon.io.readers import READABLE_SUFFIXES
-from condmon.workflows.records import EstimateOptions, RecordKey
+from condmon.workflows.fleet_commit import RecordReport, _Unit, _write
+from condmon.workflows.fleet_inbox import MANIFEST_COLUMNS as MANIFEST_COLUMNS
+from condmon.workflows.fleet_inbox import UNIT_FILE as UNIT_FILE
+from condmon.workflows.fleet_inbox import (
+    FleetRecord, _natural, _one_line, inbox_records, read_manifest,
+)
+from condmon.workflows.fleet_work import Kind as Kind
+from condmon.workflows.fleet_work import RecordOutcome, RecordTask, _named, process_record
+from condmon.workflows.records import EstimateOptions
 
 if TYPE_CHECKING:
     from distributed import Client
 
-    from condmon.diagnose.isolation import IsolationResult, IsolationSettings
-    from condmon.diagnose.rules import RuleBase
-    from condmon.identify.estimate import EstimateResult
-    from condmon.models.declared import PlantModel
-    from condmon.monitor.baseline import Baseline
-    from condmon.monitor.fuzzy import MonitorConfig
-    from condmon.store.baselines import StoredBaseline
     from condmon.store.db import HistoryStore
 
 __all__ = ["EngineError", "DEFAULT_MODEL", "OUTCOMES", "BLAS_ENV", "FleetRecord", "RecordTask", "RecordOutcome",
@@ -74,11 +72,6 @@ OUTCOMES = ("stored", "skipped", "rejected", "refused")
 #: Environment of a local cluster's workers: one BLAS thread per worker process.
 BLAS_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
-#: Name of a unit folder's optional declaration (``model = "..."``).
-UNIT_FILE = "unit.toml"
-
-Kind = Literal["estimate", "isolate"]
-
 
 class EngineError(CondmonError, RuntimeError):
     """The distributed engine cannot be started or reached."""
@@ -87,421 +80,7 @@ class EngineError(CondmonError, RuntimeError):
 Progress = Callable[[int, int, str], None]
 
 
-# -- what to process ------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class FleetRecord:
-    """One record offered to the fleet run.
-
-    Attributes
-    ----------
-    unit : str
-        The unit (machine) it belongs to.
-    path : Path
-        The record file.
-    model : str or None
-        The model the manifest names for the unit (it must match the unit's
-        stored model), else None.
-    fallback_model : str or None
-        The model of the unit folder's ``unit.toml``, used when the unit has no
-        history yet and the manifest names none.
-    test_date : datetime or None
-        When the test was run (the manifest's ``date``, UTC); None: the
-        record's own date, if its metadata has one.
-    error : str or None
-        Why the record is refused before it is read (a manifest row's bad date).
-    """
-
-    unit: str
-    path: Path
-    model: str | None = None
-    fallback_model: str | None = None
-    test_date: datetime | None = None
-    error: str | None = None
-
-
-def _natural(text: str) -> tuple[tuple[int, int | str], ...]:
-    """Sort key of a name with its numbers compared as numbers (rec-2 < rec-10)."""
-    return tuple((0, int(part)) if part.isdigit() else (1, part)
-                 for part in re.split(r"(\d+)", text) if part)
-
-
-def _name_key(path: Path) -> tuple[Any, ...]:
-    """File-name order: numbers as numbers, a name before its longer variants
-    (``rec-2.csv`` < ``rec-2-copy.csv`` < ``rec-10.csv``)."""
-    return (_natural(str(path.with_suffix(""))), path.suffix)
-
-
-def _is_record(path: Path) -> bool:
-    return (path.is_file() and not path.name.startswith(".")
-            and path.suffix.lower() in READABLE_SUFFIXES)
-
-
-def _unit_file_model(folder: Path) -> tuple[str | None, str | None]:
-    """``(model, error)`` of ``folder/unit.toml`` (both None without one)."""
-    path = folder / UNIT_FILE
-    if not path.is_file():
-        return None, None
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        return None, f"{path}: cannot read: {_one_line(exc)}"
-    model = doc.get("model")
-    if not isinstance(model, str) or not model.strip():
-        return None, f"{path}: needs model = \"NAME or declaration.toml\""
-    model = model.strip()
-    if model.lower().endswith(".toml") and not Path(model).is_absolute():
-        model = str(folder / model)
-    return model, None
-
-
-def inbox_records(inbox: str | Path) -> list[FleetRecord]:
-    """The records of an inbox folder: ``INBOX/UNIT/...`` (a folder per unit).
-
-    Every file under a unit's folder (sub-folders too) with a record suffix
-    (:data:`condmon.io.readers.READABLE_SUFFIXES`) is a record of that unit;
-    other files and hidden ones are ignored. ``INBOX/UNIT/unit.toml`` may name
-    the unit's model (``model = "dc-motor-coulomb"`` or a declaration file,
-    relative to the folder), used while the unit has no history. A record file
-    directly in the inbox (in no unit's folder) is refused.
-
-    Raises
-    ------
-    ConfigError
-        ``inbox`` is not a folder.
-
-    Example
-    -------
-    >>> import tempfile
-    >>> root = Path(tempfile.mkdtemp())
-    >>> for name in ("EMA-1/rec-10.csv", "EMA-1/rec-2.csv", "EMA-1/notes.md"):
-    ...     (root / name).parent.mkdir(exist_ok=True)
-    ...     _ = (root / name).write_text("t\\n")
-    >>> [r.path.name for r in inbox_records(root)]
-    ['rec-2.csv', 'rec-10.csv']
-    """
-    root = Path(inbox)
-    if not root.is_dir():
-        raise ConfigError(f"{root}: not a folder; the inbox holds a folder per unit "
-                          "(INBOX/UNIT/record files)")
-    records: list[FleetRecord] = []
-    for entry in sorted(root.iterdir(), key=lambda p: _natural(p.name)):
-        if entry.name.startswith("."):
-            continue
-        if entry.is_dir():
-            model, error = _unit_file_model(entry)
-            files = sorted((p for p in entry.rglob("*") if _is_record(p)),
-                           key=lambda p: _name_key(p.relative_to(entry)))
-            records += [FleetRecord(entry.name, p, fallback_model=model, error=error)
-                        for p in files]
-        elif _is_record(entry):
-            records.append(FleetRecord("", entry, error=f"{entry}: not in a unit's folder "
-                                       "(INBOX/UNIT/record files)"))
-    return records
-
-
-MANIFEST_COLUMNS = ("unit", "file", "model", "date")
-
-
-def read_manifest(manifest: str | Path) -> list[FleetRecord]:
-    """The records listed in a manifest (CSV or TOML).
-
-    A CSV manifest has a header with the columns ``unit`` and ``file``, and
-    optionally ``model`` and ``date``; a TOML manifest lists ``[[records]]``
-    tables with the same keys. A relative ``file`` (and a relative model
-    declaration ``.toml``) is resolved against the manifest's folder. A unit's
-    rows must name one model (or none). A row whose date cannot be read is
-    refused alone.
-
-    Raises
-    ------
-    ConfigError
-        The manifest cannot be read, lacks a column, has an unknown column, a
-        row without unit or file, or two models for one unit.
-
-    Example
-    -------
-    >>> import tempfile
-    >>> folder = Path(tempfile.mkdtemp())
-    >>> _ = (folder / "m.csv").write_text("unit,file,date\\nEMA-1,a.csv,2026-03-01\\n")
-    >>> rec = read_manifest(folder / "m.csv")[0]
-    >>> rec.unit, rec.path == folder / "a.csv", rec.test_date.isoformat()
-    ('EMA-1', True, '2026-03-01T00:00:00+00:00')
-    """
-    path = Path(manifest)
-    rows = _manifest_rows(path)
-    base = path.parent
-    models: dict[str, tuple[str | None, int]] = {}
-    records = []
-    for n, row in rows:
-        unit, file = (str(row.get(k) or "").strip() for k in ("unit", "file"))
-        if not unit or not file:
-            raise ConfigError(f"{path}: row {n}: needs a unit and a file")
-        model = str(row.get("model") or "").strip() or None
-        if model is not None and model.lower().endswith(".toml") and not Path(model).is_absolute():
-            model = str(base / model)
-        if unit in models and models[unit][0] != model:
-            raise ConfigError(f"{path}: row {n}: unit {unit!r} has model {model or 'none'!r}; "
-                              f"row {models[unit][1]} gave {models[unit][0] or 'none'!r} (one "
-                              "model per unit)")
-        models.setdefault(unit, (model, n))
-        file_path = Path(file) if Path(file).is_absolute() else base / file
-        when: datetime | None = None
-        error = None
-        raw_date = row.get("date")
-        if raw_date not in (None, ""):
-            try:
-                when = parse_date(raw_date if isinstance(raw_date, datetime) else str(raw_date),
-                                  f"{path}: row {n}: date")
-            except DataError as exc:
-                error = str(exc)
-        records.append(FleetRecord(unit, file_path, model, None, when, error))
-    return records
-
-
-def _manifest_rows(path: Path) -> list[tuple[int, dict[str, Any]]]:
-    """``(row number, {column: value})`` of a CSV (numbered as lines) or TOML manifest."""
-    suffix = path.suffix.lower()
-    if suffix not in (".csv", ".toml"):
-        raise ConfigError(f"{path}: unknown manifest type {suffix!r}; allowed: .csv, .toml")
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: manifest not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{path}: cannot read the manifest: {_one_line(exc)}") from None
-    if suffix == ".toml":
-        try:
-            doc = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise ConfigError(f"{path}: not TOML: {_one_line(exc)}") from None
-        entries = doc.get("records")
-        if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
-            raise ConfigError(f"{path}: needs [[records]] tables with unit, file (and "
-                              "optionally model, date)")
-        rows = list(enumerate(entries, start=1))
-    else:
-        reader = csv.DictReader(text.splitlines())
-        header = [h.strip() for h in reader.fieldnames or []]
-        missing = [c for c in ("unit", "file") if c not in header]
-        if missing:
-            raise ConfigError(f"{path}: missing column {missing[0]!r}; columns: "
-                              f"{', '.join(MANIFEST_COLUMNS)} (unit and file required)")
-        reader.fieldnames = header
-        rows = [(n, row) for n, row in enumerate(reader, start=2)
-                if any((v or "").strip() for v in row.values() if isinstance(v, str))]
-    for n, row in rows:
-        unknown = [k for k in row if k not in MANIFEST_COLUMNS]
-        if unknown:
-            raise ConfigError(f"{path}: row {n}: unknown column {unknown[0]!r}; allowed: "
-                              f"{', '.join(MANIFEST_COLUMNS)}")
-    return rows
-
-
-# -- the unit of work -----------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class RecordTask:
-    """What a worker needs to process one record.
-
-    Attributes
-    ----------
-    unit : str
-    path : str
-        The record file (a path the workers can read).
-    kind : {"estimate", "isolate"}
-        Estimate the model's parameters, or isolate a fault (a plant model).
-    model : str
-        Model name or declaration file.
-    options : EstimateOptions
-        How to read and estimate (``columns`` applies to isolations too).
-    test_date : datetime or None
-        When the test was run, if given (else the record's own date, if any).
-    known : frozenset of str
-        Content hashes already in the unit's history: such a record is
-        recognised after reading and not processed.
-    """
-
-    unit: str
-    path: str
-    kind: Kind
-    model: str
-    options: EstimateOptions = field(default_factory=EstimateOptions)
-    test_date: datetime | None = None
-    known: frozenset[str] = frozenset()
-
-
-@dataclass(frozen=True)
-class RecordOutcome:
-    """What a worker returns for one record (small and picklable).
-
-    Attributes
-    ----------
-    unit : str
-    path : str
-    key : RecordKey or None
-        How the record is known (None when it could not be read).
-    estimate : EstimateResult or None
-        For ``kind == "estimate"``.
-    isolation : IsolationResult or None
-        For ``kind == "isolate"``.
-    error : str or None
-        Why the record could not be processed (one line naming the file).
-    known : bool
-        Its content is already in the unit's history (nothing processed).
-    warnings : tuple of str
-        Warnings raised while reading or processing it.
-    seconds : float
-        Time on the worker. [s]
-    """
-
-    unit: str
-    path: str
-    key: RecordKey | None = None
-    estimate: EstimateResult | None = None
-    isolation: IsolationResult | None = None
-    error: str | None = None
-    known: bool = False
-    warnings: tuple[str, ...] = ()
-    seconds: float = 0.0
-
-
-def _one_line(exc: BaseException | str) -> str:
-    return " ".join(str(exc).split()) or (type(exc).__name__ if isinstance(exc, BaseException)
-                                          else "")
-
-
-def _named(path: str, message: str) -> str:
-    """``message`` as one line that names the file."""
-    text = _one_line(message)
-    return text if path in text else f"{path}: {text}"
-
-
-@functools.lru_cache(maxsize=16)
-def _plant(model: str) -> PlantModel:
-    from condmon.models.declared import load_plant_model
-
-    return load_plant_model(model)
-
-
-@functools.lru_cache(maxsize=1)
-def _isolation_settings() -> IsolationSettings:
-    from condmon.diagnose.isolation import IsolationSettings
-
-    return IsolationSettings.load()
-
-
-def process_record(task: RecordTask) -> RecordOutcome:
-    """Read one record and estimate it (or isolate a fault in it); never raises
-    on the record: a failure becomes the outcome's ``error``.
-
-    This is the unit of work shipped to a worker: a pure function of the
-    record's file and the options, touching no database. An isolation runs
-    its suspects one after the other (a worker is one process already).
-
-    Parameters
-    ----------
-    task : RecordTask
-
-    Returns
-    -------
-    RecordOutcome
-
-    Example
-    -------
-    >>> out = process_record(RecordTask("EMA-1", "missing.csv", "estimate", "dc-motor"))
-    >>> out.error
-    'missing.csv: file not found'
-    """
-    from condmon.io.records import read_record
-    from condmon.workflows.monitoring import record_key
-
-    started = time.perf_counter()
-    key = None
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
-            df = read_record(task.path, task.options.columns)
-            key = record_key(df, task.path, task.test_date)
-            if key.content in task.known:
-                return RecordOutcome(task.unit, task.path, key, known=True,
-                                     seconds=time.perf_counter() - started)
-            if task.kind == "isolate":
-                from condmon.diagnose.isolation import isolate
-
-                iso = isolate(df, _plant(task.model), settings=_isolation_settings(),
-                              workers=1, source=task.path)
-                return RecordOutcome(task.unit, task.path, key, isolation=iso,
-                                     warnings=_texts(caught),
-                                     seconds=time.perf_counter() - started)
-            df.attrs["source"] = task.path
-            opts = dataclasses.replace(task.options, model=task.model, columns=None)
-            res, _ = opts.run(df)  # the columns were mapped when reading
-            return RecordOutcome(task.unit, task.path, key, estimate=res,
-                                 warnings=_texts(caught), seconds=time.perf_counter() - started)
-        except CondmonError as exc:
-            why = str(exc)
-        except FileNotFoundError:
-            why = "file not found"
-        except OSError as exc:
-            why = f"cannot read: {exc.strerror or exc}"
-        except Exception as exc:  # noqa: BLE001 - a numerical failure is this record's alone
-            why = f"{type(exc).__name__}: {exc}"
-    return RecordOutcome(task.unit, task.path, key, error=_named(task.path, why),
-                         warnings=_texts(caught), seconds=time.perf_counter() - started)
-
-
-def _texts(caught: list[warnings.WarningMessage]) -> tuple[str, ...]:
-    return tuple(dict.fromkeys(_one_line(str(w.message)) for w in caught))
-
-
 # -- results --------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class RecordReport:
-    """What became of one record.
-
-    Attributes
-    ----------
-    unit : str
-    file : str
-    outcome : {"stored", "skipped", "rejected", "refused"}
-    status : str or None
-        A check's ``go``/``advisory``/``no-go``; ``baseline`` for a test that
-        joined the unit's baseline; ``retest`` for a rejected estimate or an
-        undecided isolation; an isolation's ``go``/``no-go``; None when
-        nothing was written.
-    reason : str or None
-        The diagnosis or isolation statement, why the estimate was rejected,
-        why the record was refused, or what it duplicates.
-    test_id : int or None
-        The test's (or isolation's) id in the history.
-    kind : {"test", "isolation"}
-    test_date : datetime or None
-    warnings : tuple of str
-    """
-
-    unit: str
-    file: str
-    outcome: str
-    status: str | None = None
-    reason: str | None = None
-    test_id: int | None = None
-    kind: str = "test"
-    test_date: datetime | None = None
-    warnings: tuple[str, ...] = ()
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready record (``unit, file, outcome, status, reason, id, kind,
-        test_date, warnings``)."""
-        return {"unit": self.unit, "file": self.file, "outcome": self.outcome,
-                "status": self.status, "reason": self.reason, "id": self.test_id,
-                "kind": self.kind,
-                "test_date": None if self.test_date is None else self.test_date.isoformat(),
-                "warnings": list(self.warnings)}
 
 
 @dataclass(frozen=True)
@@ -667,31 +246,7 @@ def _run_tasks(client: Client, tasks: Sequence[RecordTask]) -> Iterator[RecordOu
             running.add(new)  # type: ignore[no-untyped-call]
 
 
-# -- committing a unit ----------------------------------------------------------------
-
-
-@dataclass
-class _Unit:
-    """A unit's plan: its model, how its records are processed, what is known of it."""
-
-    name: str
-    model: str | None = None
-    kind: Kind | None = None
-    error: str | None = None
-    known: dict[str, tuple[str, int]] = field(default_factory=dict)  # digest -> (kind, id)
-    digests: frozenset[str] = frozenset()
-    expected: int = 0
-    outcomes: list[tuple[FleetRecord, RecordOutcome]] = field(default_factory=list)
-    building: bool = False
-
-
-@dataclass
-class _Checker:
-    """The unit's baseline while its records are committed (one batch)."""
-
-    baseline: Baseline
-    ids: list[int]
-    latest: StoredBaseline | None
+# -- a unit's plan --------------------------------------------------------------------
 
 
 def _stored_digests(store: HistoryStore, units: Sequence[str]) -> dict[str, dict[str, tuple[str, int]]]:
@@ -740,163 +295,6 @@ def _settle_model(store: HistoryStore, plan: _Unit, rec: FleetRecord) -> None:
         return
     plan.model = model
     plan.kind = "estimate" if machine.spec.unknowns else "isolate"
-
-
-def _order(item: tuple[FleetRecord, RecordOutcome]) -> tuple[Any, ...]:
-    """Date order when known (dated records first), else file-name order."""
-    rec, out = item
-    when = rec.test_date or (out.key.test_date if out.key is not None else None)
-    return (when is None, when.timestamp() if when is not None else 0.0,
-            _name_key(Path(rec.path.name)), _name_key(rec.path))
-
-
-@functools.lru_cache(maxsize=16)
-def _monitoring(model: str) -> tuple[MonitorConfig, RuleBase]:
-    from condmon.diagnose.rules import load_rules
-    from condmon.models.registry import get_model
-    from condmon.monitor.fuzzy import load_monitor_config
-
-    machine = get_model(model)
-    return load_monitor_config(machine.breakpoints), load_rules(machine.rules)
-
-
-def _commit_unit(store: HistoryStore, plan: _Unit, baseline_count: int) -> list[RecordReport]:
-    """Write a unit's outcomes in the order its records were run (inside a batch)."""
-    from condmon.store import DuplicateTestError, StoreError
-
-    items = sorted(plan.outcomes, key=_order)
-    reports = []
-    seen: dict[str, str] = {}
-    checker: list[_Checker | None] = [None]  # loaded at the unit's first check
-    if plan.kind == "estimate":
-        from condmon.workflows.monitoring import baseline_members
-
-        ids, latest = baseline_members(store, plan.name)
-        plan.building = latest is None and len(ids) < baseline_count
-    for rec, out in items:
-        where = str(rec.path)
-        date = rec.test_date or (out.key.test_date if out.key is not None else None)
-        kind = "isolation" if plan.kind == "isolate" else "test"
-
-        def report(outcome: str, status: str | None = None, reason: str | None = None,
-                   tid: int | None = None) -> RecordReport:
-            return RecordReport(plan.name, where, outcome, status, reason, tid, kind, date,
-                                out.warnings)
-
-        if out.error is not None:
-            reports.append(report("refused", reason=out.error))
-            continue
-        assert out.key is not None
-        if out.known:
-            what, tid = plan.known.get(out.key.content, (kind, None))
-            reports.append(report("skipped", reason=f"already in the history of "
-                                  f"{plan.name!r} ({what} #{tid})", tid=tid))
-            continue
-        if out.key.content in seen:
-            reports.append(report("skipped", reason=f"the same content as {seen[out.key.content]}"
-                                  " in this run"))
-            continue
-        seen[out.key.content] = where
-        try:
-            if out.isolation is not None:
-                reports.append(_commit_isolation(store, plan, out, report))
-            elif plan.building:
-                reports.append(_commit_baseline_test(store, plan, out, baseline_count, report))
-            else:
-                reports.append(_commit_check(store, plan, out, checker, report))
-        except DuplicateTestError as dup:  # written meanwhile by another process
-            reports.append(report("skipped", reason=_one_line(dup), tid=dup.test_id))
-        except StoreError:
-            raise
-        except CondmonError as exc:  # no baseline, a rule base that does not fit, ...
-            reports.append(report("refused", reason=_named(where, str(exc))))
-    return reports
-
-
-ReportFn = Callable[..., RecordReport]
-
-
-def _commit_isolation(store: HistoryStore, plan: _Unit, out: RecordOutcome,
-                      report: ReportFn) -> RecordReport:
-    """As :func:`condmon.workflows.isolation.store_isolation`, from the outcome."""
-    from condmon.models.registry import get_model
-    from condmon.store import isolation_status
-
-    iso, key = out.isolation, out.key
-    assert iso is not None and key is not None and plan.model is not None
-    machine = get_model(plan.model)
-    iid = store.add_isolation(plan.name, iso, model=machine.name, source=out.path,
-                              digest=key.content, file_digest=key.file, test_date=key.test_date,
-                              model_source=machine.origin)
-    return report("stored", isolation_status(iso.detected, iso.decided),
-                  iso.statement if iso.decided else (iso.reason or iso.statement), iid)
-
-
-def _commit_baseline_test(store: HistoryStore, plan: _Unit, out: RecordOutcome,
-                          baseline_count: int, report: ReportFn) -> RecordReport:
-    """As :func:`condmon.workflows.monitoring.add_baseline_tests` for one record;
-    the baseline is saved once ``baseline_count`` tests are accepted."""
-    from condmon.workflows.monitoring import (
-        _unit_error, baseline_members, current_baseline, reevaluate, save_current_baseline,
-    )
-
-    res, key = out.estimate, out.key
-    assert res is not None and key is not None
-    if res.accepted:
-        try:
-            prior: Baseline | None = current_baseline(store, plan.name)[0]
-        except DataError:
-            prior = None
-        why = None if prior is None else _unit_error(res, prior)
-        if why is not None:
-            return report("refused", reason=_named(out.path, f"refused, {why}; nothing was "
-                                                   "stored"))
-    tid = store.add_test(plan.name, res, role="baseline", digest=key.content,
-                         file_digest=key.file, test_date=key.test_date)
-    if not res.accepted:
-        return report("rejected", "retest", _one_line(str(res.reason)), tid)
-    ids, latest = baseline_members(store, plan.name)
-    if latest is None and len(ids) >= baseline_count:
-        stored, fresh = save_current_baseline(store, plan.name, ids,
-                                              reason=f"first baseline ({len(ids)} tests)")
-        if fresh:
-            reevaluate(store, plan.name, stored)
-        plan.building = False
-        return report("stored", "baseline", f"baseline of {plan.name!r} from {len(ids)} "
-                      f"accepted healthy tests ({stored.name!r} v{stored.version})", tid)
-    return report("stored", "baseline", f"baseline test {len(ids)} of {baseline_count}", tid)
-
-
-def _commit_check(store: HistoryStore, plan: _Unit, out: RecordOutcome,
-                  checker: list[_Checker | None], report: ReportFn) -> RecordReport:
-    """As :func:`condmon.workflows.monitoring.check_test` for one estimated record."""
-    from condmon.workflows.monitoring import (
-        _unit_error, current_baseline, evaluate, save_current_baseline,
-    )
-
-    res, key = out.estimate, out.key
-    assert res is not None and key is not None and plan.model is not None
-    cfg, rb = _monitoring(plan.model)
-    state = checker[0]
-    if state is None:
-        baseline, ids = current_baseline(store, plan.name)
-        rb.check_parameters(baseline.parameters)
-        state = checker[0] = _Checker(baseline, ids, store.latest_baseline(plan.name))
-    why = _unit_error(res, state.baseline) if res.accepted else None
-    if why is not None:
-        return report("refused", reason=_named(out.path, f"refused, {why}; nothing was stored"))
-    if not res.accepted:
-        tid = store.add_test(plan.name, res, role="check", digest=key.content,
-                             file_digest=key.file, test_date=key.test_date)
-        return report("rejected", "retest", _one_line(str(res.reason)), tid)
-    row, diag = evaluate(res, state.baseline, cfg, rb)
-    if state.latest is None or list(state.latest.test_ids) != state.ids:
-        state.latest, _ = save_current_baseline(store, plan.name, state.ids, monitor=cfg,
-                                                reason="baseline of the first check")
-    tid = store.add_test(plan.name, res, role="check", digest=key.content, file_digest=key.file,
-                         test_date=key.test_date, symptoms=row, baseline_id=state.latest.id,
-                         diagnosis=diag)
-    return report("stored", diag.status, diag.summary, tid)
 
 
 # -- the run --------------------------------------------------------------------------
@@ -1060,15 +458,6 @@ def _before_work(rec: FleetRecord, plan: _Unit | None) -> RecordReport | None:
     return RecordReport(rec.unit, where, "skipped", None, f"already in the history of "
                         f"{rec.unit!r} ({known[0]} #{known[1]})", known[1], known[0],
                         rec.test_date)
-
-
-def _write(store: HistoryStore, ready: list[_Unit], baseline_count: int,
-           reports: dict[str, list[RecordReport]]) -> None:
-    """Commit the ready units' outcomes in one transaction."""
-    with store.batch():
-        for plan in ready:
-            reports.setdefault(plan.name, []).extend(_commit_unit(store, plan, baseline_count))
-            plan.outcomes.clear()
 
 
 def _unit_reports(store: HistoryStore, plans: dict[str, _Unit],

@@ -1,0 +1,296 @@
+"""What the live fleet page reads: the history, read-only, and the fleet's and units' documents.
+
+This module holds the data side of :mod:`condmon.report.web`, free of the web
+framework: :func:`readonly_url` and the per-request read-only opening of the
+history, :func:`fleet_document` (every unit's latest status, filtered),
+:func:`read_unit` with :class:`UnitData` (everything a unit's page shows) and
+:func:`unit_document` (the JSON of ``/api/units/<unit>``), with the errors the
+page answers with (:class:`UnknownUnitError`, :class:`FilterError`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+from urllib.parse import quote
+
+from condmon.errors import CondmonError, ConfigError
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from condmon.monitor.fuzzy import MonitorConfig
+    from condmon.store.baselines import StoredBaseline
+    from condmon.store.db import HistoryStore
+
+__all__ = ["readonly_url", "fleet_document", "unit_document", "read_unit", "UnitData",
+           "UnknownUnitError", "STATUSES"]
+
+#: Statuses a unit can show (``none``: nothing stored yet), in the filter's order.
+STATUSES = ("no-go", "advisory", "retest", "go", "unchecked", "baseline", "rejected",
+            "excluded", "none")
+
+
+class UnknownUnitError(CondmonError, LookupError):
+    """No unit of that name in the history."""
+
+
+class FilterError(ConfigError):
+    """A filter value that is not allowed (the message lists the allowed ones)."""
+
+
+# -- the history, read-only ------------------------------------------------------------
+def readonly_url(db: str | Path) -> str:
+    """The database URL that can only read: a SQLite file with ``mode=ro``,
+    PostgreSQL with ``default_transaction_read_only`` (others as given).
+
+    Example
+    -------
+    >>> readonly_url("/data/fleet 1.db")
+    'sqlite:///file%3A///data/fleet%25201.db?mode=ro&uri=true'
+    >>> readonly_url("postgresql://u@h/db")
+    'postgresql://u@h/db?options=-c%20default_transaction_read_only%3Don'
+    """
+    import sqlalchemy as sa
+
+    from condmon.store.engine import database_url, sqlite_path
+
+    text = str(db)
+    path = sqlite_path(database_url(text))
+    if path is not None:
+        url = sa.engine.URL.create("sqlite", database=path.expanduser().resolve().as_uri(),
+                                   query={"mode": "ro", "uri": "true"})
+        return url.render_as_string(hide_password=False)
+    if text.startswith(("postgresql://", "postgres://")) and "options=" not in text:
+        return text + ("&" if "?" in text else "?") + \
+            "options=" + quote("-c default_transaction_read_only=on")
+    return text
+
+
+class _History:
+    """Opens the history for one request, read-only; error messages name ``db``."""
+
+    def __init__(self, db: str | Path) -> None:
+        from condmon.store.engine import StoreError, database_url, sqlite_path
+
+        self.db = str(db)
+        self.file = sqlite_path(database_url(self.db))
+        if self.file is not None:  # open_store's checks, before the read-only URL hides it
+            if not self.file.exists():
+                raise StoreError(f"{db}: no history database there (check the path)")
+            if self.file.is_dir():
+                raise StoreError(f"{db}: is a folder, not a history database file")
+            if self.file.stat().st_size == 0:
+                raise StoreError(f"{db}: the file is empty, not a history database")
+        self.url = readonly_url(db)
+        with self.open():
+            pass
+
+    @contextmanager
+    def open(self) -> Iterator[HistoryStore]:
+        from condmon.store import open_store
+        from condmon.store.engine import StoreError
+
+        try:
+            # a read-only SQLite file: open_store's file checks would look for the URL
+            store = open_store(self.url, create=self.file is not None)
+        except StoreError as err:
+            text = str(err).replace(self.url, self.db)
+            if "read-only" in text:  # the store tried to create or upgrade its tables
+                text = (f"{self.db}: not a condmon history of this version yet, and the page "
+                        "only reads; run `condmon units --db DB` once (it upgrades an older "
+                        "history), then serve it")
+            raise type(err)(text) from None
+        with store:
+            yield store
+
+
+# -- what the pages and the API show ---------------------------------------------------
+def _plain(value: Any) -> Any:
+    """``value`` with JSON types only; NaN and ±inf become None (recursively)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if hasattr(value, "item") and not isinstance(value, (str, bytes)):  # numpy scalar
+        return _plain(value.item())
+    if isinstance(value, datetime):
+        return value.isoformat()
+    return value
+
+
+def _records(frame: pd.DataFrame) -> list[dict[str, Any]]:
+    """Rows as ``condmon history --json`` prints them (ISO dates, NaN as null)."""
+    text = frame.reset_index().to_json(orient="records", date_format="iso")
+    rows: list[dict[str, Any]] = json.loads(text or "[]")
+    return rows
+
+
+def _statuses(values: Sequence[str]) -> set[str]:
+    wanted = {s.strip() for v in values for s in v.split(",") if s.strip()}
+    unknown = sorted(wanted - set(STATUSES))
+    if unknown:
+        raise FilterError(f"unknown status {', '.join(unknown)}; allowed: {', '.join(STATUSES)}")
+    return wanted
+
+
+def fleet_document(store: HistoryStore, status: Sequence[str] = (),
+                   q: str | None = None) -> dict[str, Any]:
+    """``{"units": [...]}``: :meth:`HistoryStore.unit_summaries`, filtered.
+
+    Parameters
+    ----------
+    store : HistoryStore
+    status : sequence of str
+        Keep the units whose latest status is one of these (each item may
+        be comma-separated); ``none`` is a unit with nothing stored. Empty: all.
+    q : str, optional
+        Keep the units whose name contains this text (any case).
+
+    Raises
+    ------
+    ConfigError
+        A status not in :data:`STATUSES`.
+    """
+    return {"units": _filtered(store.unit_summaries(), _statuses(status), q)}
+
+
+def _filtered(units: list[dict[str, Any]], wanted: set[str],
+              q: str | None) -> list[dict[str, Any]]:
+    text = (q or "").strip().casefold()
+    return [_plain(u) for u in units if (not wanted or (u["status"] or "none") in wanted)
+            and text in str(u["unit"]).casefold()]
+
+
+@dataclass(frozen=True)
+class UnitData:
+    """Everything the unit page and ``/api/units/<unit>`` show.
+
+    Attributes
+    ----------
+    unit, model : str
+    overview : dict
+        The unit's entry of :meth:`HistoryStore.unit_summaries`.
+    history : DataFrame
+        :meth:`HistoryStore.history`.
+    isolations : DataFrame
+        :meth:`HistoryStore.isolations`.
+    baseline : StoredBaseline or None
+    advice_test : int or None
+        The latest check (by date) that is not excluded.
+    faults : list of dict
+        Its faults (``name, degree, severity, advice``), strongest first,
+        against the baseline it was evaluated with.
+    monitor : MonitorConfig or None
+        The model's breakpoints (None when the model cannot be loaded).
+    """
+
+    unit: str
+    model: str
+    overview: dict[str, Any]
+    history: pd.DataFrame
+    isolations: pd.DataFrame
+    baseline: StoredBaseline | None
+    advice_test: int | None
+    faults: list[dict[str, Any]]
+    monitor: MonitorConfig | None
+
+
+def _faults(store: HistoryStore, test_id: int, baseline_id: Any) -> list[dict[str, Any]]:
+    import sqlalchemy as sa
+
+    from condmon.store import schema as S
+
+    f = S.diagnosis_faults
+    q = sa.select(f.c.name, f.c.degree, f.c.severity, f.c.advice).where(f.c.test_id == test_id)
+    if isinstance(baseline_id, (int, float)) and math.isfinite(baseline_id):
+        q = q.where(f.c.baseline_id == int(baseline_id))
+    with store.engine.connect() as conn:
+        rows = conn.execute(q.order_by(f.c.degree.desc(), f.c.name)).all()
+    return [{"name": str(r[0]), "degree": float(r[1]), "severity": str(r[2]),
+             "advice": str(r[3])} for r in rows]
+
+
+def read_unit(store: HistoryStore, unit: str) -> UnitData:
+    """Read what :func:`unit_document` and the unit page show.
+
+    Raises
+    ------
+    UnknownUnitError
+        No such unit in the history.
+    """
+    from condmon.models.registry import get_model
+    from condmon.monitor.fuzzy import load_monitor_config
+
+    model = store.unit_model(unit)
+    if model is None:
+        raise UnknownUnitError(f"unknown unit {unit!r}")
+    hist = store.history(unit)
+    isos = store.isolations(unit)
+    baseline = store.latest_baseline(unit)
+    monitor = None
+    if len(hist):
+        try:
+            monitor = load_monitor_config(get_model(model).breakpoints)
+        except CondmonError:  # a declaration file moved away: trends without bands
+            monitor = None
+    checks = hist[(hist["role"] == "check") & ~hist["excluded"]] if len(hist) else hist
+    advice_test, faults = None, []
+    if len(checks):
+        latest = checks.assign(_id=checks.index).sort_values(["date", "_id"]).iloc[-1]
+        advice_test = int(latest["_id"])
+        if latest["accepted"]:
+            faults = _faults(store, advice_test, latest["baseline_id"])
+    return UnitData(unit, model, _overview(unit, model, hist, isos, baseline), hist, isos,
+                    baseline, advice_test, faults, monitor)
+
+
+def _overview(unit: str, model: str, hist: pd.DataFrame, isos: pd.DataFrame,
+              baseline: StoredBaseline | None) -> dict[str, Any]:
+    """The unit's entry of :meth:`HistoryStore.unit_summaries`, from what the page
+    has read anyway (that method reads every unit: seconds for a large fleet)."""
+    status = source = when = summary = None
+    tests = hist[~hist["excluded"]] if len(hist) else hist
+    if len(tests):
+        last = tests.assign(_id=tests.index).sort_values(["date", "_id"]).iloc[-1]
+        status, source, when = str(last["status"]), last["source"], last["date"]
+        summary = last["summary"] if last["accepted"] else last["reason"]
+    done = isos[~isos["excluded"].astype(bool)] if len(isos) else isos
+    if len(done):
+        last = done.assign(_id=done.index).sort_values(["date", "_id"]).iloc[-1]
+        if when is None or last["date"] >= when:
+            status, source, when = str(last["status"]), last["source"], last["date"]
+            summary = last["statement"]
+    doc: dict[str, Any] = _plain({
+        "unit": unit, "model": model, "tests": len(hist), "isolations": len(isos),
+        "latest_source": source, "latest_date": None if when is None else when.isoformat(),
+        "status": status, "summary": summary if isinstance(summary, str) else None,
+        "baseline_flags": 0 if baseline is None else len(baseline.flags)})
+    return doc
+
+
+def unit_document(data: UnitData) -> dict[str, Any]:
+    """The JSON of ``/api/units/<unit>``.
+
+    Keys: ``unit``, ``overview`` (as in ``/api/units``), ``tests`` (as
+    ``condmon history --json``), ``isolations``, ``baseline`` (the active
+    baseline's latest version, or None) and ``advice`` (``test_id`` of the
+    latest check and its ``faults``, or None).
+    """
+    advice = (None if data.advice_test is None else
+              {"test_id": data.advice_test, "faults": data.faults})
+    doc: dict[str, Any] = _plain({
+        "unit": data.unit, "overview": data.overview,
+        "tests": _records(data.history) if len(data.history) else [],
+        "isolations": _records(data.isolations) if len(data.isolations) else [],
+        "baseline": None if data.baseline is None else data.baseline.to_dict(),
+        "advice": advice})
+    return doc

@@ -1,0 +1,253 @@
+"""What the live fleet page draws: a unit's trend figure (inline SVG) and the rows of its tables.
+
+This module holds the rendering side of :mod:`condmon.report.web`, free of
+the web framework: the trend panels a unit's page draws as SVG (each
+parameter's change against the baseline over the test dates, or the test ids
+when none is recorded, with the r1/r2 bands, the baseline spread and each
+estimate's standard error), the rows of its tests and isolations tables, and
+the dates as the page writes them. The templates turn these into HTML.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from typing import TYPE_CHECKING, Any, cast
+
+from condmon.report.figures import STATUS_COLOURS
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from condmon.report.web_data import UnitData
+
+__all__: list[str] = []
+
+
+# -- the trend figure (inline SVG) -----------------------------------------------------
+_W, _H = 460, 210
+_LEFT, _RIGHT, _TOP, _BOTTOM = 54, 12, 20, 34
+_TIME_STEPS = (1, 2, 5, 10, 15, 30, 60, 120, 300, 600, 900, 1800, 3600, 7200, 10800, 21600,
+               43200, 86400, 2 * 86400, 7 * 86400, 14 * 86400, 30 * 86400, 61 * 86400,
+               91 * 86400, 182 * 86400, 365 * 86400, 730 * 86400, 1826 * 86400)
+
+
+@dataclass(frozen=True)
+class _Point:
+    x: float
+    y: float
+    y_low: float
+    y_high: float
+    colour: str
+    test_id: int
+    title: str
+    member: bool
+
+
+@dataclass(frozen=True)
+class _Panel:
+    parameter: str
+    bands: list[tuple[float, float, str]]
+    zero: float
+    yticks: list[tuple[float, str]]
+    xticks: list[tuple[float, str]]
+    points: list[_Point]
+    line: str
+    width: int = _W
+    height: int = _H
+    left: int = _LEFT
+    right: int = _W - _RIGHT
+    top: int = _TOP
+    bottom: int = _H - _BOTTOM
+
+
+@dataclass(frozen=True)
+class _Trends:
+    panels: list[_Panel] = field(default_factory=list)
+    xlabel: str = ""
+    statuses: list[str] = field(default_factory=list)
+    k: float = 2.0
+    banded: bool = False
+    spread: bool = False
+    untrended: list[str] = field(default_factory=list)
+
+
+def _nice(span: float, count: int = 5) -> float:
+    raw = span / count
+    mag = 10.0 ** math.floor(math.log10(raw))
+    return float(next(m * mag for m in (1, 2, 2.5, 5, 10) if m * mag >= raw))
+
+
+def _time_ticks(lo: float, hi: float) -> list[tuple[float, str]]:
+    step = next((s for s in _TIME_STEPS if (hi - lo) / s <= 6), _TIME_STEPS[-1])
+    fmt = ("%Y-%m-%d" if step >= 86400 else "%m-%d %H:%M" if step >= 60 else "%H:%M:%S")
+    first = math.ceil(lo / step) * step
+    return [(t, datetime.fromtimestamp(t, timezone.utc).strftime(fmt))
+            for t in (first + i * step for i in range(int((hi - first) // step) + 1))]
+
+
+def _trends(data: UnitData) -> _Trends:
+    """The trend panels: accepted checks that are not excluded, at their change
+    against the baseline they were evaluated with, and the active baseline's
+    tests at their deviation from its mean; error bars ±1 SE."""
+    hist, cfg, stored = data.history, data.monitor, data.baseline
+    if not len(hist):
+        return _Trends()
+    params = ([p for p in cfg.r1 if p in hist.columns] if cfg is not None else
+              [c[:-len("_change")] for c in hist.columns
+               if c.endswith("_change") and c[:-len("_change")] in hist.columns])
+    k = cfg.k if cfg is not None else 2.0
+    stats = {} if stored is None else {
+        p: (m, s) for p, m, s in zip(stored.baseline.parameters, stored.baseline.mean,
+                                     stored.baseline.std) if m}
+    members = [] if stored is None else [
+        i for i in stored.test_ids if i in hist.index and not hist.loc[i, "excluded"]]
+    checks = [int(i) for i in hist.index[(hist["role"] == "check") & hist["accepted"]
+                                         & ~hist["excluded"]]]
+    if not params or not (members or checks):
+        return _Trends(untrended=_untrended(hist))
+    stamps = {int(str(i)): float(d.timestamp()) for i, d in hist["date"].items()}
+    dated = bool(hist["test_date"].notna().any())
+    shown = sorted({*members, *checks})
+    if dated:  # on the time axis
+        where = {i: stamps[i] for i in shown}
+        lo, hi = min(where.values()), max(where.values())
+        pad = max((hi - lo) * 0.05, 3600.0)
+        lo, hi = lo - pad, hi + pad
+        xticks = _time_ticks(lo, hi)
+    else:  # no test dates: one step per test, in id order
+        where = {i: float(n) for n, i in enumerate(shown)}
+        lo, hi = -0.6, len(shown) - 0.4
+        every = max(1, math.ceil(len(shown) / 12))
+        xticks = [(where[i], f"#{i}") for i in shown[::every]]
+
+    def px(t: float) -> float:
+        return _LEFT + (t - lo) / (hi - lo) * (_W - _LEFT - _RIGHT)
+
+    def value(i: int, column: str) -> float:
+        v: Any = hist.loc[i, column] if column in hist.columns else None
+        return float(v) if isinstance(v, (int, float)) and v == v else math.nan
+
+    panels, seen = [], []
+    for p in params:
+        mean, std = stats.get(p, (math.nan, math.nan))
+        scale = 100.0 / abs(mean)  # nan without a baseline
+        pts = [(i, (value(i, p) - mean) * scale, value(i, f"{p}_se") * scale, "baseline", True)
+               for i in members]
+        pts += [(i, value(i, f"{p}_change"), value(i, f"{p}_se") * scale,
+                 str(hist.loc[i, "status"]), False) for i in checks]
+        pts = [t for t in pts if math.isfinite(t[1])]
+        spread = k * std * scale if math.isfinite(std * scale) else 0.0
+        r1 = cfg.r1.get(p, math.nan) if cfg is not None else math.nan
+        r2 = cfg.r2.get(p, math.nan) if cfg is not None else math.nan
+        reach = [abs(c) + (e if math.isfinite(e) else 0.0) for _, c, e, _, _ in pts]
+        top = max([r2 * 1.15 if math.isfinite(r2) else 0.0, spread * 1.3, *reach, 1.0]) * 1.08
+        step = _nice(2 * top)
+
+        def py(v: float, top: float = top) -> float:
+            return _TOP + (top - v) / (2 * top) * (_H - _TOP - _BOTTOM)
+
+        bands = []
+        if math.isfinite(r1) and math.isfinite(r2):
+            for a, b, cls in ((r1, r2, "developing"), (r2, top, "fault")):
+                if a < top:
+                    bands += [(py(min(b, top)), py(a), cls), (py(-a), py(-min(b, top)), cls)]
+        if spread > 0:
+            bands.append((py(min(spread, top)), py(-min(spread, top)), "spread"))
+        ticks = [v * step for v in range(-int(top // step), int(top // step) + 1)]
+        points = []
+        for i, c, e, s, member in pts:
+            when = datetime.fromtimestamp(stamps[i], timezone.utc).strftime("%Y-%m-%d %H:%M")
+            sd = f" ± {e:.2g} % (SE)" if math.isfinite(e) else ""
+            role = "baseline test" if member else s
+            points.append(_Point(px(where[i]), py(c), py(c - e) if math.isfinite(e) else py(c),
+                                 py(c + e) if math.isfinite(e) else py(c),
+                                 STATUS_COLOURS.get(s, "#444"), i,
+                                 f"#{i} {when} {role}: {p} {c:+.1f} %{sd}", member))
+            seen.append(s)
+        line = " ".join(f"{q.x:.1f},{q.y:.1f}" for q in points if not q.member)
+        panels.append(_Panel(p, bands, py(0.0), [(py(v), f"{v:+g}") for v in ticks],
+                             [(px(t), label) for t, label in xticks
+                              if 28 <= px(t) <= _W - 28],  # the label fits the figure
+                             points, line))
+    xlabel = ("test date (UTC)" if dated and not hist["test_date"].isna().any() else
+              "date (UTC): test date, else when stored" if dated else
+              "test # (no test dates recorded)")
+    order: list[str] = [s for s in ("baseline", "go", "advisory", "no-go", "unchecked")
+                        if s in seen]
+    return _Trends(panels, xlabel, order, k, cfg is not None, bool(stats), _untrended(hist))
+
+
+def _untrended(hist: pd.DataFrame) -> list[str]:
+    """Tests left out of the trends, with why."""
+    out = []
+    for i, r in hist.iterrows():
+        if r["status"] in ("excluded", "rejected", "retest"):
+            out.append(f"#{i} {r['status']}")
+    return out
+
+
+# -- rows of the tables -----------------------------------------------------------------
+def _fmt_date(value: Any, stored: bool = False) -> str:
+    import pandas as pd
+
+    if value is None or (not isinstance(value, str) and pd.isna(value)):
+        return "—"
+    stamp = pd.Timestamp(value)
+    stamp = stamp.tz_localize("UTC") if stamp.tzinfo is None else stamp.tz_convert("UTC")
+    return f"{stamp:%Y-%m-%d %H:%M}" + (" (stored)" if stored else "")
+
+
+def _test_rows(hist: pd.DataFrame, params: Sequence[str]) -> list[dict[str, Any]]:
+    import pandas as pd
+
+    rows = []
+    for tid, r in hist.iterrows():
+        status = str(r["status"])
+        excluded = status == "excluded"
+        changes = [f"{r[f'{p}_change']:+.1f}" if not excluded and f"{p}_change" in r
+                   and pd.notna(r[f"{p}_change"]) else "" for p in params]
+        if excluded:
+            note = f"excluded: {r['excluded_reason'] or ''}"
+        elif r["accepted"] and isinstance(r["summary"], str):
+            note = r["summary"]
+        else:
+            note = str(r["reason"] or "")
+        rows.append({"id": int(cast(int, tid)),
+                     "date": _fmt_date(r["date"], pd.isna(r["test_date"])),
+                     "source": str(r["source"]), "role": str(r["role"]), "status": status,
+                     "fit": f"{r['fit_percent']:.1f}" if pd.notna(r["fit_percent"]) else "—",
+                     "changes": changes, "note": note, "excluded": excluded})
+    return rows
+
+
+def _isolation_rows(isos: pd.DataFrame) -> tuple[list[str], list[dict[str, Any]]]:
+    import pandas as pd
+
+    suspects = sorted({s for v in isos["suspects"] for s in v})
+    rows = []
+    for iid, r in isos.iterrows():
+        cells = []
+        for p in suspects:
+            change, err, est = r.get(f"{p}_change"), r.get(f"{p}_error"), r.get(p)
+            flag = r.get(f"{p}_rejected")
+            rejected = bool(flag is not None and flag == flag and flag)  # NaN: not estimated
+            text = ("" if est is None or pd.isna(est) else f"= {est:.4g}"
+                    ) if change is None or pd.isna(change) else f"{change:+.1f} %"
+            if err is not None and pd.notna(err):
+                text += f" ({err:.2g} σ)"
+            cells.append({"text": "rejected" if rejected else text,
+                          "isolated": p in r["isolated"], "rejected": rejected})
+        det = r["detection_time"]
+        rows.append({"id": int(cast(int, iid)),
+                     "date": _fmt_date(r["date"], pd.isna(r["test_date"])),
+                     "source": str(r["source"]),
+                     "status": "excluded" if r["excluded"] else str(r["status"]),
+                     "detected": f"{det:.2f} s" if pd.notna(det) else "—",
+                     "isolated": ", ".join(r["isolated"]) or "—",
+                     "statement": str(r["statement"] or ""),
+                     "reason": str(r["reason"]) if isinstance(r["reason"], str) else "",
+                     "cells": cells})
+    return suspects, rows

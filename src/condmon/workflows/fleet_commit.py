@@ -1,0 +1,273 @@
+"""Committing a fleet unit's outcomes to the history, as the monitoring workflows would.
+
+This module holds the client side of a fleet run once a unit's records are
+back from the workers: the unit's plan (:class:`_Unit`: its model, how its
+records are processed, what the history already knows of it), the steps that
+write each outcome in date (else file-name) order, the same steps as
+:func:`condmon.workflows.monitoring.add_baseline_tests` (while the unit has no
+baseline), :func:`condmon.workflows.monitoring.check_test` (afterwards) and
+:func:`condmon.workflows.isolation.store_isolation` (plant models), and
+:class:`RecordReport`, what became of each record.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from datetime import datetime
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from condmon.errors import CondmonError, DataError
+from condmon.workflows.fleet_inbox import FleetRecord, _name_key, _one_line
+from condmon.workflows.fleet_work import Kind, RecordOutcome, _named
+
+if TYPE_CHECKING:
+    from condmon.diagnose.rules import RuleBase
+    from condmon.monitor.baseline import Baseline
+    from condmon.monitor.fuzzy import MonitorConfig
+    from condmon.store.baselines import StoredBaseline
+    from condmon.store.db import HistoryStore
+
+__all__ = ["RecordReport"]
+
+
+# -- what became of a record ----------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class RecordReport:
+    """What became of one record.
+
+    Attributes
+    ----------
+    unit : str
+    file : str
+    outcome : {"stored", "skipped", "rejected", "refused"}
+    status : str or None
+        A check's ``go``/``advisory``/``no-go``; ``baseline`` for a test that
+        joined the unit's baseline; ``retest`` for a rejected estimate or an
+        undecided isolation; an isolation's ``go``/``no-go``; None when
+        nothing was written.
+    reason : str or None
+        The diagnosis or isolation statement, why the estimate was rejected,
+        why the record was refused, or what it duplicates.
+    test_id : int or None
+        The test's (or isolation's) id in the history.
+    kind : {"test", "isolation"}
+    test_date : datetime or None
+    warnings : tuple of str
+    """
+
+    unit: str
+    file: str
+    outcome: str
+    status: str | None = None
+    reason: str | None = None
+    test_id: int | None = None
+    kind: str = "test"
+    test_date: datetime | None = None
+    warnings: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready record (``unit, file, outcome, status, reason, id, kind,
+        test_date, warnings``)."""
+        return {"unit": self.unit, "file": self.file, "outcome": self.outcome,
+                "status": self.status, "reason": self.reason, "id": self.test_id,
+                "kind": self.kind,
+                "test_date": None if self.test_date is None else self.test_date.isoformat(),
+                "warnings": list(self.warnings)}
+
+
+# -- committing a unit ----------------------------------------------------------------
+
+
+@dataclass
+class _Unit:
+    """A unit's plan: its model, how its records are processed, what is known of it."""
+
+    name: str
+    model: str | None = None
+    kind: Kind | None = None
+    error: str | None = None
+    known: dict[str, tuple[str, int]] = field(default_factory=dict)  # digest -> (kind, id)
+    digests: frozenset[str] = frozenset()
+    expected: int = 0
+    outcomes: list[tuple[FleetRecord, RecordOutcome]] = field(default_factory=list)
+    building: bool = False
+
+
+@dataclass
+class _Checker:
+    """The unit's baseline while its records are committed (one batch)."""
+
+    baseline: Baseline
+    ids: list[int]
+    latest: StoredBaseline | None
+
+
+def _order(item: tuple[FleetRecord, RecordOutcome]) -> tuple[Any, ...]:
+    """Date order when known (dated records first), else file-name order."""
+    rec, out = item
+    when = rec.test_date or (out.key.test_date if out.key is not None else None)
+    return (when is None, when.timestamp() if when is not None else 0.0,
+            _name_key(Path(rec.path.name)), _name_key(rec.path))
+
+
+@functools.lru_cache(maxsize=16)
+def _monitoring(model: str) -> tuple[MonitorConfig, RuleBase]:
+    from condmon.diagnose.rules import load_rules
+    from condmon.models.registry import get_model
+    from condmon.monitor.fuzzy import load_monitor_config
+
+    machine = get_model(model)
+    return load_monitor_config(machine.breakpoints), load_rules(machine.rules)
+
+
+def _commit_unit(store: HistoryStore, plan: _Unit, baseline_count: int) -> list[RecordReport]:
+    """Write a unit's outcomes in the order its records were run (inside a batch)."""
+    from condmon.store import DuplicateTestError, StoreError
+
+    items = sorted(plan.outcomes, key=_order)
+    reports = []
+    seen: dict[str, str] = {}
+    checker: list[_Checker | None] = [None]  # loaded at the unit's first check
+    if plan.kind == "estimate":
+        from condmon.workflows.monitoring import baseline_members
+
+        ids, latest = baseline_members(store, plan.name)
+        plan.building = latest is None and len(ids) < baseline_count
+    for rec, out in items:
+        where = str(rec.path)
+        date = rec.test_date or (out.key.test_date if out.key is not None else None)
+        kind = "isolation" if plan.kind == "isolate" else "test"
+
+        def report(outcome: str, status: str | None = None, reason: str | None = None,
+                   tid: int | None = None) -> RecordReport:
+            return RecordReport(plan.name, where, outcome, status, reason, tid, kind, date,
+                                out.warnings)
+
+        if out.error is not None:
+            reports.append(report("refused", reason=out.error))
+            continue
+        assert out.key is not None
+        if out.known:
+            what, tid = plan.known.get(out.key.content, (kind, None))
+            reports.append(report("skipped", reason=f"already in the history of "
+                                  f"{plan.name!r} ({what} #{tid})", tid=tid))
+            continue
+        if out.key.content in seen:
+            reports.append(report("skipped", reason=f"the same content as {seen[out.key.content]}"
+                                  " in this run"))
+            continue
+        seen[out.key.content] = where
+        try:
+            if out.isolation is not None:
+                reports.append(_commit_isolation(store, plan, out, report))
+            elif plan.building:
+                reports.append(_commit_baseline_test(store, plan, out, baseline_count, report))
+            else:
+                reports.append(_commit_check(store, plan, out, checker, report))
+        except DuplicateTestError as dup:  # written meanwhile by another process
+            reports.append(report("skipped", reason=_one_line(dup), tid=dup.test_id))
+        except StoreError:
+            raise
+        except CondmonError as exc:  # no baseline, a rule base that does not fit, ...
+            reports.append(report("refused", reason=_named(where, str(exc))))
+    return reports
+
+
+ReportFn = Callable[..., RecordReport]
+
+
+def _commit_isolation(store: HistoryStore, plan: _Unit, out: RecordOutcome,
+                      report: ReportFn) -> RecordReport:
+    """As :func:`condmon.workflows.isolation.store_isolation`, from the outcome."""
+    from condmon.models.registry import get_model
+    from condmon.store import isolation_status
+
+    iso, key = out.isolation, out.key
+    assert iso is not None and key is not None and plan.model is not None
+    machine = get_model(plan.model)
+    iid = store.add_isolation(plan.name, iso, model=machine.name, source=out.path,
+                              digest=key.content, file_digest=key.file, test_date=key.test_date,
+                              model_source=machine.origin)
+    return report("stored", isolation_status(iso.detected, iso.decided),
+                  iso.statement if iso.decided else (iso.reason or iso.statement), iid)
+
+
+def _commit_baseline_test(store: HistoryStore, plan: _Unit, out: RecordOutcome,
+                          baseline_count: int, report: ReportFn) -> RecordReport:
+    """As :func:`condmon.workflows.monitoring.add_baseline_tests` for one record;
+    the baseline is saved once ``baseline_count`` tests are accepted."""
+    from condmon.workflows.monitoring import (
+        _unit_error, baseline_members, current_baseline, reevaluate, save_current_baseline,
+    )
+
+    res, key = out.estimate, out.key
+    assert res is not None and key is not None
+    if res.accepted:
+        try:
+            prior: Baseline | None = current_baseline(store, plan.name)[0]
+        except DataError:
+            prior = None
+        why = None if prior is None else _unit_error(res, prior)
+        if why is not None:
+            return report("refused", reason=_named(out.path, f"refused, {why}; nothing was "
+                                                   "stored"))
+    tid = store.add_test(plan.name, res, role="baseline", digest=key.content,
+                         file_digest=key.file, test_date=key.test_date)
+    if not res.accepted:
+        return report("rejected", "retest", _one_line(str(res.reason)), tid)
+    ids, latest = baseline_members(store, plan.name)
+    if latest is None and len(ids) >= baseline_count:
+        stored, fresh = save_current_baseline(store, plan.name, ids,
+                                              reason=f"first baseline ({len(ids)} tests)")
+        if fresh:
+            reevaluate(store, plan.name, stored)
+        plan.building = False
+        return report("stored", "baseline", f"baseline of {plan.name!r} from {len(ids)} "
+                      f"accepted healthy tests ({stored.name!r} v{stored.version})", tid)
+    return report("stored", "baseline", f"baseline test {len(ids)} of {baseline_count}", tid)
+
+
+def _commit_check(store: HistoryStore, plan: _Unit, out: RecordOutcome,
+                  checker: list[_Checker | None], report: ReportFn) -> RecordReport:
+    """As :func:`condmon.workflows.monitoring.check_test` for one estimated record."""
+    from condmon.workflows.monitoring import (
+        _unit_error, current_baseline, evaluate, save_current_baseline,
+    )
+
+    res, key = out.estimate, out.key
+    assert res is not None and key is not None and plan.model is not None
+    cfg, rb = _monitoring(plan.model)
+    state = checker[0]
+    if state is None:
+        baseline, ids = current_baseline(store, plan.name)
+        rb.check_parameters(baseline.parameters)
+        state = checker[0] = _Checker(baseline, ids, store.latest_baseline(plan.name))
+    why = _unit_error(res, state.baseline) if res.accepted else None
+    if why is not None:
+        return report("refused", reason=_named(out.path, f"refused, {why}; nothing was stored"))
+    if not res.accepted:
+        tid = store.add_test(plan.name, res, role="check", digest=key.content,
+                             file_digest=key.file, test_date=key.test_date)
+        return report("rejected", "retest", _one_line(str(res.reason)), tid)
+    row, diag = evaluate(res, state.baseline, cfg, rb)
+    if state.latest is None or list(state.latest.test_ids) != state.ids:
+        state.latest, _ = save_current_baseline(store, plan.name, state.ids, monitor=cfg,
+                                                reason="baseline of the first check")
+    tid = store.add_test(plan.name, res, role="check", digest=key.content, file_digest=key.file,
+                         test_date=key.test_date, symptoms=row, baseline_id=state.latest.id,
+                         diagnosis=diag)
+    return report("stored", diag.status, diag.summary, tid)
+
+
+def _write(store: HistoryStore, ready: list[_Unit], baseline_count: int,
+           reports: dict[str, list[RecordReport]]) -> None:
+    """Commit the ready units' outcomes in one transaction."""
+    with store.batch():
+        for plan in ready:
+            reports.setdefault(plan.name, []).extend(_commit_unit(store, plan, baseline_count))
+            plan.outcomes.clear()

@@ -18,7 +18,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import linalg
 
 from condmon.errors import ConversionError, ModelError
 from condmon.models.transfer import ContinuousTF, DiscreteTF
@@ -92,6 +91,8 @@ def c2d(sys: StateSpace, dt: float) -> StateSpace:
     M = np.zeros((n + m, n + m))
     M[:n, :n] = sys.A
     M[:n, n:] = sys.B
+    from scipy import linalg  # ~0.15 s of imports, not paid by an estimate
+
     E = linalg.expm(M * dt)
     return StateSpace(E[:n, :n], E[:n, n:], sys.C, sys.D, dt)
 
@@ -164,6 +165,8 @@ def _logm(M: FloatArray) -> NDArray[np.float64] | NDArray[np.complex128]:
     if np.linalg.cond(V) < 1e6:
         L = (V * np.log(w.astype(np.complex128))) @ np.linalg.inv(V)
         return L.real if np.max(np.abs(L.imag)) < 1e-12 * max(1.0, np.max(np.abs(L))) else L
+    from scipy import linalg  # the rare ill-conditioned case only
+
     out = linalg.logm(M)
     return np.asarray(out)
 

@@ -1,0 +1,48 @@
+"""The numpy linear filter against scipy.signal.lfilter (known truth)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.signal import lfilter as scipy_lfilter
+
+from condmon._filter import lfilter
+
+
+@settings(max_examples=150, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), nb=st.integers(1, 6), order=st.integers(0, 8),
+       n=st.integers(1, 900), layout=st.sampled_from(["1d", "columns", "rows"]))
+def test_same_as_scipy_for_stable_filters(seed: int, nb: int, order: int, n: int,
+                                          layout: str) -> None:
+    rng = np.random.default_rng(seed)
+    b = rng.standard_normal(nb)
+    a = np.real(np.poly(rng.uniform(-0.995, 0.995, order))) * rng.uniform(0.5, 2.0)
+    x, axis = {"1d": (rng.standard_normal(n), -1),
+               "columns": (rng.standard_normal((n, 3)), 0),
+               "rows": (rng.standard_normal((2, n)), -1)}[layout]
+    want = scipy_lfilter(b, a, x, axis=axis)
+    got = lfilter(b, a, x, axis=axis)
+    assert got.shape == want.shape and got.dtype == np.float64
+    assert np.max(np.abs(got - want)) <= 1e-9 * (1.0 + np.max(np.abs(want)))
+
+
+@pytest.mark.parametrize("pole", [0.9999, 1.0, 1.002])
+def test_marginal_and_slightly_unstable_filters(pole: float) -> None:
+    x = np.random.default_rng(1).standard_normal(5000)
+    a = np.poly([pole, 0.5])
+    want = scipy_lfilter([0.0, 1.0], a, x)
+    assert np.allclose(lfilter([0.0, 1.0], a, x), want, rtol=1e-9,
+                       atol=1e-9 * np.max(np.abs(want)))
+
+
+def test_leading_coefficient_normalised_and_fir_only() -> None:
+    x = np.arange(10.0)
+    assert np.allclose(lfilter([2.0, 1.0], [2.0], x), scipy_lfilter([2.0, 1.0], [2.0], x))
+    assert np.allclose(lfilter([1.0], [2.0, -1.0, 0.0], x), scipy_lfilter([1.0], [2.0, -1.0], x))
+
+
+def test_bad_coefficients_refused() -> None:
+    with pytest.raises(ValueError, match="a\\[0\\] non-zero"):
+        lfilter([1.0], [0.0, 1.0], np.ones(3))

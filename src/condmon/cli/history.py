@@ -147,6 +147,7 @@ def register(app: typer.Typer, baseline_app: typer.Typer) -> None:
     ) -> None:
         """Every change to the history: when, who, what, why."""
         from condmon.store.db import open_store
+        from condmon.store.engine import redact
 
         with open_store(db, create=False) as store:
             trail = store.audit(unit)
@@ -156,7 +157,7 @@ def register(app: typer.Typer, baseline_app: typer.Typer) -> None:
                 r["detail"] = json.loads(r["detail"]) if r["detail"] else None
             write_json({"audit": rows})
             return
-        table = Table(title=escape(f"Audit trail of {unit or db}"), box=box.SIMPLE_HEAD)
+        table = Table(title=escape(f"Audit trail of {unit or redact(db)}"), box=box.SIMPLE_HEAD)
         for col in ("at (UTC)", "who", "action", "unit", "test", "reason"):
             table.add_column(col, overflow="fold", no_wrap=col in ("at (UTC)", "action", "test"))
         for _, r in trail.iterrows():

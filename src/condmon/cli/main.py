@@ -216,7 +216,17 @@ def baseline_add_cmd(
     from condmon.workflows.monitoring import add_baseline_tests
     from condmon.store.db import open_store
 
+    from condmon.io.dates import parse_date
+    from condmon.models.registry import get_model
+
     opts = _options(method, gamma, excitation, columns, fit_threshold, model, route, constants)
+    # what can be checked without the records, before a new history file is made
+    parse_date(date)
+    if model is not None:
+        get_model(model)
+    missing = [str(r) for r in records if not r.exists()]
+    if missing:
+        raise CondmonError(f"no such file: {', '.join(missing)}; nothing was stored")
     with open_store(db) as store:
         if len(records) > 1:
             with progress() as prog:
@@ -316,13 +326,14 @@ def units_cmd(
 ) -> None:
     """List the units of a history: model, tests and latest status."""
     from condmon.store.db import open_store
+    from condmon.store.engine import redact
 
     with open_store(db, create=False) as store:
         rows = store.unit_summaries()
     if as_json:
         write_json({"units": rows})
         return
-    table = Table(title=escape(f"Units in {db}"), box=box.SIMPLE_HEAD)
+    table = Table(title=escape(f"Units in {redact(db)}"), box=box.SIMPLE_HEAD)
     for col in ("unit", "model", "tests", "latest", "date", "status"):
         table.add_column(col, justify="right" if col == "tests" else "left",
                          no_wrap=col in ("date", "status"))

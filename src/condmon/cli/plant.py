@@ -101,6 +101,7 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
         kept = None
         if unit is not None:
             from condmon.store.db import open_store
+            from condmon.store.engine import redact
             from condmon.workflows.isolation import store_isolation
 
             with open_store(db) as store:
@@ -115,7 +116,7 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
         _print_isolation(res)
         if kept is not None:
             what = ("already in the history of" if kept.duplicate else "stored in the history of")
-            out.print(f"isolation i{kept.isolation_id} {what} {kept.unit!r} ({db})",
+            out.print(f"isolation i{kept.isolation_id} {what} {kept.unit!r} ({redact(db)})",
                       highlight=False, markup=False)
 
 

@@ -24,11 +24,12 @@ def register(app: typer.Typer) -> None:
         """Serve a live fleet page (every unit's status, trends, tests, isolations, JSON API)
         until Ctrl-C. Reads the history at every request; never writes it."""
         from condmon.report.web import create_app, serve
+        from condmon.store.engine import redact
 
         web = create_app(db, refresh=refresh)  # a missing or foreign history fails here
 
         def ready(url: str) -> None:
-            out.print(f"fleet page of {db} at {url}  (Ctrl-C stops)", markup=False,
+            out.print(f"fleet page of {redact(db)} at {url}  (Ctrl-C stops)", markup=False,
                       highlight=False, soft_wrap=True)
             if host not in ("127.0.0.1", "localhost", "::1"):
                 err.print(f"warning: listening on {host}: anyone who reaches this address "

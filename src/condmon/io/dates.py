@@ -4,7 +4,7 @@ database, as aware UTC datetimes."""
 from __future__ import annotations
 
 import re
-from datetime import datetime
+from datetime import datetime, timedelta, timezone
 from typing import Any
 
 import numpy as np
@@ -52,16 +52,18 @@ def parse_date(text: str | datetime | None, what: str = "--date") -> datetime | 
     Raises
     ------
     DataError
-        Not an ISO 8601 date between the years 1900 and 2200: ``01/03/2026``
-        is refused, not guessed.
+        Not an ISO 8601 date between the years 1900 and 2200 (``01/03/2026``
+        is refused, not guessed), or more than a day in the future.
 
     Example
     -------
     >>> parse_date("2026-03-01T14:30").isoformat()
     '2026-03-01T14:30:00+00:00'
     """
-    if text is None or isinstance(text, datetime):
-        return as_utc(text)
+    if text is None:
+        return None
+    if isinstance(text, datetime):
+        return _not_future(as_utc(text), text, what)
     raw = str(text).strip()
     ts: Any = None
     if _ISO.fullmatch(raw):
@@ -72,4 +74,14 @@ def parse_date(text: str | datetime | None, what: str = "--date") -> datetime | 
     if ts is None or pd.isna(ts) or not 1900 <= ts.year <= 2200:
         raise DataError(f"{what}: {text!r} is not a date; give ISO 8601, e.g. 2026-03-01 or "
                         "2026-03-01T14:30 (UTC unless a zone is given)")
-    return as_utc(ts)
+    return _not_future(as_utc(ts), text, what)
+
+
+def _not_future(when: datetime | None, given: object, what: str) -> datetime | None:
+    """``when``, unless it is more than a day ahead of this machine's clock: a
+    test cannot have been run then, and it would stay every trend's latest."""
+    now = datetime.now(timezone.utc)
+    if when is not None and when > now + timedelta(days=1):
+        raise DataError(f"{what}: {given!s} is in the future (it is {now:%Y-%m-%d %H:%M} UTC "
+                        "here); give the date the test was run")
+    return when

@@ -95,7 +95,7 @@ class _History:
     @contextmanager
     def open(self) -> Iterator[HistoryStore]:
         from condmon.store import open_store
-        from condmon.store.engine import StoreError
+        from condmon.store.engine import StoreError, redact
 
         try:
             # a read-only SQLite file: open_store's file checks would look for the URL
@@ -103,7 +103,7 @@ class _History:
         except StoreError as err:
             text = str(err).replace(self.url, self.db)
             if "read-only" in text:  # the store tried to create or upgrade its tables
-                text = (f"{self.db}: not a condmon history of this version yet, and the page "
+                text = (f"{redact(self.db)}: not a condmon history of this version yet, and the page "
                         "only reads; run `condmon units --db DB` once (it upgrades an older "
                         "history), then serve it")
             raise type(err)(text) from None

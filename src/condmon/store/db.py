@@ -23,8 +23,8 @@ from condmon.io.digest import content_hash, file_hash
 from condmon.store import schema as S
 from condmon.store.baselines import DEFAULT_BASELINE, BaselinesMixin, StoredBaseline
 from condmon.store.engine import (
-    StoreBusyError, StoreError, database_url, default_timeout, make_engine, sqlite_path,
-    store_error,
+    StoreBusyError, StoreError, database_url, default_timeout, make_engine, redact,
+    sqlite_path, store_error,
 )
 from condmon.store.history import DuplicateTestError, TestsMixin
 from condmon.store.isolations import IsolationsMixin
@@ -187,7 +187,7 @@ def open_store(db: str | Path, *, create: bool = True,
     except sa.exc.SQLAlchemyError as err:
         raise store_error(err, str(db), wait) from None
     except ModuleNotFoundError as err:
-        raise StoreError(f"{db}: database driver missing ({err.name}); for PostgreSQL "
+        raise StoreError(f"{redact(str(db))}: database driver missing ({err.name}); for PostgreSQL "
                          "install condmon[postgres]") from None
     store = HistoryStore(engine, str(db), wait)
     try:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import getpass
 import os
+import re
 import socket
 import time
 import zlib
@@ -25,7 +26,7 @@ import sqlalchemy as sa
 
 from condmon.errors import CondmonError
 
-__all__ = ["StoreError", "StoreBusyError", "database_url", "make_engine", "store_error",
+__all__ = ["StoreError", "StoreBusyError", "database_url", "make_engine", "store_error", "redact",
            "run_write", "run_read", "actor", "DEFAULT_TIMEOUT", "sqlite_path", "SCHEMA_LOCK"]
 
 T = TypeVar("T")
@@ -62,6 +63,20 @@ def database_url(db: str | Path) -> str:
     if text.startswith("postgresql://") or text.startswith("postgres://"):
         return "postgresql+psycopg://" + text.split("://", 1)[1]
     return text
+
+
+_PASSWORD = re.compile(r"(://[^:/@\s]*:)[^@\s]*(@)")
+
+
+def redact(text: str) -> str:
+    """``text`` with any password in a database URL replaced by ``***``.
+
+    Example
+    -------
+    >>> redact("postgresql://me:secret@host/condmon: busy")
+    'postgresql://me:***@host/condmon: busy'
+    """
+    return _PASSWORD.sub(r"\1***\2", str(text))
 
 
 def sqlite_path(url: str) -> Path | None:
@@ -133,8 +148,10 @@ def _busy(err: BaseException) -> bool:
 
 
 def store_error(err: BaseException, db: str, timeout: float | None = None) -> StoreError:
-    """One-line :class:`StoreError` for a database or file-system failure."""
-    text = _first_line(err)
+    """One-line :class:`StoreError` for a database or file-system failure (any
+    password in the database's URL is not repeated)."""
+    db = redact(db)
+    text = redact(_first_line(err))
     low = text.lower()
     if _busy(err):
         wait = f" for more than {timeout:g} s" if timeout is not None else ""

@@ -10,17 +10,29 @@ information.
 from __future__ import annotations
 
 import hashlib
+import json
+import math
 from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-__all__ = ["content_hash", "file_hash", "SIGNIFICANT_BITS"]
+__all__ = ["content_hash", "file_hash", "fingerprint", "same_content", "fingerprint_prefix",
+           "SIGNIFICANT_BITS", "FINGERPRINT_RTOL"]
 
 #: Mantissa bits kept when hashing values (about 10 significant digits), so
 #: that one text parser's last-digit rounding does not make a copy look new.
 SIGNIFICANT_BITS = 33
+
+#: Two fingerprints are of the same content when each figure of every shared
+#: column agrees within this fraction of the column's scale: a float32 copy
+#: (7 digits) or a re-export at 12 digits is caught, while two different tests'
+#: noise differs by orders of magnitude more.
+FINGERPRINT_RTOL = 1e-6
+
+# Values sampled per column in a fingerprint, evenly over the record.
+_SAMPLES = 8
 
 # Columns a conversion adds on its own (a saved pandas index), never test data.
 _INDEX_LIKE = {"index", "__index_level_0__"}
@@ -55,6 +67,17 @@ def _quantised(values: np.ndarray) -> np.ndarray:
     return np.asarray(out, dtype="<f8")
 
 
+def _data_columns(df: pd.DataFrame, columns: Iterable[str] | None) -> list[str]:
+    """The record's numeric data columns (or those of ``columns`` it has), sorted."""
+    if columns is None:
+        names = [str(c) for c in df.columns
+                 if str(c) not in _INDEX_LIKE and not str(c).startswith("Unnamed: ")
+                 and pd.api.types.is_numeric_dtype(df[c].dtype)]
+    else:
+        names = [str(c) for c in columns if c in df.columns]
+    return sorted(set(names))
+
+
 def content_hash(df: pd.DataFrame, columns: Iterable[str] | None = None) -> str:
     """SHA-256 of a record's canonical content (hex).
 
@@ -81,15 +104,84 @@ def content_hash(df: pd.DataFrame, columns: Iterable[str] | None = None) -> str:
     >>> content_hash(a) == content_hash(a.assign(V=[1.0, 2.5]))
     False
     """
-    if columns is None:
-        names = [str(c) for c in df.columns
-                 if str(c) not in _INDEX_LIKE and not str(c).startswith("Unnamed: ")
-                 and pd.api.types.is_numeric_dtype(df[c].dtype)]
-    else:
-        names = [str(c) for c in columns if c in df.columns]
     h = hashlib.sha256()
     h.update(str(len(df)).encode())
-    for name in sorted(set(names)):
+    for name in _data_columns(df, columns):
         h.update(b"\x00" + name.encode("utf-8") + b"\x00")
         h.update(_quantised(df[name].to_numpy(dtype=np.float64, na_value=np.nan)).tobytes())
     return h.hexdigest()
+
+
+def fingerprint_prefix(rows: int) -> str:
+    """How every :func:`fingerprint` of a record of ``rows`` rows starts (a
+    database can select the candidates of a comparison with ``LIKE``)."""
+    return f'{{"n":{int(rows)},'
+
+
+def fingerprint(df: pd.DataFrame, columns: Iterable[str] | None = None) -> str:
+    """A record's content as a few figures per column (JSON text), for
+    recognising a copy whose values were rounded differently (a float32
+    Parquet file, a re-export with fewer digits) or that has a column more or
+    fewer; compare two with :func:`same_content`.
+
+    Each numeric column gives its mean, its standard deviation and 8 values
+    evenly spread over the rows; the row count comes first.
+
+    Example
+    -------
+    >>> a = pd.DataFrame({"t": [0.0, 0.001, 0.002], "V": [1.0, 2.0, 1.5],
+    ...                   "I": [0.1, 0.3, 0.2]})
+    >>> b = a.astype("float32").assign(extra=[7, 8, 9])
+    >>> same_content(fingerprint(a), fingerprint(b))
+    True
+    >>> same_content(fingerprint(a), fingerprint(a.assign(V=[1.0, 2.0, 1.6])))
+    False
+    """
+    n = len(df)
+    idx = np.unique(np.linspace(0, max(n - 1, 0), _SAMPLES).round().astype(np.intp))
+    if n == 0:
+        idx = idx[:0]
+    cols: dict[str, list[float | None]] = {}
+    for name in _data_columns(df, columns):
+        x = df[name].to_numpy(dtype=np.float64, na_value=np.nan)
+        finite = x[np.isfinite(x)]
+        figures = [float(finite.mean()) if finite.size else math.nan,
+                   float(finite.std()) if finite.size else math.nan, *map(float, x[idx])]
+        cols[name] = [v if math.isfinite(v) else None for v in figures]
+    return fingerprint_prefix(n) + json.dumps({"columns": cols}, separators=(",", ":"))[1:]
+
+
+def same_content(a: str | None, b: str | None, rtol: float = FINGERPRINT_RTOL) -> bool:
+    """Whether two :func:`fingerprint` texts are of the same record content.
+
+    Same row count; at least three columns, and at least half of the larger
+    record's columns, in common; and every figure of every common column equal
+    within ``rtol`` times that column's scale (largest absolute mean or
+    standard deviation of the two). Columns only one record has do not count.
+    """
+    if not a or not b:
+        return False
+    try:
+        da, db = json.loads(a), json.loads(b)
+        if int(da["n"]) != int(db["n"]) or int(da["n"]) == 0:
+            return False
+        ca, cb = dict(da["columns"]), dict(db["columns"])
+    except (ValueError, KeyError, TypeError):  # not a fingerprint: never the same
+        return False
+    shared = set(ca) & set(cb)
+    if len(shared) < max(3, (max(len(ca), len(cb)) + 1) // 2):
+        return False
+    for name in shared:
+        x = np.array([np.nan if v is None else v for v in ca[name]], dtype=np.float64)
+        y = np.array([np.nan if v is None else v for v in cb[name]], dtype=np.float64)
+        if x.shape != y.shape:
+            return False
+        head = np.r_[x[:2], y[:2]]
+        head = head[np.isfinite(head)]
+        scale = float(np.max(np.abs(head))) if head.size else 0.0
+        if np.any(np.isnan(x) != np.isnan(y)):
+            return False
+        there = ~np.isnan(x)
+        if np.any(np.abs(x[there] - y[there]) > rtol * scale):
+            return False
+    return True

@@ -156,7 +156,9 @@ def create_app(db: str | Path, *, refresh: float = 30.0) -> Flask:
     def _condmon_error(err: CondmonError) -> Response | tuple[str, int]:
         status = (404 if isinstance(err, UnknownUnitError) else
                   400 if isinstance(err, FilterError) else 503)
-        return problem(status, str(err).replace(history.url, history.db))
+        from condmon.store.engine import redact
+
+        return problem(status, redact(str(err).replace(redact(history.url), history.db)))
 
     @app.errorhandler(HTTPException)
     def _http_error(err: HTTPException) -> Response | tuple[str, int]:

@@ -101,7 +101,7 @@ class _History:
             # a read-only SQLite file: open_store's file checks would look for the URL
             store = open_store(self.url, create=self.file is not None)
         except StoreError as err:
-            text = str(err).replace(self.url, self.db)
+            text = str(err).replace(redact(self.url), redact(self.db))
             if "read-only" in text:  # the store tried to create or upgrade its tables
                 text = (f"{redact(self.db)}: not a condmon history of this version yet, and the page "
                         "only reads; run `condmon units --db DB` once (it upgrades an older "

@@ -15,7 +15,7 @@ import sqlalchemy as sa
 from condmon.errors import ConfigError
 from condmon.io.dates import as_utc
 from condmon.store import schema as S
-from condmon.store.engine import SCHEMA_LOCK, actor, run_read, run_write, store_error
+from condmon.store.engine import SCHEMA_LOCK, actor, redact, run_read, run_write, store_error
 
 __all__ = ["StoreBase", "now", "num", "check_name", "as_utc", "utc_column"]
 
@@ -61,7 +61,7 @@ class StoreBase:
 
     def __init__(self, engine: sa.Engine, db: str, timeout: float) -> None:
         self.engine = engine
-        self.url = db
+        self.url = redact(db)  # the database as messages name it, never with a password
         self.timeout = timeout
         self._batch: sa.Connection | None = None
 
@@ -144,6 +144,29 @@ class StoreBase:
             detail=None if detail is None else json.dumps(detail, default=str)))
 
     # -- units --------------------------------------------------------------------------
+    def _copy_of(self, conn: sa.Connection, table: sa.Table, uid: int, record_hash: str,
+                 file_digest: str, fingerprint: str | None = None) -> Any:
+        """``(id, excluded)`` of the unit's row of ``table`` (tests or isolations)
+        holding the same record: the same file or content hash, else a
+        fingerprint of the same content (:func:`condmon.io.digest.same_content`);
+        None when there is none."""
+        from condmon.io.digest import fingerprint_prefix, same_content
+
+        t = table
+        row = conn.execute(sa.select(t.c.id, t.c.excluded).where(
+            t.c.unit_id == uid,
+            sa.or_(t.c.record_hash == record_hash, t.c.file_hash == file_digest))
+            .order_by(t.c.id).limit(1)).first()
+        if row is not None or not fingerprint:
+            return row
+        rows = int(json.loads(fingerprint)["n"])
+        for cand in conn.execute(sa.select(t.c.id, t.c.excluded, t.c.fingerprint).where(
+                t.c.unit_id == uid, t.c.fingerprint.like(fingerprint_prefix(rows) + "%"))
+                .order_by(t.c.id)):
+            if same_content(fingerprint, cand.fingerprint):
+                return cand[:2]
+        return None
+
     def _unit_row(self, conn: sa.Connection, name: str) -> Any:
         return conn.execute(sa.select(S.units).where(S.units.c.name == name)).first()
 

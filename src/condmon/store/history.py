@@ -37,27 +37,20 @@ ROLES = ("baseline", "check")
 class TestsMixin(StoreBase):
     """Tests, their estimates and evaluations (part of :class:`HistoryStore`)."""
 
-    def _duplicate(self, conn: sa.Connection, uid: int, record_hash: str,
-                   file_digest: str) -> Any:
-        t = S.tests
-        return conn.execute(sa.select(t.c.id, t.c.excluded).where(
-            t.c.unit_id == uid,
-            sa.or_(t.c.record_hash == record_hash, t.c.file_hash == file_digest))
-            .order_by(t.c.id).limit(1)).first()
-
     def find_test(self, unit: str, digest: str) -> int | None:
         """Id of the unit's test with this content (or file) hash, if any."""
         def run(c: sa.Connection) -> int | None:
             row = self._unit_row(c, unit)
             if row is None:
                 return None
-            dup = self._duplicate(c, int(row.id), digest, digest)
+            dup = self._copy_of(c, S.tests, int(row.id), digest, digest)
             return None if dup is None else int(dup[0])
 
         return self._read(run)
 
     def add_test(self, unit: str, result: Any, *, role: str, digest: str,
                  file_digest: str | None = None, test_date: datetime | None = None,
+                 fingerprint: str | None = None,
                  symptoms: Mapping[str, Mapping[str, float]] | None = None,
                  baseline_id: int | None = None, diagnosis: Any = None) -> int:
         """Write one test and everything derived from it in one transaction.
@@ -76,6 +69,10 @@ class TestsMixin(StoreBase):
             SHA-256 of the file's bytes (information; default ``digest``).
         test_date : datetime, optional
             When the test was run (default: unknown; shown by when it was stored).
+        fingerprint : str, optional
+            :func:`condmon.io.digest.fingerprint` of the record: a copy rounded
+            otherwise (float32, fewer digits) or with a column more or fewer is
+            the same test.
         symptoms : mapping, optional
             ``{param: {"percent_change", "high", "low"}}`` against ``baseline_id``.
         baseline_id : int, optional
@@ -100,14 +97,14 @@ class TestsMixin(StoreBase):
         def run(conn: sa.Connection) -> int:
             uid = self.unit_id(unit, create=True, model=result.model, conn=conn,
                                model_source=getattr(result, "model_source", None))
-            dup = self._duplicate(conn, uid, digest, fdig)
+            dup = self._copy_of(conn, S.tests, uid, digest, fdig, fingerprint)
             if dup is not None:
                 note = " (excluded; `condmon include` restores it)" if dup[1] else ""
                 raise DuplicateTestError(f"{result.source}: already in the history of {unit!r} "
                                          f"(test #{dup[0]}{note}); not added again", int(dup[0]))
             res = conn.execute(sa.insert(S.tests).values(
                 unit_id=uid, created_at=now(), source=result.source, file_hash=fdig,
-                record_hash=digest, test_date=when,
+                record_hash=digest, test_date=when, fingerprint=fingerprint,
                 role=role, accepted=bool(result.accepted), reason=result.reason,
                 fit_percent=num(result.fit_percent),
                 fits=json.dumps({k: num(v) for k, v in result.fit.fits_percent.items()}),

@@ -35,7 +35,7 @@ class IsolationsMixin(StoreBase):
 
     def add_isolation(self, unit: str, result: Any, *, model: str, source: str, digest: str,
                       file_digest: str | None = None, test_date: datetime | None = None,
-                      model_source: str | None = None) -> int:
+                      model_source: str | None = None, fingerprint: str | None = None) -> int:
         """Store one isolation (detection, suspects, estimates, statement).
 
         Parameters
@@ -53,6 +53,9 @@ class IsolationsMixin(StoreBase):
         test_date : datetime, optional
         model_source : str, optional
             The declaration file, when the model is not a shipped one.
+        fingerprint : str, optional
+            :func:`condmon.io.digest.fingerprint` of the record (a copy rounded
+            otherwise is the same record).
 
         Returns
         -------
@@ -72,15 +75,13 @@ class IsolationsMixin(StoreBase):
             uid = self.unit_id(unit, create=True, model=model, conn=conn,
                                model_source=model_source)
             i = S.isolations
-            dup = conn.execute(sa.select(i.c.id).where(
-                i.c.unit_id == uid, sa.or_(i.c.record_hash == digest, i.c.file_hash == fdig))
-            ).first()
+            dup = self._copy_of(conn, i, uid, digest, fdig, fingerprint)
             if dup is not None:
                 raise DuplicateTestError(f"{source}: already in the history of {unit!r} "
                                          f"(isolation #{dup[0]}); not added again", int(dup[0]))
             res = conn.execute(sa.insert(i).values(
                 unit_id=uid, created_at=now(), test_date=as_utc(test_date), source=source,
-                file_hash=fdig, record_hash=digest, model=model,
+                file_hash=fdig, record_hash=digest, fingerprint=fingerprint, model=model,
                 detected=bool(result.detected), detection_time=num(result.detection_time),
                 decided=bool(result.decided), reason=result.reason, statement=result.statement,
                 suspects=json.dumps(list(result.suspects)),

@@ -11,7 +11,7 @@ __all__ = ["metadata", "units", "tests", "estimates", "baselines", "baseline_val
            "audit", "meta", "SCHEMA_VERSION", "MIGRATIONS", "NAME_LENGTH"]
 
 #: Version of the schema this code writes.
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 
 #: Longest unit, fault or baseline name the store keeps (the same on every back-end).
 NAME_LENGTH = 200
@@ -55,6 +55,8 @@ tests = sa.Table(
     sa.Column("test_date", sa.DateTime(timezone=True), nullable=True),
     sa.Column("excluded", sa.Boolean, nullable=False, server_default=sa.false()),
     sa.Column("excluded_reason", sa.Text, nullable=True),
+    # v4: a few figures per column, to recognise a copy rounded otherwise
+    sa.Column("fingerprint", sa.Text, nullable=True),
     sa.UniqueConstraint("unit_id", "file_hash", name="uq_test_file"),
     sa.Index("uq_test_record", "unit_id", "record_hash", unique=True),
 )
@@ -137,6 +139,7 @@ isolations = sa.Table(
     sa.Column("result", sa.Text, nullable=False),               # JSON: the isolate document
     sa.Column("excluded", sa.Boolean, nullable=False, server_default=sa.false()),
     sa.Column("excluded_reason", sa.Text, nullable=True),
+    sa.Column("fingerprint", sa.Text, nullable=True),           # v4, as tests'
     sa.Index("uq_isolation_record", "unit_id", "record_hash", unique=True),
 )
 
@@ -239,4 +242,14 @@ def _v2_to_v3(conn: sa.Connection) -> None:
     conn.execute(sa.text("ALTER TABLE diagnosis_faults_v3 RENAME TO diagnosis_faults"))
 
 
-MIGRATIONS: dict[int, Callable[[sa.Connection], None]] = {1: _v1_to_v2, 2: _v2_to_v3}
+def _v3_to_v4(conn: sa.Connection) -> None:
+    """Record fingerprints (tests and isolations stored before have none and are
+    known by their hashes only)."""
+    inspector = sa.inspect(conn)
+    for table in ("tests", "isolations"):  # isolations may be new, made with the column
+        if "fingerprint" not in {c["name"] for c in inspector.get_columns(table)}:
+            conn.execute(sa.text(f"ALTER TABLE {table} ADD COLUMN fingerprint TEXT"))
+
+
+MIGRATIONS: dict[int, Callable[[sa.Connection], None]] = {1: _v1_to_v2, 2: _v2_to_v3,
+                                                          3: _v3_to_v4}

@@ -191,7 +191,7 @@ def _commit_isolation(store: HistoryStore, plan: _Unit, out: RecordOutcome,
     assert iso is not None and key is not None and plan.model is not None
     machine = get_model(plan.model)
     iid = store.add_isolation(plan.name, iso, model=machine.name, source=out.path,
-                              digest=key.content, file_digest=key.file, test_date=key.test_date,
+                              digest=key.content, file_digest=key.file, fingerprint=key.fingerprint, test_date=key.test_date,
                               model_source=machine.origin)
     return report("stored", isolation_status(iso.detected, iso.decided),
                   iso.statement if iso.decided else (iso.reason or iso.statement), iid)
@@ -217,7 +217,7 @@ def _commit_baseline_test(store: HistoryStore, plan: _Unit, out: RecordOutcome,
             return report("refused", reason=_named(out.path, f"refused, {why}; nothing was "
                                                    "stored"))
     tid = store.add_test(plan.name, res, role="baseline", digest=key.content,
-                         file_digest=key.file, test_date=key.test_date)
+                         file_digest=key.file, fingerprint=key.fingerprint, test_date=key.test_date)
     if not res.accepted:
         return report("rejected", "retest", _one_line(str(res.reason)), tid)
     ids, latest = baseline_members(store, plan.name)
@@ -252,13 +252,13 @@ def _commit_check(store: HistoryStore, plan: _Unit, out: RecordOutcome,
         return report("refused", reason=_named(out.path, f"refused, {why}; nothing was stored"))
     if not res.accepted:
         tid = store.add_test(plan.name, res, role="check", digest=key.content,
-                             file_digest=key.file, test_date=key.test_date)
+                             file_digest=key.file, fingerprint=key.fingerprint, test_date=key.test_date)
         return report("rejected", "retest", _one_line(str(res.reason)), tid)
     row, diag = evaluate(res, state.baseline, cfg, rb)
     if state.latest is None or list(state.latest.test_ids) != state.ids:
         state.latest, _ = save_current_baseline(store, plan.name, state.ids, monitor=cfg,
                                                 reason="baseline of the first check")
-    tid = store.add_test(plan.name, res, role="check", digest=key.content, file_digest=key.file,
+    tid = store.add_test(plan.name, res, role="check", digest=key.content, file_digest=key.file, fingerprint=key.fingerprint,
                          test_date=key.test_date, symptoms=row, baseline_id=state.latest.id,
                          diagnosis=diag)
     return report("stored", diag.status, diag.summary, tid)

@@ -141,7 +141,7 @@ def process_record(task: RecordTask) -> RecordOutcome:
     'missing.csv: file not found'
     """
     from condmon.io.records import read_record
-    from condmon.workflows.monitoring import record_key
+    from condmon.workflows.records import record_key
 
     started = time.perf_counter()
     key = None

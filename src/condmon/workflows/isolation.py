@@ -61,7 +61,7 @@ def store_isolation(store: HistoryStore, unit: str, result: IsolationResult,
     source = str(path) if path is not None else str(record.attrs.get("source", "record"))
     try:
         iid = store.add_isolation(unit, result, model=machine.name, source=source,
-                                  digest=key.content, file_digest=key.file,
+                                  digest=key.content, file_digest=key.file, fingerprint=key.fingerprint,
                                   test_date=key.test_date, model_source=machine.origin)
     except DuplicateTestError as dup:
         return StoredIsolation(unit, dup.test_id, True, key.test_date)

@@ -265,7 +265,7 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
             continue
         try:
             tid = store.add_test(unit, res, role="baseline", digest=key.content,
-                                 file_digest=key.file, test_date=key.test_date)
+                                 file_digest=key.file, fingerprint=key.fingerprint, test_date=key.test_date)
             added.append(AddedTest(res.source, tid, res.accepted, False, res.reason))
         except DuplicateTestError as dup:
             added.append(AddedTest(res.source, dup.test_id, res.accepted, True,
@@ -396,7 +396,7 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
     flags = latest.flags if latest is not None and list(latest.test_ids) == ids else ()
     if not res.accepted:
         tid = -1 if dry_run else store.add_test(unit, res, role="check", digest=key.content,
-                                                file_digest=key.file, test_date=key.test_date)
+                                                file_digest=key.file, fingerprint=key.fingerprint, test_date=key.test_date)
         return CheckResult(unit, tid, res, "retest", baseline, baseline_flags=flags,
                            test_date=key.test_date)
     row, diag = evaluate(res, baseline, cfg, rb)
@@ -407,7 +407,7 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
             latest, _ = save_current_baseline(store, unit, ids, monitor=cfg,
                                               reason="baseline of the first check")
             flags = latest.flags
-        tid = store.add_test(unit, res, role="check", digest=key.content, file_digest=key.file,
+        tid = store.add_test(unit, res, role="check", digest=key.content, file_digest=key.file, fingerprint=key.fingerprint,
                              test_date=key.test_date, symptoms=row, baseline_id=latest.id,
                              diagnosis=diag)
     return CheckResult(unit, tid, res, diag.status, baseline,

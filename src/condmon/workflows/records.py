@@ -14,7 +14,7 @@ import pandas as pd
 from condmon.identify.estimate import EstimateResult, estimate
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD
 from condmon.io.dates import parse_date
-from condmon.io.digest import content_hash, file_hash
+from condmon.io.digest import content_hash, file_hash, fingerprint
 from condmon.io.records import read_record
 
 __all__ = ["EstimateOptions", "RecordKey", "RecordLike", "record_key"]
@@ -36,11 +36,15 @@ class RecordKey:
     test_date : datetime or None
         When the test was run (UTC): given, else read from the record's
         metadata (a date-time time column, a TDMS start time), else unknown.
+    fingerprint : str or None
+        A few figures per column (:func:`condmon.io.digest.fingerprint`): a
+        copy rounded otherwise or with a column more or fewer is the same test.
     """
 
     content: str
     file: str
     test_date: datetime | None
+    fingerprint: str | None = None
 
 
 def record_key(df: pd.DataFrame, path: str | Path | None = None,
@@ -51,7 +55,8 @@ def record_key(df: pd.DataFrame, path: str | Path | None = None,
     if when is None and df.attrs.get("start_time"):
         when = parse_date(str(df.attrs["start_time"]), f"{df.attrs.get('source', 'record')}: "
                           "start time")
-    return RecordKey(digest, file_hash(path) if path is not None else digest, when)
+    return RecordKey(digest, file_hash(path) if path is not None else digest, when,
+                     fingerprint(df))
 
 
 @dataclass(frozen=True)

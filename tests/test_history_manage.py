@@ -101,6 +101,21 @@ def test_healthy_baselines_are_not_flagged(demo_rig: ActuatorRig) -> None:
             assert res.baseline is not None and res.flags == (), res.flags
 
 
+def test_a_baseline_takes_healthy_checks_but_not_a_no_go(files: dict[str, Path],
+                                                         tmp_path: Path) -> None:
+    with open_store(str(tmp_path / "h.db")) as store:
+        ids = [t.test_id for t in add_baseline_tests(
+            store, "EMA", [files[k] for k in ("h1", "h2", "h3")]).tests]
+        ok = check_test(store, "EMA", files["c_ok"])
+        worn = check_test(store, "EMA", files["c_worn"])
+        assert (ok.status, worn.status) == ("go", "no-go")
+        with pytest.raises(CondmonError, match=rf"#{worn.test_id} \(a check judged no-go"):
+            rebuild_baseline(store, "EMA", reason="x", test_ids=[*ids, worn.test_id])
+        again = rebuild_baseline(store, "EMA", reason="with a check",
+                                 test_ids=[*ids, ok.test_id])
+        assert again.baseline is not None and ok.test_id in again.baseline.test_ids
+
+
 def test_rebuild_from_chosen_tests_and_errors(files: dict[str, Path], tmp_path: Path) -> None:
     with open_store(str(tmp_path / "h.db")) as store:
         ids = [t.test_id for t in add_baseline_tests(

@@ -155,7 +155,8 @@ def rebuild_baseline(store: HistoryStore, unit: str, *, reason: str | None,
     ConfigError
         No reason, or an unknown unit.
     DataError
-        A chosen test is not the unit's, rejected or excluded, or fewer than 3.
+        A chosen test is not the unit's, rejected, excluded or a check judged
+        no-go or advisory, or fewer than 3.
     """
     why = _reason(reason, "baseline rebuild")
     store.unit_id(unit)  # the error names the known units
@@ -184,4 +185,8 @@ def _why_unusable(hist: Any, test_id: int, unit: str) -> str:
         return "excluded"
     if not row["accepted"]:
         return "rejected"
+    status = row.get("status")
+    if row["role"] == "check" and status in ("no-go", "advisory"):
+        # a baseline of changed tests would hide the very change it is there to show
+        return f"a check judged {status}; a baseline is made of healthy tests"
     return ""

@@ -238,6 +238,44 @@ def escape(text: str) -> str:
     return html.escape(text, quote=True)
 
 
+# -- fleet scale -------------------------------------------------------------------------
+def _statements(store: Any) -> int:
+    """How many SQL statements :meth:`unit_summaries` issues."""
+    import sqlalchemy as sa
+
+    count = [0]
+
+    def tick(*_: Any) -> None:
+        count[0] += 1
+
+    sa.event.listen(store.engine, "before_cursor_execute", tick)
+    try:
+        store.unit_summaries()
+    finally:
+        sa.event.remove(store.engine, "before_cursor_execute", tick)
+    return count[0]
+
+
+def test_the_index_reads_a_fixed_number_of_queries(fleet: dict[str, Any],
+                                                   tmp_path: Path) -> None:
+    import sqlalchemy as sa
+
+    db = tmp_path / "more.db"
+    shutil.copy(fleet["db"], db)
+    with open_store(db) as store:
+        few = _statements(store)
+        for n in range(20):  # 20 more units, each with a test
+            store.unit_id(f"EMA-{n:02d}", create=True)
+        with store.engine.begin() as conn:
+            conn.execute(sa.text("insert into tests (unit_id, created_at, source, file_hash, "
+                                 "role, accepted, fits, method, closed_loop, constants, "
+                                 "record_hash) select id, created_at, 'r.csv', '', 'baseline', "
+                                 "1, '{}', 'ls', 0, '{}', 'x' || id from units "
+                                 "where name like 'EMA-%'"))
+        assert len(store.unit_summaries()) == 24
+        assert _statements(store) == few
+
+
 # -- the server and a real browser -------------------------------------------------------
 def _start(db: str) -> tuple[subprocess.Popen[str], str]:
     """``condmon serve --port 0`` in a child process; its URL once it listens."""

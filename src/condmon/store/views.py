@@ -109,50 +109,66 @@ class ViewsMixin(StoreBase):
     def unit_summaries(self) -> list[dict[str, Any]]:
         """Every unit with its model, number of tests and isolations, its
         latest test or isolation (by date), that one's status, and the
-        active baseline's flags (``baseline_flags``: how many warnings)."""
+        active baseline's flags (``baseline_flags``: how many warnings).
+
+        The same few queries however many units there are: each unit's latest
+        test, isolation and baseline version are ranked in the database."""
         def run(c: sa.Connection) -> list[dict[str, Any]]:
-            t, i, d = S.tests, S.isolations, S.diagnoses
-            ld = self._latest_evaluation(d)
-            out = []
+            t, i, d, b = S.tests, S.isolations, S.diagnoses, S.baselines
             units = c.execute(sa.select(S.units).order_by(S.units.c.name)).all()
+            n_tests: dict[int, int] = dict(c.execute(
+                sa.select(t.c.unit_id, sa.func.count()).group_by(t.c.unit_id)).all())
+            n_isos: dict[int, int] = dict(c.execute(
+                sa.select(i.c.unit_id, sa.func.count()).group_by(i.c.unit_id)).all())
+            t_when = sa.func.coalesce(t.c.test_date, t.c.created_at)
+            # a unit's status is its latest check's; baseline tests only without checks
+            ranked = (sa.select(t.c.unit_id, t.c.id, t.c.source, t.c.role, t.c.accepted,
+                                t.c.excluded, t_when.label("at"), t.c.reason,
+                                sa.func.row_number().over(
+                                    partition_by=t.c.unit_id,
+                                    order_by=((t.c.role == "check").desc(), t_when.desc(),
+                                              t.c.id.desc())).label("rank"))
+                      .where(t.c.excluded.is_(False)).subquery())
+            ld = self._latest_evaluation(d)
+            last = {r[0]: r[1:] for r in c.execute(
+                sa.select(ranked.c.unit_id, ranked.c.id, ranked.c.source, ranked.c.role,
+                          ranked.c.accepted, ranked.c.excluded, d.c.status, ranked.c.at,
+                          d.c.summary, ranked.c.reason)
+                .outerjoin(ld, ld.c.test_id == ranked.c.id)
+                .outerjoin(d, sa.and_(d.c.test_id == ranked.c.id, d.c.baseline_id == ld.c.bid))
+                .where(ranked.c.rank == 1))}
+            i_when = sa.func.coalesce(i.c.test_date, i.c.created_at)
+            iranked = (sa.select(i.c.unit_id, i.c.id, i.c.source, i.c.detected, i.c.decided,
+                                 i.c.statement, i_when.label("at"),
+                                 sa.func.row_number().over(
+                                     partition_by=i.c.unit_id,
+                                     order_by=(i_when.desc(), i.c.id.desc())).label("rank"))
+                       .where(i.c.excluded.is_(False)).subquery())
+            isos = {r[0]: r[1:] for r in c.execute(
+                sa.select(*[col for col in iranked.c if col.name != "rank"])
+                .where(iranked.c.rank == 1))}
+            branked = sa.select(b.c.unit_id, b.c.name, b.c.flags, sa.func.row_number().over(
+                partition_by=(b.c.unit_id, b.c.name), order_by=b.c.version.desc()
+            ).label("rank")).subquery()
+            flags_of = {(r[0], r[1]): r[2] for r in c.execute(
+                sa.select(branked.c.unit_id, branked.c.name, branked.c.flags)
+                .where(branked.c.rank == 1))}
+            out = []
             for u in units:
-                n = c.execute(sa.select(sa.func.count()).select_from(t)
-                              .where(t.c.unit_id == u.id)).scalar_one()
-                m = c.execute(sa.select(sa.func.count()).select_from(i)
-                              .where(i.c.unit_id == u.id)).scalar_one()
-                last = c.execute(
-                    sa.select(t.c.id, t.c.source, t.c.role, t.c.accepted, t.c.excluded,
-                              d.c.status, sa.func.coalesce(t.c.test_date, t.c.created_at),
-                              d.c.summary, t.c.reason)
-                    .outerjoin(ld, ld.c.test_id == t.c.id)
-                    .outerjoin(d, sa.and_(d.c.test_id == t.c.id, d.c.baseline_id == ld.c.bid))
-                    .where(t.c.unit_id == u.id, t.c.excluded.is_(False))
-                    # a unit's status is its latest check's; baseline tests only without checks
-                    .order_by((t.c.role == "check").desc(),
-                              sa.func.coalesce(t.c.test_date, t.c.created_at).desc(),
-                              t.c.id.desc()).limit(1)).first()
-                iso = c.execute(
-                    sa.select(i.c.id, i.c.source, i.c.detected, i.c.decided, i.c.statement,
-                              sa.func.coalesce(i.c.test_date, i.c.created_at))
-                    .where(i.c.unit_id == u.id, i.c.excluded.is_(False))
-                    .order_by(sa.func.coalesce(i.c.test_date, i.c.created_at).desc(),
-                              i.c.id.desc()).limit(1)).first()
+                test, iso = last.get(u.id), isos.get(u.id)
                 status, source, when, summary = None, None, None, None
-                if last is not None:
-                    status = test_status(last[2], bool(last[3]), bool(last[4]), last[5])
-                    source, when = last[1], last[6]
-                    summary = last[7] if last[3] else last[8]
+                if test is not None:
+                    status = test_status(test[2], bool(test[3]), bool(test[4]), test[5])
+                    source, when = test[1], test[6]
+                    summary = test[7] if test[3] else test[8]
                 if iso is not None and (when is None or _after(iso[5], when)):
                     status = isolation_status(bool(iso[2]), bool(iso[3]))
                     source, when, summary = iso[1], iso[5], iso[4]
-                flags = c.execute(
-                    sa.select(S.baselines.c.flags)
-                    .where(S.baselines.c.unit_id == u.id,
-                           S.baselines.c.name == (u.baseline_name or "default"))
-                    .order_by(S.baselines.c.version.desc()).limit(1)).scalar()
+                flags = flags_of.get((u.id, u.baseline_name or "default"))
                 stamp = as_utc(when)
                 out.append({"unit": u.name, "model": u.model_source or u.model,
-                            "tests": int(n), "isolations": int(m), "latest_source": source,
+                            "tests": int(n_tests.get(u.id, 0)),
+                            "isolations": int(n_isos.get(u.id, 0)), "latest_source": source,
                             "latest_date": None if stamp is None else stamp.isoformat(),
                             "status": status, "summary": summary,
                             "baseline_flags": len(json.loads(flags)) if flags else 0})

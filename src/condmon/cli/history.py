@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Annotated, Any, Optional
 
@@ -152,10 +151,9 @@ def register(app: typer.Typer, baseline_app: typer.Typer) -> None:
         with open_store(db, create=False) as store:
             trail = store.audit(unit)
         if as_json:
-            rows = json.loads(trail.reset_index().to_json(orient="records", date_format="iso"))
-            for r in rows:
-                r["detail"] = json.loads(r["detail"]) if r["detail"] else None
-            write_json({"audit": rows})
+            from condmon.io.jsonable import frame_records
+
+            write_json({"audit": frame_records(trail)})
             return
         table = Table(title=escape(f"Audit trail of {unit or redact(db)}"), box=box.SIMPLE_HEAD)
         for col in ("at (UTC)", "who", "action", "unit", "test", "reason"):

@@ -360,8 +360,6 @@ def history_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print the history as JSON records.")] = False,
 ) -> None:
     """Show the unit's tests (fit, status, parameter changes) or isolations."""
-    import json
-
     import pandas as pd
 
     from condmon.models.registry import get_model
@@ -373,10 +371,10 @@ def history_cmd(
         model = store.unit_model(unit) or "dc-motor"
         baseline = store.latest_baseline(unit)
     if as_json:
-        docs = json.loads(hist.reset_index().to_json(orient="records", date_format="iso"))
-        docs = [{"kind": "test", **d} for d in docs]
-        docs += [{"kind": "isolation", **d} for d in
-                 json.loads(isos.reset_index().to_json(orient="records", date_format="iso"))]
+        from condmon.io.jsonable import frame_records
+
+        docs = [{"kind": "test", **d} for d in frame_records(hist)]
+        docs += [{"kind": "isolation", **d} for d in frame_records(isos)]
         write_json(docs)
         return
     name = escape(Path(model).name)

@@ -10,7 +10,6 @@ page answers with (:class:`UnknownUnitError`, :class:`FilterError`).
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -129,9 +128,9 @@ def _plain(value: Any) -> Any:
 
 def _records(frame: pd.DataFrame) -> list[dict[str, Any]]:
     """Rows as ``condmon history --json`` prints them (ISO dates, NaN as null)."""
-    text = frame.reset_index().to_json(orient="records", date_format="iso")
-    rows: list[dict[str, Any]] = json.loads(text or "[]")
-    return rows
+    from condmon.io.jsonable import frame_records
+
+    return frame_records(frame)
 
 
 def _statuses(values: Sequence[str]) -> set[str]:

@@ -258,6 +258,9 @@ class StoreBase:
             return list(c.execute(q.order_by(S.audit.c.id)).all())
 
         rows = self._read(run)
-        return pd.DataFrame(rows, columns=["id", "at", "actor", "action", "unit", "test_id",
-                                           "isolation_id", "baseline_id", "reason",
-                                           "detail"]).set_index("id")
+        frame = pd.DataFrame(rows, columns=["id", "at", "actor", "action", "unit", "test_id",
+                                            "isolation_id", "baseline_id", "reason", "detail"])
+        frame["at"] = utc_column(frame["at"]).to_numpy()
+        for col in ("test_id", "isolation_id", "baseline_id"):
+            frame[col] = frame[col].astype("Int64")  # ids stay integers beside gaps
+        return frame.set_index("id")

@@ -38,6 +38,18 @@ def pool(tmp_path_factory: pytest.TempPathFactory, rig: ActuatorRig) -> list[str
     return files
 
 
+def _wait_all(procs: list[subprocess.Popen[str]], timeout: float) -> list[tuple[str, str]]:
+    """Every process's output; all waited for (pipes closed) even when one times out,
+    so nothing is left open for the next test."""
+    try:
+        return [p.communicate(timeout=timeout) for p in procs]
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+                p.communicate()
+
+
 def test_eight_writers_with_kills(store_url: str, pool: list[str], tmp_path: Path) -> None:
     rng = random.Random(7)
     procs = []
@@ -56,14 +68,7 @@ def test_eight_writers_with_kills(store_url: str, pool: list[str], tmp_path: Pat
     for v in victims:
         time.sleep(rng.uniform(0.5, 3.0))
         procs[v].send_signal(signal.SIGKILL)
-    # every process waited for (and its pipes closed) before anything is asserted
-    try:
-        outputs = [p.communicate(timeout=300) for p in procs]
-    finally:
-        for p in procs:
-            if p.poll() is None:
-                p.kill()
-                p.communicate()
+    outputs = _wait_all(procs, 300)
     reported: list[tuple[str, int]] = []
     killed = 0
     for k, (p, (out, err)) in enumerate(zip(procs, outputs)):
@@ -110,13 +115,7 @@ def test_first_use_of_an_empty_database_from_eight_processes(store_url: str) -> 
     procs = [subprocess.Popen([sys.executable, "-c", OPEN_AT, store_url, str(start), str(k)],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
              for k in range(N_PROCESSES)]
-    try:
-        results = [p.communicate(timeout=120) for p in procs]
-    finally:
-        for p in procs:
-            if p.poll() is None:
-                p.kill()
-                p.communicate()
+    results = _wait_all(procs, 120)
     assert all(p.returncode == 0 for p in procs), [e for _, e in results]
     assert all(o.strip() == "OK" and e.strip() == "" for o, e in results), results
     with open_store(store_url) as store:

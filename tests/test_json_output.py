@@ -36,3 +36,26 @@ def test_history_and_audit_json(tmp_path: Path, capsys: pytest.CaptureFixture[st
     assert all(r["test_id"] is None or isinstance(r["test_id"], int) for r in trail)
     assert any(isinstance(r["detail"], dict) for r in trail)
     assert all(r["at"].endswith("Z") or "+" in r["at"] for r in trail)  # a zone is given
+
+
+def test_one_record_filed_under_two_units_is_warned(tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    files = []
+    for s in range(4):
+        p = tmp_path / f"h{s}.csv"
+        simulate_actuator(seed=95 + s).to_csv(p, index=False)
+        files.append(str(p))
+    db = str(tmp_path / "h.db")
+    assert main(["baseline", "add", *files[:3], "--unit", "A", "--db", db]) == 0
+    assert "warning" not in capsys.readouterr().err
+    assert main(["baseline", "add", files[3], files[0], "--unit", "B", "--db", db]) == 0
+    err = capsys.readouterr().err
+    assert f"warning: {files[0]}: the same record is also test #1 of 'A'" in err
+    assert files[3] not in err
+    assert main(["check", files[1], "--unit", "A", "--db", db, "--json"]) == 2  # A's own
+    capsys.readouterr()
+    assert main(["baseline", "add", files[1], files[2], "--unit", "B", "--db", db]) == 0
+    capsys.readouterr()
+    assert main(["check", files[3], "--unit", "A", "--db", db, "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["warning"].startswith("the same record is also test #4 of 'B'")

@@ -246,6 +246,9 @@ def baseline_add_cmd(
                       highlight=False, markup=False)
         elif not t.accepted:
             err.print(f"stored {t.source} as rejected: {t.reason}", highlight=False, markup=False)
+        if t.warning:
+            err.print(f"warning: {t.source}: {t.warning}", highlight=False, markup=False,
+                      soft_wrap=True)
     n_new = sum(1 for t in res.tests if not (t.duplicate or t.refused))
     out.print(f"{n_new} test(s) added to {unit!r}; {res.message}", markup=False)
     if res.baseline is not None:
@@ -293,6 +296,9 @@ def check_cmd(
         return
     if dry_run:
         err.print("dry run: nothing was stored", highlight=False)
+    if res.warning:
+        err.print(f"warning: {record}: {res.warning}", highlight=False, markup=False,
+                  soft_wrap=True)
     print_flags(res.baseline_flags, unit)
     out.print(f"{escape(unit)} — {escape(str(record))}: {_status_text(res.status)}  "
               f"(fit {res.estimate.fit_percent:.1f} %"

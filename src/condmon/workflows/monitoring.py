@@ -37,7 +37,7 @@ from condmon.workflows.records import EstimateOptions, RecordKey, RecordLike, re
 __all__ = ["EstimateOptions", "AddedTest", "BaselineAddResult", "CheckResult", "RecordKey",
            "add_baseline_tests", "current_baseline", "check_test", "RecordLike",
            "unit_monitor", "save_current_baseline", "reevaluate", "parse_date", "record_key",
-           "evaluate", "baseline_members"]
+           "evaluate", "baseline_members", "filed_elsewhere"]
 
 Progress = Callable[[int, int, str], None]
 
@@ -48,6 +48,8 @@ class AddedTest:
 
     ``refused`` records (a likely unit or sign error against the baseline so
     far) are not stored; their ``test_id`` is -1 and ``reason`` says why.
+    ``warning`` is something to look at in a stored record (the same record
+    already filed under another unit).
     """
 
     source: str
@@ -56,6 +58,7 @@ class AddedTest:
     duplicate: bool
     reason: str | None = None
     refused: bool = False
+    warning: str | None = None
 
 
 @dataclass(frozen=True)
@@ -265,8 +268,10 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
             continue
         try:
             tid = store.add_test(unit, res, role="baseline", digest=key.content,
-                                 file_digest=key.file, fingerprint=key.fingerprint, test_date=key.test_date)
-            added.append(AddedTest(res.source, tid, res.accepted, False, res.reason))
+                                 file_digest=key.file, fingerprint=key.fingerprint,
+                                 test_date=key.test_date)
+            added.append(AddedTest(res.source, tid, res.accepted, False, res.reason,
+                                   warning=filed_elsewhere(store, unit, key)))
         except DuplicateTestError as dup:
             added.append(AddedTest(res.source, dup.test_id, res.accepted, True,
                                    "already in the history"))
@@ -286,6 +291,16 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
     return BaselineAddResult(tuple(added), stored.baseline, stored.id,
                              f"baseline of {unit!r} from {stored.baseline.n} accepted healthy "
                              f"tests ({stored.name!r} v{stored.version})", stored.flags)
+
+
+def filed_elsewhere(store: HistoryStore, unit: str, key: RecordKey) -> str | None:
+    """A warning when the record is also a test of another unit (one test
+    record belongs to one machine: a mix-up of serial numbers or folders)."""
+    others = store.copies_elsewhere(unit, key.content)
+    if not others:
+        return None
+    where = ", ".join(f"test #{tid} of {name!r}" for name, tid in others[:3])
+    return f"the same record is also {where}; is it filed under the right unit?"
 
 
 def _too_few(unit: str, n: int) -> DataError:
@@ -316,6 +331,8 @@ class CheckResult:
         Why the baseline may not be trustworthy (empty when nothing is suspicious).
     test_date : datetime or None
         When the test was run, if known (UTC).
+    warning : str or None
+        Something to look at (the same record already filed under another unit).
     """
 
     unit: str
@@ -328,6 +345,7 @@ class CheckResult:
     diagnosis: Diagnosis | None = None
     baseline_flags: tuple[dict[str, Any], ...] = ()
     test_date: datetime | None = None
+    warning: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready result (the ``condmon check --json`` document)."""
@@ -355,6 +373,7 @@ class CheckResult:
                                       else list(self.diagnosis.applied)),
             "baseline": None if self.baseline is None else self.baseline.to_dict(),
             "baseline_flags": list(self.baseline_flags),
+            "warning": self.warning,
             "method": est["method"],
             "closed_loop_instruments": est["closed_loop_instruments"],
             "notes": est["notes"],
@@ -396,9 +415,11 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
     flags = latest.flags if latest is not None and list(latest.test_ids) == ids else ()
     if not res.accepted:
         tid = -1 if dry_run else store.add_test(unit, res, role="check", digest=key.content,
-                                                file_digest=key.file, fingerprint=key.fingerprint, test_date=key.test_date)
+                                                file_digest=key.file,
+                                                fingerprint=key.fingerprint,
+                                                test_date=key.test_date)
         return CheckResult(unit, tid, res, "retest", baseline, baseline_flags=flags,
-                           test_date=key.test_date)
+                           test_date=key.test_date, warning=filed_elsewhere(store, unit, key))
     row, diag = evaluate(res, baseline, cfg, rb)
     if dry_run:
         tid = -1
@@ -413,4 +434,4 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
     return CheckResult(unit, tid, res, diag.status, baseline,
                        {p: v["percent_change"] for p, v in row.items()},
                        {p: {"high": v["high"], "low": v["low"]} for p, v in row.items()},
-                       diag, flags, key.test_date)
+                       diag, flags, key.test_date, filed_elsewhere(store, unit, key))

@@ -238,6 +238,52 @@ def escape(text: str) -> str:
     return html.escape(text, quote=True)
 
 
+# -- what a new user reads ---------------------------------------------------------------
+def _copy(fleet: dict[str, Any], tmp_path: Path) -> Path:
+    db = tmp_path / "copy.db"
+    shutil.copy(fleet["db"], db)
+    return db
+
+
+def _add_tests(db: Path, unit: str, rows: list[tuple[str, bool, str | None]]) -> None:
+    """Store ``(role, accepted, reason)`` tests of a new ``unit`` with plain SQL, a day apart."""
+    import sqlalchemy as sa
+
+    with open_store(db) as store:
+        uid = store.unit_id(unit, create=True)
+        with store.engine.begin() as conn:
+            for day, (role, accepted, reason) in enumerate(rows, start=1):
+                conn.execute(sa.text(
+                    "insert into tests (unit_id, created_at, test_date, source, file_hash, role, "
+                    "accepted, reason, fits, method, closed_loop, constants, record_hash) values "
+                    "(:u, :t, :t, :s, :s, :r, :a, :why, '{}', 'ls', 0, '{}', :s)"),
+                    {"u": uid, "t": f"2026-02-{day:02d} 00:00:00.000000", "s": f"{unit}-{day}.csv",
+                     "r": role, "a": accepted, "why": reason})
+
+
+def test_a_unit_without_a_baseline_yet_is_building(fleet: dict[str, Any], tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    db = _copy(fleet, tmp_path)
+    _add_tests(db, "EMA-new", [("baseline", True, None), ("baseline", True, None)])
+    _add_tests(db, "EMA-bad", [("baseline", True, None), ("baseline", False, "fit 40 %")])
+    client = create_app(db).test_client()
+    doc = _api(client, "/api/units")
+    assert doc == _cli_json(capsys, "units", "--db", str(db), "--json")
+    units = {u["unit"]: u for u in doc["units"]}
+    assert units["EMA-new"]["status"] == units["EMA-bad"]["status"] == "building"
+    assert units["EMA-new"]["summary"] == "building the baseline: 2 of 3 accepted healthy tests"
+    assert units["EMA-bad"]["summary"] == ("building the baseline: 1 of 3 accepted healthy "
+                                           "tests; latest rejected: fit 40 %")
+    assert units[ODD]["status"] == "no-go"  # a saved baseline: checks as before
+    for name in ("EMA-new", "EMA-bad"):  # the unit's page says the same
+        assert _api(client, "/api/units/" + name)["overview"] == units[name]
+    assert [u["unit"] for u in _api(client, "/api/units?status=building")["units"]] == [
+        "EMA-bad", "EMA-new"]
+    page = client.get("/?status=building").get_data(as_text=True)
+    assert re.findall(r'data-status="([^"]*)">', page) == ["building", "building"]
+    assert 'value="building" checked' in page
+
+
 # -- fleet scale -------------------------------------------------------------------------
 def _statements(store: Any) -> int:
     """How many SQL statements :meth:`unit_summaries` issues."""

@@ -31,9 +31,10 @@ if TYPE_CHECKING:
 __all__ = ["readonly_url", "fleet_document", "unit_document", "read_unit", "UnitData",
            "UnknownUnitError", "STATUSES"]
 
-#: Statuses a unit can show (``none``: nothing stored yet), in the filter's order.
-STATUSES = ("no-go", "advisory", "retest", "go", "unchecked", "baseline", "rejected",
-            "excluded", "none")
+#: Statuses a unit can show (``building``: its baseline is not saved yet; ``none``:
+#: nothing stored yet), in the filter's order.
+STATUSES = ("no-go", "advisory", "retest", "go", "unchecked", "building", "baseline",
+            "rejected", "excluded", "none")
 
 
 class UnknownUnitError(CondmonError, LookupError):
@@ -256,12 +257,22 @@ def _overview(unit: str, model: str, hist: pd.DataFrame, isos: pd.DataFrame,
               baseline: StoredBaseline | None) -> dict[str, Any]:
     """The unit's entry of :meth:`HistoryStore.unit_summaries`, from what the page
     has read anyway (that method reads every unit: seconds for a large fleet)."""
+    from condmon.store.views import building_summary
+
     status = source = when = summary = None
     tests = hist[~hist["excluded"]] if len(hist) else hist
     if len(tests):
-        last = tests.assign(_id=tests.index).sort_values(["date", "_id"]).iloc[-1]
+        # the latest check; baseline tests only without checks (as unit_summaries)
+        last = tests.assign(_id=tests.index, _check=tests["role"] == "check").sort_values(
+            ["_check", "date", "_id"]).iloc[-1]
         status, source, when = str(last["status"]), last["source"], last["date"]
         summary = last["summary"] if last["accepted"] else last["reason"]
+        if status in ("baseline", "rejected") and baseline is None:
+            status = "building"
+            healthy = (tests["role"] == "baseline") & tests["accepted"]
+            why = None if last["accepted"] or not isinstance(last["reason"], str) \
+                else last["reason"]
+            summary = building_summary(int(healthy.sum()), why)
     done = isos[~isos["excluded"].astype(bool)] if len(isos) else isos
     if len(done):
         last = done.assign(_id=done.index).sort_values(["date", "_id"]).iloc[-1]

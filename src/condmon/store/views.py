@@ -12,7 +12,7 @@ from condmon.store import schema as S
 from condmon.store.base import StoreBase, as_utc, utc_column
 from condmon.store.isolations import isolation_status
 
-__all__ = ["ViewsMixin", "test_status"]
+__all__ = ["ViewsMixin", "test_status", "building_summary"]
 
 
 def test_status(role: str, accepted: bool, excluded: bool, status: Any) -> str:
@@ -32,6 +32,25 @@ def test_status(role: str, accepted: bool, excluded: bool, status: Any) -> str:
     if not accepted:
         return "retest"
     return str(status) if isinstance(status, str) else "unchecked"
+
+
+def building_summary(accepted: int, rejected: str | None = None) -> str:
+    """What a unit whose baseline is not saved yet (status ``building``) says:
+    how many accepted healthy tests it has, and why its latest was rejected.
+
+    Example
+    -------
+    >>> building_summary(2)
+    'building the baseline: 2 of 3 accepted healthy tests'
+    >>> building_summary(1, "fit 42.0 % below 80 %")
+    'building the baseline: 1 of 3 accepted healthy tests; latest rejected: fit 42.0 % below 80 %'
+    """
+    from condmon.monitor.baseline import MIN_BASELINE_TESTS
+
+    text = (f"building the baseline: {accepted} of {MIN_BASELINE_TESTS} accepted healthy tests"
+            if accepted < MIN_BASELINE_TESTS else
+            f"building the baseline: {accepted} accepted healthy tests, none saved yet")
+    return text + (f"; latest rejected: {rejected}" if rejected else "")
 
 
 class ViewsMixin(StoreBase):
@@ -111,13 +130,21 @@ class ViewsMixin(StoreBase):
         latest test or isolation (by date), that one's status, and the
         active baseline's flags (``baseline_flags``: how many warnings).
 
+        A unit whose latest record is a baseline test while no version of its
+        active baseline is saved yet is ``building`` (as ``condmon fleet run``
+        says), its summary how far (:func:`building_summary`).
+
         The same few queries however many units there are: each unit's latest
         test, isolation and baseline version are ranked in the database."""
         def run(c: sa.Connection) -> list[dict[str, Any]]:
             t, i, d, b = S.tests, S.isolations, S.diagnoses, S.baselines
             units = c.execute(sa.select(S.units).order_by(S.units.c.name)).all()
-            n_tests: dict[int, int] = dict(c.execute(
-                sa.select(t.c.unit_id, sa.func.count()).group_by(t.c.unit_id)).all())
+            healthy = sa.and_(t.c.role == "baseline", t.c.accepted.is_(True),
+                              t.c.excluded.is_(False))
+            n_tests = {r[0]: (int(r[1]), int(r[2] or 0)) for r in c.execute(
+                sa.select(t.c.unit_id, sa.func.count(),
+                          sa.func.sum(sa.case((healthy, 1), else_=0)))
+                .group_by(t.c.unit_id))}
             n_isos: dict[int, int] = dict(c.execute(
                 sa.select(i.c.unit_id, sa.func.count()).group_by(i.c.unit_id)).all())
             t_when = sa.func.coalesce(t.c.test_date, t.c.created_at)
@@ -157,17 +184,22 @@ class ViewsMixin(StoreBase):
             for u in units:
                 test, iso = last.get(u.id), isos.get(u.id)
                 status, source, when, summary = None, None, None, None
+                active = (u.id, u.baseline_name or "default")
+                n, accepted = n_tests.get(u.id, (0, 0))
                 if test is not None:
                     status = test_status(test[2], bool(test[3]), bool(test[4]), test[5])
                     source, when = test[1], test[6]
                     summary = test[7] if test[3] else test[8]
+                    if status in ("baseline", "rejected") and active not in flags_of:
+                        status = "building"
+                        summary = building_summary(accepted, None if test[3] else test[8])
                 if iso is not None and (when is None or _after(iso[5], when)):
                     status = isolation_status(bool(iso[2]), bool(iso[3]))
                     source, when, summary = iso[1], iso[5], iso[4]
-                flags = flags_of.get((u.id, u.baseline_name or "default"))
+                flags = flags_of.get(active)
                 stamp = as_utc(when)
                 out.append({"unit": u.name, "model": u.model_source or u.model,
-                            "tests": int(n_tests.get(u.id, 0)),
+                            "tests": n,
                             "isolations": int(n_isos.get(u.id, 0)), "latest_source": source,
                             "latest_date": None if stamp is None else stamp.isoformat(),
                             "status": status, "summary": summary,

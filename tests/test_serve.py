@@ -284,6 +284,53 @@ def test_a_unit_without_a_baseline_yet_is_building(fleet: dict[str, Any], tmp_pa
     assert 'value="building" checked' in page
 
 
+def test_the_flag_legend_only_with_a_flagged_unit(fleet: dict[str, Any], client: Any,
+                                                  tmp_path: Path) -> None:
+    import sqlalchemy as sa
+
+    assert all(not u["baseline_flags"] for u in _api(client, "/api/units")["units"])
+    assert "⚠" not in client.get("/").get_data(as_text=True)
+    db = _copy(fleet, tmp_path)
+    with open_store(db) as store, store.engine.begin() as conn:
+        conn.execute(sa.text("update baselines set flags = '[{\"message\": \"x\"}]'"))
+    page = create_app(db).test_client().get("/").get_data(as_text=True)
+    assert "⚠: the unit's baseline is flagged" in page and '<span class="flag"' in page
+
+
+def test_an_empty_history_is_not_an_empty_filter(client: Any, tmp_path: Path) -> None:
+    db = tmp_path / "empty.db"
+    open_store(db).close()
+    page = create_app(db).test_client().get("/").get_data(as_text=True)
+    assert ("No units in this history yet (<code>condmon baseline add</code> or "
+            "<code>condmon fleet run</code> adds some)") in page
+    assert "0 of 0" not in page and "matches" not in page
+    none = client.get("/?q=no-such-unit").get_data(as_text=True)
+    assert "0 of 4 units shown" in none and "No unit matches the filter." in none
+    assert "No units in this history yet" not in none
+
+
+def test_a_file_that_is_not_a_history_and_a_history_gone(fleet: dict[str, Any],
+                                                         tmp_path: Path,
+                                                         capsys: pytest.CaptureFixture[str]
+                                                         ) -> None:
+    notes = tmp_path / "README.md"
+    notes.write_text("# notes\n\nnot a database at all\n" * 20)
+    with pytest.raises(StoreError, match=r"README\.md: not a condmon history database"):
+        create_app(notes)
+    capsys.readouterr()
+    assert main(["serve", "--db", str(notes), "--port", "0"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "not a condmon history database" in err
+    db = _copy(fleet, tmp_path)
+    client = create_app(db).test_client()
+    db.unlink()
+    gone = f"the history database is gone or unreadable: {db}"
+    resp = client.get("/")
+    assert resp.status_code == 503 and gone in resp.get_data(as_text=True)
+    assert _api(client, "/api/units", 503) == {"error": gone}
+    assert not db.exists()  # the page never creates it
+
+
 # -- fleet scale -------------------------------------------------------------------------
 def _statements(store: Any) -> int:
     """How many SQL statements :meth:`unit_summaries` issues."""

@@ -102,7 +102,10 @@ class _History:
             store = open_store(self.url, create=self.file is not None)
         except StoreError as err:
             text = str(err).replace(redact(self.url), redact(self.db))
-            if "read-only" in text:  # the store tried to create or upgrade its tables
+            if self.file is not None and (not self.file.is_file() or "cannot open" in text):
+                # removed or unreadable while serving (the read-only URL skips the file checks)
+                text = f"the history database is gone or unreadable: {redact(self.db)}"
+            elif "read-only" in text:  # the store tried to create or upgrade its tables
                 text = (f"{redact(self.db)}: not a condmon history of this version yet, and the page "
                         "only reads; run `condmon units --db DB` once (it upgrades an older "
                         "history), then serve it")

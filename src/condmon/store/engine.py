@@ -163,7 +163,10 @@ def store_error(err: BaseException, db: str, timeout: float | None = None) -> St
                           "and its folder's permissions); nothing was written")
     if "disk is full" in low or "no space left" in low or "disk full" in low:
         return StoreError(f"{db}: the disk is full; nothing was written")
-    if "file is not a database" in low or "not a database" in low or "malformed" in low:
+    if "not a database" in low:  # a text file, a spreadsheet, ...
+        return StoreError(f"{db}: not a condmon history database (not a readable SQLite "
+                          "database)")
+    if "malformed" in low:
         return StoreError(f"{db}: not a readable SQLite database ({text})")
     if "unable to open database file" in low:
         return StoreError(f"{db}: cannot open the history database (does its folder exist "

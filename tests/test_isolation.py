@@ -132,6 +132,22 @@ def test_bad_records_name_the_column(hst: PlantModel) -> None:
         isolate(jitter, hst, workers=1)
 
 
+@pytest.mark.parametrize("fault", [None, "Rv=+40%@10s"])
+def test_a_column_in_another_unit_is_refused_not_isolated(hst: PlantModel,
+                                                          fault: str | None) -> None:
+    """rpm for rad/s stays inside the range checks' limits; against the model it
+    reads 9.55 x throughout, healthy or faulty, and is refused by name."""
+    rec = simulate_plant(hst, [fault] if fault else [], seed=2)
+    rpm = rec.assign(omega_m=rec["omega_m"] * 60.0 / (2.0 * np.pi))
+    with pytest.raises(DataError, match=r"rig.csv: column 'omega_m' reads 9\.\d+ x what the "
+                                        r"model predicts .*rpm for rad/s"):
+        with pytest.warns(DataWarning):  # beyond the sensor's range: warned first
+            isolate(rpm, hst, workers=1, source="rig.csv")
+    # the same record in its own units is not refused
+    res = isolate(rec, hst, workers=1)
+    assert res.detected == (fault is not None)
+
+
 def test_settings_are_validated(tmp_path: pytest.TempPathFactory) -> None:
     from pathlib import Path
 

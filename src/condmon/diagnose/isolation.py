@@ -333,6 +333,7 @@ def isolate(record: pd.DataFrame, model: PlantModel, *,
         raise EstimationError(f"{source}: the model cannot be run beside the record: {exc}"
                               ) from None
     nominal_time = time.monotonic() - started
+    _scale_error(res, source)
     if normalisation is not None:
         norm = normalisation
     elif kind == "simulation":
@@ -455,6 +456,40 @@ def _undecided(windows: Sequence[SteadyWindow], errors: Mapping[str, float],
                 f"{settings.explain_limit:g}); the fault may be none of the candidates, "
                 "several, or the data may be wrong")
     return None
+
+
+#: Factors a column in another unit reads, against what the model predicts.
+_UNIT_FACTORS = ((60.0 / (2.0 * math.pi), "rpm for rad/s"), (2.0 * math.pi / 60.0, "rad/s for rpm"),
+                 (1e-5, "bar for Pa"), (1e5, "Pa for bar"), (1e-6, "MPa for Pa"),
+                 (1e6, "Pa for MPa"), (1e3, "a factor 1000: milli-units?"),
+                 (1e-3, "a factor 1/1000: kilo-units?"), (60.0, "per minute for per second"),
+                 (1.0 / 60.0, "per second for per minute"))
+
+
+def _scale_error(res: Residuals, source: str) -> None:
+    """Refuse a record whose sensor column reads a unit factor (rpm for rad/s, bar
+    for Pa) or the opposite sign of what the nominal model predicts, steadily: no
+    fault does that, a unit or sign error does."""
+    measured = res.values + res.predicted
+    for j, sensor in enumerate(res.sensors):
+        y, p = measured[:, j], res.predicted[:, j]
+        big = np.abs(p) > 0.2 * float(np.max(np.abs(p), initial=0.0))
+        if int(big.sum()) < 10:
+            continue
+        q = y[big] / p[big]
+        m = float(np.median(q))
+        if not math.isfinite(m) or m == 0.0 or np.median(np.abs(q - m)) > 0.2 * abs(m):
+            continue  # no single factor: a fault or noise, for the isolation to weigh
+        if m < 0.0 and abs(abs(m) - 1.0) < 0.5:
+            why = "the opposite sign: likely a sign error (a sensor mounted the other way?)"
+        else:
+            hits = [what for f, what in _UNIT_FACTORS if abs(abs(m) / f - 1.0) < 0.1]
+            if not hits:
+                continue
+            why = f"likely a unit error ({hits[0]}?)"
+        raise DataError(f"{source}: column {sensor!r} reads {m:.3g} x what the model predicts "
+                        f"from the record's inputs, throughout: {why}; convert the column "
+                        "(nothing was isolated)")
 
 
 def _check_finite(det: Detection, res: Residuals, source: str) -> None:

@@ -101,6 +101,24 @@ def test_isolations_are_kept_in_the_units_history(tmp_path: Path,
     assert main(["units", "--db", db, "--json"]) == 0
     unit = json.loads(capsys.readouterr().out)["units"][0]
     assert (unit["status"], unit["isolations"], unit["tests"]) == ("no-go", 2, 0)
+    # a wrong isolation is excluded (kept, marked, audited) and included again
+    assert main(["exclude", "i2", "--reason", "wrong unit's record", "--db", db]) == 0
+    assert "isolation i2 excluded" in capsys.readouterr().out
+    assert main(["units", "--db", db, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["units"][0]["status"] == "go"
+    assert main(["history", "--unit", "HST-1", "--db", db, "--json"]) == 0
+    assert [r["excluded"] for r in json.loads(capsys.readouterr().out)] == [False, True]
+    assert main(["exclude", "i2", "--reason", "again", "--db", db]) == 2
+    assert "already excluded (wrong unit's record)" in capsys.readouterr().err
+    assert main(["include", "i2", "--db", db]) == 0
+    assert "isolation i2 included" in capsys.readouterr().out
+    assert main(["units", "--db", db, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["units"][0]["status"] == "no-go"
+    assert main(["exclude", "x2", "--reason", "r", "--db", db]) == 2
+    assert "not a test id (12 or #12) nor an isolation id (i3)" in capsys.readouterr().err
+    assert main(["audit", "--unit", "HST-1", "--db", db, "--json"]) == 0
+    actions = [r["action"] for r in json.loads(capsys.readouterr().out)["audit"]]
+    assert actions[-2:] == ["isolation excluded", "isolation included"]
     # an actuator record offered to the HST unit is refused
     from condmon.simulate import simulate_actuator
 

@@ -55,32 +55,50 @@ def _change(db: str, as_json: bool, run: Callable[[HistoryStore], ChangeResult])
     _print_change(res)
 
 
+def _record_id(text: str) -> tuple[str, int]:
+    """``("test", 12)`` for ``12`` or ``#12``, ``("isolation", 3)`` for ``i3``."""
+    import re
+
+    m = re.fullmatch(r"\s*(#|[iI])?(\d+)\s*", text)
+    if m is None:
+        from condmon.errors import ConfigError
+
+        raise ConfigError(f"{text!r} is not a test id (12 or #12) nor an isolation id (i3)")
+    return ("isolation" if (m.group(1) or "").lower() == "i" else "test"), int(m.group(2))
+
+
 def register(app: typer.Typer, baseline_app: typer.Typer) -> None:
     """Add the history-management commands to the CLI."""
 
     @app.command("exclude")
     def exclude_cmd(
-        test: Annotated[int, typer.Argument(help="Test id (`condmon history` shows them as #N).")],
+        test: Annotated[str, typer.Argument(help="Test id (`condmon history` shows them as #N), or an isolation's as iN.")],
         reason: Annotated[str, typer.Option(help="Why (kept in the audit trail).")],
         db: DbOpt = "condmon.db",
         as_json: JsonOpt = False,
     ) -> None:
-        """Exclude a wrong test from baselines, trends and reports (kept, marked, audited)."""
-        from condmon.workflows.manage import exclude_test
+        """Exclude a wrong test or isolation from baselines, trends and reports (kept,
+        marked, audited)."""
+        from condmon.workflows.manage import exclude_isolation, exclude_test
 
-        _change(db, as_json, lambda store: exclude_test(store, test, reason))
+        kind, ident = _record_id(test)
+        _change(db, as_json, lambda store: (exclude_isolation if kind == "isolation"
+                                            else exclude_test)(store, ident, reason))
 
     @app.command("include")
     def include_cmd(
-        test: Annotated[int, typer.Argument(help="Test id of an excluded test.")],
+        test: Annotated[str, typer.Argument(help="Id of an excluded test (N) or isolation (iN).")],
         reason: Annotated[Optional[str], typer.Option(help="Why (kept in the audit trail).")] = None,
         db: DbOpt = "condmon.db",
         as_json: JsonOpt = False,
     ) -> None:
-        """Include an excluded test again (back into the baseline it was in)."""
-        from condmon.workflows.manage import include_test
+        """Include an excluded test again (back into the baseline it was in), or an
+        excluded isolation."""
+        from condmon.workflows.manage import include_isolation, include_test
 
-        _change(db, as_json, lambda store: include_test(store, test, reason))
+        kind, ident = _record_id(test)
+        _change(db, as_json, lambda store: (include_isolation if kind == "isolation"
+                                            else include_test)(store, ident, reason))
 
     @baseline_app.command("rebuild")
     def rebuild_cmd(

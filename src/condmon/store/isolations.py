@@ -9,6 +9,7 @@ from typing import Any
 import pandas as pd
 import sqlalchemy as sa
 
+from condmon.errors import ConfigError
 from condmon.store import schema as S
 from condmon.store.base import StoreBase, as_utc, check_name, now, num, utc_column
 from condmon.store.history import DuplicateTestError
@@ -100,6 +101,45 @@ class IsolationsMixin(StoreBase):
             return iid
 
         return self._write(run, lock=unit)
+
+    def isolation_info(self, isolation_id: int) -> dict[str, Any]:
+        """One isolation's ``id, unit_id, unit, source, excluded, excluded_reason``.
+
+        Raises
+        ------
+        ConfigError
+            No such isolation.
+        """
+        def run(c: sa.Connection) -> Any:
+            i = S.isolations
+            return c.execute(sa.select(i.c.id, i.c.unit_id, S.units.c.name.label("unit"),
+                                       i.c.source, i.c.excluded, i.c.excluded_reason)
+                             .join(S.units, S.units.c.id == i.c.unit_id)
+                             .where(i.c.id == int(isolation_id))).mappings().first()
+
+        row = self._read(run)
+        if row is None:
+            raise ConfigError(f"no isolation i{isolation_id} in {self.url} (`condmon history "
+                              "--unit U` lists a unit's isolations)")
+        return dict(row)
+
+    def set_isolation_excluded(self, isolation_id: int, excluded: bool,
+                               reason: str | None) -> dict[str, Any]:
+        """Exclude an isolation from the unit's status, trends and reports (or
+        include it again); nothing is deleted, the change is audited. Returns the
+        isolation's row as it was before."""
+        info = self.isolation_info(isolation_id)
+
+        def run(conn: sa.Connection) -> None:
+            conn.execute(sa.update(S.isolations).where(S.isolations.c.id == int(isolation_id))
+                         .values(excluded=bool(excluded),
+                                 excluded_reason=reason if excluded else None))
+            self._log(conn, "isolation excluded" if excluded else "isolation included",
+                      unit_id=int(info["unit_id"]), isolation_id=int(isolation_id),
+                      reason=reason, detail={"source": info["source"]})
+
+        self._write(run, lock=str(info["unit"]))
+        return info
 
     def isolations(self, unit: str) -> pd.DataFrame:
         """One row per isolation of the unit, oldest first.

@@ -20,7 +20,8 @@ from condmon.store.baselines import StoredBaseline
 from condmon.store.db import HistoryStore
 from condmon.workflows.monitoring import baseline_members, reevaluate, save_current_baseline
 
-__all__ = ["ChangeResult", "exclude_test", "include_test", "rebuild_baseline"]
+__all__ = ["ChangeResult", "exclude_test", "include_test", "rebuild_baseline", "exclude_isolation",
+           "include_isolation"]
 
 
 @dataclass(frozen=True)
@@ -141,6 +142,49 @@ def include_test(store: HistoryStore, test_id: int, reason: str | None = None) -
     res = _apply(store, unit, [*ids, int(test_id)], f"test #{test_id} included: {why}")
     return ChangeResult(unit, f"test #{test_id} included; {res.message}", res.baseline,
                         res.new_version, res.reevaluated)
+
+
+def exclude_isolation(store: HistoryStore, isolation_id: int, reason: str | None
+                      ) -> ChangeResult:
+    """Exclude an isolation (a wrong record, the wrong unit) from the unit's
+    status, trends and reports; it is kept, marked and audited.
+
+    Raises
+    ------
+    ConfigError
+        No such isolation, or no reason given.
+    DataError
+        The isolation is already excluded.
+    """
+    why = _reason(reason, "exclude")
+    info = store.isolation_info(isolation_id)
+    if info["excluded"]:
+        raise DataError(f"isolation i{isolation_id} of {info['unit']!r} is already excluded "
+                        f"({info['excluded_reason']})")
+    store.set_isolation_excluded(isolation_id, True, why)
+    unit = str(info["unit"])
+    return ChangeResult(unit, f"isolation i{isolation_id} excluded",
+                        store.latest_baseline(unit), False)
+
+
+def include_isolation(store: HistoryStore, isolation_id: int, reason: str | None = None
+                      ) -> ChangeResult:
+    """Include an excluded isolation again.
+
+    Raises
+    ------
+    ConfigError
+        No such isolation.
+    DataError
+        The isolation is not excluded.
+    """
+    info = store.isolation_info(isolation_id)
+    if not info["excluded"]:
+        raise DataError(f"isolation i{isolation_id} of {info['unit']!r} is not excluded")
+    store.set_isolation_excluded(isolation_id, False, (reason or "").strip() or "included again")
+    unit = str(info["unit"])
+    return ChangeResult(unit, f"isolation i{isolation_id} included",
+                        store.latest_baseline(unit), False)
 
 
 def rebuild_baseline(store: HistoryStore, unit: str, *, reason: str | None,

@@ -11,6 +11,7 @@ and manifests only, never a record's data.
 from __future__ import annotations
 
 import csv
+import os
 import re
 import tomllib
 from dataclasses import dataclass
@@ -48,7 +49,13 @@ class FleetRecord:
         When the test was run (the manifest's ``date``, UTC); None: the
         record's own date, if its metadata has one.
     error : str or None
-        Why the record is refused before it is read (a manifest row's bad date).
+        Why the record is refused before it is read (a manifest row's bad date
+        or model, a file that is no record).
+    fallback_source : str or None
+        The ``unit.toml`` that gave ``fallback_model``.
+    skip : str or None
+        Why the record is skipped before it is read (a file listed again in
+        the manifest).
     """
 
     unit: str
@@ -57,6 +64,8 @@ class FleetRecord:
     fallback_model: str | None = None
     test_date: datetime | None = None
     error: str | None = None
+    fallback_source: str | None = None
+    skip: str | None = None
 
 
 def _one_line(exc: BaseException | str) -> str:
@@ -81,6 +90,19 @@ def _is_record(path: Path) -> bool:
             and path.suffix.lower() in READABLE_SUFFIXES)
 
 
+#: Suffixes of compressed files, named with the suffix before them (``.csv.gz``).
+_COMPRESSED = (".gz", ".bz2", ".xz", ".zst", ".zip", ".7z")
+
+
+def _not_a_record(path: Path) -> str:
+    """Why a file in a unit's folder is not read, naming it."""
+    suffix = path.suffix
+    if suffix.lower() in _COMPRESSED and Path(path.stem).suffix:
+        suffix = Path(path.stem).suffix + suffix
+    return (f"{path}: not a record file ({suffix or 'no suffix'}); readable: "
+            f"{', '.join(READABLE_SUFFIXES)}")
+
+
 def _unit_file_model(folder: Path) -> tuple[str | None, str | None]:
     """``(model, error)`` of ``folder/unit.toml`` (both None without one)."""
     path = folder / UNIT_FILE
@@ -99,20 +121,38 @@ def _unit_file_model(folder: Path) -> tuple[str | None, str | None]:
     return model, None
 
 
+def _unit_records(folder: Path) -> list[FleetRecord]:
+    """Every file of a unit's folder (sub-folders too) but hidden ones, its
+    ``unit.toml`` and the declaration that names; in file-name order."""
+    model, error = _unit_file_model(folder)
+    source = str(folder / UNIT_FILE) if (folder / UNIT_FILE).is_file() else None
+    declaration = Path(model).resolve() if model and model.lower().endswith(".toml") else None
+    files = sorted((p for p in folder.rglob("*")
+                    if p.is_file() and p.name != UNIT_FILE
+                    and not any(part.startswith(".") for part in p.relative_to(folder).parts)
+                    and (declaration is None or p.resolve() != declaration)),
+                   key=lambda p: _name_key(p.relative_to(folder)))
+    return [FleetRecord(folder.name, p, fallback_model=model, fallback_source=source,
+                        error=error if _is_record(p) else _not_a_record(p)) for p in files]
+
+
 def inbox_records(inbox: str | Path) -> list[FleetRecord]:
     """The records of an inbox folder: ``INBOX/UNIT/...`` (a folder per unit).
 
-    Every file under a unit's folder (sub-folders too) with a record suffix
-    (:data:`condmon.io.readers.READABLE_SUFFIXES`) is a record of that unit;
-    other files and hidden ones are ignored. ``INBOX/UNIT/unit.toml`` may name
-    the unit's model (``model = "dc-motor-coulomb"`` or a declaration file,
-    relative to the folder), used while the unit has no history. A record file
-    directly in the inbox (in no unit's folder) is refused.
+    Every file under a unit's folder (sub-folders too) is a record of that
+    unit: one with a record suffix (:data:`condmon.io.readers.READABLE_SUFFIXES`)
+    is read, any other is refused as not a record file; hidden files and
+    folders are ignored. ``INBOX/UNIT/unit.toml`` may name the unit's model
+    (``model = "dc-motor-coulomb"`` or a declaration file, relative to the
+    folder, which is then no record either), used while the unit has no
+    history. A record file directly in the inbox (in no unit's folder) is
+    refused; other files there are ignored.
 
     Raises
     ------
     ConfigError
-        ``inbox`` is not a folder.
+        ``inbox`` is not a folder, or is a unit's folder (it holds record
+        files and no folders, or a ``unit.toml``).
 
     Example
     -------
@@ -121,23 +161,24 @@ def inbox_records(inbox: str | Path) -> list[FleetRecord]:
     >>> for name in ("EMA-1/rec-10.csv", "EMA-1/rec-2.csv", "EMA-1/notes.md"):
     ...     (root / name).parent.mkdir(exist_ok=True)
     ...     _ = (root / name).write_text("t\\n")
-    >>> [r.path.name for r in inbox_records(root)]
-    ['rec-2.csv', 'rec-10.csv']
+    >>> [(r.path.name, r.error is None) for r in inbox_records(root)]
+    [('notes.md', False), ('rec-2.csv', True), ('rec-10.csv', True)]
     """
     root = Path(inbox)
     if not root.is_dir():
         raise ConfigError(f"{root}: not a folder; the inbox holds a folder per unit "
                           "(INBOX/UNIT/record files)")
+    entries = [e for e in sorted(root.iterdir(), key=lambda p: _natural(p.name))
+               if not e.name.startswith(".")]
+    stray = [e for e in entries if _is_record(e)]
+    if stray and ((root / UNIT_FILE).is_file() or not any(e.is_dir() for e in entries)):
+        parent = root.parent if root.parent.name else root.absolute().parent
+        raise ConfigError(f"{root} holds record files, not unit folders — did you mean "
+                          f"{parent}?")
     records: list[FleetRecord] = []
-    for entry in sorted(root.iterdir(), key=lambda p: _natural(p.name)):
-        if entry.name.startswith("."):
-            continue
+    for entry in entries:
         if entry.is_dir():
-            model, error = _unit_file_model(entry)
-            files = sorted((p for p in entry.rglob("*") if _is_record(p)),
-                           key=lambda p: _name_key(p.relative_to(entry)))
-            records += [FleetRecord(entry.name, p, fallback_model=model, error=error)
-                        for p in files]
+            records += _unit_records(entry)
         elif _is_record(entry):
             records.append(FleetRecord("", entry, error=f"{entry}: not in a unit's folder "
                                        "(INBOX/UNIT/record files)"))
@@ -151,67 +192,93 @@ def read_manifest(manifest: str | Path) -> list[FleetRecord]:
     """The records listed in a manifest (CSV or TOML).
 
     A CSV manifest has a header with the columns ``unit`` and ``file``, and
-    optionally ``model`` and ``date``; a TOML manifest lists ``[[records]]``
+    optionally ``model`` and ``date`` (in any case; comma, semicolon or tab
+    delimited, told from the header); a TOML manifest lists ``[[records]]``
     tables with the same keys. A relative ``file`` (and a relative model
-    declaration ``.toml``) is resolved against the manifest's folder. A unit's
-    rows must name one model (or none). A row whose date cannot be read is
-    refused alone.
+    declaration ``.toml``) is resolved against the manifest's folder.
+
+    A row without a model takes its unit's from the unit's other rows (else
+    the history's, else the default). A row that cannot be taken is refused
+    alone, with its reason: a date that cannot be read, another model than an
+    earlier row of its unit gives, an unknown key of a TOML table. A file
+    listed again is skipped (``listed twice in the manifest (rows 2 and 3)``).
 
     Raises
     ------
     ConfigError
-        The manifest cannot be read, lacks a column, has an unknown column, a
-        row without unit or file, or two models for one unit.
+        The manifest cannot be read, lacks a column or has an unknown one, or
+        has rows without a unit or a file (every such row named, in one line).
 
     Example
     -------
     >>> import tempfile
     >>> folder = Path(tempfile.mkdtemp())
-    >>> _ = (folder / "m.csv").write_text("unit,file,date\\nEMA-1,a.csv,2026-03-01\\n")
+    >>> _ = (folder / "m.csv").write_text("Unit;File;Date\\nEMA-1;a.csv;2026-03-01\\n")
     >>> rec = read_manifest(folder / "m.csv")[0]
     >>> rec.unit, rec.path == folder / "a.csv", rec.test_date.isoformat()
     ('EMA-1', True, '2026-03-01T00:00:00+00:00')
     """
     path = Path(manifest)
-    rows = _manifest_rows(path)
     base = path.parent
-    models: dict[str, tuple[str | None, int]] = {}
-    records = []
-    for n, row in rows:
+    problems: list[str] = []
+    rows: list[tuple[int, str, Path, str | None, dict[str, Any]]] = []
+    for n, row in _manifest_rows(path):
         unit, file = (str(row.get(k) or "").strip() for k in ("unit", "file"))
         if not unit or not file:
-            raise ConfigError(f"{path}: row {n}: needs a unit and a file")
+            problems.append(f"row {n}: needs a unit and a file")
+            continue
         model = str(row.get("model") or "").strip() or None
         if model is not None and model.lower().endswith(".toml") and not Path(model).is_absolute():
             model = str(base / model)
-        if unit in models and models[unit][0] != model:
-            raise ConfigError(f"{path}: row {n}: unit {unit!r} has model {model or 'none'!r}; "
-                              f"row {models[unit][1]} gave {models[unit][0] or 'none'!r} (one "
-                              "model per unit)")
-        models.setdefault(unit, (model, n))
-        file_path = Path(file) if Path(file).is_absolute() else base / file
+        rows.append((n, unit, Path(file) if Path(file).is_absolute() else base / file, model,
+                     row))
+    if problems:
+        raise ConfigError(f"{path}: {'; '.join(problems)}")
+    models: dict[str, tuple[str, int]] = {}  # unit -> (model, first row giving it)
+    for n, unit, _, model, _ in rows:
+        if model is not None:
+            models.setdefault(unit, (model, n))
+    listed: dict[Path, int] = {}
+    records = []
+    for n, unit, file_path, model, row in rows:
+        error = skip = None
+        unknown = [str(k) for k in row if k not in MANIFEST_COLUMNS]
+        given = models.get(unit)
+        if unknown:
+            error = (f"{path}: row {n}: unknown column {unknown[0]!r} (columns: "
+                     f"{', '.join(MANIFEST_COLUMNS)})")
+        elif model is not None and given is not None and model != given[0]:
+            error = (f"{path}: unit {unit!r} has one model: row {n} gives {model!r}, row "
+                     f"{given[1]} gave {given[0]!r}")
         when: datetime | None = None
-        error = None
         raw_date = row.get("date")
-        if raw_date not in (None, ""):
+        if error is None and raw_date not in (None, ""):
             try:
                 when = parse_date(raw_date if isinstance(raw_date, datetime) else str(raw_date),
                                   f"{path}: row {n}: date")
             except DataError as exc:
                 error = str(exc)
-        records.append(FleetRecord(unit, file_path, model, None, when, error))
+        key = Path(os.path.normpath(file_path.absolute()))
+        if error is None and key in listed:
+            skip = f"listed twice in the manifest (rows {listed[key]} and {n})"
+        elif error is None:
+            listed[key] = n
+        records.append(FleetRecord(unit, file_path, given[0] if given else None, None, when,
+                                   error, skip=skip))
     return records
 
 
-def _manifest_rows(path: Path) -> list[tuple[int, dict[str, Any]]]:
-    """``(row number, {column: value})`` of a CSV (numbered as lines) or TOML manifest."""
+def _manifest_rows(path: Path) -> list[tuple[int, dict[Any, Any]]]:
+    """``(row number, {column: value})`` of a CSV (numbered as lines) or TOML
+    manifest, its columns in lower case."""
     suffix = path.suffix.lower()
     if suffix not in (".csv", ".toml"):
         raise ConfigError(f"{path}: unknown manifest type {suffix!r}; allowed: .csv, .toml")
     try:
         text = path.read_text(encoding="utf-8-sig")
     except FileNotFoundError:
-        raise ConfigError(f"{path}: manifest not found") from None
+        raise ConfigError(f"{path.absolute()}: manifest not found (relative files are found "
+                          "from the manifest's folder)") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{path}: cannot read the manifest: {_one_line(exc)}") from None
     if suffix == ".toml":
@@ -223,21 +290,32 @@ def _manifest_rows(path: Path) -> list[tuple[int, dict[str, Any]]]:
         if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
             raise ConfigError(f"{path}: needs [[records]] tables with unit, file (and "
                               "optionally model, date)")
-        rows = list(enumerate(entries, start=1))
-    else:
-        reader = csv.DictReader(text.splitlines())
-        header = [h.strip() for h in reader.fieldnames or []]
-        missing = [c for c in ("unit", "file") if c not in header]
-        if missing:
-            raise ConfigError(f"{path}: missing column {missing[0]!r}; columns: "
-                              f"{', '.join(MANIFEST_COLUMNS)} (unit and file required)")
-        reader.fieldnames = header
-        rows = [(n, row) for n, row in enumerate(reader, start=2)
-                if any((v or "").strip() for v in row.values() if isinstance(v, str))]
-    for n, row in rows:
-        unknown = [k for k in row if k not in MANIFEST_COLUMNS]
-        if unknown:
-            raise ConfigError(f"{path}: row {n}: unknown column {unknown[0]!r}; allowed: "
-                              f"{', '.join(MANIFEST_COLUMNS)}")
+        return [(n, {str(k).strip().lower(): v for k, v in e.items()})
+                for n, e in enumerate(entries, start=1)]
+    lines = text.splitlines()
+    first = next((line for line in lines if line.strip()), "")
+    sep = max(_DELIMITERS, key=lambda d: len(next(csv.reader([first], delimiter=d), [])))
+    reader = csv.DictReader(lines, delimiter=sep)
+    found = [h.strip() for h in reader.fieldnames or []]
+    unknown = [h for h in found if h and h.lower() not in MANIFEST_COLUMNS]
+    if unknown:
+        raise ConfigError(f"{path}: unknown column {unknown[0]!r} (columns: "
+                          f"{', '.join(MANIFEST_COLUMNS)})")
+    reader.fieldnames = [h.lower() for h in found]
+    missing = [c for c in ("unit", "file") if c not in reader.fieldnames]
+    if missing:
+        raise ConfigError(f"{path}: missing column {missing[0]!r}; columns: "
+                          f"{', '.join(MANIFEST_COLUMNS)} (unit and file required)")
+    rows = []
+    for row in reader:
+        extra = row.pop(None, None)
+        values = {k: v for k, v in row.items() if k}
+        if extra and any(str(v).strip() for v in extra):
+            values["(a value past the last column)"] = extra
+        if any((v or "").strip() for v in values.values() if isinstance(v, str)) or extra:
+            rows.append((reader.line_num, values))
     return rows
 
+
+#: Delimiters of a CSV manifest, told from its header (the one giving most columns).
+_DELIMITERS = (",", ";", "\t")

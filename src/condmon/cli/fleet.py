@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Optional
 
@@ -47,24 +49,40 @@ def register(app: typer.Typer) -> None:
         go on.
         """
         from condmon.errors import ConfigError
-        from condmon.workflows.fleet import run_fleet
+        from condmon.workflows.fleet import FleetInterrupted, run_fleet
 
         if (inbox is None) == (manifest is None):
             raise ConfigError("give an INBOX folder or --manifest FILE (one of them)")
         source = manifest if manifest is not None else inbox
         assert source is not None
-        with progress() as prog:
-            task = prog.add_task("records", total=None)
-
-            def tick(done: int, total: int, label: str) -> None:
-                prog.update(task, completed=done, total=total, description=escape(label[:40]))
-
-            res = run_fleet(source, db, manifest=manifest is not None, workers=workers,
-                            scheduler=scheduler, baseline_count=baseline_count, progress=tick)
+        try:
+            with _ticker() as tick:
+                res = run_fleet(source, db, manifest=manifest is not None, workers=workers,
+                                scheduler=scheduler, baseline_count=baseline_count,
+                                progress=tick)
+        except FleetInterrupted as stop:
+            err.print(str(stop), highlight=False, markup=False, soft_wrap=True)
+            raise typer.Exit(130) from None
         if as_json:
             write_json(res.to_dict())
             return
         _print_result(res, str(source))
+
+
+@contextmanager
+def _ticker() -> Iterator[Callable[[int, int, str], None]]:
+    """A progress callback: a bar on a terminal's stderr (gone when done), else
+    nothing (no blank line in a log)."""
+    if not err.is_terminal:
+        yield lambda done, total, label: None
+        return
+    with progress() as prog:
+        task = prog.add_task("records", total=None)
+
+        def tick(done: int, total: int, label: str) -> None:
+            prog.update(task, completed=done, total=total, description=escape(label[:40]))
+
+        yield tick
 
 
 def _line(what: str, file: str, reason: str | None) -> str:
@@ -100,9 +118,10 @@ def _print_result(res: FleetResult, source: str) -> None:
         label = f"[bold {color}]{status}[/]" if color else escape(status)
         table.add_row(label, str(len(names)), escape(shown))
     out.print(table)
-    rate = len(res.records) / res.seconds if res.seconds > 0 else float("nan")
+    rate = (f" ({len(res.records) / res.seconds:.1f} records/s)"
+            if res.workers > 0 and res.seconds > 0 else "")
     out.print(f"{len(res.records)} records: {res.count('stored')} stored, "
               f"{res.count('skipped')} skipped, {res.count('rejected')} rejected, "
               f"{res.count('refused')} refused — {len(res.units)} units, "
-              f"{res.workers} worker(s), {res.seconds:.1f} s ({rate:.1f} records/s)",
+              f"{res.workers} worker(s), {res.seconds:.1f} s{rate}",
               highlight=False, markup=False)

@@ -22,8 +22,9 @@ the order they were run, by the same steps as
 baseline) and :func:`condmon.workflows.monitoring.check_test` (afterwards), so
 the fleet gives the answers those give for the same records.
 
-This module holds the engine, :func:`run_fleet` and its results; finding the
-records is :mod:`condmon.workflows.fleet_inbox`, the worker's unit of work
+This module holds :func:`run_fleet` and its results; finding the records is
+:mod:`condmon.workflows.fleet_inbox`, the engine
+:mod:`condmon.workflows.fleet_engine`, the worker's unit of work
 :mod:`condmon.workflows.fleet_work`, and committing a unit's outcomes
 :mod:`condmon.workflows.fleet_commit` (every public name is importable from
 here too).
@@ -31,18 +32,21 @@ here too).
 
 from __future__ import annotations
 
-import logging
-import os
 import time
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from contextlib import ExitStack
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from condmon.errors import CondmonError, ConfigError, DataError
 from condmon.io.digest import file_hash
 from condmon.workflows.fleet_commit import RecordReport, _Unit, _write
+from condmon.workflows.fleet_engine import BLAS_ENV as BLAS_ENV
+from condmon.workflows.fleet_engine import EngineError as EngineError
+from condmon.workflows.fleet_engine import (
+    _engine, _run_tasks, _sigint_held, _threads, local_cluster,
+)
 from condmon.workflows.fleet_inbox import MANIFEST_COLUMNS as MANIFEST_COLUMNS
 from condmon.workflows.fleet_inbox import UNIT_FILE as UNIT_FILE
 from condmon.workflows.fleet_inbox import (
@@ -57,7 +61,7 @@ if TYPE_CHECKING:
 
     from condmon.store.db import HistoryStore
 
-__all__ = ["EngineError", "DEFAULT_MODEL", "OUTCOMES", "BLAS_ENV", "FleetRecord", "RecordTask", "RecordOutcome",
+__all__ = ["EngineError", "FleetInterrupted", "DEFAULT_MODEL", "OUTCOMES", "BLAS_ENV", "FleetRecord", "RecordTask", "RecordOutcome",
            "RecordReport", "UnitReport", "FleetResult", "inbox_records", "read_manifest",
            "process_record", "local_cluster", "run_fleet"]
 
@@ -69,12 +73,24 @@ DEFAULT_MODEL = "dc-motor"
 #: this run (``skipped``), or not written with the reason (``refused``).
 OUTCOMES = ("stored", "skipped", "rejected", "refused")
 
-#: Environment of a local cluster's workers: one BLAS thread per worker process.
-BLAS_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+class FleetInterrupted(KeyboardInterrupt):
+    """A run stopped by Ctrl-C (SIGINT); what was written stays written.
 
+    Its text is the one line to show: ``interrupted: 88 of 144 records
+    stored; run again to finish``.
 
-class EngineError(CondmonError, RuntimeError):
-    """The distributed engine cannot be started or reached."""
+    Attributes
+    ----------
+    stored : int
+        Records written in this run (stored or kept as rejected).
+    total : int
+        Records offered.
+    """
+
+    def __init__(self, stored: int, total: int) -> None:
+        super().__init__(f"interrupted: {stored} of {total} records stored; run again to finish")
+        self.stored = stored
+        self.total = total
 
 
 Progress = Callable[[int, int, str], None]
@@ -162,90 +178,6 @@ class FleetResult:
                 "workers": self.workers, "seconds": self.seconds, "engine": self.engine}
 
 
-# -- the engine -----------------------------------------------------------------------
-
-
-@contextmanager
-def local_cluster(workers: int | None = None) -> Iterator[Client]:
-    """A dask.distributed client of a local cluster: ``workers`` processes
-    (default: the machine's cores), one thread each, BLAS limited to one
-    thread (:data:`BLAS_ENV`); its HTTP endpoints on a free port (never the
-    dashboard's 8787, which another cluster may hold); shut down when the
-    block ends.
-
-    Example
-    -------
-    >>> with local_cluster(1) as client:                       # doctest: +SKIP
-    ...     client.submit(process_record, task).result()
-    """
-    from distributed import Client, LocalCluster
-
-    n = workers if workers is not None else (os.cpu_count() or 1)
-    if n < 1:
-        raise ConfigError(f"workers must be >= 1, got {n}")
-    try:
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1,  # type: ignore[no-untyped-call]
-                               processes=True, dashboard_address=":0",
-                               silence_logs=logging.ERROR, env=dict(BLAS_ENV))
-    except (OSError, RuntimeError, TimeoutError) as exc:
-        raise EngineError(f"cannot start a local cluster of {n} worker(s): "
-                          f"{_one_line(exc)}") from None
-    with cluster, Client(cluster, set_as_default=False) as client:  # type: ignore[no-untyped-call]
-        yield client
-
-
-@contextmanager
-def _engine(workers: int | None, scheduler: str | None) -> Iterator[Client]:
-    if scheduler is None:
-        with local_cluster(workers) as client:
-            yield client
-        return
-    from distributed import Client
-
-    try:
-        client = Client(scheduler, set_as_default=False, timeout="10s")  # type: ignore[no-untyped-call]
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise EngineError(f"cannot reach the scheduler {scheduler!r}: {_one_line(exc)}") from None
-    with client:
-        yield client
-
-
-def _threads(client: Client) -> int:
-    """Worker threads of the cluster."""
-    return sum(client.nthreads().values())  # type: ignore[no-untyped-call]
-
-
-def _run_tasks(client: Client, tasks: Sequence[RecordTask]) -> Iterator[RecordOutcome]:
-    """Outcomes as workers finish them, at most a few tasks per worker queued
-    at a time (a unit's records finish close together)."""
-    from distributed import as_completed
-
-    window = max(16, 4 * _threads(client))
-    todo = iter(tasks)
-    by_future: dict[Any, RecordTask] = {}
-    running = as_completed(loop=client.loop)  # type: ignore[no-untyped-call]
-    for task in todo:
-        fut = client.submit(process_record, task, pure=False)
-        by_future[fut] = task
-        running.add(fut)  # type: ignore[no-untyped-call]
-        if len(by_future) >= window:
-            break
-    for fut in running:
-        task = by_future.pop(fut)
-        try:
-            outcome = fut.result()
-        except Exception as exc:  # noqa: BLE001 - a worker lost, a task cancelled
-            outcome = RecordOutcome(task.unit, task.path, error=_named(
-                task.path, f"not processed: {type(exc).__name__}: {exc}"))
-        fut.release()
-        yield outcome
-        nxt = next(todo, None)
-        if nxt is not None:
-            new = client.submit(process_record, nxt, pure=False)
-            by_future[new] = nxt
-            running.add(new)  # type: ignore[no-untyped-call]
-
-
 # -- a unit's plan --------------------------------------------------------------------
 
 
@@ -275,17 +207,23 @@ def _stored_digests(store: HistoryStore, units: Sequence[str]) -> dict[str, dict
     return store._read(run)
 
 
-def _settle_model(store: HistoryStore, plan: _Unit, rec: FleetRecord) -> None:
+def _settle_model(store: HistoryStore | None, plan: _Unit, rec: FleetRecord) -> None:
     """The unit's model: the manifest's, else its history's, else ``unit.toml``'s,
-    else :data:`DEFAULT_MODEL`; the kind of processing; or why it is refused."""
+    else :data:`DEFAULT_MODEL`; the kind of processing; or why it is refused
+    (naming the ``unit.toml`` whose model it is)."""
     from condmon.models.registry import get_model
     from condmon.store.base import check_name
 
     try:
         check_name(plan.name)
-        stored = store.unit_model(plan.name)
+        stored = store.unit_model(plan.name) if store is not None else None
         model = rec.model or stored or rec.fallback_model or DEFAULT_MODEL
-        machine = get_model(model)
+        try:
+            machine = get_model(model)
+        except CondmonError as exc:
+            if rec.model or stored or not rec.fallback_source:
+                raise
+            raise DataError(f"{rec.fallback_source}: {_one_line(exc)}") from None
         if stored is not None and rec.model is not None and stored not in (machine.name,
                                                                             machine.origin):
             raise DataError(f"unit {plan.name!r} is monitored with model {stored!r}; the "
@@ -365,7 +303,6 @@ def run_fleet(source: str | Path, db: str | Path, *, manifest: bool | None = Non
     >>> res.stored, res.skipped, res.to_dict()["records"][0]["status"]   # doctest: +SKIP
     """
     from condmon.monitor.baseline import MIN_BASELINE_TESTS
-    from condmon.store.db import open_store
 
     started = time.perf_counter()
     if baseline_count < MIN_BASELINE_TESTS:
@@ -378,68 +315,138 @@ def run_fleet(source: str | Path, db: str | Path, *, manifest: bool | None = Non
     path = Path(source)
     as_manifest = path.is_file() if manifest is None else manifest
     records = read_manifest(path) if as_manifest else inbox_records(path)
-    opts = options or EstimateOptions()
-    tick = progress or (lambda done, total, label: None)
-    total = len(records)
-    done = 0
-    reports: dict[str, list[RecordReport]] = {}
-    plans: dict[str, _Unit] = {}
-    with open_store(db) as store:
-        for rec in records:
-            if rec.unit not in plans and not rec.error:
+    run = _Run(records, options or EstimateOptions(),
+               progress or (lambda done, total, label: None), baseline_count, batch_size,
+               batch_seconds)
+    try:
+        units, n_workers, engine = run.run(db, workers, scheduler)
+    except KeyboardInterrupt:
+        raise FleetInterrupted(run.written(), len(records)) from None
+    ordered = tuple(r for u in sorted(run.reports, key=_natural) for r in run.reports[u])
+    return FleetResult(ordered, units, n_workers, time.perf_counter() - started, engine)
+
+
+def _new_sqlite(db: str | Path) -> bool:
+    """Whether ``db`` is a SQLite file that does not exist yet."""
+    from condmon.store.engine import database_url, sqlite_path
+
+    file = sqlite_path(database_url(db))
+    return file is not None and not file.exists()
+
+
+@dataclass
+class _Run:
+    """The state of a fleet run: its records, their units' plans and reports."""
+
+    records: list[FleetRecord]
+    options: EstimateOptions
+    tick: Progress
+    baseline_count: int
+    batch_size: int
+    batch_seconds: float
+    reports: dict[str, list[RecordReport]] = field(default_factory=dict)
+    plans: dict[str, _Unit] = field(default_factory=dict)
+    done: int = 0
+
+    def written(self) -> int:
+        """Records written so far (stored, or kept as rejected)."""
+        return sum(1 for rs in self.reports.values() for r in rs
+                   if r.outcome in ("stored", "rejected"))
+
+    def run(self, db: str | Path, workers: int | None, scheduler: str | None
+            ) -> tuple[tuple[UnitReport, ...], int, str]:
+        """Plan, process and commit; the units, worker threads and engine.
+
+        A new SQLite file is made only once the engine is up (a run that
+        cannot start, or has nothing to compute, leaves no empty history)."""
+        from condmon.store.db import open_store
+
+        n_workers, engine = 0, "none"
+        with ExitStack() as stack:
+            store = None if _new_sqlite(db) else stack.enter_context(open_store(db))
+            tasks = self._plan(store)
+            if tasks:
+                client = stack.enter_context(_engine(workers, scheduler))
+                if store is None:
+                    store = stack.enter_context(open_store(db))
+                n_workers = _threads(client)
+                engine = "local" if scheduler is None else scheduler
+                self._process(client, store, tasks)
+            units = _unit_reports(store, self.plans, self.reports)
+        return units, n_workers, engine
+
+    def _plan(self, store: HistoryStore | None) -> list[tuple[FleetRecord, RecordTask]]:
+        """Each unit's model and known digests; the records settled without a
+        worker reported; the tasks of the others."""
+        plans = self.plans
+        for rec in self.records:
+            if rec.unit not in plans and not rec.error and not rec.skip:
                 plans[rec.unit] = _Unit(rec.unit)
                 _settle_model(store, plans[rec.unit], rec)
-        digests = _stored_digests(store, [u for u, p in plans.items() if p.error is None])
+        digests = ({} if store is None else
+                   _stored_digests(store, [u for u, p in plans.items() if p.error is None]))
         for name, plan in plans.items():
             plan.known = digests.get(name, {})
             plan.digests = frozenset(plan.known)
         tasks: list[tuple[FleetRecord, RecordTask]] = []
-        for rec in records:
+        for rec in self.records:
             unit = plans.get(rec.unit)
             early = _before_work(rec, unit)
             if early is not None:
-                reports.setdefault(rec.unit, []).append(early)
-                done += 1
-                tick(done, total, rec.path.name)
+                self.reports.setdefault(rec.unit, []).append(early)
+                self.done += 1
+                self.tick(self.done, len(self.records), rec.path.name)
                 continue
             assert unit is not None and unit.model is not None and unit.kind is not None
             unit.expected += 1
-            tasks.append((rec, RecordTask(rec.unit, str(rec.path), unit.kind, unit.model, opts,
-                                          rec.test_date, unit.digests)))
-        n_workers, engine = 0, "none"
-        if tasks:
-            by_path = {(t.unit, t.path): rec for rec, t in tasks}
-            with _engine(workers, scheduler) as client:
-                n_workers = _threads(client)
-                engine = "local" if scheduler is None else scheduler
-                ready: list[_Unit] = []
-                waiting_since: float | None = None
-                for out in _run_tasks(client, [t for _, t in tasks]):
-                    plan = plans[out.unit]
-                    plan.outcomes.append((by_path[(out.unit, out.path)], out))
-                    done += 1
-                    tick(done, total, Path(out.path).name)
-                    if len(plan.outcomes) == plan.expected:
-                        ready.append(plan)
-                        waiting_since = waiting_since or time.monotonic()
-                    n_ready = sum(len(p.outcomes) for p in ready)
-                    if ready and (n_ready >= batch_size or
-                                  time.monotonic() - (waiting_since or 0.0) >= batch_seconds):
-                        _write(store, ready, baseline_count, reports)
-                        ready, waiting_since = [], None
-                if ready:
-                    _write(store, ready, baseline_count, reports)
-        units = _unit_reports(store, plans, reports)
-    ordered = tuple(r for u in sorted(reports, key=_natural) for r in reports[u])
-    return FleetResult(ordered, units, n_workers, time.perf_counter() - started, engine)
+            tasks.append((rec, RecordTask(rec.unit, str(rec.path), unit.kind, unit.model,
+                                          self.options, rec.test_date, unit.digests)))
+        return tasks
+
+    def _process(self, client: Client, store: HistoryStore,
+                 tasks: list[tuple[FleetRecord, RecordTask]]) -> None:
+        """Run the tasks; commit each unit once all its records are back, many
+        units per transaction. A Ctrl-C never splits a transaction: the units
+        complete by then are committed, and KeyboardInterrupt goes on."""
+        by_path = {(t.unit, t.path): rec for rec, t in tasks}
+        ready: list[_Unit] = []
+        waiting_since: float | None = None
+
+        def commit() -> None:
+            with _sigint_held():
+                _write(store, ready, self.baseline_count, self.reports)
+                ready.clear()
+
+        try:
+            for out in _run_tasks(client, [t for _, t in tasks]):
+                plan = self.plans[out.unit]
+                plan.outcomes.append((by_path[(out.unit, out.path)], out))
+                self.done += 1
+                self.tick(self.done, len(self.records), Path(out.path).name)
+                if len(plan.outcomes) == plan.expected:
+                    ready.append(plan)
+                    waiting_since = waiting_since or time.monotonic()
+                n_ready = sum(len(p.outcomes) for p in ready)
+                if ready and (n_ready >= self.batch_size or
+                              time.monotonic() - (waiting_since or 0.0) >= self.batch_seconds):
+                    commit()
+                    waiting_since = None
+        except KeyboardInterrupt:
+            commit()
+            raise
+        commit()
 
 
 def _before_work(rec: FleetRecord, plan: _Unit | None) -> RecordReport | None:
     """The report of a record settled without a worker: refused (its unit's
-    model, a bad manifest date, an unreadable file) or skipped (this very file
-    is in the unit's history); None when it is to be processed."""
+    model, a bad manifest row, not a record file, an unreadable file) or
+    skipped (listed again in the manifest, or this very file is in the unit's
+    history); None when it is to be processed."""
     kind = "isolation" if plan is not None and plan.kind == "isolate" else "test"
     where = str(rec.path)
+    if rec.skip is not None and rec.error is None:
+        return RecordReport(rec.unit, where, "skipped", None, _named(where, rec.skip), kind=kind,
+                            test_date=rec.test_date)
     why = rec.error or (plan.error if plan is not None else None)
     if why is None:
         try:
@@ -460,10 +467,12 @@ def _before_work(rec: FleetRecord, plan: _Unit | None) -> RecordReport | None:
                         rec.test_date)
 
 
-def _unit_reports(store: HistoryStore, plans: dict[str, _Unit],
+def _unit_reports(store: HistoryStore | None, plans: dict[str, _Unit],
                   reports: dict[str, list[RecordReport]]) -> tuple[UnitReport, ...]:
-    """Each unit of the run with its status in the history (as ``condmon units``)."""
-    summaries = {str(s["unit"]): s for s in store.unit_summaries()} if plans else {}
+    """Each unit of the run with its status in the history (as ``condmon units``;
+    none without a history)."""
+    summaries = ({str(s["unit"]): s for s in store.unit_summaries()}
+                 if plans and store is not None else {})
     out = []
     for name in sorted(reports, key=_natural):
         if not name:  # record files outside any unit's folder
@@ -473,7 +482,7 @@ def _unit_reports(store: HistoryStore, plans: dict[str, _Unit],
         summary = summaries.get(name)
         status = None if summary is None or summary["status"] is None else str(summary["status"])
         if (plan is not None and plan.kind == "estimate" and status in ("baseline", "rejected")
-                and store.latest_baseline(name) is None):
+                and store is not None and store.latest_baseline(name) is None):
             status = "building"
         out.append(UnitReport(name, plan.model if plan is not None else None,
                               plan.kind if plan is not None else None, status, counts))

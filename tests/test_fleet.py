@@ -3,6 +3,11 @@
 from __future__ import annotations
 
 import json
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -173,10 +178,12 @@ def test_manifest_csv_and_toml(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("text,message", [
-    ("unit,path\nA,a.csv\n", "missing column 'file'"),
-    ("unit,file,colour\nA,a.csv,red\n", "row 2: unknown column 'colour'"),
-    ("unit,file,model\nA,a.csv,dc-motor\nA,b.csv,hst\n", "row 3: unit 'A' has model 'hst'"),
-    ("unit,file\nA,\n", "row 2: needs a unit and a file"),
+    ("unit,model\nA,hst\n", "missing column 'file'"),
+    ("unit,file,colour\nA,a.csv,red\n",
+     r"unknown column 'colour' \(columns: unit, file, model, date\)$"),
+    ("Unit,Flie\nA,a.csv\n", r"unknown column 'Flie' \(columns: unit, file, model, date\)$"),
+    ("unit,file\nA,\nB,b.csv\n\n,c.csv\n", "row 2: needs a unit and a file; row 5: needs a unit "
+     "and a file$"),
 ])
 def test_bad_manifest_is_a_usage_error(tmp_path: Path, text: str, message: str) -> None:
     (tmp_path / "m.csv").write_text(text)
@@ -186,15 +193,18 @@ def test_bad_manifest_is_a_usage_error(tmp_path: Path, text: str, message: str) 
 
 def test_inbox_layout(tmp_path: Path) -> None:
     for name in ("U1/rec-10.csv", "U1/rec-9.parquet", "U1/2026/rec-1.csv", "U1/notes.md",
-                 "U1/.hidden.csv", "U2/x.csv", "stray.csv", "README.md"):
+                 "U1/.hidden.csv", "U1/.git/x.csv", "U2/x.csv", "U2/my.toml", "stray.csv",
+                 "README.md"):
         (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / name).write_text("t\n")
-    (tmp_path / "U2" / "unit.toml").write_text('model = "hst"\n')
+    (tmp_path / "U2" / "unit.toml").write_text('model = "my.toml"\n')
     recs = inbox_records(tmp_path)
     assert [(r.unit, str(r.path.relative_to(tmp_path))) for r in recs] == [
-        ("U1", "U1/2026/rec-1.csv"), ("U1", "U1/rec-9.parquet"), ("U1", "U1/rec-10.csv"),
-        ("U2", "U2/x.csv"), ("", "stray.csv")]
-    assert recs[3].fallback_model == "hst" and recs[4].error is not None
+        ("U1", "U1/2026/rec-1.csv"), ("U1", "U1/notes.md"), ("U1", "U1/rec-9.parquet"),
+        ("U1", "U1/rec-10.csv"), ("U2", "U2/x.csv"), ("", "stray.csv")]
+    assert [r.error is None for r in recs] == [True, False, True, True, True, False]
+    assert recs[4].fallback_model == str(tmp_path / "U2" / "my.toml")
+    assert recs[4].fallback_source == str(tmp_path / "U2" / "unit.toml")
     with pytest.raises(ConfigError, match="not a folder"):
         inbox_records(tmp_path / "none")
 
@@ -231,6 +241,133 @@ def test_an_empty_inbox_needs_no_engine(tmp_path: Path,
                                         capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["fleet", "run", str(tmp_path), "--db", str(tmp_path / "f.db")]) == 0
     assert "no records" in capsys.readouterr().out
+
+
+def _written(db: Path) -> int:
+    """Tests and isolations in a SQLite history (0 while it has none)."""
+    try:
+        with sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=1) as con:
+            return int(sum(con.execute(f"SELECT count(*) FROM {t}").fetchone()[0]
+                           for t in ("tests", "isolations")))
+    except sqlite3.Error:
+        return 0
+
+
+def _condmon(*args: str) -> list[str]:
+    return [sys.executable, "-m", "condmon.cli.main", *args]
+
+
+def test_ctrl_c_keeps_what_is_stored_and_says_so(inbox: Path, tmp_path: Path) -> None:
+    """SIGINT to the process group (as a terminal sends) once the first results are
+    committed: one line on stderr, status 130, the count as in the database; running
+    again stores the rest."""
+    db = tmp_path / "f.db"
+    proc = subprocess.Popen(_condmon("fleet", "run", str(inbox), "--db", str(db),
+                                     "--workers", "1"),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    deadline = time.monotonic() + 120
+    while _written(db) == 0 and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGINT)
+    out, err = proc.communicate(timeout=120)
+    stored = _written(db)
+    assert proc.returncode == 130, err
+    assert 0 < stored < 21
+    assert err == f"interrupted: {stored} of 23 records stored; run again to finish\n"
+    assert out == ""
+    again = run_fleet(inbox, db, workers=1)
+    assert again.stored + again.count("rejected") == 21 - stored and _written(db) == 21
+
+
+def test_a_bad_scheduler_is_one_line_at_once_and_makes_no_database(tmp_path: Path) -> None:
+    (tmp_path / "inbox" / "U").mkdir(parents=True)
+    (tmp_path / "inbox" / "U" / "a.csv").write_text("t,V,I,omega\n0,1,2,3\n")
+    started = time.monotonic()
+    done = subprocess.run(_condmon("fleet", "run", str(tmp_path / "inbox"), "--db",
+                                   str(tmp_path / "f.db"), "--scheduler", "bogus://x"),
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2 and time.monotonic() - started < 15
+    assert done.stderr.startswith("error: cannot reach the scheduler 'bogus://x': unknown "
+                                  "address scheme 'bogus'")
+    assert len(done.stderr.splitlines()) == 1 and done.stdout == ""
+    assert not (tmp_path / "f.db").exists()
+
+
+def test_every_file_of_a_unit_is_accounted_for(tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    """Files no reader takes are refused with the readable suffixes; hidden files
+    and unit.toml are not records; nothing computed: no rate, no database."""
+    unit = tmp_path / "inbox5" / "Z1"
+    unit.mkdir(parents=True)
+    for name in ("a.dat", "b.csv.gz", "noext", "notes.xyz", ".hidden.csv"):
+        (unit / name).write_text("t\n")
+    (unit / "unit.toml").write_text('model = "dc-motor"\n')
+    db = tmp_path / "f.db"
+    assert main(["fleet", "run", str(tmp_path / "inbox5"), "--db", str(db)]) == 0
+    got = capsys.readouterr()
+    readable = ".csv, .parquet, .pq, .txt, .tsv, .mat, .tdms"
+    assert got.err.splitlines() == [
+        f"refused {unit / name}: not a record file ({what}); readable: {readable}"
+        for name, what in (("a.dat", ".dat"), ("b.csv.gz", ".csv.gz"), ("noext", "no suffix"),
+                           ("notes.xyz", ".xyz"))]
+    assert "4 records: 0 stored, 0 skipped, 0 rejected, 4 refused" in got.out
+    assert "records/s" not in got.out and not db.exists()
+
+
+def test_a_unit_folder_given_as_the_inbox_is_a_usage_error(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    unit = tmp_path / "inbox.orig" / "EMA-1"
+    unit.mkdir(parents=True)
+    for i in range(3):
+        (unit / f"rec-0{i}.csv").write_text("t\n")
+    assert main(["fleet", "run", str(unit), "--db", str(tmp_path / "f.db")]) == 2
+    assert capsys.readouterr().err == (f"error: {unit} holds record files, not unit folders — "
+                                       f"did you mean {tmp_path / 'inbox.orig'}?\n")
+    assert not (tmp_path / "f.db").exists()
+
+
+def test_a_bad_model_in_unit_toml_names_it(tmp_path: Path) -> None:
+    (tmp_path / "U").mkdir()
+    (tmp_path / "U" / "x.csv").write_text("t\n")
+    (tmp_path / "U" / "unit.toml").write_text('model = "no-such-model"\n')
+    (only,) = run_fleet(tmp_path, tmp_path / "f.db").records
+    assert only.outcome == "refused"
+    assert str(only.reason).startswith(f"{tmp_path / 'U' / 'x.csv'}: "
+                                       f"{tmp_path / 'U' / 'unit.toml'}: unknown model")
+
+
+def test_manifest_rows_take_their_units_model_and_conflicts_are_the_rows_own(
+        tmp_path: Path) -> None:
+    (tmp_path / "m.csv").write_text("Unit;File;Model;Date\nZ1;a.csv;;\nZ1;b.csv;dc-motor;\n"
+                                    "Z1;c.csv;;2026-03-01\nZ1;d.csv;x;\nZ2;e.csv;;\n")
+    a, b, c, d, e = read_manifest(tmp_path / "m.csv")
+    assert [r.model for r in (a, b, c, e)] == ["dc-motor", "dc-motor", "dc-motor", None]
+    assert [r.error for r in (a, b, c, e)] == [None] * 4 and c.test_date is not None
+    assert d.error == (f"{tmp_path / 'm.csv'}: unit 'Z1' has one model: row 5 gives 'x', "
+                       "row 3 gave 'dc-motor'")
+
+
+def test_a_file_listed_twice_is_skipped_as_such(tmp_path: Path) -> None:
+    (tmp_path / "m.toml").write_text('[[records]]\nunit = "A"\nfile = "a.csv"\n'
+                                     '[[records]]\nUnit = "A"\nFile = "./a.csv"\n'
+                                     '[[records]]\nunit = "A"\nfile = "b.csv"\ncolour = "red"\n')
+    first, second, third = run_fleet(tmp_path / "m.toml", tmp_path / "f.db").records
+    assert (first.outcome, first.reason) == ("refused", f"{tmp_path / 'a.csv'}: file not found")
+    assert (second.outcome, second.reason) == (
+        "skipped", f"{tmp_path / 'a.csv'}: listed twice in the manifest (rows 1 and 2)")
+    assert third.outcome == "refused" and str(third.reason).endswith(
+        "row 3: unknown column 'colour' (columns: unit, file, model, date)")
+    assert not (tmp_path / "f.db").exists()
+
+
+def test_a_missing_manifest_is_named_in_full(tmp_path: Path,
+                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ConfigError) as info:
+        read_manifest("lists/none.csv")
+    assert str(info.value) == (f"{tmp_path / 'lists' / 'none.csv'}: manifest not found "
+                               "(relative files are found from the manifest's folder)")
 
 
 # -- acceptance study --------------------------------------------------------------------

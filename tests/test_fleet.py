@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 import os
 import signal
 import sqlite3
@@ -449,3 +450,16 @@ def test_acceptance_50_units_x_8_records_mixed(tmp_path: Path) -> None:
     print(f"again: {again.to_dict()['stored']} stored, {again.skipped} skipped, "
           f"{again.count('refused')} refused in {time.perf_counter() - t0:.0f} s")
     assert again.stored == 0 and again.skipped == total - 5 and again.count("refused") == 5
+
+
+def test_a_record_in_two_units_folders_is_warned(tmp_path: Path) -> None:
+    files = simulated_inbox(tmp_path / "inbox", [SimulatedUnit("A", records=3)], seed=300)
+    (tmp_path / "inbox" / "B").mkdir()
+    shutil.copy(files["A"][1], tmp_path / "inbox" / "B" / "rec-01.csv")
+    res = run_fleet(tmp_path / "inbox", tmp_path / "f.db", workers=1)
+    by_unit = {r.unit: r for r in res.records if r.unit == "B"}
+    b = by_unit["B"]
+    assert b.outcome == "stored"
+    assert any("the same record is also test #2 of 'A'" in w for w in b.warnings), b.warnings
+    assert not any(r.warnings for r in res.records if r.unit == "A")
+    assert "the same record is also" in json.dumps(b.to_dict())

@@ -111,8 +111,8 @@ class UnitReport:
     kind : {"estimate", "isolate"} or None
     status : str or None
         Its latest test's or isolation's status in the history (as ``condmon
-        units`` shows it), ``building`` while fewer than the baseline's tests
-        are accepted, None when the history has nothing of it.
+        units`` shows it), ``building`` while its baseline is not saved yet,
+        None when the history has nothing of it.
     records : dict of str to int
         How many of its records had each outcome.
     """
@@ -481,9 +481,6 @@ def _unit_reports(store: HistoryStore | None, plans: dict[str, _Unit],
         counts = {o: sum(1 for r in reports[name] if r.outcome == o) for o in OUTCOMES}
         summary = summaries.get(name)
         status = None if summary is None or summary["status"] is None else str(summary["status"])
-        if (plan is not None and plan.kind == "estimate" and status in ("baseline", "rejected")
-                and store is not None and store.latest_baseline(name) is None):
-            status = "building"
         out.append(UnitReport(name, plan.model if plan is not None else None,
                               plan.kind if plan is not None else None, status, counts))
     return tuple(out)

@@ -144,9 +144,9 @@ def _commit_unit(store: HistoryStore, plan: _Unit, baseline_count: int) -> list[
         kind = "isolation" if plan.kind == "isolate" else "test"
 
         def report(outcome: str, status: str | None = None, reason: str | None = None,
-                   tid: int | None = None) -> RecordReport:
+                   tid: int | None = None, warning: str | None = None) -> RecordReport:
             return RecordReport(plan.name, where, outcome, status, reason, tid, kind, date,
-                                out.warnings)
+                                (*out.warnings, *([warning] if warning else [])))
 
         if out.error is not None:
             reports.append(report("refused", reason=out.error))
@@ -202,7 +202,8 @@ def _commit_baseline_test(store: HistoryStore, plan: _Unit, out: RecordOutcome,
     """As :func:`condmon.workflows.monitoring.add_baseline_tests` for one record;
     the baseline is saved once ``baseline_count`` tests are accepted."""
     from condmon.workflows.monitoring import (
-        _unit_error, baseline_members, current_baseline, reevaluate, save_current_baseline,
+        _unit_error, baseline_members, current_baseline, filed_elsewhere, reevaluate,
+        save_current_baseline,
     )
 
     res, key = out.estimate, out.key
@@ -217,9 +218,11 @@ def _commit_baseline_test(store: HistoryStore, plan: _Unit, out: RecordOutcome,
             return report("refused", reason=_named(out.path, f"refused, {why}; nothing was "
                                                    "stored"))
     tid = store.add_test(plan.name, res, role="baseline", digest=key.content,
-                         file_digest=key.file, fingerprint=key.fingerprint, test_date=key.test_date)
+                         file_digest=key.file, fingerprint=key.fingerprint,
+                         test_date=key.test_date)
+    elsewhere = filed_elsewhere(store, plan.name, key)
     if not res.accepted:
-        return report("rejected", "retest", _one_line(str(res.reason)), tid)
+        return report("rejected", "retest", _one_line(str(res.reason)), tid, elsewhere)
     ids, latest = baseline_members(store, plan.name)
     if latest is None and len(ids) >= baseline_count:
         stored, fresh = save_current_baseline(store, plan.name, ids,
@@ -228,15 +231,17 @@ def _commit_baseline_test(store: HistoryStore, plan: _Unit, out: RecordOutcome,
             reevaluate(store, plan.name, stored)
         plan.building = False
         return report("stored", "baseline", f"baseline of {plan.name!r} from {len(ids)} "
-                      f"accepted healthy tests ({stored.name!r} v{stored.version})", tid)
-    return report("stored", "baseline", f"baseline test {len(ids)} of {baseline_count}", tid)
+                      f"accepted healthy tests ({stored.name!r} v{stored.version})", tid,
+                      elsewhere)
+    return report("stored", "baseline", f"baseline test {len(ids)} of {baseline_count}", tid,
+                  elsewhere)
 
 
 def _commit_check(store: HistoryStore, plan: _Unit, out: RecordOutcome,
                   checker: list[_Checker | None], report: ReportFn) -> RecordReport:
     """As :func:`condmon.workflows.monitoring.check_test` for one estimated record."""
     from condmon.workflows.monitoring import (
-        _unit_error, current_baseline, evaluate, save_current_baseline,
+        _unit_error, current_baseline, evaluate, filed_elsewhere, save_current_baseline,
     )
 
     res, key = out.estimate, out.key
@@ -252,16 +257,19 @@ def _commit_check(store: HistoryStore, plan: _Unit, out: RecordOutcome,
         return report("refused", reason=_named(out.path, f"refused, {why}; nothing was stored"))
     if not res.accepted:
         tid = store.add_test(plan.name, res, role="check", digest=key.content,
-                             file_digest=key.file, fingerprint=key.fingerprint, test_date=key.test_date)
-        return report("rejected", "retest", _one_line(str(res.reason)), tid)
+                             file_digest=key.file, fingerprint=key.fingerprint,
+                             test_date=key.test_date)
+        return report("rejected", "retest", _one_line(str(res.reason)), tid,
+                      filed_elsewhere(store, plan.name, key))
     row, diag = evaluate(res, state.baseline, cfg, rb)
     if state.latest is None or list(state.latest.test_ids) != state.ids:
         state.latest, _ = save_current_baseline(store, plan.name, state.ids, monitor=cfg,
                                                 reason="baseline of the first check")
-    tid = store.add_test(plan.name, res, role="check", digest=key.content, file_digest=key.file, fingerprint=key.fingerprint,
-                         test_date=key.test_date, symptoms=row, baseline_id=state.latest.id,
-                         diagnosis=diag)
-    return report("stored", diag.status, diag.summary, tid)
+    tid = store.add_test(plan.name, res, role="check", digest=key.content, file_digest=key.file,
+                         fingerprint=key.fingerprint, test_date=key.test_date, symptoms=row,
+                         baseline_id=state.latest.id, diagnosis=diag)
+    return report("stored", diag.status, diag.summary, tid,
+                  filed_elsewhere(store, plan.name, key))
 
 
 def _write(store: HistoryStore, ready: list[_Unit], baseline_count: int,

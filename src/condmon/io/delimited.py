@@ -123,7 +123,13 @@ def sniff_dialect(text: str, source: Path | str, suffix: str = ".csv",
         raise DataError(f"{source}: the file is empty")
     scored: list[tuple[tuple[bool, bool, int, int], int, Dialect, pd.DataFrame]] = []
     widths: dict[str, tuple[int, int, int]] = {}
-    for rank, (sep, decimal) in enumerate(_candidates(suffix)):
+    ranked = list(enumerate(_candidates(suffix)))
+    # separators the header holds first: a reading by one of them, if any works,
+    # outranks every other (the score's second term), so the others need no parse
+    first = [c for c in ranked if c[1][0] in lines[0]]
+    for rank, (sep, decimal) in first + [c for c in ranked if c not in first]:
+        if scored and sep not in lines[0]:
+            break
         rows = list(csv.reader(lines, delimiter=sep))
         width = len(rows[0])
         bad = next((k for k, r in enumerate(rows[1:], start=2) if len(r) != width), None)

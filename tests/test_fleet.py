@@ -463,3 +463,14 @@ def test_a_record_in_two_units_folders_is_warned(tmp_path: Path) -> None:
     assert any("the same record is also test #2 of 'A'" in w for w in b.warnings), b.warnings
     assert not any(r.warnings for r in res.records if r.unit == "A")
     assert "the same record is also" in json.dumps(b.to_dict())
+
+
+def test_local_workers_keep_glibcs_adaptive_allocator() -> None:
+    """dask's MALLOC_TRIM_THRESHOLD_ (set for long-lived workers) makes every large
+    array a fresh mmap; the fleet's own workers do without it, one BLAS thread each."""
+    import os
+
+    with local_cluster(1) as client:
+        env = list(client.run(lambda: (os.environ.get("MALLOC_TRIM_THRESHOLD_"),
+                                       os.environ.get("OPENBLAS_NUM_THREADS"))).values())
+    assert env == [(None, "1")]

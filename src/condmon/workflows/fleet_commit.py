@@ -202,8 +202,7 @@ def _commit_baseline_test(store: HistoryStore, plan: _Unit, out: RecordOutcome,
     """As :func:`condmon.workflows.monitoring.add_baseline_tests` for one record;
     the baseline is saved once ``baseline_count`` tests are accepted."""
     from condmon.workflows.monitoring import (
-        _unit_error, baseline_members, current_baseline, filed_elsewhere, reevaluate,
-        save_current_baseline,
+        _unit_error, baseline_members, current_baseline, filed_elsewhere, save_current_baseline,
     )
 
     res, key = out.estimate, out.key
@@ -225,10 +224,10 @@ def _commit_baseline_test(store: HistoryStore, plan: _Unit, out: RecordOutcome,
         return report("rejected", "retest", _one_line(str(res.reason)), tid, elsewhere)
     ids, latest = baseline_members(store, plan.name)
     if latest is None and len(ids) >= baseline_count:
-        stored, fresh = save_current_baseline(store, plan.name, ids,
-                                              reason=f"first baseline ({len(ids)} tests)")
-        if fresh:
-            reevaluate(store, plan.name, stored)
+        # the unit's first saved version: no check can exist before it (a check
+        # saves the version it is evaluated against), so none to re-evaluate
+        stored, _ = save_current_baseline(store, plan.name, ids,
+                                          reason=f"first baseline ({len(ids)} tests)")
         plan.building = False
         return report("stored", "baseline", f"baseline of {plan.name!r} from {len(ids)} "
                       f"accepted healthy tests ({stored.name!r} v{stored.version})", tid,

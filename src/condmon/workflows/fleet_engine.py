@@ -161,11 +161,13 @@ def _threads(client: Client) -> int:
 
 
 def _run_tasks(client: Client, tasks: Sequence[RecordTask]) -> Iterator[RecordOutcome]:
-    """Outcomes as workers finish them, at most a few tasks per worker queued
-    at a time (a unit's records finish close together)."""
+    """Outcomes as workers finish them, a bounded number of tasks queued at a
+    time (a unit's records finish close together). The queue holds more work
+    than the client's longest commit takes (a batch of results written while
+    no task is submitted), so the workers never wait on the database."""
     from distributed import as_completed
 
-    window = max(16, 4 * _threads(client))
+    window = max(64, 16 * _threads(client))
     todo = iter(tasks)
     by_future: dict[Any, RecordTask] = {}
     running = as_completed(loop=client.loop)  # type: ignore[no-untyped-call]

@@ -19,7 +19,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from condmon.errors import CondmonError, DataError
+from condmon.errors import CondmonError
 from condmon.workflows.fleet_inbox import FleetRecord, _name_key, _one_line
 from condmon.workflows.fleet_work import Kind, RecordOutcome, _named
 
@@ -96,6 +96,7 @@ class _Unit:
     expected: int = 0
     outcomes: list[tuple[FleetRecord, RecordOutcome]] = field(default_factory=list)
     building: bool = False
+    members: list[int] = field(default_factory=list)  # accepted healthy tests while building
 
 
 @dataclass
@@ -138,6 +139,7 @@ def _commit_unit(store: HistoryStore, plan: _Unit, baseline_count: int) -> list[
 
         ids, latest = baseline_members(store, plan.name)
         plan.building = latest is None and len(ids) < baseline_count
+        plan.members = list(ids) if plan.building else []
     for rec, out in items:
         where = str(rec.path)
         date = rec.test_date or (out.key.test_date if out.key is not None else None)
@@ -201,18 +203,18 @@ def _commit_baseline_test(store: HistoryStore, plan: _Unit, out: RecordOutcome,
                           baseline_count: int, report: ReportFn) -> RecordReport:
     """As :func:`condmon.workflows.monitoring.add_baseline_tests` for one record;
     the baseline is saved once ``baseline_count`` tests are accepted."""
+    from condmon.monitor.baseline import MIN_BASELINE_TESTS
     from condmon.workflows.monitoring import (
-        _unit_error, baseline_members, current_baseline, filed_elsewhere, save_current_baseline,
+        _baseline_of, _unit_error, filed_elsewhere, save_current_baseline,
     )
 
     res, key = out.estimate, out.key
     assert res is not None and key is not None
-    if res.accepted:
-        try:
-            prior: Baseline | None = current_baseline(store, plan.name)[0]
-        except DataError:
-            prior = None
-        why = None if prior is None else _unit_error(res, prior)
+    # while building, the unit has no saved version: its baseline so far is its
+    # accepted healthy tests (plan.members, kept as they are written)
+    if res.accepted and len(plan.members) >= MIN_BASELINE_TESTS:
+        prior = _baseline_of(store, plan.name, plan.members)
+        why = _unit_error(res, prior)
         if why is not None:
             return report("refused", reason=_named(out.path, f"refused, {why}; nothing was "
                                                    "stored"))
@@ -222,8 +224,9 @@ def _commit_baseline_test(store: HistoryStore, plan: _Unit, out: RecordOutcome,
     elsewhere = filed_elsewhere(store, plan.name, key)
     if not res.accepted:
         return report("rejected", "retest", _one_line(str(res.reason)), tid, elsewhere)
-    ids, latest = baseline_members(store, plan.name)
-    if latest is None and len(ids) >= baseline_count:
+    plan.members.append(tid)
+    ids = list(plan.members)
+    if len(ids) >= baseline_count:
         # the unit's first saved version: no check can exist before it (a check
         # saves the version it is evaluated against), so none to re-evaluate
         stored, _ = save_current_baseline(store, plan.name, ids,

@@ -15,7 +15,7 @@ if TYPE_CHECKING:
     from condmon.monitor.fuzzy import MonitorConfig
     from condmon.report.reading import CheckFault
 
-__all__ = ["CSS", "STATUSES", "esc", "badge", "when", "page", "flags_box",
+__all__ = ["CSS", "STATUSES", "esc", "badge", "when", "page", "flags_box", "test_note",
            "baseline_section", "faults_table", "tests_table", "isolations_table"]
 
 #: Every status a page may show.
@@ -141,6 +141,16 @@ def _change_cell(r: Any, p: str) -> str:
     return f"<td class='v' title='SymH {hi:.2f}, SymL {lo:.2f}'{style}>{ch:+.1f}</td>"
 
 
+
+def test_note(row: Any) -> str:
+    """What a test row of the history says beside its status: the exclusion's
+    reason, a check's diagnosis summary, or why the estimate was rejected."""
+    if row["status"] == "excluded":
+        return f"excluded: {row['excluded_reason'] or 'no reason given'}"
+    if row["accepted"] and isinstance(row["summary"], str):
+        return str(row["summary"])
+    return str(row["reason"] or "")
+
 def tests_table(hist: Any, params: Sequence[str], stored: Any,
                 versions: Mapping[int, str]) -> str:
     """Every test: id, date, source, role, fit, status, changes and why.
@@ -164,12 +174,7 @@ def tests_table(hist: Any, params: Sequence[str], stored: Any,
         cells = ("<td></td>" * len(params) if excluded or r["role"] != "check"
                  else "".join(_change_cell(r, p) for p in params))
         fit = f"{r['fit_percent']:.1f}" if pd.notna(r["fit_percent"]) else "—"
-        if excluded:
-            why = f"excluded: {r['excluded_reason'] or 'no reason given'}"
-        elif r["accepted"] and isinstance(r["summary"], str):
-            why = r["summary"]
-        else:
-            why = str(r["reason"] or "")
+        why = test_note(r)
         bid = r["baseline_id"]
         if (not excluded and r["role"] == "check" and pd.notna(bid) and active is not None
                 and int(bid) != active):

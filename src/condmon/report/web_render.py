@@ -17,6 +17,7 @@ from datetime import datetime, timezone
 from typing import TYPE_CHECKING, Any, cast
 
 from condmon.report.figures import STATUS_COLOURS
+from condmon.report.tables import test_note
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -209,12 +210,7 @@ def _test_rows(hist: pd.DataFrame, params: Sequence[str]) -> list[dict[str, Any]
         excluded = status == "excluded"
         changes = [f"{r[f'{p}_change']:+.1f}" if not excluded and f"{p}_change" in r
                    and pd.notna(r[f"{p}_change"]) else "" for p in params]
-        if excluded:
-            note = f"excluded: {r['excluded_reason'] or ''}"
-        elif r["accepted"] and isinstance(r["summary"], str):
-            note = r["summary"]
-        else:
-            note = str(r["reason"] or "")
+        note = test_note(r)
         rows.append({"id": int(cast(int, tid)),
                      "date": _fmt_date(r["date"], pd.isna(r["test_date"])),
                      "source": str(r["source"]), "role": str(r["role"]), "status": status,

@@ -10,7 +10,7 @@ them.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -68,6 +68,16 @@ def _reason(reason: str | None, what: str) -> str:
     return text
 
 
+def _not_yet(info: Mapping[str, Any], what: str, *, excluded: bool) -> Mapping[str, Any]:
+    """``info`` when its record can be excluded (``excluded``) or included."""
+    if excluded and info["excluded"]:
+        raise DataError(f"{what} of {info['unit']!r} is already excluded "
+                        f"({info['excluded_reason']})")
+    if not excluded and not info["excluded"]:
+        raise DataError(f"{what} of {info['unit']!r} is not excluded")
+    return info
+
+
 def _apply(store: HistoryStore, unit: str, ids: Sequence[int], reason: str,
            name: str | None = None) -> ChangeResult:
     """Make ``ids`` the next version of the unit's baseline (or ``name``) and
@@ -98,10 +108,7 @@ def exclude_test(store: HistoryStore, test_id: int, reason: str | None) -> Chang
         The test is already excluded.
     """
     why = _reason(reason, "exclude")
-    info = store.test_info(test_id)
-    if info["excluded"]:
-        raise DataError(f"test #{test_id} of {info['unit']!r} is already excluded "
-                        f"({info['excluded_reason']})")
+    info = _not_yet(store.test_info(test_id), f"test #{test_id}", excluded=True)
     unit = str(info["unit"])
     store.set_excluded(test_id, True, why)
     ids, latest = baseline_members(store, unit)
@@ -124,9 +131,7 @@ def include_test(store: HistoryStore, test_id: int, reason: str | None = None) -
     DataError
         The test is not excluded.
     """
-    info = store.test_info(test_id)
-    if not info["excluded"]:
-        raise DataError(f"test #{test_id} of {info['unit']!r} is not excluded")
+    info = _not_yet(store.test_info(test_id), f"test #{test_id}", excluded=False)
     unit = str(info["unit"])
     why = (reason or "").strip() or "included again"
     store.set_excluded(test_id, False, why)
@@ -157,10 +162,8 @@ def exclude_isolation(store: HistoryStore, isolation_id: int, reason: str | None
         The isolation is already excluded.
     """
     why = _reason(reason, "exclude")
-    info = store.isolation_info(isolation_id)
-    if info["excluded"]:
-        raise DataError(f"isolation i{isolation_id} of {info['unit']!r} is already excluded "
-                        f"({info['excluded_reason']})")
+    info = _not_yet(store.isolation_info(isolation_id), f"isolation i{isolation_id}",
+                    excluded=True)
     store.set_isolation_excluded(isolation_id, True, why)
     unit = str(info["unit"])
     return ChangeResult(unit, f"isolation i{isolation_id} excluded",
@@ -178,9 +181,8 @@ def include_isolation(store: HistoryStore, isolation_id: int, reason: str | None
     DataError
         The isolation is not excluded.
     """
-    info = store.isolation_info(isolation_id)
-    if not info["excluded"]:
-        raise DataError(f"isolation i{isolation_id} of {info['unit']!r} is not excluded")
+    info = _not_yet(store.isolation_info(isolation_id), f"isolation i{isolation_id}",
+                    excluded=False)
     store.set_isolation_excluded(isolation_id, False, (reason or "").strip() or "included again")
     unit = str(info["unit"])
     return ChangeResult(unit, f"isolation i{isolation_id} included",

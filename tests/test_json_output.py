@@ -12,12 +12,18 @@ from condmon.simulate import simulate_actuator
 from condmon.store import open_store
 
 
-def test_history_and_audit_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def _records(folder: Path, seed: int) -> list[str]:
+    """Four simulated actuator records (seeds ``seed`` .. ``seed + 3``)."""
     files = []
     for s in range(4):
-        p = tmp_path / f"h{s}.csv"
-        simulate_actuator(seed=90 + s).to_csv(p, index=False)
+        p = folder / f"h{s}.csv"
+        simulate_actuator(seed=seed + s).to_csv(p, index=False)
         files.append(str(p))
+    return files
+
+
+def test_history_and_audit_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    files = _records(tmp_path, 90)
     db = str(tmp_path / "h.db")
     assert main(["baseline", "add", *files[:3], "--unit", "U", "--db", db]) == 0
     assert main(["check", files[3], "--unit", "U", "--db", db]) == 0
@@ -40,11 +46,7 @@ def test_history_and_audit_json(tmp_path: Path, capsys: pytest.CaptureFixture[st
 
 def test_one_record_filed_under_two_units_is_warned(tmp_path: Path,
                                                      capsys: pytest.CaptureFixture[str]) -> None:
-    files = []
-    for s in range(4):
-        p = tmp_path / f"h{s}.csv"
-        simulate_actuator(seed=95 + s).to_csv(p, index=False)
-        files.append(str(p))
+    files = _records(tmp_path, 95)
     db = str(tmp_path / "h.db")
     assert main(["baseline", "add", *files[:3], "--unit", "A", "--db", db]) == 0
     assert "warning" not in capsys.readouterr().err

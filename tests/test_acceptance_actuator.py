@@ -136,7 +136,7 @@ def test_rejected_fit_changes_no_symptom_or_trend(demo_rig: ActuatorRig) -> None
         rejected = add_baseline_tests(a, "U", [bad])            # as a baseline test
         assert not rejected.tests[0].accepted and rejected.baseline is not None
         assert rejected.baseline.n == 5                          # not in the baseline
-        res = check_test(a, "U", bad.assign(I=bad["I"] + 1e-9))   # same test, a new record
+        res = check_test(a, "U", simulate_actuator(noisy, seed=3))  # another noisy test
         assert res.status == "retest" and res.diagnosis is None and not res.estimate.accepted
         hist = a.history("U")
         assert hist["accepted"].tolist().count(False) == 2

@@ -161,9 +161,8 @@ def process_record(task: RecordTask) -> RecordOutcome:
                 return RecordOutcome(task.unit, task.path, key, isolation=iso,
                                      warnings=_texts(caught),
                                      seconds=time.perf_counter() - started)
-            df.attrs["source"] = task.path
-            opts = dataclasses.replace(task.options, model=task.model, columns=None)
-            res, _ = opts.run(df)  # the columns were mapped when reading
+            opts = dataclasses.replace(task.options, model=task.model)
+            res = opts.estimate_parsed(df, task.path)  # the columns were mapped when reading
             return RecordOutcome(task.unit, task.path, key, estimate=res,
                                  warnings=_texts(caught), seconds=time.perf_counter() - started)
         except CondmonError as exc:

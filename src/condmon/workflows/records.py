@@ -80,13 +80,20 @@ class EstimateOptions:
             ) -> tuple[EstimateResult, RecordKey]:
         """Read (if a path), estimate; returns the result and how the record is known."""
         if isinstance(record, pd.DataFrame):
-            df, key = record, record_key(record, None, test_date)
-            source = str(record.attrs.get("source", "record"))
+            key = record_key(record, None, test_date)
+            source, mapped = str(record.attrs.get("source", "record")), False
+            df = record
         else:
             df = read_record(record, self.columns)
-            key, source = record_key(df, record, test_date), str(record)
-        res = estimate(df, self.model or "dc-motor", method=self.method, gamma=self.gamma,
-                       excitation=self.excitation, fit_threshold=self.fit_threshold,
-                       columns=self.columns if isinstance(record, pd.DataFrame) else None,
-                       source=source, route=self.route, constants=self.constants)
-        return res, key
+            key, source, mapped = record_key(df, record, test_date), str(record), True
+        return self.estimate_parsed(df, source, mapped=mapped), key
+
+    def estimate_parsed(self, df: pd.DataFrame, source: str, *, mapped: bool = True
+                        ) -> EstimateResult:
+        """Estimate a parsed record (``mapped``: its columns already carry the
+        canonical names, else :attr:`columns` maps them); ``source`` names it in
+        messages."""
+        return estimate(df, self.model or "dc-motor", method=self.method, gamma=self.gamma,
+                        excitation=self.excitation, fit_threshold=self.fit_threshold,
+                        columns=None if mapped else self.columns, source=source,
+                        route=self.route, constants=self.constants)

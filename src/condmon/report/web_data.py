@@ -11,15 +11,15 @@ page answers with (:class:`UnknownUnitError`, :class:`FilterError`).
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
-from datetime import datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 from urllib.parse import quote
 
 from condmon.errors import CondmonError, ConfigError
+from condmon.io.jsonable import frame_records, json_safe
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -115,28 +115,6 @@ class _History:
 
 
 # -- what the pages and the API show ---------------------------------------------------
-def _plain(value: Any) -> Any:
-    """``value`` with JSON types only; NaN and ±inf become None (recursively)."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if hasattr(value, "item") and not isinstance(value, (str, bytes)):  # numpy scalar
-        return _plain(value.item())
-    if isinstance(value, datetime):
-        return value.isoformat()
-    return value
-
-
-def _records(frame: pd.DataFrame) -> list[dict[str, Any]]:
-    """Rows as ``condmon history --json`` prints them (ISO dates, NaN as null)."""
-    from condmon.io.jsonable import frame_records
-
-    return frame_records(frame)
-
-
 def _statuses(values: Sequence[str]) -> set[str]:
     wanted = {s.strip() for v in values for s in v.split(",") if s.strip()}
     unknown = sorted(wanted - set(STATUSES))
@@ -169,7 +147,7 @@ def fleet_document(store: HistoryStore, status: Sequence[str] = (),
 def _filtered(units: list[dict[str, Any]], wanted: set[str],
               q: str | None) -> list[dict[str, Any]]:
     text = (q or "").strip().casefold()
-    return [_plain(u) for u in units if (not wanted or (u["status"] or "none") in wanted)
+    return [json_safe(u) for u in units if (not wanted or (u["status"] or "none") in wanted)
             and text in str(u["unit"]).casefold()]
 
 
@@ -282,7 +260,7 @@ def _overview(unit: str, model: str, hist: pd.DataFrame, isos: pd.DataFrame,
         if when is None or last["date"] >= when:
             status, source, when = str(last["status"]), last["source"], last["date"]
             summary = last["statement"]
-    doc: dict[str, Any] = _plain({
+    doc: dict[str, Any] = json_safe({
         "unit": unit, "model": model, "tests": len(hist), "isolations": len(isos),
         "latest_source": source, "latest_date": None if when is None else when.isoformat(),
         "status": status, "summary": summary if isinstance(summary, str) else None,
@@ -300,10 +278,10 @@ def unit_document(data: UnitData) -> dict[str, Any]:
     """
     advice = (None if data.advice_test is None else
               {"test_id": data.advice_test, "faults": data.faults})
-    doc: dict[str, Any] = _plain({
+    doc: dict[str, Any] = json_safe({
         "unit": data.unit, "overview": data.overview,
-        "tests": _records(data.history) if len(data.history) else [],
-        "isolations": _records(data.isolations) if len(data.isolations) else [],
+        "tests": frame_records(data.history) if len(data.history) else [],
+        "isolations": frame_records(data.isolations) if len(data.isolations) else [],
         "baseline": None if data.baseline is None else data.baseline.to_dict(),
         "advice": advice})
     return doc

@@ -126,6 +126,22 @@ def writers(rig, db: str, n_proc: int = 8, per: int = 20) -> dict[str, object]: 
             "integrity_problems": len(problems)}
 
 
+def _empty(url: str | None, file: Path) -> str:
+    """An empty history: the server's ``url`` with condmon's tables dropped, else a
+    new SQLite ``file``."""
+    if not url:
+        return str(file)
+    import sqlalchemy as sa
+
+    from condmon.store import schema
+    from condmon.store.engine import database_url
+
+    eng = sa.create_engine(database_url(url))
+    schema.metadata.drop_all(eng)
+    eng.dispose()
+    return url
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--baselines", type=int, default=100)
@@ -142,23 +158,8 @@ def main() -> None:
     over, conc = [], []
     for name, url in backends.items():
         with tempfile.TemporaryDirectory() as d:
-            db = url or str(Path(d) / "h.db")
-            if url:
-                import sqlalchemy as sa
-
-                from condmon.store import schema
-                from condmon.store.engine import database_url
-
-                eng = sa.create_engine(database_url(url))
-                schema.metadata.drop_all(eng)
-                eng.dispose()
-            over.append({"backend": name, **check_overhead(rig, db)})
-            db2 = url or str(Path(d) / "w.db")
-            if url:
-                eng = sa.create_engine(database_url(url))
-                schema.metadata.drop_all(eng)
-                eng.dispose()
-            conc.append({"backend": name, **writers(rig, db2)})
+            over.append({"backend": name, **check_overhead(rig, _empty(url, Path(d) / "h.db"))})
+            conc.append({"backend": name, **writers(rig, _empty(url, Path(d) / "w.db"))})
     doc["check_overhead"], doc["writers"] = over, conc
     print(table(over, "Time per check (median): estimation and the store"))
     print(table(conc, "8 processes x 20 records at once"))

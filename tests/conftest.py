@@ -7,7 +7,7 @@ import dataclasses
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 import pandas as pd
@@ -36,6 +36,24 @@ def noise_free_record(rig: ActuatorRig) -> pd.DataFrame:
 @pytest.fixture(scope="session")
 def noisy_record(rig: ActuatorRig) -> pd.DataFrame:
     return simulate_actuator(rig, seed=5)
+
+
+RecordFiles = Callable[[Path, Iterable[int]], list[str]]
+
+
+@pytest.fixture(scope="session")
+def record_files() -> RecordFiles:
+    """``record_files(folder, seeds)``: one simulated actuator record per seed,
+    written to ``folder/h0.csv``, ``h1.csv``, ...; their paths."""
+    def write(folder: Path, seeds: Iterable[int]) -> list[str]:
+        files = []
+        for k, seed in enumerate(seeds):
+            path = folder / f"h{k}.csv"
+            simulate_actuator(seed=seed).to_csv(path, index=False)
+            files.append(str(path))
+        return files
+
+    return write
 
 
 @pytest.fixture(scope="session")

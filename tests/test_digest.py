@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -12,6 +13,9 @@ from hypothesis.extra.numpy import arrays
 
 from condmon.io.digest import content_hash, fingerprint, same_content
 from condmon.io.readers import read_record
+
+if TYPE_CHECKING:
+    from conftest import RecordFiles
 
 finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False, allow_infinity=False,
                    width=64)
@@ -88,15 +92,10 @@ def test_a_changed_value_is_another_fingerprint(df: pd.DataFrame, data: st.DataO
     assert not same_content(fp, fingerprint(other))
 
 
-def test_the_history_skips_a_float32_copy(tmp_path: Path) -> None:
+def test_the_history_skips_a_float32_copy(tmp_path: Path, record_files: RecordFiles) -> None:
     from condmon.cli.main import main
-    from condmon.simulate import simulate_actuator
 
-    files = []
-    for s in range(3):
-        p = tmp_path / f"h{s}.csv"
-        simulate_actuator(seed=80 + s).to_csv(p, index=False)
-        files.append(str(p))
+    files = record_files(tmp_path, range(80, 83))
     copy = tmp_path / "h1-f32.parquet"
     pd.read_csv(files[1]).astype("float32").to_parquet(copy)
     db = str(tmp_path / "h.db")

@@ -4,26 +4,20 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
 
 from condmon.cli.main import main
-from condmon.simulate import simulate_actuator
 from condmon.store import open_store
 
-
-def _records(folder: Path, seed: int) -> list[str]:
-    """Four simulated actuator records (seeds ``seed`` .. ``seed + 3``)."""
-    files = []
-    for s in range(4):
-        p = folder / f"h{s}.csv"
-        simulate_actuator(seed=seed + s).to_csv(p, index=False)
-        files.append(str(p))
-    return files
+if TYPE_CHECKING:
+    from conftest import RecordFiles
 
 
-def test_history_and_audit_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    files = _records(tmp_path, 90)
+def test_history_and_audit_json(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                record_files: RecordFiles) -> None:
+    files = record_files(tmp_path, range(90, 94))
     db = str(tmp_path / "h.db")
     assert main(["baseline", "add", *files[:3], "--unit", "U", "--db", db]) == 0
     assert main(["check", files[3], "--unit", "U", "--db", db]) == 0
@@ -45,8 +39,9 @@ def test_history_and_audit_json(tmp_path: Path, capsys: pytest.CaptureFixture[st
 
 
 def test_one_record_filed_under_two_units_is_warned(tmp_path: Path,
-                                                     capsys: pytest.CaptureFixture[str]) -> None:
-    files = _records(tmp_path, 95)
+                                                     capsys: pytest.CaptureFixture[str],
+                                                     record_files: RecordFiles) -> None:
+    files = record_files(tmp_path, range(95, 99))
     db = str(tmp_path / "h.db")
     assert main(["baseline", "add", *files[:3], "--unit", "A", "--db", db]) == 0
     assert "warning" not in capsys.readouterr().err

@@ -56,16 +56,19 @@ class RawRecord:
     ignored: dict[str, str] = field(default_factory=dict)
 
 
-def one_line(err: BaseException, limit: int = 200) -> str:
-    """An exception's message on one line, shortened to ``limit`` characters.
+def one_line(err: BaseException | str, limit: int | None = 200) -> str:
+    """An exception's message (or a text) on one line, shortened to ``limit``
+    characters (None: not shortened).
 
     Example
     -------
     >>> one_line(ValueError("Error tokenizing data.\\nC error: line 5"))
     'Error tokenizing data. C error: line 5'
     """
-    text = " ".join(str(err).split()) or type(err).__name__
-    return text if len(text) <= limit else text[: limit - 3] + "..."
+    text = " ".join(str(err).split())
+    if not text and isinstance(err, BaseException):
+        text = type(err).__name__
+    return text if limit is None or len(text) <= limit else text[: limit - 3] + "..."
 
 
 def describe_shape(shape: tuple[int, ...]) -> str:

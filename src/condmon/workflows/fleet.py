@@ -41,6 +41,7 @@ from typing import TYPE_CHECKING, Any
 
 from condmon.errors import CondmonError, ConfigError, DataError
 from condmon.io.digest import file_hash
+from condmon.io.raw import one_line
 from condmon.workflows.fleet_commit import RecordReport, _Unit, _write
 from condmon.workflows.fleet_engine import BLAS_ENV as BLAS_ENV
 from condmon.workflows.fleet_engine import EngineError as EngineError
@@ -50,7 +51,7 @@ from condmon.workflows.fleet_engine import (
 from condmon.workflows.fleet_inbox import MANIFEST_COLUMNS as MANIFEST_COLUMNS
 from condmon.workflows.fleet_inbox import UNIT_FILE as UNIT_FILE
 from condmon.workflows.fleet_inbox import (
-    FleetRecord, _natural, _one_line, inbox_records, read_manifest,
+    FleetRecord, _natural, inbox_records, read_manifest,
 )
 from condmon.workflows.fleet_work import Kind as Kind
 from condmon.workflows.fleet_work import RecordOutcome, RecordTask, _named, process_record
@@ -223,13 +224,13 @@ def _settle_model(store: HistoryStore | None, plan: _Unit, rec: FleetRecord) -> 
         except CondmonError as exc:
             if rec.model or stored or not rec.fallback_source:
                 raise
-            raise DataError(f"{rec.fallback_source}: {_one_line(exc)}") from None
+            raise DataError(f"{rec.fallback_source}: {one_line(exc, None)}") from None
         if stored is not None and rec.model is not None and stored not in (machine.name,
                                                                             machine.origin):
             raise DataError(f"unit {plan.name!r} is monitored with model {stored!r}; the "
                             f"manifest gives {rec.model!r}")
     except CondmonError as exc:
-        plan.error = _one_line(exc)
+        plan.error = one_line(exc, None)
         return
     plan.model = model
     plan.kind = "estimate" if machine.spec.unknowns else "isolate"

@@ -20,7 +20,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from condmon.errors import CondmonError
-from condmon.workflows.fleet_inbox import FleetRecord, _name_key, _one_line
+from condmon.io.raw import one_line
+from condmon.workflows.fleet_inbox import FleetRecord, _name_key
 from condmon.workflows.fleet_work import Kind, RecordOutcome, _named
 
 if TYPE_CHECKING:
@@ -172,7 +173,7 @@ def _commit_unit(store: HistoryStore, plan: _Unit, baseline_count: int) -> list[
             else:
                 reports.append(_commit_check(store, plan, out, checker, report))
         except DuplicateTestError as dup:  # written meanwhile by another process
-            reports.append(report("skipped", reason=_one_line(dup), tid=dup.test_id))
+            reports.append(report("skipped", reason=one_line(dup, None), tid=dup.test_id))
         except StoreError:
             raise
         except CondmonError as exc:  # no baseline, a rule base that does not fit, ...
@@ -223,7 +224,7 @@ def _commit_baseline_test(store: HistoryStore, plan: _Unit, out: RecordOutcome,
                          test_date=key.test_date)
     elsewhere = filed_elsewhere(store, plan.name, key)
     if not res.accepted:
-        return report("rejected", "retest", _one_line(str(res.reason)), tid, elsewhere)
+        return report("rejected", "retest", one_line(str(res.reason), None), tid, elsewhere)
     plan.members.append(tid)
     ids = list(plan.members)
     if len(ids) >= baseline_count:
@@ -261,7 +262,7 @@ def _commit_check(store: HistoryStore, plan: _Unit, out: RecordOutcome,
         tid = store.add_test(plan.name, res, role="check", digest=key.content,
                              file_digest=key.file, fingerprint=key.fingerprint,
                              test_date=key.test_date)
-        return report("rejected", "retest", _one_line(str(res.reason)), tid,
+        return report("rejected", "retest", one_line(str(res.reason), None), tid,
                       filed_elsewhere(store, plan.name, key))
     row, diag = evaluate(res, state.baseline, cfg, rb)
     if state.latest is None or list(state.latest.test_ids) != state.ids:

@@ -18,7 +18,7 @@ from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
 from condmon.errors import CondmonError, ConfigError
-from condmon.workflows.fleet_inbox import _one_line
+from condmon.io.raw import one_line
 from condmon.workflows.fleet_work import RecordOutcome, RecordTask, _named, process_record
 
 if TYPE_CHECKING:
@@ -114,7 +114,7 @@ def local_cluster(workers: int | None = None) -> Iterator[Client]:
                                    silence_logs=QUIET, env=dict(BLAS_ENV))
         except (OSError, RuntimeError, TimeoutError) as exc:
             raise EngineError(f"cannot start a local cluster of {n} worker(s): "
-                              f"{_one_line(exc)}") from None
+                              f"{one_line(exc, None)}") from None
         client = Client(cluster, set_as_default=False)  # type: ignore[no-untyped-call]
     try:
         yield client
@@ -142,7 +142,7 @@ def _connect(scheduler: str) -> Client:
     try:
         return _Client(scheduler, set_as_default=False, timeout="10s")  # type: ignore[no-untyped-call]
     except (OSError, TimeoutError, ValueError) as exc:
-        raise EngineError(f"cannot reach the scheduler {scheduler!r}: {_one_line(exc)}") from None
+        raise EngineError(f"cannot reach the scheduler {scheduler!r}: {one_line(exc, None)}") from None
 
 
 @contextmanager

@@ -21,6 +21,7 @@ from typing import Any
 
 from condmon.errors import ConfigError, DataError
 from condmon.io.dates import parse_date
+from condmon.io.raw import one_line
 from condmon.io.readers import READABLE_SUFFIXES
 
 __all__ = ["FleetRecord", "inbox_records", "read_manifest"]
@@ -68,11 +69,6 @@ class FleetRecord:
     skip: str | None = None
 
 
-def _one_line(exc: BaseException | str) -> str:
-    return " ".join(str(exc).split()) or (type(exc).__name__ if isinstance(exc, BaseException)
-                                          else "")
-
-
 def _natural(text: str) -> tuple[tuple[int, int | str], ...]:
     """Sort key of a name with its numbers compared as numbers (rec-2 < rec-10)."""
     return tuple((0, int(part)) if part.isdigit() else (1, part)
@@ -111,7 +107,7 @@ def _unit_file_model(folder: Path) -> tuple[str | None, str | None]:
     try:
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        return None, f"{path}: cannot read: {_one_line(exc)}"
+        return None, f"{path}: cannot read: {one_line(exc, None)}"
     model = doc.get("model")
     if not isinstance(model, str) or not model.strip():
         return None, f"{path}: needs model = \"NAME or declaration.toml\""
@@ -280,12 +276,12 @@ def _manifest_rows(path: Path) -> list[tuple[int, dict[Any, Any]]]:
         raise ConfigError(f"{path.absolute()}: manifest not found (relative files are found "
                           "from the manifest's folder)") from None
     except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{path}: cannot read the manifest: {_one_line(exc)}") from None
+        raise ConfigError(f"{path}: cannot read the manifest: {one_line(exc, None)}") from None
     if suffix == ".toml":
         try:
             doc = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
-            raise ConfigError(f"{path}: not TOML: {_one_line(exc)}") from None
+            raise ConfigError(f"{path}: not TOML: {one_line(exc, None)}") from None
         entries = doc.get("records")
         if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
             raise ConfigError(f"{path}: needs [[records]] tables with unit, file (and "

@@ -19,7 +19,7 @@ from datetime import datetime
 from typing import TYPE_CHECKING, Literal
 
 from condmon.errors import CondmonError
-from condmon.workflows.fleet_inbox import _one_line
+from condmon.io.raw import one_line
 from condmon.workflows.records import EstimateOptions, RecordKey
 
 if TYPE_CHECKING:
@@ -100,7 +100,7 @@ class RecordOutcome:
 
 def _named(path: str, message: str) -> str:
     """``message`` as one line that names the file."""
-    text = _one_line(message)
+    text = one_line(message, None)
     return text if path in text else f"{path}: {text}"
 
 
@@ -178,5 +178,5 @@ def process_record(task: RecordTask) -> RecordOutcome:
 
 
 def _texts(caught: list[warnings.WarningMessage]) -> tuple[str, ...]:
-    return tuple(dict.fromkeys(_one_line(str(w.message)) for w in caught))
+    return tuple(dict.fromkeys(one_line(str(w.message), None) for w in caught))
 

@@ -9,9 +9,10 @@ squares) -> physical parameters with standard errors -> plausibility.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
@@ -22,19 +23,24 @@ from condmon.errors import CondmonError, EstimationError, ModelError
 from condmon.identify._common import TFEstimate
 from condmon.identify.defaults import ESTIMATORS, list_estimators
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD, FitCheck
-from condmon.identify.greybox import choose_route, inverse_route, linear_route
+from condmon.identify.greybox import choose_route, linear_route
+from condmon.identify.identifiability import Identifiability
 from condmon.identify.ls import arx, iv
 from condmon.identify.oe import oe
+from condmon.identify.result import EstimateResult
 from condmon.identify.sriv import sriv
+from condmon.identify.windows import Window, cut_windows
 from condmon.io.records import Record, validate_record
+from condmon.io.rig import RecordSettings, apply_record_settings
 from condmon.models.machine import Machine
+from condmon.models.regimes import regime_key
 from condmon.models.registry import get_model
-from condmon.models.transfer import ContinuousTF
 
 __all__ = ["EstimateResult", "estimate", "estimate_record", "estimate_joint", "list_estimators",
            "DEFAULT_EXCITATION"]
 
 FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.intp]
 
 #: Excitation columns used when present and not told otherwise.
 DEFAULT_EXCITATION = ("yd", "ud")
@@ -48,147 +54,6 @@ class Estimator(Protocol):
 
 _ESTIMATORS: dict[str, Estimator] = {"sriv": sriv, "oe": oe, "iv": iv, "arx": arx}
 assert tuple(_ESTIMATORS) == ESTIMATORS, "condmon.identify.defaults names every estimator"
-
-
-@dataclass(frozen=True, eq=False)
-class EstimateResult:
-    """Physical parameters estimated from one record.
-
-    Attributes
-    ----------
-    parameters : dict of str to float
-        Physical parameters in SI units, in the model's report order (DC motor:
-        R [ohm], L [H], Ke [V s/rad], Kt [N m/A], J [kg m^2], D [N m s/rad]).
-    std_errors : dict of str to float
-        Standard error of each parameter (delta method). [same units]
-    covariance : ndarray
-        Covariance of the parameters, in the order of ``parameters``.
-    fit : FitCheck
-        R_T² per output (linear route) or per equation (inverse route),
-        percentage fit, accepted or not.
-    discrete : TFEstimate or None
-        The discrete estimate of the linear route (None for the inverse route).
-    continuous : ContinuousTF or None
-        Its zero-order-hold continuous equivalent (None when it has none).
-    model : str
-        Model name.
-    constants : dict of str to float
-        Known constants used (e.g. gamma = Ke/Kt, gtau). [SI]
-    source : str
-        Record's source.
-    units : dict of str to str
-        Unit of each parameter.
-    rejection : str or None
-        Why no physical parameters could be accepted (no continuous
-        equivalent, not physically possible); ``accepted`` is then False.
-    route : str
-        "linear" or "inverse".
-    notes : tuple of str
-        What the user should know (the estimator's path, residual checks).
-    diagnostics : dict of str to float
-        Residual figures: ``nrmse <output>`` (RMS error / RMS of the measured
-        signal) and ``whiteness <output>`` (largest normalised
-        autocorrelation of the residual at lags 1..20) per output (linear and
-        output-error routes) or per equation (inverse route, with ``cutoff_hz``).
-    model_source : str or None
-        The declaration file of a user's model (None for a shipped model).
-    """
-
-    parameters: dict[str, float]
-    std_errors: dict[str, float]
-    covariance: FloatArray
-    fit: FitCheck
-    discrete: TFEstimate | None
-    continuous: ContinuousTF | None
-    model: str
-    constants: dict[str, float]
-    source: str
-    units: dict[str, str]
-    rejection: str | None = None
-    route: str = "linear"
-    notes: tuple[str, ...] = ()
-    diagnostics: dict[str, float] = field(default_factory=dict)
-    model_source: str | None = None
-
-    @property
-    def model_key(self) -> str:
-        """What :func:`condmon.models.get_model` takes to find this model again:
-        the declaration file of a user's model, else the shipped name."""
-        return self.model_source or self.model
-
-    @property
-    def gamma(self) -> float:
-        """Ke/Kt used (DC-motor models; NaN for others). [-]"""
-        return float(self.constants.get("gamma", float("nan")))
-
-    @property
-    def accepted(self) -> bool:
-        """Whether the test is usable: the fit passed and physical parameters exist."""
-        return self.fit.accepted and self.rejection is None
-
-    @property
-    def reason(self) -> str | None:
-        """Why the test was rejected (None when accepted)."""
-        if self.rejection is not None:
-            return self.rejection
-        if not self.fit.accepted:
-            return (f"fit {self.fit.fit_percent:.1f} % below the threshold "
-                    f"{self.fit.threshold:g} %")
-        return None
-
-    @property
-    def fit_percent(self) -> float:
-        """Percentage fit. [%]"""
-        return self.fit.fit_percent
-
-    @property
-    def method(self) -> str:
-        """Estimator used ("inverse" for the inverse-model route)."""
-        if self.discrete is not None:
-            return self.discrete.method
-        return "oe" if self.route == "oe" else "idim-ls"
-
-    @property
-    def closed_loop_instruments(self) -> bool:
-        """Whether instruments came from the excitation signals."""
-        return self.discrete.closed_loop_instruments if self.discrete is not None else False
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready result (the ``condmon estimate --json`` document); no NaN or inf."""
-        def clean(d: Mapping[str, float]) -> dict[str, float | None]:
-            return {k: (float(v) if np.isfinite(v) else None) for k, v in d.items()}
-
-        fit = self.fit.fit_percent
-        d = self.discrete
-        return {
-            "source": self.source,
-            "model": self.model,
-            "route": self.route,
-            "parameters": clean(self.parameters),
-            "std_errors": clean(self.std_errors),
-            "units": self.units,
-            "fit_percent": fit if np.isfinite(fit) else None,
-            "fits": clean(self.fit.fits_percent),
-            "fit_threshold": self.fit.threshold,
-            "accepted": self.accepted,
-            "reason": self.reason,
-            "method": self.method,
-            "path": d.route if d is not None else self.method,
-            "closed_loop_instruments": self.closed_loop_instruments,
-            "iterations": d.iterations if d is not None else 1,
-            "converged": d.converged if d is not None else True,
-            "gamma": self.gamma if np.isfinite(self.gamma) else None,
-            "constants": clean(self.constants),
-            "notes": list(self.notes),
-            "diagnostics": clean(self.diagnostics),
-            "discrete_model": None if d is None else d.to_dict(),
-            "continuous_model": None if self.continuous is None else self.continuous.to_dict(),
-        }
-
-    def to_frame(self) -> pd.DataFrame:
-        """Parameter table: value, standard error, unit."""
-        return pd.DataFrame({"value": self.parameters, "std_error": self.std_errors,
-                             "unit": self.units})
 
 
 def _excitation_columns(record: pd.DataFrame | Record, machine: Machine,
@@ -220,22 +85,70 @@ def _required_columns(machine: Machine, route: str) -> tuple[str, ...]:
     return machine.inverse().columns
 
 
+def _split_constants(machine: Machine, constants: Mapping[str, Any]
+                     ) -> tuple[dict[str, Any], dict[str, float]]:
+    """``(constants, fixed unknowns)``: a user's ``constants`` naming an unknown fix it
+    for the run; any other name must be a known constant of the model.
+
+    Raises
+    ------
+    ModelError
+        A name that is neither (the allowed ones listed), a value that is not
+        a finite number.
+    """
+    fixed: dict[str, float] = {}
+    rest: dict[str, Any] = {}
+    for k, v in constants.items():
+        if k in machine.spec.unknowns:
+            try:
+                val = float(v)
+            except (TypeError, ValueError):
+                raise ModelError(f"--constants {k}: {v!r} is not a number") from None
+            if not math.isfinite(val):
+                raise ModelError(f"--constants {k}: must be finite, got {val!r}")
+            fixed[k] = val
+        else:
+            rest[k] = v
+    known = machine.constants()
+    bad = [k for k in rest if k not in known]
+    if bad:
+        raise ModelError(f"unknown constant {bad[0]!r} for model {machine.name!r}: not a "
+                         f"parameter; known constants: {', '.join(known) or 'none'}; "
+                         f"unknowns that may be fixed: {', '.join(machine.spec.unknowns)}")
+    return rest, fixed
+
+
+def _record_frame(record: pd.DataFrame, machine: Machine, columns: Mapping[str, str] | None,
+                  settings: RecordSettings | None, source: str | None) -> pd.DataFrame:
+    """The record in model columns: the machine's ``[record]`` settings, then
+    ``settings``, then ``columns`` (unless the frame says they were applied)."""
+    if record.attrs.get("record_settings") is not None:
+        return record.rename(columns={v: k for k, v in columns.items()}) if columns else record
+    merged = machine.record.merged(settings).merged(RecordSettings(dict(columns or {})))
+    return apply_record_settings(record, merged, source)
+
+
 def estimate(record: pd.DataFrame, model: str | Machine = "dc-motor", *,
              method: str = "sriv", gamma: float | None = None,
              excitation: Sequence[str] | str | None = "auto",
              fit_threshold: float = DEFAULT_FIT_THRESHOLD,
              columns: Mapping[str, str] | None = None,
              source: str | None = None, route: str | None = None,
-             constants: Mapping[str, float] | None = None) -> EstimateResult:
+             constants: Mapping[str, float] | None = None,
+             settings: RecordSettings | None = None,
+             metadata: Mapping[str, Any] | None = None,
+             window: tuple[float, float] | None = None,
+             hold: Mapping[str, float] | None = None) -> EstimateResult:
     """Estimate the physical parameters of a machine from one test record.
 
     Parameters
     ----------
     record : pandas.DataFrame
         Columns ``t`` [s] and the model's input and sensors (DC motor: ``V`` [V],
-        ``I`` [A], ``omega`` [rad/s]); optionally the excitation signals.
-        Constants in ``record.attrs["constants"]`` (e.g. scalars of a .mat
-        file) override the declared ones.
+        ``I`` [A], ``omega`` [rad/s]); optionally the excitation signals; or
+        the rig's own columns, read with the machine's ``[record]`` settings
+        and ``settings``. Constants in ``record.attrs["constants"]`` (e.g.
+        scalars of a .mat file) override the declared ones.
     model : str, path or Machine
         A declared machine: a name from :func:`condmon.models.list_models`
         or a declaration file (.toml).
@@ -255,14 +168,26 @@ def estimate(record: pd.DataFrame, model: str | Machine = "dc-motor", *,
         ``{canonical: column}`` renames applied first.
     source : str, optional
         Name of the record in messages and results.
-    route : {"auto", "linear", "inverse", "oe"}, optional
+    route : {"auto", "linear", "inverse", "oe", "steady"}, optional
         Override the declaration's route.
     constants : mapping, optional
-        Known constants overriding the declared ones. [SI]
+        Known constants overriding the declared ones; naming an unknown fixes
+        it for this estimate (reported as held, not estimated). [SI]
+    settings : RecordSettings, optional
+        How the rig writes the record (over the declaration's ``[record]``).
+    metadata : mapping, optional
+        The record's metadata fields (``load = "ball"``) the regimes may name.
+    window : (float, float), optional
+        Only this span of the record ``[start, end]``. [s]
+    hold : mapping, optional
+        Values for the unknowns the record does not identify: a unit's
+        baseline (``{"Tc@forward": 41.0, "J": 0.5}``); default the declared. [SI]
 
     Returns
     -------
     EstimateResult
+        For a record with windows in several regimes, the estimate of the
+        regime with the longest windows, the others in ``others``.
 
     Example
     -------
@@ -275,20 +200,35 @@ def estimate(record: pd.DataFrame, model: str | Machine = "dc-motor", *,
     machine.require_estimation()
     if method not in _ESTIMATORS:
         raise ModelError(f"unknown method {method!r}; allowed: {', '.join(_ESTIMATORS)}")
+    given, fixed = _split_constants(machine, dict(constants or {}))
+    machine = machine.with_fixed(fixed)
     chosen = choose_route(machine, route)
-    df = record.rename(columns={v: k for k, v in columns.items()}) if columns else record
+    df = _record_frame(record, machine, columns, settings, source)
     exc = _excitation_columns(df, machine, excitation) if chosen == "linear" else ()
     n_unknowns = len(machine.spec.unknowns)
     rec = validate_record(df, (*_required_columns(machine, chosen), *exc),
                           input_name=machine.linear().input if chosen == "linear" else None,
-                          min_samples=10 * (n_unknowns + 1), source=source)
+                          min_samples=10 * (n_unknowns + 1), source=source,
+                          optional=_condition_columns(machine))
     consts = dict(df.attrs.get("constants", {}) or {})
-    _check_constants(machine, dict(constants or {}), strict=tuple(constants or ()))
-    consts.update(constants or {})
+    _check_constants(machine, given, strict=tuple(given))
+    consts.update(given)
+    consts.update(fixed)
     if gamma is not None:
         consts["gamma"] = gamma
+    notes = tuple(f"{k} fixed at {v:.6g} {machine.plant.parameter(k).unit} for this estimate "
+                  "(--constants): not estimated".replace("  ", " ") for k, v in fixed.items())
+    if df.attrs.get("record_settings"):
+        notes += (f"record read with its settings: {df.attrs['record_settings']}",)
     return estimate_record(rec, machine, method=method, excitation=exc,
-                           fit_threshold=fit_threshold, route=chosen, constants=consts)
+                           fit_threshold=fit_threshold, route=chosen, constants=consts,
+                           metadata=metadata, window=window, hold=hold, fixed=fixed,
+                           notes=notes)
+
+
+def _condition_columns(machine: Machine) -> tuple[str, ...]:
+    """Record columns the regimes' conditions may name (kept when present)."""
+    return tuple(sorted({n for r in machine.regimes.regimes for n in r.condition.names}))
 
 
 def _oe_start(rec: Sequence[Record], machine: Machine, consts: Mapping[str, float],
@@ -296,9 +236,13 @@ def _oe_start(rec: Sequence[Record], machine: Machine, consts: Mapping[str, floa
     """Starting values of the output-error route: the inverse-model estimate when
     that route fits the model and gives positive-definite answers, else the
     declared values."""
+    from condmon.identify.inverse_route import inverse_route
+
     try:
         inv = inverse_route(rec, machine, constants=consts, fit_threshold=fit_threshold)
     except CondmonError:
+        return machine.nominal(), "the declared values"
+    if inv.identifiability is not None and not inv.identifiability.complete:
         return machine.nominal(), "the declared values"
     if machine.spec.plausibility.check_values(inv.values, machine.units) is None:
         return inv.values, "the inverse-model estimate"
@@ -309,18 +253,22 @@ def estimate_joint(records: Sequence[pd.DataFrame], model: str | Machine = "dc-m
                    fit_threshold: float = DEFAULT_FIT_THRESHOLD,
                    columns: Mapping[str, str] | None = None,
                    sources: Sequence[str] | None = None, route: str | None = None,
-                   constants: Mapping[str, float] | None = None) -> EstimateResult:
+                   constants: Mapping[str, float] | None = None,
+                   settings: RecordSettings | None = None,
+                   metadata: Mapping[str, Any] | None = None,
+                   hold: Mapping[str, float] | None = None) -> EstimateResult:
     """Estimate one set of physical parameters from several records at once.
 
     The records (one sample interval) enter one criterion: the output error
-    summed over all of them (each simulated from rest), or one stacked
-    inverse-model regression. A linear model takes the output-error route.
+    summed over all of them (each simulated from rest), one stacked
+    inverse-model regression, or the balances of every steady window. A
+    linear model takes the output-error route.
 
     Parameters
     ----------
     records : sequence of pandas.DataFrame
         As for :func:`estimate`.
-    model, fit_threshold, columns, route, constants
+    model, fit_threshold, columns, route, constants, settings, metadata, hold
         As for :func:`estimate`.
     sources : sequence of str, optional
         Names of the records in messages and results.
@@ -339,6 +287,8 @@ def estimate_joint(records: Sequence[pd.DataFrame], model: str | Machine = "dc-m
     """
     machine = model if isinstance(model, Machine) else get_model(model)
     machine.require_estimation()
+    given, fixed = _split_constants(machine, dict(constants or {}))
+    machine = machine.with_fixed(fixed)
     chosen = choose_route(machine, route)
     if chosen == "linear":
         chosen = choose_route(machine, "oe")
@@ -347,14 +297,15 @@ def estimate_joint(records: Sequence[pd.DataFrame], model: str | Machine = "dc-m
     consts: dict[str, float] = {}
     recs = []
     for df, name in zip(records, names):
-        frame = df.rename(columns={v: k for k, v in columns.items()}) if columns else df
+        frame = _record_frame(df, machine, columns, settings, name)
         consts.update(dict(frame.attrs.get("constants", {}) or {}))
         recs.append(validate_record(frame, _required_columns(machine, chosen),
                                     min_samples=10 * (len(machine.spec.unknowns) + 1),
-                                    source=name))
-    consts.update(constants or {})
+                                    source=name, optional=_condition_columns(machine)))
+    consts.update(given)
+    consts.update(fixed)
     return estimate_record(recs, machine, fit_threshold=fit_threshold, route=chosen,
-                           constants=consts)
+                           constants=consts, metadata=metadata, hold=hold, fixed=fixed)
 
 
 def _check_constants(machine: Machine, constants: Mapping[str, float],
@@ -381,15 +332,88 @@ def _check_constants(machine: Machine, constants: Mapping[str, float],
     return out
 
 
+@dataclass(frozen=True)
+class _Plan:
+    """One record's route signals (inverse and steady routes) and windows."""
+
+    record: Record
+    signals: dict[str, FloatArray]
+    windows: tuple[Window, ...]
+
+    def rows(self, regime: str) -> list[IntArray]:
+        """Rows of each used window of ``regime``."""
+        return [np.arange(w.first, w.stop) for w in self.windows
+                if w.used and w.regime == regime]
+
+
+def _plan(rec: Record, machine: Machine, route: str, metadata: Mapping[str, Any] | None,
+          window: tuple[float, float] | None) -> _Plan:
+    sig: dict[str, FloatArray] = {}
+    edge = 0
+    if route in ("inverse", "steady"):
+        from condmon.identify.inverse_route import filter_edge, route_cutoff, route_signals
+
+        cutoff = route_cutoff(machine, 1.0 / rec.dt, rec.source)
+        sig = route_signals(rec, machine, cutoff)
+        edge = filter_edge(1.0 / rec.dt, cutoff)
+    named = {**rec.columns, **sig}
+    windows = cut_windows(rec["t"], named, machine.regimes, metadata, source=rec.source,
+                          span=window, edge=edge)
+    return _Plan(rec, sig, windows)
+
+
+def _slice(plan: _Plan, regime: str, sliced: bool) -> Record:
+    """The record, or its longest used window of ``regime`` (a route that needs
+    contiguous samples: linear, output error)."""
+    if not sliced:
+        return plan.record
+    longest = max((w for w in plan.windows if w.used and w.regime == regime),
+                  key=lambda w: w.stop - w.first)
+    return plan.record.slice(longest.first, longest.stop)
+
+
+def _unusable(plans: Sequence[_Plan]) -> str:
+    """Why no window of the record(s) can be used, in one clause."""
+    parts = []
+    for p in plans:
+        for w in p.windows:
+            parts.append(f"{w.regime or 'record'} {w.start:.3g}-{w.end:.3g} s: {w.why}")
+    shown = "; ".join(parts[:4]) + (f"; and {len(parts) - 4} more" if len(parts) > 4 else "")
+    return f"not identifiable: no window of the record can be used ({shown})"
+
+
+def _held_values(machine: Machine, regime: str, hold: Mapping[str, float] | None
+                 ) -> tuple[dict[str, float], dict[str, str]]:
+    """Values the unknowns are held at when not identified, and where each comes
+    from: the unit's baseline (``NAME@REGIME``, else ``NAME``) or the declaration."""
+    values, origin = {}, {}
+    for name, nominal in machine.nominal().items():
+        key = regime_key(name, regime)
+        if hold and key in hold and math.isfinite(hold[key]):
+            values[name], origin[name] = float(hold[key]), "baseline"
+        elif hold and name in hold and math.isfinite(hold[name]):
+            values[name], origin[name] = float(hold[name]), "baseline"
+        else:
+            values[name], origin[name] = float(nominal), "nominal"
+    return values, origin
+
+
 def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-motor", *,
                     method: str = "sriv", gamma: float | None = None,
                     excitation: Sequence[str] = (),
                     fit_threshold: float = DEFAULT_FIT_THRESHOLD, route: str | None = None,
-                    constants: Mapping[str, float] | None = None) -> EstimateResult:
+                    constants: Mapping[str, float] | None = None,
+                    metadata: Mapping[str, Any] | None = None,
+                    window: tuple[float, float] | None = None,
+                    hold: Mapping[str, float] | None = None,
+                    fixed: Mapping[str, float] | None = None,
+                    notes: Sequence[str] = ()) -> EstimateResult:
     """:func:`estimate` on already validated :class:`~condmon.io.Record` (s).
 
-    Several records are estimated together by the output-error or the
-    inverse-model route (a linear model takes the output-error route then).
+    Several records are estimated together by the output-error, inverse-model
+    or steady route (a linear model takes the output-error route then).
+    ``fixed``: unknowns fixed for the run (already constants of ``model``),
+    reported as held; ``notes``: said in the result.
     """
     machine = model if isinstance(model, Machine) else get_model(model)
     records = [rec] if isinstance(rec, Record) else list(rec)
@@ -406,40 +430,105 @@ def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-m
     for r in records:
         spec.plausibility.check_timing(r.dt, r.dt * len(r), r.source, machine.name)
     chosen = choose_route(machine, route)
-    notes: list[str] = []
+    notes = list(notes)
     if len(records) > 1:
         if chosen == "linear":
             chosen = choose_route(machine, "oe")
             notes.append("several records: the linear model is estimated by output error")
         notes.append(f"estimated jointly from {len(records)} records")
+    try:
+        plans = [_plan(r, machine, chosen, metadata, window) for r in records]
+    except CondmonError as err:
+        text = str(err)
+        raise type(err)(text if text.startswith(source) else f"{source}: {text}") from None
+    durations: dict[str, float] = {}
+    for p in plans:
+        for w in p.windows:
+            if w.used:
+                durations[w.regime] = durations.get(w.regime, 0.0) + w.duration
+    regimes = sorted(durations, key=lambda k: -durations[k])
+    common = dict(model=machine.name, constants=consts, source=source, units=machine.units,
+                  route=chosen, model_source=machine.origin)
+    if not regimes:
+        names = spec.report
+        nan = {k: float("nan") for k in names}
+        return EstimateResult(nan, dict(nan), np.full((len(names),) * 2, np.nan),
+                              FitCheck({}, float("nan"), float(fit_threshold), False), None,
+                              None, rejection=_unusable(plans), notes=tuple(notes),
+                              windows=tuple(w for p in plans for w in p.windows),
+                              trended=(), **common)  # type: ignore[arg-type]
+    sliced = machine.regimes.declared or window is not None
+    results = []
+    for regime in regimes:
+        res = _estimate_regime(plans, regime, machine, chosen, method=method,
+                               excitation=excitation, fit_threshold=fit_threshold,
+                               consts=consts, hold=hold, fixed=dict(fixed or {}),
+                               notes=notes, sliced=sliced, common=common)
+        results.append(res)
+    return dataclasses.replace(results[0], others=tuple(
+        dataclasses.replace(r, windows=()) for r in results[1:]))
+
+
+def _estimate_regime(plans: Sequence[_Plan], regime: str, machine: Machine, chosen: str, *,
+                     method: str, excitation: Sequence[str], fit_threshold: float,
+                     consts: dict[str, float], hold: Mapping[str, float] | None,
+                     fixed: dict[str, float], notes: list[str], sliced: bool,
+                     common: dict[str, Any]) -> EstimateResult:
+    """The estimate of one regime's windows (see :func:`estimate_record`)."""
+    spec = machine.spec
+    records = [p.record for p in plans]
+    source = common["source"]
+    notes = list(notes)
+    held_at, origin = _held_values(machine, regime, hold)
     diagnostics: dict[str, float] = {}
     discrete = None
     cont = None
     rejection = None
+    idf: Identifiability | None = None
+    unsteady: dict[tuple[int, int], str] = {}
     try:
         with np.errstate(over="raise", invalid="raise", divide="raise"):
             if chosen == "linear":
-                lin = linear_route(records[0], machine, _ESTIMATORS[method], excitation=excitation,
-                                   constants=consts, fit_threshold=fit_threshold)
+                lin = linear_route(_slice(plans[0], regime, sliced), machine,
+                                   _ESTIMATORS[method], excitation=excitation, constants=consts,
+                                   fit_threshold=fit_threshold, hold=held_at)
                 values, ucov, fit = lin.values, lin.covariance, lin.fit
                 discrete, cont, rejection = lin.discrete, lin.continuous, lin.rejection
                 diagnostics = dict(lin.diagnostics)
                 notes += list(lin.discrete.notes)
+                idf = lin.identifiability
             elif chosen == "oe":
                 from condmon.identify.oe_route import oe_route  # sympy, scipy: only this route
 
-                start, how = _oe_start(records, machine, consts, fit_threshold)
-                oe_res = oe_route(records, machine, start, constants=consts,
+                recs = [_slice(p, regime, sliced) for p in plans]
+                start, how = _oe_start(recs, machine, consts, fit_threshold)
+                oe_res = oe_route(recs, machine, start, constants=consts,
                                   fit_threshold=fit_threshold)
                 values, ucov, fit = oe_res.values, oe_res.covariance, oe_res.fit
                 diagnostics = oe_res.diagnostics()
                 notes.append(f"output error: the declared model simulated with its "
                              f"linear part exact (ZOH), started from {how}, "
                              f"{oe_res.evaluations} optimiser evaluations")
+            elif chosen == "steady":
+                from condmon.identify.steady_route import steady_route
+
+                st = steady_route([p.signals for p in plans], [p.rows(regime) for p in plans],
+                                  machine, constants=consts, hold=held_at,
+                                  fit_threshold=fit_threshold, source=source)
+                values, ucov, fit, idf = st.values, st.covariance, st.fit, st.identifiability
+                diagnostics = st.diagnostics()
+                unsteady = st.unsteady
+                notes.append(f"steady balances over {st.windows} window(s), {st.samples} "
+                             f"samples{f' in regime {regime!r}' if regime else ''}")
             else:
+                from condmon.identify.inverse_route import inverse_route
+
+                rows = [np.concatenate(p.rows(regime)) if p.rows(regime) else
+                        np.zeros(0, dtype=np.intp) for p in plans]
                 inv = inverse_route(records, machine, constants=consts,
-                                    fit_threshold=fit_threshold)
-                values, ucov, fit = inv.values, inv.covariance, inv.fit
+                                    fit_threshold=fit_threshold, rows=rows,
+                                    signals=[p.signals for p in plans], hold=held_at)
+                values, ucov, fit, idf = inv.values, inv.covariance, inv.fit, inv.identifiability
                 diagnostics = inv.diagnostics()
                 notes.append(f"inverse model (IDIM-LS): zero-phase low-pass at {inv.cutoff:g} Hz, "
                              f"central differences, {inv.samples} samples")
@@ -466,21 +555,51 @@ def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-m
                      "part of the dynamics" + (f" ({spec.structure_hint})"
                                                if spec.structure_hint else ""))
     names = spec.report
-    if rejection is None or rejection.startswith("structure mismatch"):
-        params, pcov = machine.report_values({**consts, **values}, ucov)
+    identified = set(idf.identifiable) if idf is not None else set(spec.unknowns)
+    if idf is not None and not idf.identifiable and rejection is None:
+        rejection = "not identifiable: " + "; ".join(f"{k}: {v}" for k, v in idf.reasons.items())
+    if rejection is None or rejection.startswith(("structure mismatch", "not identifiable")):
+        params, G = machine.report_jacobian({**consts, **values})
+        pcov = G @ ucov @ G.T
         vals = np.array([params[k] for k in names])
+        trended = tuple(k for k, g in zip(names, G)
+                        if np.any(g != 0) and all(spec.unknowns[j] in identified
+                                                  for j in np.flatnonzero(g)))
     else:
         vals = np.full(len(names), np.nan)
         pcov = np.full((len(names), len(names)), np.nan)
+        trended = ()
+    if idf is not None and not idf.identifiable:
+        trended = ()
     se = np.sqrt(np.clip(np.diag(pcov), 0.0, None))
+    held = {k: ("given" if k in fixed else origin.get(k, "nominal"))
+            for k in names if k not in trended} if rejection is None else {}
     if rejection is None:
-        rejection = spec.plausibility.check_values(dict(zip(names, vals)), machine.units,
-                                                   dict(zip(names, se)))
+        shown = {k: v for k, v in zip(names, vals) if k in trended}
+        rejection = spec.plausibility.check_values(shown, machine.units,
+                                                   {k: v for k, v in zip(names, se)
+                                                    if k in trended})
     if rejection is None and not np.all(np.isfinite(se)):
         rejection = "the standard errors are not finite: the data do not determine the model"
+    if held and idf is not None and idf.held:
+        notes.append("held (not identified by this record): " + ", ".join(
+            f"{k} at its {origin.get(k, 'nominal')} value" for k in idf.held))
+    windows = []
+    for i, p in enumerate(plans):
+        used_j = 0
+        for w in p.windows:
+            if w.used and w.regime == regime:
+                why = unsteady.get((i, used_j))
+                used_j += 1
+                if why is not None:
+                    w = dataclasses.replace(w, used=False, why=why)
+            elif w.used:
+                w = dataclasses.replace(w, used=False, why=f"estimated separately (regime "
+                                                           f"{w.regime!r})")
+            windows.append(w)
     return EstimateResult(
         parameters={k: float(v) for k, v in zip(names, vals)},
         std_errors={k: float(v) for k, v in zip(names, se)},
-        covariance=pcov, fit=fit, discrete=discrete, continuous=cont, model=machine.name,
-        constants=consts, source=source, units=machine.units, rejection=rejection,
-        route=chosen, notes=tuple(notes), diagnostics=diagnostics, model_source=machine.origin)
+        covariance=pcov, fit=fit, discrete=discrete, continuous=cont, rejection=rejection,
+        notes=tuple(notes), diagnostics=diagnostics, regime=regime, windows=tuple(windows),
+        identifiability=idf, held=held, trended=trended, **common)

@@ -7,12 +7,11 @@ Two routes, chosen from the declaration's structure (:mod:`condmon.models.machin
   continuous time by the exact ZOH inverse, and the parameters are solved from
   the symbolic coefficient map (exactly when the equations are as many as the
   unknowns, in least squares otherwise); standard errors by the delta method.
-- **inverse** — the equations are linear in the unknown parameters but not in
-  the signals (Coulomb friction ``sign(v)``, offsets): every signal is low-passed
-  with a zero-phase Butterworth filter, the unmeasured derivatives are taken by
-  central differences, and ``Σ θ_k φ_k = known`` is solved by least squares
-  (the inverse dynamic identification model, IDIM-LS); standard errors from the
-  residual variance.
+- **inverse** (:mod:`condmon.identify.inverse_route`) — the equations are
+  linear in the unknown parameters but not in the signals (Coulomb friction
+  ``sign(v)``, offsets): IDIM-LS on filtered, differentiated signals.
+- **steady** (:mod:`condmon.identify.steady_route`) — the equations as
+  balances over a record's steady windows.
 
 Written for condmon: no maintained Python package derives these maps from a
 declared model (MATLAB's ``greyest`` and CAPTAIN's ``rivcbj`` are the
@@ -38,6 +37,7 @@ from numpy.typing import NDArray
 from condmon.errors import ConversionError, EstimationError, ModelError
 from condmon.identify._common import TFEstimate
 from condmon.identify.fit import FitCheck, fit_check, residual_figures
+from condmon.identify.identifiability import Identifiability, assess_identifiability
 from condmon.io.records import Record
 from condmon.models.conversion import d2c_coefficients_fast, tf_d2c
 from condmon.models.declared import substituted_equations, symbols_of
@@ -50,9 +50,7 @@ if TYPE_CHECKING:
 # sympy and scipy are imported by the routes and fall-backs that use them: the
 # linear route of a cached declaration (condmon.models.derived_cache) needs neither.
 
-__all__ = ["LinearRouteResult", "RouteResult", "InverseRouteResult", "linear_route",
-           "inverse_route",
-           "choose_route"]
+__all__ = ["LinearRouteResult", "RouteResult", "linear_route", "choose_route"]
 
 FloatArray = NDArray[np.float64]
 
@@ -68,6 +66,9 @@ def choose_route(machine: Machine, route: str | None = None) -> str:
         When the route asked for does not fit the model (with the reason).
     """
     want = route or machine.spec.route
+    if want == "steady":
+        machine.inverse()
+        return "steady"
     if want == "oe":
         from condmon.models.semilinear import semilinear_structure
 
@@ -80,7 +81,7 @@ def choose_route(machine: Machine, route: str | None = None) -> str:
         machine.inverse()
         return "inverse"
     if want != "auto":
-        raise ModelError(f"unknown route {want!r}; allowed: auto, linear, inverse, oe")
+        raise ModelError(f"unknown route {want!r}; allowed: auto, linear, inverse, oe, steady")
     try:
         machine.linear()
         return "linear"
@@ -104,6 +105,7 @@ class LinearRouteResult:
     fit: FitCheck
     rejection: str | None
     diagnostics: dict[str, float] = field(default_factory=dict)
+    identifiability: Identifiability | None = None
 
 
 def _fit_and_diagnostics(est: TFEstimate, u: FloatArray, y: FloatArray,
@@ -217,7 +219,8 @@ def _newton(res: Any, jac: Any, x0: FloatArray, steps: int = 30) -> FloatArray |
 
 def linear_route(rec: Record, machine: Machine, estimator: object, *,
                  excitation: Sequence[str] = (), constants: Mapping[str, float] | None = None,
-                 fit_threshold: float = 90.0) -> LinearRouteResult:
+                 fit_threshold: float = 90.0, hold: Mapping[str, float] | None = None
+                 ) -> LinearRouteResult:
     """Estimate the unknowns of a linear declared model from one record.
 
     Parameters
@@ -233,10 +236,16 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
         Values overriding the declared known constants. [SI]
     fit_threshold : float
         [%]
+    hold : mapping, optional
+        Values of the unknowns the record does not identify (default: the
+        declared ones). [SI]
 
     Returns
     -------
     LinearRouteResult
+        ``identifiability`` from the estimate's information (the
+        coefficients' covariance mapped to the unknowns); unknowns not
+        identified are held and the others solved again.
     """
     lin = machine.linear()
     spec = machine.spec
@@ -286,10 +295,63 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
         tp[k] += h
         Jt[:, k] = (coefficients(tp) - c_hat) / h
     Jp = lin.jacobian(p, known)
-    G = np.linalg.pinv(Jp)
-    cov = G @ Jt @ est.covariance @ Jt.T @ G.T
+    cov_c = Jt @ est.covariance @ Jt.T
+    held = {**machine.nominal(), **dict(hold or {})}
+    scales = np.array([abs(held[k]) or abs(v) or 1.0 for k, v in zip(spec.unknowns, p)])
+    idf = assess_identifiability(_whitened(cov_c, Jp * scales), spec.unknowns,
+                                 limits=spec.identifiability)
+    if not idf.identifiable:
+        return LinearRouteResult(nan, nan_cov, est, cont, fit, None, diag, identifiability=idf)
+    if not idf.complete:  # the identifiable ones again, the others held
+        keep = [spec.unknowns.index(k) for k in idf.identifiable]
+        fixed = np.array([held[k] for k in spec.unknowns])
+        sub = _Subset(lin, keep, fixed)
+        try:
+            p_sub = _solve_coefficients(sub, c_hat, start[keep], known)  # type: ignore[arg-type]
+        except ConversionError as err:
+            return LinearRouteResult(nan, nan_cov, est, cont, fit,
+                                     f"no physical parameters: {err}", diag, identifiability=idf)
+        p = fixed.copy()
+        p[keep] = p_sub
+        Jp = lin.jacobian(p, known)[:, keep]
+        G = np.linalg.pinv(Jp)
+        cov = np.zeros((len(spec.unknowns),) * 2)
+        cov[np.ix_(keep, keep)] = G @ cov_c @ G.T
+    else:
+        G = np.linalg.pinv(Jp)
+        cov = G @ cov_c @ G.T
     return LinearRouteResult(dict(zip(spec.unknowns, map(float, p))), cov, est, cont, fit, None,
-                             diag)
+                             diag, identifiability=idf)
+
+
+@dataclass(frozen=True)
+class _Subset:
+    """The coefficient map over some unknowns, the others fixed (the linear
+    route's re-solve when a record does not identify every unknown)."""
+
+    lin: LinearStructure
+    keep: list[int]
+    fixed: FloatArray
+
+    def _full(self, p: FloatArray) -> FloatArray:
+        full = self.fixed.copy()
+        full[self.keep] = p
+        return full
+
+    def values(self, p: FloatArray, known: FloatArray) -> FloatArray:
+        return self.lin.values(self._full(p), known)
+
+    def jacobian(self, p: FloatArray, known: FloatArray) -> FloatArray:
+        return self.lin.jacobian(self._full(p), known)[:, self.keep]
+
+
+def _whitened(cov: FloatArray, J: FloatArray) -> FloatArray:
+    """``W J`` with ``WᵀW`` the (pseudo-)inverse of ``cov``: the sensitivities of
+    the coefficients, each direction divided by its standard deviation."""
+    lam, U = np.linalg.eigh((cov + cov.T) / 2.0)
+    good = lam > 1e-12 * max(float(lam.max()), 1e-300)
+    W = (U[:, good] / np.sqrt(lam[good])).T
+    return np.asarray(W @ J, dtype=np.float64)
 
 
 @dataclass(frozen=True, eq=False)
@@ -308,6 +370,9 @@ class RouteResult:
         RMS error / RMS of the measured signal, per output or equation. [-]
     whiteness : dict of str to float
         Largest normalised autocorrelation of each residual, lags 1..20. [-]
+    identifiability : Identifiability or None
+        Which unknowns the record identified (None: the route estimates all
+        of them without assessing it); the others hold their given values.
     """
 
     values: dict[str, float]
@@ -315,213 +380,9 @@ class RouteResult:
     fit: FitCheck
     nrmse: dict[str, float]
     whiteness: dict[str, float]
+    identifiability: Identifiability | None = field(default=None, kw_only=True)
 
     def diagnostics(self) -> dict[str, float]:
         """``nrmse <name>`` and ``whiteness <name>`` figures, as in the JSON."""
         return {**{f"nrmse {k}": v for k, v in self.nrmse.items()},
                 **{f"whiteness {k}": v for k, v in self.whiteness.items()}}
-
-
-@dataclass(frozen=True, eq=False)
-class InverseRouteResult(RouteResult):
-    """Outcome of the inverse-model route (see :class:`RouteResult`).
-
-    ``fit`` compares each equation's measured (filtered, differentiated) state
-    derivative with the derivative the estimated model predicts; ``whiteness``
-    is taken at twice the cut-off (the residual's bandwidth).
-
-    Attributes
-    ----------
-    cutoff : float
-        Low-pass cut-off used. [Hz]
-    samples : int
-        Rows of the regression.
-    """
-
-    cutoff: float
-    samples: int
-
-    def diagnostics(self) -> dict[str, float]:
-        """The shared figures, with ``cutoff_hz`` and ``samples``."""
-        return {"cutoff_hz": self.cutoff, "samples": float(self.samples),
-                **super().diagnostics()}
-
-
-def _lowpass(x: FloatArray, cutoff: float, fs: float) -> FloatArray:
-    from scipy.signal import butter, sosfiltfilt
-
-    sos = butter(4, cutoff, fs=fs, output="sos")
-    return np.asarray(sosfiltfilt(sos, x), dtype=np.float64)
-
-
-def inverse_route(rec: Record | Sequence[Record], machine: Machine, *,
-                  constants: Mapping[str, float] | None = None,
-                  fit_threshold: float = 90.0) -> InverseRouteResult:
-    """Inverse-model least squares (IDIM-LS) on filtered and differentiated signals.
-
-    Parameters
-    ----------
-    rec : Record or sequence of Record
-        Validated record(s) with every sensor and input column the equations
-        use; several records (one sample interval) are stacked into one
-        regression.
-    machine : Machine
-    constants : mapping, optional
-        Values overriding the declared known constants. [SI]
-    fit_threshold : float
-        [%]
-
-    Returns
-    -------
-    InverseRouteResult
-
-    Raises
-    ------
-    EstimationError
-        When the regression is singular (a parameter not excited).
-    """
-    inv: InverseStructure = machine.inverse()
-    spec, plant = machine.spec, machine.plant
-    records = [rec] if isinstance(rec, Record) else list(rec)
-    fs = 1.0 / records[0].dt
-    if any(abs(r.dt * fs - 1.0) > 1e-3 for r in records):
-        raise EstimationError("records estimated together must share one sample interval: "
-                              + ", ".join(f"{r.source} {r.dt:.6g} s" for r in records))
-    cutoff = spec.cutoff if spec.cutoff is not None else 0.1 * fs / 2.0
-    if not cutoff < 0.5 * fs:
-        raise EstimationError(f"{records[0].source}: the low-pass cut-off {cutoff:g} Hz is "
-                              f"not below the Nyquist frequency {0.5 * fs:g} Hz")
-    consts = machine.constants(constants)
-    sym = symbols_of(plant)
-    prepared = [_inverse_signals(r, machine, inv, consts, cutoff) for r in records]
-    n_rows = sum(int(rows.size) for _, rows in prepared)
-    if n_rows < 10 * len(spec.unknowns):
-        raise EstimationError(f"{', '.join(r.source for r in records)}: {n_rows} usable "
-                              f"samples after filtering are too few for "
-                              f"{len(spec.unknowns)} unknowns")
-    blocks, rhs = [], []
-    for eq in inv.equations:
-        X = np.zeros((n_rows, len(spec.unknowns)))
-        for unknown, phi in eq.terms:
-            X[:, spec.unknowns.index(unknown)] += np.concatenate(
-                [_evaluate(phi, sig, consts, rows) for sig, rows in prepared])
-        blocks.append(X)
-        rhs.append(np.concatenate([_evaluate(eq.known, sig, consts, rows)
-                                   for sig, rows in prepared]))
-    theta, cov, _ = _weighted_lstsq(blocks, rhs, ", ".join(r.source for r in records))
-    # Fit of each equation on the measured (filtered, differentiated) state
-    # derivative against the derivative the estimated model predicts.
-    values = {**consts, **dict(zip(spec.unknowns, map(float, theta)))}
-    derivs = substituted_equations(plant)[1]
-    step = max(1, int(round(fs / (2.0 * cutoff * spec.decimate))))
-    r2, nrmse, white = {}, {}, {}
-    for eq in inv.equations:
-        name = f"d{eq.state}/dt"
-        model = derivs[eq.state].xreplace({sym[k]: v for k, v in values.items()})
-        meas = np.concatenate([sig[f"d_{eq.state}"][rows] for sig, rows in prepared])
-        pred = np.concatenate([_evaluate(model, sig, consts, rows) for sig, rows in prepared])
-        e = meas - pred
-        figures = residual_figures(meas, e)
-        r2[name], nrmse[name] = figures.r2, figures.nrmse
-        white[name] = residual_figures(meas[::step], e[::step]).whiteness
-    fit_pct = 100.0 * float(np.mean(list(r2.values())))
-    fit = FitCheck(r2, fit_pct, float(fit_threshold), bool(fit_pct >= fit_threshold))
-    return InverseRouteResult(dict(zip(spec.unknowns, map(float, theta))), cov, fit, nrmse,
-                              white, float(cutoff), n_rows)
-
-
-def _inverse_signals(rec: Record, machine: Machine, inv: InverseStructure,
-                     consts: Mapping[str, float], cutoff: float
-                     ) -> tuple[dict[str, FloatArray], NDArray[np.intp]]:
-    """One record's filtered signals and derivatives, and the rows to use
-    (filter edges and standstill left out)."""
-    import sympy as sp
-
-    plant, spec = machine.plant, machine.spec
-    fs = 1.0 / rec.dt
-    column_of = {str(e): sensor for sensor, e in substituted_equations(plant)[2].items()
-                 if isinstance(e, sp.Symbol)}
-    sig: dict[str, FloatArray] = {}
-    for state in inv.signals:
-        if state in column_of:
-            sig[state] = _lowpass(rec[column_of[state]], cutoff, fs)
-    for state, of in inv.derivation.items():
-        if state not in sig and of in sig:
-            sig[state] = np.gradient(sig[of], rec.dt)
-    for name in plant.input_names:
-        if name in rec.columns:
-            sig[name] = _lowpass(rec[name], cutoff, fs)
-    for state in list(sig):
-        if state in plant.state_names:
-            sig[f"d_{state}"] = np.gradient(sig[state], rec.dt)
-    edge = int(math.ceil(3.0 * fs / cutoff))
-    rows = np.arange(edge, len(rec) - edge, spec.decimate)
-    # Rows where the argument of a sign/abs is near zero (an axis standing
-    # still: static friction anywhere within +-Fc) are left out.
-    for arg in _switch_arguments(inv):
-        a = _evaluate(arg, sig, consts, rows)
-        rms = float(np.sqrt(np.mean(a ** 2))) if a.size else 0.0
-        rows = rows[np.abs(a) > spec.deadband * rms]
-    return sig, rows
-
-
-def _switch_arguments(inv: InverseStructure) -> list[sp.Expr]:
-    """Arguments of the sign/abs functions in the equations (unique)."""
-    import sympy as sp
-
-    found: list[sp.Expr] = []
-    for eq in inv.equations:
-        for expr in (*(phi for _, phi in eq.terms), eq.known):
-            for f in expr.atoms(sp.sign, sp.Abs):
-                if f.args[0] not in found:
-                    found.append(f.args[0])
-    return found
-
-
-def _evaluate(expr: sp.Expr, sig: Mapping[str, FloatArray], consts: Mapping[str, float],
-              rows: NDArray[np.intp]) -> FloatArray:
-    import sympy as sp
-
-    names = sorted(str(s) for s in expr.free_symbols)
-    args: list[FloatArray | float] = []
-    for n in names:
-        if n in sig:
-            args.append(sig[n][rows])
-        elif n in consts:
-            args.append(float(consts[n]))
-        else:
-            raise EstimationError(f"signal {n!r} is not available for the inverse model")
-    fn = sp.lambdify([sp.Symbol(n, real=True) for n in names], expr, modules="numpy")
-    with np.errstate(all="ignore"):
-        val = np.asarray(fn(*args), dtype=np.float64)
-    return np.broadcast_to(val, (rows.size,)).astype(np.float64)
-
-
-def _weighted_lstsq(blocks: list[FloatArray], rhs: list[FloatArray], source: str
-                    ) -> tuple[FloatArray, FloatArray, list[FloatArray]]:
-    """Least squares over stacked equations, each weighted by 1/σ of its residual
-    (two passes); covariance ``(Xᵀ W X)⁻¹``."""
-    w = np.ones(len(blocks))
-    theta = np.zeros(blocks[0].shape[1])
-    for _ in range(2):
-        X = np.vstack([b * wi for b, wi in zip(blocks, w)])
-        y = np.concatenate([r * wi for r, wi in zip(rhs, w)])
-        if not (np.all(np.isfinite(X)) and np.all(np.isfinite(y))):
-            raise EstimationError(f"{source}: the inverse-model regressors are not finite")
-        scale = np.sqrt(np.sum(X ** 2, axis=0))
-        if np.any(scale == 0):
-            raise EstimationError(f"{source}: a parameter's regressor is identically zero: "
-                                  "the record does not excite it")
-        Xs = X / scale
-        sv = np.linalg.svd(Xs, compute_uv=False)
-        if sv[-1] < 1e-10 * sv[0]:
-            raise EstimationError(f"{source}: the inverse-model regression is singular "
-                                  f"(condition number {sv[0] / max(sv[-1], 1e-300):.3g}): "
-                                  "the record does not excite every parameter")
-        theta = np.linalg.lstsq(Xs, y, rcond=None)[0] / scale
-        resid = [r - b @ theta for b, r in zip(blocks, rhs)]
-        sig = np.array([max(float(np.std(e)), 1e-300) for e in resid])
-        w = 1.0 / sig
-    X = np.vstack([b * wi for b, wi in zip(blocks, w)])
-    cov = np.linalg.inv(X.T @ X)
-    return theta, np.asarray(cov, dtype=np.float64), resid

@@ -65,6 +65,10 @@ class Record:
         """Columns side by side, shape (N, len(names))."""
         return np.column_stack([self.columns[n] for n in names])
 
+    def slice(self, first: int, stop: int) -> Record:
+        """Rows ``[first, stop)`` as a record of their own (a window)."""
+        return Record({k: v[first:stop] for k, v in self.columns.items()}, self.dt, self.source)
+
 
 def parse_column_map(text: str | None) -> dict[str, str]:
     """``"V=volts,I=amps"`` -> ``{"V": "volts", "I": "amps"}`` (canonical = file column).

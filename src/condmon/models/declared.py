@@ -419,7 +419,7 @@ def load_plant_model(model: str | Path = "hst", params: str | Path | Mapping[str
 
 #: Top-level entries a declaration may hold.
 DECLARATION_KEYS = ("name", "description", "parameters", "inputs", "variables", "states",
-                    "sensors", "test", "smoothing", "estimation", "monitor")
+                    "sensors", "test", "smoothing", "estimation", "monitor", "record", "regimes")
 
 
 def plant_from_doc(doc: Mapping[str, Any], source: str) -> PlantModel:

@@ -25,9 +25,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from condmon.errors import ConfigError, ModelError
+from condmon.io.rig import RecordSettings, parse_record_settings
 from condmon.models import derived_cache
 from condmon.models.declared import PlantModel, substituted_equations, symbols_of
-from condmon.models.plausibility import Plausibility, parse_plausibility
+from condmon.models.plausibility import (
+    IdentifiabilityLimits, Plausibility, parse_identifiability_limits, parse_plausibility,
+)
+from condmon.models.regimes import RegimeSpec, parse_regimes
 
 if TYPE_CHECKING:
     import sympy as sp
@@ -45,7 +49,7 @@ FloatArray = NDArray[np.float64]
 DATA_DIR = Path(__file__).resolve().parents[1] / "data"
 
 #: Estimation routes a declaration may ask for.
-ROUTES = ("auto", "linear", "inverse", "oe")
+ROUTES = ("auto", "linear", "inverse", "oe", "steady")
 
 
 @dataclass(frozen=True)
@@ -60,7 +64,9 @@ class EstimationSpec:
         Quantities reported, in order (unknowns and derived).
     derived : dict of str to (str, str)
         ``name -> (equation, unit)`` of quantities computed from parameters.
-    route : {"auto", "linear", "inverse", "oe"}
+    route : {"auto", "linear", "inverse", "oe", "steady"}
+        "steady": the state equations as balances (derivatives zero) over
+        the steady windows of a record (:mod:`condmon.identify.steady_route`).
     order : int or None
         Discrete model order for the linear route (default: number of states).
     excitation : tuple of str
@@ -77,6 +83,13 @@ class EstimationSpec:
         possible structure mismatch (the estimate is kept). [-]
     structure_hint : str
         What the note suggests then (e.g. a declaration with the missing term).
+    identifiability : IdentifiabilityLimits
+        When an unknown counts as identifiable; the others are held at the
+        unit's baseline value or at nominal.
+    steady_tolerance : float
+        Steady route: a window whose derivative terms (``J dω/dt`` with the
+        held or nominal ``J``) exceed this fraction of the balance's RMS is not
+        steady and not used. [-]
     deadband : float
         Inverse route: rows where the argument of a ``sign``/``abs`` is within
         this fraction of its RMS are left out (static friction at standstill
@@ -101,6 +114,8 @@ class EstimationSpec:
     deadband: float = 0.01
     residual_warning: float = 0.15
     structure_hint: str = ""
+    identifiability: IdentifiabilityLimits = IdentifiabilityLimits()
+    steady_tolerance: float = 0.1
 
 
 @dataclass(frozen=True, eq=False)
@@ -109,7 +124,9 @@ class Machine:
 
     ``origin`` is the declaration file of a user's model (None for a shipped
     one); ``rules`` and ``breakpoints`` the model's own rule base and monitor
-    breakpoints files (None: the shipped DC-motor ones).
+    breakpoints files (None: generic monitoring from the baseline's spread,
+    :mod:`condmon.monitor.generic`); ``record`` how the rig writes its files
+    (the ``[record]`` table); ``regimes`` its operating regimes.
 
     Example
     -------
@@ -126,6 +143,14 @@ class Machine:
     origin: str | None = None
     rules: str | None = None
     breakpoints: str | None = None
+    record: RecordSettings = field(default_factory=RecordSettings)
+    regimes: RegimeSpec = field(default_factory=RegimeSpec)
+
+    @property
+    def monitored_generically(self) -> bool:
+        """Whether the declaration has no ``[monitor]`` table: breakpoints come
+        from the baseline's spread and the rules are generic."""
+        return self.rules is None and self.breakpoints is None
 
     @property
     def name(self) -> str:
@@ -170,13 +195,19 @@ class Machine:
         """Each derived quantity as (expression, fn(params dict) -> value)."""
         return _derived(self)
 
-    def report_values(self, params: Mapping[str, float], cov: FloatArray
-                      ) -> tuple[dict[str, float], FloatArray]:
-        """Reported quantities and their covariance from the unknowns' estimates.
+    def report_jacobian(self, params: Mapping[str, float]
+                        ) -> tuple[dict[str, float], FloatArray]:
+        """Reported quantities and their gradient with respect to the unknowns.
 
-        ``params`` holds unknowns and constants; ``cov`` is the unknowns'
-        covariance (order of ``spec.unknowns``). Derived quantities take the
-        delta method with their exact gradient.
+        ``params`` holds unknowns and constants. A reported name that is
+        neither an unknown nor derived is a constant (an unknown fixed for a
+        run): its value, a zero gradient.
+
+        Returns
+        -------
+        values : dict of str to float
+            In ``spec.report`` order. [SI]
+        jacobian : ndarray, shape (len(report), len(unknowns))
         """
         unknowns = self.spec.unknowns
         rows = []
@@ -186,13 +217,56 @@ class Machine:
                 g = np.zeros(len(unknowns))
                 g[unknowns.index(name)] = 1.0
                 values[name] = float(params[name])
-            else:
+            elif name in self.spec.derived:
                 value, gradient = _derived_numeric(self)[name]
                 values[name] = float(value(params))
                 g = gradient(params)
-            rows.append(g)
-        G = np.array(rows)
+            else:
+                values[name] = float(params[name])
+                g = np.zeros(len(unknowns))
+            rows.append(np.broadcast_to(np.asarray(g, dtype=np.float64), (len(unknowns),)))
+        return values, np.array(rows).reshape(len(rows), len(unknowns))
+
+    def report_values(self, params: Mapping[str, float], cov: FloatArray
+                      ) -> tuple[dict[str, float], FloatArray]:
+        """Reported quantities and their covariance from the unknowns' estimates.
+
+        ``params`` holds unknowns and constants; ``cov`` is the unknowns'
+        covariance (order of ``spec.unknowns``). Derived quantities take the
+        delta method with their exact gradient.
+        """
+        values, G = self.report_jacobian(params)
         return values, G @ cov @ G.T
+
+    def with_fixed(self, names: Mapping[str, float] | Sequence[str]) -> Machine:
+        """This machine with some unknowns known for a run (``--constants R=1.2``):
+        they become constants, still reported; the others are estimated.
+
+        Raises
+        ------
+        ModelError
+            When every unknown would be fixed.
+
+        Example
+        -------
+        >>> from condmon.models.registry import get_model
+        >>> get_model("dc-motor").with_fixed(["D"]).spec.unknowns
+        ('R', 'L', 'Kt', 'J')
+        """
+        fixed = tuple(u for u in self.spec.unknowns if u in set(names))
+        return self if not fixed else _fixed(self, fixed)
+
+
+@functools.lru_cache(maxsize=32)
+def _fixed(machine: Machine, fixed: tuple[str, ...]) -> Machine:
+    import dataclasses
+
+    unknowns = tuple(u for u in machine.spec.unknowns if u not in fixed)
+    if not unknowns:
+        raise ModelError(f"model {machine.name!r}: every unknown is fixed by --constants "
+                         f"({', '.join(fixed)}); nothing is left to estimate")
+    spec = dataclasses.replace(machine.spec, unknowns=unknowns)
+    return dataclasses.replace(machine, spec=spec)
 
 
 # -- the linear structure ---------------------------------------------------------------
@@ -604,7 +678,10 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any],
             raise ConfigError(f"{src}[monitor].{key}: {path} not found")
         return str(path)
 
-    files = {"origin": origin, "rules": _file("rules"), "breakpoints": _file("breakpoints")}
+    files: dict[str, Any] = {"origin": origin, "rules": _file("rules"),
+                             "breakpoints": _file("breakpoints"),
+                             "record": parse_record_settings(doc.get("record"), f"{src}[record]"),
+                             "regimes": parse_regimes(doc.get("regimes"), src)}
     est = doc.get("estimation")
     if est is None:  # a model for residuals and isolation only (e.g. the HST)
         return Machine(plant, EstimationSpec((), ()), **files)
@@ -612,7 +689,8 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any],
         raise ConfigError(f"{src}: [estimation] must be a table")
     allowed = {"estimate", "report", "derived", "route", "order", "excitation", "cutoff",
                "decimate", "plausible", "max_change", "min_duration", "sample_interval",
-               "max_residual_correlation", "deadband", "residual_warning", "structure_hint"}
+               "max_residual_correlation", "deadband", "residual_warning", "structure_hint",
+               "identifiability", "steady_tolerance"}
     unknown = set(est) - allowed
     if unknown:
         raise ConfigError(f"{src}[estimation]: unknown key {sorted(unknown)[0]!r}; "
@@ -665,7 +743,9 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any],
         parse_plausibility(est, f"{src}[estimation]"), float(corr),
         _fraction(est.get("deadband", 0.01), f"{src}[estimation].deadband"),
         _fraction(est.get("residual_warning", 0.15), f"{src}[estimation].residual_warning"),
-        str(est.get("structure_hint", "")))
+        str(est.get("structure_hint", "")),
+        parse_identifiability_limits(est.get("identifiability"), src),
+        _fraction(est.get("steady_tolerance", 0.1), f"{src}[estimation].steady_tolerance"))
     machine = Machine(plant, spec, **files)
     _derived_numeric(machine)  # every derived equation parses
     return machine

@@ -18,7 +18,8 @@ from typing import Any
 
 from condmon.errors import ConfigError, DataError
 
-__all__ = ["Bound", "Plausibility", "parse_plausibility"]
+__all__ = ["Bound", "Plausibility", "parse_plausibility", "IdentifiabilityLimits",
+           "parse_identifiability_limits"]
 
 _OPS: dict[str, tuple[str, Callable[[float, float], bool]]] = {
     "gt": (">", operator.gt), "ge": (">=", operator.ge),
@@ -150,6 +151,52 @@ class Plausibility:
             return None
         return ("likely unit or sign error: " + "; ".join(bad)
                 + " — check the units and signs of the record's columns")
+
+
+@dataclass(frozen=True)
+class IdentifiabilityLimits:
+    """When an unknown counts as identifiable (``[estimation.identifiability]``;
+    see :mod:`condmon.identify.identifiability`).
+
+    Attributes
+    ----------
+    max_collinearity : float
+        Largest collinearity index of the estimated set (5 to 20 is usual). [-]
+    max_relative_se : float
+        Largest relative standard error of an estimated unknown. [-]
+    """
+
+    max_collinearity: float = 10.0
+    max_relative_se: float = 0.5
+
+
+def parse_identifiability_limits(table: Any, where: str) -> IdentifiabilityLimits:
+    """Read ``[estimation.identifiability]`` (absent: the defaults).
+
+    Example
+    -------
+    >>> parse_identifiability_limits({"max_collinearity": 20}, "m.toml").max_collinearity
+    20.0
+    """
+    if table is None:
+        return IdentifiabilityLimits()
+    if not isinstance(table, Mapping):
+        raise ConfigError(f"{where}[estimation.identifiability] must be a table with "
+                          "max_collinearity, max_relative_se")
+    extra = [k for k in table if k not in ("max_collinearity", "max_relative_se")]
+    if extra:
+        raise ConfigError(f"{where}[estimation.identifiability]: unknown key {extra[0]!r}; "
+                          "allowed: max_collinearity, max_relative_se")
+    values = {}
+    for key, low in (("max_collinearity", 1.0), ("max_relative_se", 0.0)):
+        if key in table:
+            v = table[key]
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (
+                    math.isfinite(v) and v > low):
+                raise ConfigError(f"{where}[estimation.identifiability].{key} must be a "
+                                  f"number > {low:g}, not {v!r}")
+            values[key] = float(v)
+    return IdentifiabilityLimits(**values)
 
 
 def _bound(name: str, spec: Any, where: str) -> Bound:

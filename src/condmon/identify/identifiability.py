@@ -1,0 +1,220 @@
+"""Which unknowns a record excites: identifiability from the route's sensitivities.
+
+Before a route estimates, condmon asks which of the declared unknowns the
+record's windows can tell apart. The question is answered on the route's own
+sensitivity matrix ``S`` (rows: the weighted equations or outputs of the
+route, columns: the unknowns; ``S[:, k]`` is the change of the weighted
+residual for a *relative* change of unknown ``k``, so the columns compare):
+
+- an unknown whose column is zero does not appear in the equations the route
+  uses (an inertia in a steady balance);
+- an unknown estimated alone with a relative standard error ``1/||S_k||``
+  above ``max_relative_se`` is not excited enough;
+- a set of unknowns is told apart when the collinearity index of its
+  column-normalised sensitivities, ``γ = 1/σ_min`` (Brun, Reichert and Künsch
+  2001), stays at or below ``max_collinearity`` (5 to 20 is usual) and each
+  one's standard error in the set stays below ``max_relative_se``.
+
+Unknowns are taken in the declaration's order (the first ones are preferred)
+and kept while the set stays identifiable; the others are held at the unit's
+baseline value or at nominal, and reported with the reason. The singular
+values of the whole (normalised) matrix and the parameter directions they
+span are reported too.
+
+Written for condmon: the subset selection is a few lines of linear algebra
+over the route's own matrices; no maintained package applies it to a
+declared machine.
+
+References
+----------
+.. [1] R. Brun, P. Reichert, H. R. Künsch, "Practical identifiability analysis
+   of large environmental simulation models", Water Resources Research 37(4),
+   2001.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from condmon.models.plausibility import IdentifiabilityLimits
+
+__all__ = ["Identifiability", "IdentifiabilityLimits", "assess_identifiability",
+           "all_identifiable"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Identifiability:
+    """Which unknowns a record's windows excite, and why the others are held.
+
+    Attributes
+    ----------
+    parameters : tuple of str
+        The unknowns considered, in order of preference.
+    identifiable : tuple of str
+        Those estimated.
+    reasons : dict of str to str
+        Why each other unknown is not identifiable.
+    singular_values : tuple of float
+        Of the column-normalised sensitivity matrix of the unknowns that
+        appear, largest first (one per such unknown). [-]
+    directions : tuple of dict
+        The parameter direction of each singular value (a right singular
+        vector, ``{unknown: component}``); the last ones are the
+        combinations the record cannot see. [-]
+    relative_se : dict of str to float
+        Each identifiable unknown's relative standard error in the estimated
+        set (from the sensitivities, before the estimate). [-]
+    collinearity : float
+        Collinearity index of the estimated set (1 for a single one). [-]
+    limits : IdentifiabilityLimits
+
+    Example
+    -------
+    >>> S = np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 0.0]]) * 100
+    >>> idf = assess_identifiability(S, ("Tc", "Tl", "J"))
+    >>> idf.identifiable, idf.reasons["J"]
+    (('Tc',), 'the equations the route uses do not contain it')
+    >>> idf.reasons["Tl"][:31]
+    'collinear with Tc (collinearity'
+    """
+
+    parameters: tuple[str, ...]
+    identifiable: tuple[str, ...]
+    reasons: dict[str, str] = field(default_factory=dict)
+    singular_values: tuple[float, ...] = ()
+    directions: tuple[dict[str, float], ...] = ()
+    relative_se: dict[str, float] = field(default_factory=dict)
+    collinearity: float = 1.0
+    limits: IdentifiabilityLimits = IdentifiabilityLimits()
+
+    @property
+    def complete(self) -> bool:
+        """Whether every unknown is identifiable."""
+        return len(self.identifiable) == len(self.parameters)
+
+    @property
+    def held(self) -> tuple[str, ...]:
+        """The unknowns not identifiable (held), in order."""
+        return tuple(p for p in self.parameters if p not in self.identifiable)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return {"identifiable": list(self.identifiable), "held": list(self.held),
+                "reasons": dict(self.reasons),
+                "singular_values": [float(s) for s in self.singular_values],
+                "directions": [dict(d) for d in self.directions],
+                "relative_se": {k: float(v) for k, v in self.relative_se.items()},
+                "collinearity": float(self.collinearity),
+                "limits": {"max_collinearity": self.limits.max_collinearity,
+                           "max_relative_se": self.limits.max_relative_se}}
+
+
+def all_identifiable(parameters: Sequence[str]) -> Identifiability:
+    """The answer for a route that estimates every unknown (nothing assessed)."""
+    return Identifiability(tuple(parameters), tuple(parameters))
+
+
+def _collinearity(Sn: FloatArray) -> float:
+    if Sn.shape[1] == 0:
+        return 1.0
+    sv = np.linalg.svd(Sn, compute_uv=False)
+    smallest = float(sv[-1]) if sv.size >= Sn.shape[1] else 0.0
+    return float("inf") if smallest <= 1e-12 else 1.0 / smallest
+
+
+def assess_identifiability(sensitivity: ArrayLike, parameters: Sequence[str], *,
+                           limits: IdentifiabilityLimits | None = None,
+                           absent: Mapping[str, str] | None = None) -> Identifiability:
+    """Choose the unknowns a route can estimate from its sensitivity matrix.
+
+    Parameters
+    ----------
+    sensitivity : array_like, shape (n, p)
+        Weighted sensitivities: column ``k`` is the change of the route's
+        residuals (each divided by its noise standard deviation) for a
+        relative change of unknown ``k`` (``X[:, k] * scale_k / sigma``). [-]
+    parameters : sequence of str
+        The unknowns, in the order they are preferred.
+    limits : IdentifiabilityLimits, optional
+    absent : mapping of str to str, optional
+        Unknowns known not to enter the route's equations, with the reason
+        (they are held whatever their column holds).
+
+    Returns
+    -------
+    Identifiability
+    """
+    lim = limits or IdentifiabilityLimits()
+    names = tuple(parameters)
+    S = np.atleast_2d(np.asarray(sensitivity, dtype=np.float64))
+    if S.shape[1] != len(names):
+        raise ValueError(f"{S.shape[1]} sensitivity columns for {len(names)} unknowns")
+    S = np.where(np.isfinite(S), S, 0.0)
+    norms = np.sqrt(np.sum(S ** 2, axis=0))
+    reasons: dict[str, str] = {}
+    chosen: list[int] = []
+    for k, name in enumerate(names):
+        if absent and name in absent:
+            reasons[name] = absent[name]
+            continue
+        if norms[k] <= 0.0:
+            reasons[name] = "the equations the route uses do not contain it"
+            continue
+        alone = 1.0 / norms[k]
+        if alone > lim.max_relative_se:
+            reasons[name] = (f"not excited: estimated alone its relative standard error would "
+                             f"be {100 * alone:.3g} % (limit {100 * lim.max_relative_se:g} %)")
+            continue
+        trial = [*chosen, k]
+        Sn = S[:, trial] / norms[trial]
+        gamma = _collinearity(Sn)
+        if gamma > lim.max_collinearity:
+            _, _, vt = np.linalg.svd(Sn, full_matrices=False)
+            weak = np.abs(vt[-1])
+            partners = [names[trial[i]] for i in np.argsort(-weak) if trial[i] != k
+                        and weak[i] > 0.2 * weak.max()] or [names[trial[int(np.argmax(weak))]]]
+            shown = "inf" if not np.isfinite(gamma) else f"{gamma:.3g}"
+            reasons[name] = (f"collinear with {', '.join(partners)} (collinearity index "
+                             f"{shown} > {lim.max_collinearity:g}): the windows used cannot "
+                             "tell them apart")
+            continue
+        joint = _relative_se(S[:, trial])
+        worst = int(np.argmax(joint))
+        if joint[worst] > lim.max_relative_se:
+            reasons[name] = (f"weakly excited together with {', '.join(names[i] for i in chosen)}"
+                             f": the relative standard error of {names[trial[worst]]} would be "
+                             f"{100 * joint[worst]:.3g} % (limit {100 * lim.max_relative_se:g} %)")
+            continue
+        chosen.append(k)
+    present = [k for k in range(len(names)) if norms[k] > 0 and not (absent and names[k] in absent)]
+    sv: tuple[float, ...] = ()
+    dirs: tuple[dict[str, float], ...] = ()
+    if present:
+        Sn_all = S[:, present] / norms[present]
+        _, s_all, vt_all = np.linalg.svd(Sn_all, full_matrices=False)
+        sv = tuple(float(s) for s in s_all) + (0.0,) * (len(present) - s_all.size)
+        dirs = tuple({names[present[j]]: float(round(v[j], 6)) for j in range(len(present))}
+                     for v in vt_all)
+    rse = dict(zip((names[k] for k in chosen), map(float, _relative_se(S[:, chosen])))) \
+        if chosen else {}
+    gamma_set = _collinearity(S[:, chosen] / norms[chosen]) if chosen else 1.0
+    return Identifiability(names, tuple(names[k] for k in chosen), reasons, sv, dirs, rse,
+                           gamma_set, lim)
+
+
+def _relative_se(S: FloatArray) -> FloatArray:
+    """Relative standard errors of a set from its sensitivities (``diag((SᵀS)⁻¹)^½``)."""
+    if S.shape[1] == 0:
+        return np.zeros(0)
+    try:
+        cov = np.linalg.inv(S.T @ S)
+    except np.linalg.LinAlgError:
+        return np.full(S.shape[1], np.inf)
+    return np.asarray(np.sqrt(np.clip(np.diag(cov), 0.0, None)), dtype=np.float64)

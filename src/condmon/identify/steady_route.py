@@ -1,0 +1,239 @@
+"""The steady route: a declared machine's equations as balances over steady windows.
+
+In a window where the machine runs steadily (an actuator's stroke at constant
+speed, a transmission at one operating point) the state derivatives are
+about zero and each state equation becomes an algebraic balance,
+``Σ θ_k φ_k(signals) = known(signals)`` with the derivative terms gone (an
+inertia drops out). Averaging a window's samples gives one row per equation
+and window; the rows of every window of a record, or of several records,
+are solved together by weighted least squares for the unknowns they
+identify (:func:`~condmon.identify.regression.identified_lstsq`): a single
+stroke identifies one friction level, strokes at several speeds and both
+directions its viscous and Coulomb parts and a load torque.
+
+- **Weights.** Each window's row is weighted by the standard error of its
+  mean residual, taken by batch means (the residual of a steady window is
+  slow, not white: its samples are not independent).
+- **Steadiness.** A window whose derivative terms (at the held or declared
+  values, e.g. ``J dω/dt``) exceed ``steady_tolerance`` of the balance's RMS is
+  not steady and is not used.
+- **Fit.** What the route predicts is the balance, so the fit is measured on
+  it, sample by sample over the windows used: ``1 − Σ e² / Σ known²`` per
+  equation (not the R² of a derivative that is about zero, nor of a
+  balance whose value hardly varies).
+
+Machines whose balances need a state that is neither measured nor derived
+(the hydrostatic transmission's motor pressure) are estimated on window means
+by :func:`condmon.identify.steady_state.estimate_steady_states`, which solves
+those states with the one steady-state solver the fault isolation uses.
+
+Written for condmon (no maintained package derives steady balances from a
+declared model).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from condmon.errors import EstimationError
+from condmon.identify.fit import FitCheck, residual_figures
+from condmon.identify.greybox import RouteResult
+from condmon.identify.inverse_route import absent_unknowns, evaluate
+from condmon.identify.regression import identified_lstsq
+from condmon.models.machine import Machine
+
+__all__ = ["SteadyRouteResult", "steady_route", "batch_se"]
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.intp]
+
+#: Fewest samples of a window the route uses.
+MIN_WINDOW_SAMPLES = 10
+
+
+@dataclass(frozen=True, eq=False)
+class SteadyRouteResult(RouteResult):
+    """Outcome of the steady route (see :class:`~condmon.identify.greybox.RouteResult`).
+
+    ``fit`` is ``1 − Σe²/Σknown²`` of each balance over the samples of the
+    windows used; ``nrmse`` the RMS residual over the RMS of the balance.
+
+    Attributes
+    ----------
+    windows : int
+        Windows used.
+    samples : int
+        Samples in them.
+    unsteady : dict of (int, int) to str
+        ``(record, window)`` -> why a window offered was not steady (not used).
+    """
+
+    windows: int = 0
+    samples: int = 0
+    unsteady: dict[tuple[int, int], str] = field(default_factory=dict)
+
+    def diagnostics(self) -> dict[str, float]:
+        """The shared figures, with ``windows`` and ``samples``."""
+        return {"windows": float(self.windows), "samples": float(self.samples),
+                **super().diagnostics()}
+
+
+def batch_se(x: FloatArray, batches: int = 10) -> float:
+    """Standard error of the mean of a correlated series, by batch means.
+
+    The series is cut into ``batches`` contiguous batches (fewer for a short
+    one, at least 2); the standard deviation of their means over the square
+    root of their number estimates the standard error when the correlation
+    is shorter than a batch.
+
+    Example
+    -------
+    >>> x = np.random.default_rng(0).standard_normal(10000)
+    >>> 0.5 < batch_se(x) / (1 / 100) < 1.5     # white noise: about std/sqrt(n)
+    True
+    """
+    n = int(x.size)
+    nb = int(max(2, min(batches, n // 20)))
+    if n < 2 * nb:
+        return float(np.std(x) / np.sqrt(max(n, 1)))
+    means = np.array([b.mean() for b in np.array_split(x, nb)])
+    return float(np.std(means, ddof=1) / np.sqrt(nb))
+
+
+@dataclass(frozen=True)
+class _Window:
+    record: int
+    index: int
+    rows: IntArray
+    phi: FloatArray        # (n_eq, n_rows, p) static regressors per sample
+    known: FloatArray      # (n_eq, n_rows) static known side per sample
+
+
+def steady_route(signals: Sequence[Mapping[str, FloatArray]],
+                 windows: Sequence[Sequence[IntArray]], machine: Machine, *,
+                 constants: Mapping[str, float] | None = None,
+                 hold: Mapping[str, float] | None = None, fit_threshold: float = 90.0,
+                 source: str = "record") -> SteadyRouteResult:
+    """Estimate a machine's unknowns from the balances of its steady windows.
+
+    Parameters
+    ----------
+    signals : sequence of mapping
+        Per record, its :func:`~condmon.identify.inverse_route.route_signals`.
+    windows : sequence of sequence of ndarray
+        Per record, the rows of each window offered (one regime's).
+    machine : Machine
+        Its equations must be linear in the unknowns with every signal
+        measured or derived (an inverse structure).
+    constants : mapping, optional
+        Values overriding the declared known constants. [SI]
+    hold : mapping, optional
+        Values of the unknowns the windows do not identify (default: the
+        declared ones); also the values the steadiness check uses. [SI]
+    fit_threshold : float
+        [%]
+    source : str
+        The record(s), named in messages.
+
+    Returns
+    -------
+    SteadyRouteResult
+
+    Raises
+    ------
+    EstimationError
+        No steady window with enough samples.
+    """
+    import sympy as sp
+
+    spec = machine.spec
+    inv = machine.inverse()
+    consts = machine.constants(constants)
+    held = {**machine.nominal(), **dict(hold or {})}
+    names = spec.unknowns
+    p = len(names)
+    zero = {s: 0 for eq in inv.equations for s in
+            (*eq.known.free_symbols, *(x for _, phi in eq.terms for x in phi.free_symbols))
+            if str(s).startswith("d_")}
+    kept: list[_Window] = []
+    unsteady: dict[tuple[int, int], str] = {}
+    for i, (sig, wins) in enumerate(zip(signals, windows)):
+        for j, rows in enumerate(wins):
+            if rows.size < MIN_WINDOW_SAMPLES:
+                unsteady[(i, j)] = f"{rows.size} samples (fewer than {MIN_WINDOW_SAMPLES})"
+                continue
+            phi = np.zeros((len(inv.equations), rows.size, p))
+            known = np.zeros((len(inv.equations), rows.size))
+            worst = 0.0
+            for e, eq in enumerate(inv.equations):
+                dynamic = np.zeros(rows.size)
+                for unknown, term in eq.terms:
+                    static = term.xreplace(zero)
+                    if static != 0:
+                        phi[e, :, names.index(unknown)] += evaluate(static, sig, consts, rows)
+                    if static != term:
+                        dynamic += held[unknown] * evaluate(term - static, sig, consts, rows)
+                known_static = eq.known.xreplace(zero)
+                known[e] = evaluate(known_static, sig, consts, rows)
+                if known_static != eq.known:
+                    dynamic -= evaluate(sp.expand(eq.known - known_static), sig, consts, rows)
+                scale = float(np.sqrt(np.mean(known[e] ** 2)))
+                if scale > 0:
+                    worst = max(worst, float(np.mean(np.abs(dynamic))) / scale)
+            if worst > spec.steady_tolerance:
+                unsteady[(i, j)] = (f"not steady: the derivative terms are {100 * worst:.3g} % "
+                                    f"of the balance (limit {100 * spec.steady_tolerance:g} %)")
+                continue
+            kept.append(_Window(i, j, rows, phi, known))
+    if not kept:
+        why = "; ".join(sorted(set(unsteady.values()))) or "no window offered"
+        raise EstimationError(f"{source}: no steady window to estimate from ({why})")
+    n_eq = len(inv.equations)
+
+    def rows_of(theta: FloatArray | None) -> tuple[list[FloatArray], list[FloatArray],
+                                                   list[FloatArray]]:
+        """Window means per equation and their weights (1/se)."""
+        blocks, rhs, weights = [], [], []
+        for e in range(n_eq):
+            X = np.array([w.phi[e].mean(axis=0) for w in kept])
+            y = np.array([w.known[e].mean() for w in kept])
+            se = []
+            for w in kept:
+                series = w.known[e] - (w.phi[e] @ theta if theta is not None else 0.0)
+                floor = 1e-9 * max(float(np.sqrt(np.mean(w.known[e] ** 2))), 1e-300)
+                se.append(max(batch_se(series), floor))
+            blocks.append(X)
+            rhs.append(y)
+            weights.append(1.0 / np.array(se))
+        return blocks, rhs, weights
+
+    absent = absent_unknowns(machine, steady=True)
+    theta: FloatArray | None = None
+    fit_ = None
+    for _ in range(2):  # weights from the balance alone, then from its residual
+        blocks, rhs, weights = rows_of(theta)
+        fit_ = identified_lstsq(blocks, rhs, names, held, held, source=source,
+                                limits=spec.identifiability, absent=absent, weights=weights)
+        theta = np.array([fit_.values[n] for n in names])
+    assert fit_ is not None and theta is not None
+    r2, nrmse, white = {}, {}, {}
+    for e, eq in enumerate(inv.equations):
+        known = np.concatenate([w.known[e] for w in kept])
+        resid = known - np.concatenate([w.phi[e] @ theta for w in kept])
+        total = float(np.sum(known ** 2))
+        name = f"balance {eq.state}"
+        r2[name] = 1.0 - float(np.sum(resid ** 2)) / total if total > 0 else float("-inf")
+        figures = residual_figures(known, resid)
+        nrmse[name] = float(np.sqrt(np.mean(resid ** 2)) / np.sqrt(np.mean(known ** 2))) \
+            if total > 0 else float("inf")
+        white[name] = figures.whiteness
+    fit_pct = 100.0 * float(np.mean(list(r2.values())))
+    fit = FitCheck(r2, fit_pct, float(fit_threshold), bool(fit_pct >= fit_threshold))
+    samples = int(sum(w.rows.size for w in kept))
+    return SteadyRouteResult(fit_.values, fit_.covariance, fit, nrmse, white,
+                             identifiability=fit_.identifiability, windows=len(kept),
+                             samples=samples, unsteady=unsteady)

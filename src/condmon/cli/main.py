@@ -44,7 +44,13 @@ register_fleet_commands(app)
 ModelOpt = Annotated[str, typer.Option(help="Machine model: a shipped name (dc-motor) or a declaration file (.toml).")]
 UnitModelOpt = Annotated[Optional[str], typer.Option("--model", help="Machine model (name or declaration file); default: the unit's, else dc-motor.")]
 RouteOpt = Annotated[Optional[str], typer.Option(help="Estimation route: auto, linear, inverse or oe (default: the declaration's).")]
-ConstOpt = Annotated[Optional[str], typer.Option(help="Known constants overriding the declaration's, NAME=VALUE,... e.g. gamma=0.9.")]
+ConstOpt = Annotated[Optional[str], typer.Option(help="Known constants overriding the declaration's, NAME=VALUE,... e.g. gamma=0.9; naming an unknown fixes it for the run (reported, not estimated).")]
+RateOpt = Annotated[Optional[float], typer.Option("--sample-rate", help="Samples per second when t counts samples or is absent [Hz] (over the model's [record] table).")]
+ScaleOpt = Annotated[Optional[str], typer.Option("--scale", help="Scale per column NAME=FACTOR,...: value = raw*FACTOR + OFFSET (raw counts to SI units).")]
+OffsetOpt = Annotated[Optional[str], typer.Option("--offset", help="Offset per column NAME=VALUE,... [SI], added after the scale.")]
+IgnoreOpt = Annotated[Optional[str], typer.Option("--ignore", help="File columns to leave out, comma-separated (a logger's own columns).")]
+MetaOpt = Annotated[Optional[str], typer.Option("--meta", help="The record's metadata KEY=VALUE,... that regimes may name, e.g. load=ball.")]
+WindowOpt = Annotated[Optional[str], typer.Option("--window", help="Only this span of the record, START:END in seconds (either side may be empty).")]
 
 
 @app.command("estimate")
@@ -58,36 +64,65 @@ def estimate_cmd(
     fit_threshold: Annotated[float, typer.Option(help="Reject below this percentage fit [%].")] = DEFAULT_FIT_THRESHOLD,
     route: RouteOpt = None,
     constants: ConstOpt = None,
+    sample_rate: RateOpt = None,
+    scale: ScaleOpt = None,
+    offset: OffsetOpt = None,
+    ignore: IgnoreOpt = None,
+    meta: MetaOpt = None,
+    window: WindowOpt = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
 ) -> None:
     """Estimate the physical parameters of one test record (or of several together)."""
-    opts = _options(method, gamma, excitation, columns, fit_threshold, model, route, constants)
+    opts = _options(method, gamma, excitation, columns, fit_threshold, model, route, constants,
+                    sample_rate, scale, offset, ignore, meta, window)
     if len(records) == 1:
         res, _ = opts.run(records[0])
     else:
         from condmon.identify.estimate import estimate_joint
-        from condmon.io.records import read_record
 
-        res = estimate_joint([read_record(r, opts.columns) for r in records],
+        if opts.window is not None:
+            raise CondmonError("--window applies to one record; estimate the records one by one")
+        res = estimate_joint([opts.read(r) for r in records],
                              opts.model or "dc-motor", fit_threshold=fit_threshold,
                              sources=[str(r) for r in records], route=route,
-                             constants=opts.constants)
+                             constants=opts.constants, metadata=opts.metadata)
     record = " + ".join(str(r) for r in records)
     if as_json:
         write_json(res.to_dict())
         return
+    for part in res.regimes:
+        _print_estimate(part, record)
+
+
+_HOW = {"inverse": "inverse model", "oe": "output error", "steady": "steady balances"}
+
+
+def _print_estimate(res: Any, record: str) -> None:
+    """One regime's estimate as a table, its fit, windows and notes."""
     how = (("closed-loop instruments" if res.closed_loop_instruments else "direct approach")
-           if res.route == "linear" else "inverse model")
-    table = Table(title=escape(f"{record} — {res.model}, {res.method.upper()}, {how}"))
-    for col in ("parameter", "value", "std error", "unit"):
-        table.add_column(col, justify="right" if col != "parameter" else "left")
+           if res.route == "linear" else _HOW.get(res.route, res.route))
+    regime = f", regime {res.regime}" if res.regime else ""
+    table = Table(title=escape(f"{record} — {res.model}, {res.method.upper()}, {how}{regime}"))
+    for col in ("parameter", "value", "std error", "unit", "from"):
+        table.add_column(col, justify="right" if col not in ("parameter", "from") else "left")
     for k, v in res.parameters.items():
-        table.add_row(escape(k), fmt(v), fmt(res.std_errors[k]), escape(res.units[k]))
+        source = "record" if k in res.identified else f"held ({res.held.get(k, 'nominal')})"
+        table.add_row(escape(k), fmt(v), fmt(res.std_errors[k]) if k in res.identified else "—",
+                      escape(res.units[k]), source)
     out.print(table)
     fits = ", ".join(f"{k} {v:.1f} %" for k, v in res.fit.fits_percent.items())
     verdict = (f"[green]accepted[/green] (threshold {res.fit.threshold:g} %)" if res.accepted
                else f"[red]rejected[/red]: {escape(str(res.reason))}")
-    out.print(f"fit {res.fit_percent:.1f} % ({fits}) — {verdict}")
+    out.print(f"fit {res.fit_percent:.1f} % ({fits}) — {verdict}" if fits else verdict)
+    if res.windows and (len(res.windows) > 1 or res.windows[0].regime):
+        for w in res.windows:
+            state = "used" if w.used else f"not used: {w.why}"
+            out.print(f"window {w.start:.3g}-{w.end:.3g} s, {w.regime or 'record'}: {state}",
+                      highlight=False, markup=False, soft_wrap=True)
+    if res.identifiability is not None:
+        for k, why in res.identifiability.reasons.items():
+            out.print(f"{k} not identifiable: {why}", highlight=False, markup=False,
+                      soft_wrap=True)
     for note in res.notes:
         out.print(f"note: {note}", highlight=False, markup=False)
 
@@ -164,8 +199,12 @@ def _status_text(status: str) -> str:
 
 def _options(method: str, gamma: float | None, excitation: str, columns: str | None,
              fit_threshold: float, model: str | None = None, route: str | None = None,
-             constants: str | None = None) -> EstimateOptions:
+             constants: str | None = None, sample_rate: float | None = None,
+             scale: str | None = None, offset: str | None = None, ignore: str | None = None,
+             meta: str | None = None, window: str | None = None) -> EstimateOptions:
+    from condmon.identify.windows import parse_window
     from condmon.io.records import parse_column_map
+    from condmon.io.rig import settings_from_options
     from condmon.workflows.records import EstimateOptions
 
     if method not in list_estimators():
@@ -183,8 +222,25 @@ def _options(method: str, gamma: float | None, excitation: str, columns: str | N
             consts[key] = float(value)
         except ValueError:
             raise CondmonError(f"--constants: {key}={value!r} is not a number") from None
+    record = settings_from_options(sample_rate=sample_rate, scale=scale, offset=offset,
+                                   ignore=ignore)
     return EstimateOptions(model, method, gamma, exc, fit_threshold,
-                           parse_column_map(columns) or None, route, consts or None)
+                           parse_column_map(columns) or None, route, consts or None,
+                           None if record.empty else record, parse_metadata(meta),
+                           parse_window(window))
+
+
+def parse_metadata(text: str | None) -> dict[str, Any] | None:
+    """``--meta load=ball,temp=40`` -> ``{"load": "ball", "temp": 40.0}`` (numbers as numbers)."""
+    from condmon.io.rig import parse_assignments
+
+    out: dict[str, Any] = {}
+    for key, value in parse_assignments(text, "--meta").items():
+        try:
+            out[key] = float(value)
+        except ValueError:
+            out[key] = value
+    return out or None
 
 
 DateOpt = Annotated[Optional[str], typer.Option(help="When the test was run, ISO 8601 (2026-03-01 or 2026-03-01T14:30, UTC unless a zone is given); default: the record's own date, if it has one.")]
@@ -211,6 +267,12 @@ def baseline_add_cmd(
     route: RouteOpt = None,
     constants: ConstOpt = None,
     date: DateOpt = None,
+    sample_rate: RateOpt = None,
+    scale: ScaleOpt = None,
+    offset: OffsetOpt = None,
+    ignore: IgnoreOpt = None,
+    meta: MetaOpt = None,
+    window: WindowOpt = None,
 ) -> None:
     """Estimate healthy tests and store them as the unit's baseline."""
     from condmon.workflows.monitoring import add_baseline_tests
@@ -219,7 +281,8 @@ def baseline_add_cmd(
     from condmon.io.dates import parse_date
     from condmon.models.registry import get_model
 
-    opts = _options(method, gamma, excitation, columns, fit_threshold, model, route, constants)
+    opts = _options(method, gamma, excitation, columns, fit_threshold, model, route, constants,
+                    sample_rate, scale, offset, ignore, meta, window)
     # what can be checked without the records, before a new history file is made
     parse_date(date)
     if model is not None:
@@ -277,6 +340,12 @@ def check_cmd(
     route: RouteOpt = None,
     constants: ConstOpt = None,
     date: DateOpt = None,
+    sample_rate: RateOpt = None,
+    scale: ScaleOpt = None,
+    offset: OffsetOpt = None,
+    ignore: IgnoreOpt = None,
+    meta: MetaOpt = None,
+    window: WindowOpt = None,
     dry_run: Annotated[bool, typer.Option("--dry-run", help="Estimate and diagnose, store nothing.")] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
 ) -> None:
@@ -286,7 +355,8 @@ def check_cmd(
     from condmon.workflows.monitoring import check_test
     from condmon.store.db import open_store
 
-    opts = _options(method, gamma, excitation, columns, fit_threshold, model, route, constants)
+    opts = _options(method, gamma, excitation, columns, fit_threshold, model, route, constants,
+                    sample_rate, scale, offset, ignore, meta, window)
     cfg = load_monitor_config(monitor) if monitor is not None else None
     rb = load_rules(rules) if rules is not None else None
     with open_store(db, create=False) as store:

@@ -7,7 +7,7 @@ centroid defuzzification -> go / advisory / no-go, and each fault's degree.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from condmon.diagnose.rules import RuleBase, evaluate, load_rules
+from condmon.models.regimes import split_key
 
 __all__ = ["FaultDegree", "Diagnosis", "diagnose", "STATUSES"]
 
@@ -117,16 +118,23 @@ def _preprocess(high: dict[str, float], low: dict[str, float], rules: RuleBase
     return high, low, applied
 
 
-def diagnose(symptoms: Mapping[str, Mapping[str, float]], rules: RuleBase | None = None
-             ) -> Diagnosis:
+def diagnose(symptoms: Mapping[str, Mapping[str, float]], rules: RuleBase | None = None,
+             parameters: Sequence[str] | None = None) -> Diagnosis:
     """Diagnose one test from its symptoms.
 
     Parameters
     ----------
     symptoms : mapping
         ``{param: {"high": SymH, "low": SymL}}`` (e.g. ``Symptoms.to_dict()``).
+        A parameter of an operating regime (``Tc@forward``) counts for its
+        parameter (``Tc``): the largest degree over the test's regimes.
     rules : RuleBase, optional
         The shipped rule base if omitted.
+    parameters : sequence of str, optional
+        Every parameter the machine reports: the rules may name these, and one
+        without a symptom (not identified by this test, or not in its
+        baseline) counts as 0. Default: the rules must name only the
+        symptoms' parameters.
 
     Returns
     -------
@@ -144,9 +152,16 @@ def diagnose(symptoms: Mapping[str, Mapping[str, float]], rules: RuleBase | None
     'no-go: winding resistance increase (1.00)'
     """
     rb = rules if rules is not None else load_rules()
-    rb.check_parameters(list(symptoms))
-    high = {p: float(v["high"]) for p, v in symptoms.items()}
-    low = {p: float(v["low"]) for p, v in symptoms.items()}
+    high: dict[str, float] = {}
+    low: dict[str, float] = {}
+    for key, v in symptoms.items():
+        p = split_key(key)[0]
+        high[p] = max(high.get(p, 0.0), float(v["high"]))
+        low[p] = max(low.get(p, 0.0), float(v["low"]))
+    rb.check_parameters(list(parameters) if parameters is not None else list(high))
+    for p in rb.parameters():
+        high.setdefault(p, 0.0)
+        low.setdefault(p, 0.0)
     high, low, applied = _preprocess(high, low, rb)
     degrees: dict[str, float] = {}
     meta: dict[str, tuple[str, str]] = {}
@@ -169,5 +184,5 @@ def diagnose(symptoms: Mapping[str, Mapping[str, float]], rules: RuleBase | None
     condition = float(fuzz.defuzz(_UNIVERSE, agg, "centroid"))
     memberships = [float(np.interp(condition, _UNIVERSE, m)) for m in (go_mf, adv_mf, nogo_mf)]
     status = STATUSES[int(np.argmax(memberships))]
-    sym = {p: {"high": high[p], "low": low[p]} for p in symptoms}
+    sym = {p: {"high": high[p], "low": low[p]} for p in high}
     return Diagnosis(status, condition, faults, sym, tuple(applied))

@@ -10,7 +10,7 @@ import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Union
+from typing import TYPE_CHECKING, Any, Union
 
 import numpy as np
 from numpy.typing import NDArray
@@ -18,8 +18,12 @@ from numpy.typing import NDArray
 from condmon.errors import ConfigError
 from condmon.io.config import load_default, load_toml
 
+if TYPE_CHECKING:
+    from condmon.models.machine import Machine
+    from condmon.monitor.generic import GenericSettings
+
 __all__ = ["Atom", "Expr", "parse_condition", "evaluate", "FaultRule", "Preprocess",
-           "StatusSets", "RuleBase", "load_rules", "SEVERITIES"]
+           "StatusSets", "RuleBase", "load_rules", "SEVERITIES", "generic_rules", "machine_rules"]
 
 FloatArray = NDArray[np.float64]
 SEVERITIES = ("major", "minor")
@@ -269,3 +273,47 @@ def load_rules(path: str | Path | None = None) -> RuleBase:
     status = StatusSets(_set(st["go"], "go", src), _set(st["advisory"], "advisory", src),
                         _set(st["no_go"], "no_go", src))
     return RuleBase(tuple(faults), tuple(pre), status, src)
+
+
+def generic_rules(parameters: Sequence[str], descriptions: Mapping[str, str],
+                  settings: GenericSettings | None = None) -> RuleBase:
+    """``<parameter> increase`` (high) and ``<parameter> decrease`` (low) for each parameter.
+
+    Example
+    -------
+    >>> rb = generic_rules(["Tc"], {"Tc": "Coulomb friction"})
+    >>> [r.name for r in rb.faults]
+    ['Coulomb friction (Tc) increase', 'Coulomb friction (Tc) decrease']
+    """
+    from condmon.models.regimes import split_key
+    from condmon.monitor.generic import load_generic_settings
+
+    cfg = settings or load_generic_settings()
+    faults = []
+    names = list(dict.fromkeys(split_key(p)[0] for p in parameters))
+    for p in names:
+        label = f"{descriptions[p]} ({p})" if descriptions.get(p) else p
+        for kind, way in (("high", "increase"), ("low", "decrease")):
+            faults.append(FaultRule(
+                f"{label} {way}", Atom(kind, p), f"{kind}({p})", cfg.severity,
+                f"{label} has {'risen' if kind == 'high' else 'fallen'} beyond the spread of "
+                "the baseline it is compared with; the declaration names no fault rules, so "
+                "inspect what drives this parameter."))
+    return RuleBase(tuple(faults), (), StatusSets(*cfg.status),
+                    "generic rules (no [monitor] table)")
+
+
+def machine_rules(machine: Machine) -> RuleBase:
+    """The rule base of a machine: its ``[monitor]`` rules, or the generic
+    ``<parameter> increase / decrease`` ones when it declares none.
+
+    Example
+    -------
+    >>> from condmon.models.registry import get_model
+    >>> machine_rules(get_model("dc-motor")).faults[0].name
+    'friction increase'
+    """
+    if machine.rules is not None:
+        return load_rules(machine.rules)
+    described = {p.name: p.description for p in machine.plant.parameters}
+    return generic_rules(machine.spec.report, described)

@@ -170,6 +170,39 @@ class EstimateResult:
         """This estimate and those of the record's other regimes."""
         return (self, *self.others)
 
+    @property
+    def usable(self) -> bool:
+        """Whether any regime's estimate is accepted (the record is trended)."""
+        return any(p.accepted for p in self.regimes)
+
+    def stored_values(self) -> dict[str, tuple[float, float]]:
+        """What the history keeps: ``{name: (value, std_error)}``, a regime's
+        parameters named ``Tc@forward``. For a usable record the identified
+        quantities of each accepted regime; otherwise (kept for the record,
+        never trended) every parameter of this estimate.
+
+        Example
+        -------
+        >>> from condmon.simulate import simulate_actuator
+        >>> from condmon.identify import estimate
+        >>> sorted(estimate(simulate_actuator(seed=1)).stored_values())
+        ['D', 'J', 'Ke', 'Kt', 'L', 'R']
+        """
+        from condmon.models.regimes import regime_key
+
+        if not self.usable:
+            return {regime_key(k, self.regime): (v, self.std_errors[k])
+                    for k, v in self.parameters.items()}
+        return {regime_key(k, p.regime): (p.parameters[k], p.std_errors[k])
+                for p in self.regimes if p.accepted for k in p.identified}
+
+    @property
+    def regime_label(self) -> str:
+        """The record's regimes, the accepted ones first (``forward`` or
+        ``forward; reverse``); "" when the machine declares none."""
+        parts = sorted(self.regimes, key=lambda p: not p.accepted)
+        return "; ".join(dict.fromkeys(p.regime for p in parts if p.regime))
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready result (the ``condmon estimate --json`` document); no NaN or inf."""
         fit = self.fit.fit_percent

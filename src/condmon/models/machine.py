@@ -148,9 +148,10 @@ class Machine:
 
     @property
     def monitored_generically(self) -> bool:
-        """Whether the declaration has no ``[monitor]`` table: breakpoints come
-        from the baseline's spread and the rules are generic."""
-        return self.rules is None and self.breakpoints is None
+        """Whether the declaration lacks its breakpoints or rules (no
+        ``[monitor]`` table): they come from the baseline's spread and are
+        generic (:mod:`condmon.monitor.generic`)."""
+        return self.rules is None or self.breakpoints is None
 
     @property
     def name(self) -> str:

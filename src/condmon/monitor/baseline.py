@@ -12,7 +12,7 @@ from numpy.typing import ArrayLike, NDArray
 from condmon.errors import DataError
 
 __all__ = ["Baseline", "make_baseline", "percent_change", "MIN_BASELINE_TESTS",
-           "BaselineChecks", "assess_baseline"]
+           "BaselineChecks", "assess_baseline", "missing_regimes"]
 
 FloatArray = NDArray[np.float64]
 
@@ -27,19 +27,34 @@ class Baseline:
     Attributes
     ----------
     parameters : tuple of str
-        Parameter names, in column order.
+        Parameter names, in column order (a regime's parameters as
+        ``Tc@forward``, see :func:`condmon.models.regimes.regime_key`).
     mean : tuple of float
         Sample mean of each parameter. [parameter units]
     std : tuple of float
         Sample standard deviation (ddof = 1). [parameter units]
     n : int
         Number of tests.
+    counts : tuple of int or None
+        Tests behind each parameter, when fewer than ``n`` (a regime's
+        parameters are in its tests only); None: ``n`` for every one.
     """
 
     parameters: tuple[str, ...]
     mean: tuple[float, ...]
     std: tuple[float, ...]
     n: int
+    counts: tuple[int, ...] | None = None
+
+    @property
+    def count_array(self) -> NDArray[np.int64]:
+        """Tests behind each parameter."""
+        return np.asarray(self.counts if self.counts is not None
+                          else (self.n,) * len(self.parameters), dtype=np.int64)
+
+    def value(self, name: str) -> float | None:
+        """The mean of ``name``, None when the baseline lacks it. [unit]"""
+        return self.mean[self.parameters.index(name)] if name in self.parameters else None
 
     @property
     def mean_array(self) -> FloatArray:
@@ -57,14 +72,23 @@ class Baseline:
         return 100.0 * self.std_array / np.abs(self.mean_array)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready form."""
-        return {"n": self.n, "mean": dict(zip(self.parameters, self.mean)),
-                "std": dict(zip(self.parameters, self.std))}
+        """JSON-ready form (``counts`` per parameter when they differ from ``n``)."""
+        doc: dict[str, Any] = {"n": self.n, "mean": dict(zip(self.parameters, self.mean)),
+                               "std": dict(zip(self.parameters, self.std))}
+        if self.counts is not None:
+            doc["counts"] = dict(zip(self.parameters, map(int, self.counts)))
+        return doc
 
 
 def make_baseline(values: ArrayLike | Sequence[Mapping[str, float]],
                   parameters: Sequence[str] | None = None) -> Baseline:
     """Baseline from the parameter estimates of N accepted healthy tests.
+
+    A test may lack some parameters (NaN, or a key missing from its mapping):
+    those of an operating regime it was not run in, or ones it did not
+    identify. Each parameter's mean and spread are over the tests that have
+    it; a parameter that fewer than 3 tests have is left out (its regime
+    has no baseline yet).
 
     Parameters
     ----------
@@ -80,18 +104,22 @@ def make_baseline(values: ArrayLike | Sequence[Mapping[str, float]],
     Raises
     ------
     DataError
-        Fewer than 3 tests, a non-finite value, or a zero mean.
+        Fewer than 3 tests of any parameter, an infinite value, or a zero mean.
 
     Example
     -------
     >>> b = make_baseline([{"R": 1.0}, {"R": 1.1}, {"R": 0.9}])
     >>> b.mean, round(b.std[0], 3), b.n
     ((1.0,), 0.1, 3)
+    >>> b = make_baseline([[1.0, np.nan], [1.2, 2.0], [1.1, 2.2], [0.9, 2.1]], ["Tc@f", "Tc@r"])
+    >>> b.parameters, b.counts
+    (('Tc@f', 'Tc@r'), (4, 3))
     """
     rows: Any = list(values) if not isinstance(values, np.ndarray) else values  # type: ignore[arg-type]
     if len(rows) and isinstance(rows[0], Mapping):
-        names = tuple(parameters) if parameters is not None else tuple(rows[0])
-        arr = np.array([[float(r[k]) for k in names] for r in rows])
+        names = tuple(parameters) if parameters is not None else tuple(
+            dict.fromkeys(k for r in rows for k in r))
+        arr = np.array([[float(r.get(k, np.nan)) for k in names] for r in rows])
     else:
         arr = np.atleast_2d(np.asarray(rows, dtype=np.float64))
         if parameters is None:
@@ -103,14 +131,38 @@ def make_baseline(values: ArrayLike | Sequence[Mapping[str, float]],
                         f"tests, got {n}; add more with `condmon baseline add`")
     if arr.shape[1] != len(names):
         raise DataError(f"{arr.shape[1]} columns for {len(names)} parameter names")
-    if not np.all(np.isfinite(arr)):
-        raise DataError("baseline estimates contain NaN or inf")
-    mean = arr.mean(axis=0)
+    if np.any(np.isinf(arr)):
+        raise DataError("baseline estimates contain inf")
+    counts = np.sum(np.isfinite(arr), axis=0)
+    keep = [j for j in range(len(names)) if counts[j] >= MIN_BASELINE_TESTS]
+    if not keep:
+        raise DataError(f"no parameter has {MIN_BASELINE_TESTS} accepted healthy tests yet "
+                        f"({', '.join(f'{k}: {c}' for k, c in zip(names, counts))}); add more "
+                        "with `condmon baseline add`")
+    arr = arr[:, keep]
+    names = tuple(names[j] for j in keep)
+    counts = counts[keep]
+    mean = np.nanmean(arr, axis=0)
     if np.any(mean == 0):
         bad = [k for k, m in zip(names, mean) if m == 0]
         raise DataError(f"baseline mean of {bad} is zero: percent change is undefined")
-    std = arr.std(axis=0, ddof=1)
-    return Baseline(names, tuple(map(float, mean)), tuple(map(float, std)), int(n))
+    std = np.nanstd(arr, axis=0, ddof=1)
+    full = bool(np.all(counts == n))
+    return Baseline(names, tuple(map(float, mean)), tuple(map(float, std)), int(n),
+                    None if full else tuple(int(c) for c in counts))
+
+
+def missing_regimes(keys: Sequence[str], baseline: Baseline) -> list[str]:
+    """The keys (``Tc@forward``) a baseline has no value for: their regime has
+    no baseline yet.
+
+    Example
+    -------
+    >>> b = Baseline(("Tc@forward",), (40.0,), (0.5,), 5)
+    >>> missing_regimes(["Tc@forward", "Tc@reverse"], b)
+    ['Tc@reverse']
+    """
+    return [k for k in keys if k not in baseline.parameters]
 
 
 def percent_change(values: ArrayLike, baseline: Baseline) -> FloatArray:
@@ -187,12 +239,16 @@ def assess_baseline(values: ArrayLike, std_errors: ArrayLike, test_ids: Sequence
     cfg = checks or BaselineChecks()
     x = np.atleast_2d(np.asarray(values, dtype=np.float64))
     se = np.atleast_2d(np.asarray(std_errors, dtype=np.float64))
-    ids = [int(i) for i in test_ids]
+    all_ids = [int(i) for i in test_ids]
     flags: list[dict[str, Any]] = []
     if x.shape[0] < MIN_BASELINE_TESTS:
         return ()
     for j, p in enumerate(parameters):
-        col, s = x[:, j], se[:, j]
+        have = np.isfinite(x[:, j])  # a test of another regime lacks the parameter
+        if have.sum() < MIN_BASELINE_TESTS:
+            continue
+        col, s = x[have, j], se[have, j]
+        ids = [i for i, h in zip(all_ids, have) if h]
         med = float(np.median(col))
         dev = np.abs(col - med)
         mad = float(np.median(dev))

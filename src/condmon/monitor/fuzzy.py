@@ -34,6 +34,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from condmon.errors import ConfigError
 from condmon.io.config import load_default, load_toml
+from condmon.models.regimes import split_key
 from condmon.monitor.baseline import Baseline, BaselineChecks, percent_change
 
 __all__ = ["MonitorConfig", "load_monitor_config", "symptom_degree", "Symptoms",
@@ -65,13 +66,18 @@ class MonitorConfig:
     baseline: BaselineChecks = BaselineChecks()
 
     def arrays(self, parameters: Sequence[str]) -> tuple[FloatArray, FloatArray]:
-        """``r1`` and ``r2`` in the order of ``parameters``."""
-        missing = [p for p in parameters if p not in self.r1]
+        """``r1`` and ``r2`` in the order of ``parameters``; a regime's parameter
+        (``Tc@forward``) takes its own breakpoints if configured, else its
+        parameter's (``Tc``)."""
+        def key(p: str) -> str:
+            return p if p in self.r1 else split_key(p)[0]
+
+        missing = [p for p in parameters if key(p) not in self.r1]
         if missing:
             raise ConfigError(f"{self.source}: no breakpoints for {missing}; "
                               f"configured: {sorted(self.r1)}")
-        return (np.array([self.r1[p] for p in parameters]),
-                np.array([self.r2[p] for p in parameters]))
+        return (np.array([self.r1[key(p)] for p in parameters]),
+                np.array([self.r2[key(p)] for p in parameters]))
 
 
 def load_monitor_config(path: str | Path | None = None, k: float | None = None) -> MonitorConfig:
@@ -141,9 +147,11 @@ def symptom_degree(r: ArrayLike, width: ArrayLike, r1: ArrayLike, r2: ArrayLike
     d = np.asarray(r2, dtype=np.float64) - a
     # Rounded to 12 decimals so that a change landing on a breakpoint up to
     # floating-point error (1.4/1.0 - 1 = 0.39999999999999991) reads as exactly 1.
-    high = np.round(np.clip((r_a + w - a) / (w + d), 0.0, 1.0), 12).astype(np.float64)
-    low = np.round(np.clip((-r_a + w - a) / (w + d), 0.0, 1.0), 12).astype(np.float64)
-    return high, low
+    with np.errstate(invalid="ignore"):
+        high = np.round(np.clip((r_a + w - a) / (w + d), 0.0, 1.0), 12).astype(np.float64)
+        low = np.round(np.clip((-r_a + w - a) / (w + d), 0.0, 1.0), 12).astype(np.float64)
+    # a parameter the test does not have (another regime's) is no symptom
+    return np.nan_to_num(high, nan=0.0), np.nan_to_num(low, nan=0.0)
 
 
 @dataclass(frozen=True, eq=False)

@@ -14,6 +14,7 @@ import sqlalchemy as sa
 
 from condmon.errors import ConfigError
 from condmon.io.dates import as_utc
+from condmon.models.regimes import split_key
 from condmon.store import schema as S
 from condmon.store.engine import SCHEMA_LOCK, actor, redact, run_read, run_write, store_error
 
@@ -232,7 +233,13 @@ class StoreBase:
             order = list(get_model(model).spec.report) if model else []
         except (ModelError, ConfigError):
             order = []
-        return [p for p in order if p in names] + sorted(p for p in names if p not in order)
+        rank = {p: i for i, p in enumerate(order)}
+
+        def key(name: str) -> tuple[int, str, str]:
+            base, regime = split_key(name)  # a regime's parameters by parameter, then regime
+            return (rank.get(base, len(rank)), base if base not in rank else "", regime)
+
+        return sorted(names, key=key)
 
     def parameter_order(self, unit: str, names: list[str]) -> list[str]:
         """``names`` in the order the unit's model reports its parameters."""

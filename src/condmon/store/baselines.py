@@ -112,8 +112,9 @@ class BaselinesMixin(StoreBase):
                 version=version, reason=reason, flags=flag_doc))
             bid = int(res.inserted_primary_key[0])  # type: ignore[index]
             conn.execute(sa.insert(S.baseline_values), [
-                {"baseline_id": bid, "parameter": p, "mean": m, "std": s}
-                for p, m, s in zip(baseline.parameters, baseline.mean, baseline.std)])
+                {"baseline_id": bid, "parameter": p, "mean": m, "std": s, "n": int(c)}
+                for p, m, s, c in zip(baseline.parameters, baseline.mean, baseline.std,
+                                      baseline.count_array)])
             self._log(conn, "baseline saved", unit_id=uid, baseline_id=bid, reason=reason,
                       detail={"name": label, "version": version, "test_ids": ids,
                               "flags": len(flags)})
@@ -123,12 +124,14 @@ class BaselinesMixin(StoreBase):
 
     def _stored(self, conn: sa.Connection, unit: str, row: Any) -> StoredBaseline:
         vals = conn.execute(sa.select(S.baseline_values.c.parameter, S.baseline_values.c.mean,
-                                      S.baseline_values.c.std)
+                                      S.baseline_values.c.std, S.baseline_values.c.n)
                             .where(S.baseline_values.c.baseline_id == row.id)).all()
         order = self._ordered(unit, [v[0] for v in vals], conn)
         by = {v[0]: v for v in vals}
+        counts = tuple(int(row.n) if by[p][3] is None else int(by[p][3]) for p in order)
         base = Baseline(tuple(order), tuple(float(by[p][1]) for p in order),
-                        tuple(float(by[p][2]) for p in order), int(row.n))
+                        tuple(float(by[p][2]) for p in order), int(row.n),
+                        None if all(c == int(row.n) for c in counts) else counts)
         created = as_utc(row.created_at)
         assert created is not None
         return StoredBaseline(int(row.id), unit, str(row.name), int(row.version), created,

@@ -115,26 +115,31 @@ class TestsMixin(StoreBase):
                 note = " (excluded; `condmon include` restores it)" if dup[1] else ""
                 raise DuplicateTestError(f"{result.source}: already in the history of {unit!r} "
                                          f"(test #{dup[0]}{note}); not added again", int(dup[0]))
+            usable = bool(getattr(result, "usable", result.accepted))
             res = conn.execute(sa.insert(S.tests).values(
                 unit_id=uid, created_at=now(), source=result.source, file_hash=fdig,
                 record_hash=digest, test_date=when, fingerprint=fingerprint,
-                role=role, accepted=bool(result.accepted), reason=result.reason,
+                regime=getattr(result, "regime_label", "") or None,
+                role=role, accepted=usable, reason=None if usable else result.reason,
                 fit_percent=num(result.fit_percent),
                 fits=json.dumps({k: num(v) for k, v in result.fit.fits_percent.items()}),
                 method=result.method, closed_loop=bool(result.closed_loop_instruments),
                 constants=json.dumps({k: num(v) for k, v in
                                       dict(getattr(result, "constants", {})).items()})))
             tid = int(res.inserted_primary_key[0])  # type: ignore[index]
-            conn.execute(sa.insert(S.estimates), [
-                {"test_id": tid, "parameter": p, "value": num(v),
-                 "std_error": num(result.std_errors[p])}
-                for p, v in result.parameters.items()])
+            stored = (result.stored_values() if hasattr(result, "stored_values") else
+                      {p: (v, result.std_errors[p]) for p, v in result.parameters.items()})
+            for p in stored:
+                check_name(p, "parameter name", limit=S.PARAMETER_LENGTH)
+            if stored:
+                conn.execute(sa.insert(S.estimates), [
+                    {"test_id": tid, "parameter": p, "value": num(v), "std_error": num(se)}
+                    for p, (v, se) in stored.items()])
             if baseline_id is not None and (symptoms is not None or diagnosis is not None):
                 self._insert_evaluation(conn, tid, baseline_id, symptoms or {}, diagnosis)
             self._log(conn, "test added", unit_id=uid, test_id=tid,
-                      reason=None if result.accepted else result.reason,
-                      detail={"source": result.source, "role": role,
-                              "accepted": bool(result.accepted)})
+                      reason=None if usable else result.reason,
+                      detail={"source": result.source, "role": role, "accepted": usable})
             return tid
 
         return self._write(run, lock=unit)

@@ -8,13 +8,16 @@ import sqlalchemy as sa
 
 __all__ = ["metadata", "units", "tests", "estimates", "baselines", "baseline_values",
            "symptoms", "diagnoses", "diagnosis_faults", "isolations", "isolation_estimates",
-           "audit", "meta", "SCHEMA_VERSION", "MIGRATIONS", "NAME_LENGTH"]
+           "audit", "meta", "SCHEMA_VERSION", "MIGRATIONS", "NAME_LENGTH", "PARAMETER_LENGTH"]
 
 #: Version of the schema this code writes.
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 
 #: Longest unit, fault or baseline name the store keeps (the same on every back-end).
 NAME_LENGTH = 200
+
+#: Longest parameter name: a declared name with its regime (``Tc@forward, load=ball``).
+PARAMETER_LENGTH = 200
 
 metadata = sa.MetaData()
 
@@ -32,6 +35,7 @@ units = sa.Table(
     sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
     sa.Column("model_source", sa.Text, nullable=True),        # declaration file, if not shipped
     sa.Column("baseline_name", sa.String(64), nullable=False, server_default="default"),
+    sa.Column("group_name", sa.String(NAME_LENGTH), nullable=True),  # v5: peers it is judged with
 )
 
 tests = sa.Table(
@@ -57,6 +61,8 @@ tests = sa.Table(
     sa.Column("excluded_reason", sa.Text, nullable=True),
     # v4: a few figures per column, to recognise a copy rounded otherwise
     sa.Column("fingerprint", sa.Text, nullable=True),
+    # v5: the operating regime(s) of the windows estimated ("" or NULL: none declared)
+    sa.Column("regime", sa.Text, nullable=True),
     sa.UniqueConstraint("unit_id", "file_hash", name="uq_test_file"),
     sa.Index("uq_test_record", "unit_id", "record_hash", unique=True),
 )
@@ -64,7 +70,7 @@ tests = sa.Table(
 estimates = sa.Table(
     "estimates", metadata,
     sa.Column("test_id", sa.Integer, sa.ForeignKey("tests.id"), primary_key=True),
-    sa.Column("parameter", sa.String(32), primary_key=True),
+    sa.Column("parameter", sa.String(PARAMETER_LENGTH), primary_key=True),
     sa.Column("value", sa.Float, nullable=True),
     sa.Column("std_error", sa.Float, nullable=True),
 )
@@ -85,15 +91,16 @@ baselines = sa.Table(
 baseline_values = sa.Table(
     "baseline_values", metadata,
     sa.Column("baseline_id", sa.Integer, sa.ForeignKey("baselines.id"), primary_key=True),
-    sa.Column("parameter", sa.String(32), primary_key=True),
+    sa.Column("parameter", sa.String(PARAMETER_LENGTH), primary_key=True),
     sa.Column("mean", sa.Float, nullable=False),
     sa.Column("std", sa.Float, nullable=False),
+    sa.Column("n", sa.Integer, nullable=True),  # v5: tests with this parameter (NULL: all)
 )
 
 symptoms = sa.Table(
     "symptoms", metadata,
     sa.Column("test_id", sa.Integer, sa.ForeignKey("tests.id"), primary_key=True),
-    sa.Column("parameter", sa.String(32), primary_key=True),
+    sa.Column("parameter", sa.String(PARAMETER_LENGTH), primary_key=True),
     sa.Column("baseline_id", sa.Integer, sa.ForeignKey("baselines.id"), primary_key=True),
     sa.Column("percent_change", sa.Float, nullable=False),
     sa.Column("high", sa.Float, nullable=False),
@@ -146,7 +153,7 @@ isolations = sa.Table(
 isolation_estimates = sa.Table(
     "isolation_estimates", metadata,
     sa.Column("isolation_id", sa.Integer, sa.ForeignKey("isolations.id"), primary_key=True),
-    sa.Column("parameter", sa.String(32), primary_key=True),
+    sa.Column("parameter", sa.String(PARAMETER_LENGTH), primary_key=True),
     sa.Column("value", sa.Float, nullable=True),
     sa.Column("nominal", sa.Float, nullable=True),
     sa.Column("change_percent", sa.Float, nullable=True),
@@ -251,5 +258,19 @@ def _v3_to_v4(conn: sa.Connection) -> None:
             conn.execute(sa.text(f"ALTER TABLE {table} ADD COLUMN fingerprint TEXT"))
 
 
+def _v4_to_v5(conn: sa.Connection) -> None:
+    """Regimes and groups: a test's operating regime, a baseline parameter's own
+    count (a regime's parameters are in some tests only), a unit's group, and
+    parameter names long enough for a regime (``Tc@forward``)."""
+    for ddl in ("ALTER TABLE tests ADD COLUMN regime TEXT",
+                "ALTER TABLE baseline_values ADD COLUMN n INTEGER",
+                f"ALTER TABLE units ADD COLUMN group_name VARCHAR({NAME_LENGTH})"):
+        conn.execute(sa.text(ddl))
+    if conn.dialect.name == "postgresql":  # SQLite does not enforce a VARCHAR's length
+        for table in ("estimates", "baseline_values", "symptoms", "isolation_estimates"):
+            conn.execute(sa.text(f"ALTER TABLE {table} ALTER COLUMN parameter TYPE "
+                                 f"VARCHAR({PARAMETER_LENGTH})"))
+
+
 MIGRATIONS: dict[int, Callable[[sa.Connection], None]] = {1: _v1_to_v2, 2: _v2_to_v3,
-                                                          3: _v3_to_v4}
+                                                          3: _v3_to_v4, 4: _v4_to_v5}

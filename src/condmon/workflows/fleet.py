@@ -32,6 +32,7 @@ here too).
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from contextlib import ExitStack
@@ -42,6 +43,7 @@ from typing import TYPE_CHECKING, Any
 from condmon.errors import CondmonError, ConfigError, DataError
 from condmon.io.digest import file_hash
 from condmon.io.raw import one_line
+from condmon.io.rig import RecordSettings
 from condmon.workflows.fleet_commit import RecordReport, _Unit, _write
 from condmon.workflows.fleet_engine import BLAS_ENV as BLAS_ENV
 from condmon.workflows.fleet_engine import EngineError as EngineError
@@ -234,6 +236,10 @@ def _settle_model(store: HistoryStore | None, plan: _Unit, rec: FleetRecord) -> 
         return
     plan.model = model
     plan.kind = "estimate" if machine.spec.unknowns else "isolate"
+    if plan.kind == "estimate" and store is not None and stored is not None:
+        from condmon.workflows.monitoring import _existing_baseline, _held
+
+        plan.hold = _held(_existing_baseline(store, plan.name))
 
 
 # -- the run --------------------------------------------------------------------------
@@ -401,8 +407,19 @@ class _Run:
             assert unit is not None and unit.model is not None and unit.kind is not None
             unit.expected += 1
             tasks.append((rec, RecordTask(rec.unit, str(rec.path), unit.kind, unit.model,
-                                          self.options, rec.test_date, unit.digests)))
+                                          self._options_of(rec, unit), rec.test_date,
+                                          unit.digests)))
         return tasks
+
+    def _options_of(self, rec: FleetRecord, unit: _Unit) -> EstimateOptions:
+        """The run's options for one record: its unit folder's and manifest row's
+        record settings and metadata under the command line's, and the unit's
+        baseline to hold unidentified unknowns at."""
+        opts = self.options
+        settings = (rec.settings or RecordSettings()).merged(opts.record)
+        metadata = {**(rec.metadata or {}), **(opts.metadata or {})}
+        return dataclasses.replace(opts, record=None if settings.empty else settings,
+                                   metadata=metadata or None, hold=unit.hold)
 
     def _process(self, client: Client, store: HistoryStore,
                  tasks: list[tuple[FleetRecord, RecordTask]]) -> None:

@@ -26,6 +26,7 @@ from condmon.workflows.fleet_work import Kind, RecordOutcome, _named
 
 if TYPE_CHECKING:
     from condmon.diagnose.rules import RuleBase
+    from condmon.identify.estimate import EstimateResult
     from condmon.monitor.baseline import Baseline
     from condmon.monitor.fuzzy import MonitorConfig
     from condmon.store.baselines import StoredBaseline
@@ -98,15 +99,20 @@ class _Unit:
     outcomes: list[tuple[FleetRecord, RecordOutcome]] = field(default_factory=list)
     building: bool = False
     members: list[int] = field(default_factory=list)  # accepted healthy tests while building
+    hold: dict[str, float] | None = None  # the baseline's means, for unidentified unknowns
+    counts: dict[str, int] = field(default_factory=dict)  # baseline tests per regime
 
 
 @dataclass
 class _Checker:
-    """The unit's baseline while its records are committed (one batch)."""
+    """The unit's baseline while its records are committed (one batch), with
+    the breakpoints and rules checks against it use."""
 
     baseline: Baseline
     ids: list[int]
     latest: StoredBaseline | None
+    monitor: MonitorConfig
+    rules: RuleBase
 
 
 def _order(item: tuple[FleetRecord, RecordOutcome]) -> tuple[Any, ...]:
@@ -118,13 +124,32 @@ def _order(item: tuple[FleetRecord, RecordOutcome]) -> tuple[Any, ...]:
 
 
 @functools.lru_cache(maxsize=16)
-def _monitoring(model: str) -> tuple[MonitorConfig, RuleBase]:
-    from condmon.diagnose.rules import load_rules
+def _rules(model: str) -> RuleBase:
+    from condmon.diagnose.rules import machine_rules
     from condmon.models.registry import get_model
-    from condmon.monitor.fuzzy import load_monitor_config
 
-    machine = get_model(model)
-    return load_monitor_config(machine.breakpoints), load_rules(machine.rules)
+    return machine_rules(get_model(model))
+
+
+def _regimes_of(res: EstimateResult) -> set[str]:
+    """The regimes a usable estimate is trended in ("" for a machine without)."""
+    from condmon.models.regimes import split_key
+
+    return {split_key(k)[1] for k in res.stored_values()}
+
+
+def _regime_counts(store: HistoryStore, ids: list[int]) -> dict[str, int]:
+    """Accepted healthy tests per regime among ``ids``."""
+    from condmon.models.regimes import split_key
+
+    if not ids:
+        return {}
+    values, _ = store.estimates_of(ids)
+    counts: dict[str, int] = {}
+    for key in values.columns:
+        regime = split_key(str(key))[1]
+        counts[regime] = max(counts.get(regime, 0), int(values[key].notna().sum()))
+    return counts
 
 
 def _commit_unit(store: HistoryStore, plan: _Unit, baseline_count: int) -> list[RecordReport]:
@@ -139,8 +164,9 @@ def _commit_unit(store: HistoryStore, plan: _Unit, baseline_count: int) -> list[
         from condmon.workflows.monitoring import baseline_members
 
         ids, latest = baseline_members(store, plan.name)
-        plan.building = latest is None and len(ids) < baseline_count
-        plan.members = list(ids) if plan.building else []
+        plan.building = latest is None
+        plan.members = list(ids)
+        plan.counts = _regime_counts(store, plan.members)
     for rec, out in items:
         where = str(rec.path)
         date = rec.test_date or (out.key.test_date if out.key is not None else None)
@@ -168,8 +194,10 @@ def _commit_unit(store: HistoryStore, plan: _Unit, baseline_count: int) -> list[
         try:
             if out.isolation is not None:
                 reports.append(_commit_isolation(store, plan, out, report))
-            elif plan.building:
+            elif _joins_baseline(plan, out, baseline_count):
                 reports.append(_commit_baseline_test(store, plan, out, baseline_count, report))
+                if not plan.building:
+                    checker[0] = None  # a new baseline version: checks load it again
             else:
                 reports.append(_commit_check(store, plan, out, checker, report))
         except DuplicateTestError as dup:  # written meanwhile by another process
@@ -200,10 +228,24 @@ def _commit_isolation(store: HistoryStore, plan: _Unit, out: RecordOutcome,
                   iso.statement if iso.decided else (iso.reason or iso.statement), iid)
 
 
+def _joins_baseline(plan: _Unit, out: RecordOutcome, baseline_count: int) -> bool:
+    """Whether a record is one of its unit's baseline tests: while no baseline
+    is saved (a rejected record too), or while one of its regimes has fewer
+    than ``baseline_count`` accepted healthy tests."""
+    res = out.estimate
+    if res is None:
+        return False
+    if plan.building:
+        return True
+    return res.usable and any(plan.counts.get(r, 0) < baseline_count for r in _regimes_of(res))
+
+
 def _commit_baseline_test(store: HistoryStore, plan: _Unit, out: RecordOutcome,
                           baseline_count: int, report: ReportFn) -> RecordReport:
     """As :func:`condmon.workflows.monitoring.add_baseline_tests` for one record;
-    the baseline is saved once ``baseline_count`` tests are accepted."""
+    a baseline version is saved once a regime has ``baseline_count`` accepted
+    tests (the unit's first, or one with a new regime)."""
+    from condmon.errors import DataError
     from condmon.monitor.baseline import MIN_BASELINE_TESTS
     from condmon.workflows.monitoring import (
         _baseline_of, _unit_error, filed_elsewhere, save_current_baseline,
@@ -213,9 +255,12 @@ def _commit_baseline_test(store: HistoryStore, plan: _Unit, out: RecordOutcome,
     assert res is not None and key is not None
     # while building, the unit has no saved version: its baseline so far is its
     # accepted healthy tests (plan.members, kept as they are written)
-    if res.accepted and len(plan.members) >= MIN_BASELINE_TESTS:
-        prior = _baseline_of(store, plan.name, plan.members)
-        why = _unit_error(res, prior)
+    if res.usable and len(plan.members) >= MIN_BASELINE_TESTS:
+        try:
+            prior = _baseline_of(store, plan.name, plan.members)
+        except DataError:  # no regime has 3 tests yet
+            prior = None
+        why = None if prior is None else _unit_error(res, prior)
         if why is not None:
             return report("refused", reason=_named(out.path, f"refused, {why}; nothing was "
                                                    "stored"))
@@ -223,48 +268,60 @@ def _commit_baseline_test(store: HistoryStore, plan: _Unit, out: RecordOutcome,
                          file_digest=key.file, fingerprint=key.fingerprint,
                          test_date=key.test_date)
     elsewhere = filed_elsewhere(store, plan.name, key)
-    if not res.accepted:
+    if not res.usable:
         return report("rejected", "retest", one_line(str(res.reason), None), tid, elsewhere)
     plan.members.append(tid)
-    ids = list(plan.members)
-    if len(ids) >= baseline_count:
-        # the unit's first saved version: no check can exist before it (a check
-        # saves the version it is evaluated against), so none to re-evaluate
+    regimes = _regimes_of(res)
+    for r in regimes:
+        plan.counts[r] = plan.counts.get(r, 0) + 1
+    done = [r for r in regimes if plan.counts[r] == baseline_count]
+    label = ", ".join(f"regime {r!r}" for r in sorted(regimes) if r)
+    if done:
+        ids = list(plan.members)
+        # a first version (no check exists before it), or one a new regime
+        # joined (the checks so far have other regimes): none to re-evaluate
         stored, _ = save_current_baseline(store, plan.name, ids,
-                                          reason=f"first baseline ({len(ids)} tests)")
+                                          reason=f"baseline of {len(ids)} tests" + (
+                                              f" ({label} complete)" if label else ""))
         plan.building = False
         return report("stored", "baseline", f"baseline of {plan.name!r} from {len(ids)} "
-                      f"accepted healthy tests ({stored.name!r} v{stored.version})", tid,
-                      elsewhere)
-    return report("stored", "baseline", f"baseline test {len(ids)} of {baseline_count}", tid,
-                  elsewhere)
+                      f"accepted healthy tests ({stored.name!r} v{stored.version})"
+                      + (f"; {label} complete" if label else ""), tid, elsewhere)
+    n = max(plan.counts[r] for r in regimes) if regimes else len(plan.members)
+    return report("stored", "baseline", f"baseline test {n} of {baseline_count}"
+                  + (f" ({label})" if label else ""), tid, elsewhere)
 
 
 def _commit_check(store: HistoryStore, plan: _Unit, out: RecordOutcome,
                   checker: list[_Checker | None], report: ReportFn) -> RecordReport:
     """As :func:`condmon.workflows.monitoring.check_test` for one estimated record."""
     from condmon.workflows.monitoring import (
-        _unit_error, current_baseline, evaluate, filed_elsewhere, save_current_baseline,
+        _unit_error, current_baseline, evaluate, filed_elsewhere, monitoring_of,
+        save_current_baseline,
     )
 
     res, key = out.estimate, out.key
     assert res is not None and key is not None and plan.model is not None
-    cfg, rb = _monitoring(plan.model)
     state = checker[0]
     if state is None:
+        from condmon.models.registry import get_model
+
         baseline, ids = current_baseline(store, plan.name)
-        rb.check_parameters(baseline.parameters)
-        state = checker[0] = _Checker(baseline, ids, store.latest_baseline(plan.name))
-    why = _unit_error(res, state.baseline) if res.accepted else None
+        cfg, rb = monitoring_of(get_model(plan.model), baseline, None, _rules(plan.model))
+        state = checker[0] = _Checker(baseline, ids, store.latest_baseline(plan.name), cfg, rb)
+    cfg, rb = state.monitor, state.rules
+    why = _unit_error(res, state.baseline) if res.usable else None
     if why is not None:
         return report("refused", reason=_named(out.path, f"refused, {why}; nothing was stored"))
-    if not res.accepted:
+    if not res.usable:
         tid = store.add_test(plan.name, res, role="check", digest=key.content,
                              file_digest=key.file, fingerprint=key.fingerprint,
                              test_date=key.test_date)
         return report("rejected", "retest", one_line(str(res.reason), None), tid,
                       filed_elsewhere(store, plan.name, key))
-    row, diag = evaluate(res, state.baseline, cfg, rb)
+    from condmon.models.registry import get_model
+
+    row, diag = evaluate(res, state.baseline, cfg, rb, get_model(plan.model).spec.report)
     if state.latest is None or list(state.latest.test_ids) != state.ids:
         state.latest, _ = save_current_baseline(store, plan.name, state.ids, monitor=cfg,
                                                 reason="baseline of the first check")

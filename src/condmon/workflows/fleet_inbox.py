@@ -23,8 +23,9 @@ from condmon.errors import ConfigError, DataError
 from condmon.io.dates import parse_date
 from condmon.io.raw import one_line
 from condmon.io.readers import READABLE_SUFFIXES
+from condmon.io.rig import RECORD_KEYS, RecordSettings, parse_assignments, parse_record_settings
 
-__all__ = ["FleetRecord", "inbox_records", "read_manifest"]
+__all__ = ["FleetRecord", "inbox_records", "read_manifest", "UnitFile", "read_unit_file"]
 
 #: Name of a unit folder's optional declaration (``model = "..."``).
 UNIT_FILE = "unit.toml"
@@ -57,6 +58,13 @@ class FleetRecord:
     skip : str or None
         Why the record is skipped before it is read (a file listed again in
         the manifest).
+    settings : RecordSettings or None
+        How the rig writes it: ``unit.toml``'s ``[record]`` table, then the
+        manifest row's.
+    metadata : dict or None
+        Its metadata fields (``unit.toml``'s ``[metadata]``, then the row's).
+    group : str or None
+        The group of peer units it is judged with (``unit.toml``'s or the row's).
     """
 
     unit: str
@@ -67,6 +75,9 @@ class FleetRecord:
     error: str | None = None
     fallback_source: str | None = None
     skip: str | None = None
+    settings: RecordSettings | None = None
+    metadata: dict[str, Any] | None = None
+    group: str | None = None
 
 
 def _natural(text: str) -> tuple[tuple[int, int | str], ...]:
@@ -99,28 +110,88 @@ def _not_a_record(path: Path) -> str:
             f"{', '.join(READABLE_SUFFIXES)}")
 
 
-def _unit_file_model(folder: Path) -> tuple[str | None, str | None]:
-    """``(model, error)`` of ``folder/unit.toml`` (both None without one)."""
+#: Keys a unit folder's ``unit.toml`` may hold.
+UNIT_KEYS = ("model", "group", "record", "metadata")
+
+
+@dataclass(frozen=True)
+class UnitFile:
+    """What a unit folder's ``unit.toml`` says (all None without one).
+
+    Attributes
+    ----------
+    model : str or None
+        The unit's model (a name or a declaration, resolved against the folder).
+    group : str or None
+        Its group of peer units.
+    settings : RecordSettings or None
+        Its ``[record]`` table.
+    metadata : dict or None
+        Its ``[metadata]`` table (fields its regimes may name, ``load = "ball"``).
+    error : str or None
+        Why the file cannot be used (its records are refused with it).
+    """
+
+    model: str | None = None
+    group: str | None = None
+    settings: RecordSettings | None = None
+    metadata: dict[str, Any] | None = None
+    error: str | None = None
+
+
+def _metadata(value: Any, where: str) -> dict[str, Any]:
+    """A ``[metadata]`` table or ``"k=v,..."`` text: text values kept, numbers as numbers."""
+    if isinstance(value, str):
+        out: dict[str, Any] = {}
+        for k, v in parse_assignments(value, where).items():
+            try:
+                out[k] = float(v)
+            except ValueError:
+                out[k] = v
+        return out
+    if not isinstance(value, dict) or not all(
+            isinstance(v, (str, int, float)) and not isinstance(v, bool) for v in value.values()):
+        raise ConfigError(f"{where} must be a table of text or numbers (load = \"ball\")")
+    return dict(value)
+
+
+def read_unit_file(folder: Path) -> UnitFile:
+    """``folder/unit.toml`` read and validated (an empty :class:`UnitFile` without one)."""
     path = folder / UNIT_FILE
     if not path.is_file():
-        return None, None
+        return UnitFile()
     try:
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        return None, f"{path}: cannot read: {one_line(exc, None)}"
+        return UnitFile(error=f"{path}: cannot read: {one_line(exc, None)}")
+    unknown = [k for k in doc if k not in UNIT_KEYS]
+    if unknown:
+        return UnitFile(error=f"{path}: unknown key {unknown[0]!r}; allowed: "
+                              f"{', '.join(UNIT_KEYS)}")
     model = doc.get("model")
-    if not isinstance(model, str) or not model.strip():
-        return None, f"{path}: needs model = \"NAME or declaration.toml\""
-    model = model.strip()
-    if model.lower().endswith(".toml") and not Path(model).is_absolute():
-        model = str(folder / model)
-    return model, None
+    if model is not None and (not isinstance(model, str) or not model.strip()):
+        return UnitFile(error=f"{path}: needs model = \"NAME or declaration.toml\"")
+    group = doc.get("group")
+    if group is not None and (not isinstance(group, str) or not group.strip()):
+        return UnitFile(error=f"{path}: group must be a name")
+    try:
+        settings = parse_record_settings(doc.get("record"), f"{path}[record]")
+        metadata = _metadata(doc.get("metadata", {}), f"{path}[metadata]")
+    except ConfigError as exc:
+        return UnitFile(error=str(exc))
+    if model is not None:
+        model = model.strip()
+        if model.lower().endswith(".toml") and not Path(model).is_absolute():
+            model = str(folder / model)
+    return UnitFile(model, group.strip() if group else None,
+                    None if settings.empty else settings, metadata or None)
 
 
 def _unit_records(folder: Path) -> list[FleetRecord]:
     """Every file of a unit's folder (sub-folders too) but hidden ones, its
     ``unit.toml`` and the declaration that names; in file-name order."""
-    model, error = _unit_file_model(folder)
+    unit_file = read_unit_file(folder)
+    model, error = unit_file.model, unit_file.error
     source = str(folder / UNIT_FILE) if (folder / UNIT_FILE).is_file() else None
     declaration = Path(model).resolve() if model and model.lower().endswith(".toml") else None
     files = sorted((p for p in folder.rglob("*")
@@ -129,7 +200,9 @@ def _unit_records(folder: Path) -> list[FleetRecord]:
                     and (declaration is None or p.resolve() != declaration)),
                    key=lambda p: _name_key(p.relative_to(folder)))
     return [FleetRecord(folder.name, p, fallback_model=model, fallback_source=source,
-                        error=error if _is_record(p) else _not_a_record(p)) for p in files]
+                        error=error if _is_record(p) else _not_a_record(p),
+                        settings=unit_file.settings, metadata=unit_file.metadata,
+                        group=unit_file.group) for p in files]
 
 
 def inbox_records(inbox: str | Path) -> list[FleetRecord]:
@@ -181,17 +254,23 @@ def inbox_records(inbox: str | Path) -> list[FleetRecord]:
     return records
 
 
-MANIFEST_COLUMNS = ("unit", "file", "model", "date")
+MANIFEST_COLUMNS = ("unit", "file", "model", "date", "group", "metadata", *RECORD_KEYS)
+#: Columns of a manifest row that say how its rig writes the record (``[record]``).
+_RECORD_COLUMNS = RECORD_KEYS
 
 
 def read_manifest(manifest: str | Path) -> list[FleetRecord]:
     """The records listed in a manifest (CSV or TOML).
 
     A CSV manifest has a header with the columns ``unit`` and ``file``, and
-    optionally ``model`` and ``date`` (in any case; comma, semicolon or tab
-    delimited, told from the header); a TOML manifest lists ``[[records]]``
-    tables with the same keys. A relative ``file`` (and a relative model
-    declaration ``.toml``) is resolved against the manifest's folder.
+    optionally ``model``, ``date``, ``group``, ``metadata`` (``load=ball``) and
+    the record settings ``columns`` (``t=Time,theta=Angle``),
+    ``sample_rate``, ``scale``, ``offset`` and ``ignore`` (in any case; comma,
+    semicolon or tab delimited, told from the header; a value holding the
+    delimiter is quoted); a TOML manifest lists ``[[records]]`` tables with
+    the same keys (``columns``, ``scale``, ``offset`` and ``metadata`` may be
+    tables). A relative ``file`` (and a relative model declaration ``.toml``)
+    is resolved against the manifest's folder.
 
     A row without a model takes its unit's from the unit's other rows (else
     the history's, else the default). A row that cannot be taken is refused
@@ -254,13 +333,26 @@ def read_manifest(manifest: str | Path) -> list[FleetRecord]:
                                   f"{path}: row {n}: date")
             except DataError as exc:
                 error = str(exc)
+        settings: RecordSettings | None = None
+        metadata: dict[str, Any] | None = None
+        if error is None:
+            try:
+                table = {k: row[k] for k in _RECORD_COLUMNS if row.get(k) not in (None, "")}
+                parsed = parse_record_settings(table, f"{path}: row {n}")
+                settings = None if parsed.empty else parsed
+                if row.get("metadata") not in (None, ""):
+                    metadata = _metadata(row["metadata"], f"{path}: row {n}: metadata")
+            except ConfigError as exc:
+                error = str(exc)
+        group = str(row.get("group") or "").strip() or None
         key = Path(os.path.normpath(file_path.absolute()))
         if error is None and key in listed:
             skip = f"listed twice in the manifest (rows {listed[key]} and {n})"
         elif error is None:
             listed[key] = n
         records.append(FleetRecord(unit, file_path, given[0] if given else None, None, when,
-                                   error, skip=skip))
+                                   error, skip=skip, settings=settings, metadata=metadata,
+                                   group=group))
     return records
 
 

@@ -140,7 +140,6 @@ def process_record(task: RecordTask) -> RecordOutcome:
     >>> out.error
     'missing.csv: file not found'
     """
-    from condmon.io.records import read_record
     from condmon.workflows.records import record_key
 
     started = time.perf_counter()
@@ -148,7 +147,8 @@ def process_record(task: RecordTask) -> RecordOutcome:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            df = read_record(task.path, task.options.columns)
+            opts = dataclasses.replace(task.options, model=task.model)
+            df = opts.read(task.path)  # the record settings applied once, here
             key = record_key(df, task.path, task.test_date)
             if key.content in task.known:
                 return RecordOutcome(task.unit, task.path, key, known=True,
@@ -161,8 +161,7 @@ def process_record(task: RecordTask) -> RecordOutcome:
                 return RecordOutcome(task.unit, task.path, key, isolation=iso,
                                      warnings=_texts(caught),
                                      seconds=time.perf_counter() - started)
-            opts = dataclasses.replace(task.options, model=task.model)
-            res = opts.estimate_parsed(df, task.path)  # the columns were mapped when reading
+            res = opts.estimate_parsed(df, task.path)
             return RecordOutcome(task.unit, task.path, key, estimate=res,
                                  warnings=_texts(caught), seconds=time.perf_counter() - started)
         except CondmonError as exc:

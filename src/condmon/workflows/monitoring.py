@@ -21,15 +21,18 @@ import numpy as np
 import pandas as pd
 
 from condmon.diagnose.diagnoser import Diagnosis, diagnose
-from condmon.diagnose.rules import RuleBase, load_rules
+from condmon.diagnose.rules import RuleBase, machine_rules
 from condmon.errors import DataError
 from condmon.identify.estimate import EstimateResult
 from condmon.io.dates import parse_date
+from condmon.models.machine import Machine
+from condmon.models.regimes import regime_key, split_key
 from condmon.models.registry import get_model
 from condmon.monitor.baseline import (
-    MIN_BASELINE_TESTS, Baseline, assess_baseline, make_baseline,
+    MIN_BASELINE_TESTS, Baseline, assess_baseline, make_baseline, missing_regimes,
 )
-from condmon.monitor.fuzzy import MonitorConfig, compute_symptoms, load_monitor_config
+from condmon.monitor.fuzzy import MonitorConfig, compute_symptoms
+from condmon.monitor.generic import describe_generic, machine_monitor
 from condmon.store.baselines import StoredBaseline
 from condmon.store.db import DuplicateTestError, HistoryStore
 from condmon.workflows.records import EstimateOptions, RecordKey, RecordLike, record_key
@@ -37,7 +40,8 @@ from condmon.workflows.records import EstimateOptions, RecordKey, RecordLike, re
 __all__ = ["EstimateOptions", "AddedTest", "BaselineAddResult", "CheckResult", "RecordKey",
            "add_baseline_tests", "current_baseline", "check_test", "RecordLike",
            "unit_monitor", "save_current_baseline", "reevaluate", "parse_date", "record_key",
-           "evaluate", "baseline_members", "filed_elsewhere"]
+           "evaluate", "baseline_members", "filed_elsewhere", "monitoring_of", "restricted",
+           "no_baseline_yet"]
 
 Progress = Callable[[int, int, str], None]
 
@@ -76,6 +80,8 @@ class BaselineAddResult:
     flags : tuple of dict
         Why the baseline may not be trustworthy (see
         :func:`condmon.monitor.assess_baseline`); empty when nothing is suspicious.
+    notes : tuple of str
+        What the user should know at once (a model monitored generically).
     """
 
     tests: tuple[AddedTest, ...]
@@ -83,11 +89,26 @@ class BaselineAddResult:
     baseline_id: int | None
     message: str
     flags: tuple[dict[str, Any], ...] = ()
+    notes: tuple[str, ...] = ()
 
 
-def unit_monitor(store: HistoryStore, unit: str) -> MonitorConfig:
-    """The monitor configuration of the unit's model (its ``[monitor]`` breakpoints)."""
-    return load_monitor_config(get_model(store.unit_model(unit) or "dc-motor").breakpoints)
+def unit_monitor(store: HistoryStore, unit: str, baseline: Baseline | None = None
+                 ) -> MonitorConfig:
+    """The monitor configuration of the unit's model: its ``[monitor]``
+    breakpoints, or generic ones from ``baseline``'s spread."""
+    return machine_monitor(get_model(store.unit_model(unit) or "dc-motor"), baseline)
+
+
+def monitoring_of(machine: Machine, baseline: Baseline, monitor: MonitorConfig | None = None,
+                  rules: RuleBase | None = None) -> tuple[MonitorConfig, RuleBase]:
+    """Breakpoints and rules a check against ``baseline`` uses: the ones given,
+    else the machine's own (:func:`~condmon.monitor.generic.machine_monitor`,
+    :func:`~condmon.diagnose.rules.machine_rules`); the rules must name only
+    the machine's parameters."""
+    cfg = monitor or machine_monitor(machine, baseline)
+    rb = rules or machine_rules(machine)
+    rb.check_parameters(machine.spec.report)
+    return cfg, rb
 
 
 def baseline_members(store: HistoryStore, unit: str) -> tuple[list[int], StoredBaseline | None]:
@@ -145,7 +166,7 @@ def save_current_baseline(store: HistoryStore, unit: str, ids: Sequence[int], *,
     """
     base = _baseline_of(store, unit, ids)
     values, ses = store.estimates_of(ids)
-    cfg = monitor or unit_monitor(store, unit)
+    cfg = monitor or unit_monitor(store, unit, base)
     flags = assess_baseline(values[list(base.parameters)].to_numpy(),
                             ses[list(base.parameters)].to_numpy(), list(ids),
                             base.parameters, cfg.baseline)
@@ -168,8 +189,7 @@ def reevaluate(store: HistoryStore, unit: str, baseline: StoredBaseline,
         ``{test_id: (status before, status now)}`` of the checks evaluated anew.
     """
     machine = get_model(store.unit_model(unit) or "dc-motor")
-    cfg = monitor or load_monitor_config(machine.breakpoints)
-    rb = rules or load_rules(machine.rules)
+    cfg, rb = monitoring_of(machine, baseline.baseline, monitor, rules)
     hist = store.history(unit)
     todo = hist[(hist["role"] == "check") & hist["accepted"] & ~hist["excluded"]
                 & (hist["baseline_id"] != baseline.id)]
@@ -177,31 +197,72 @@ def reevaluate(store: HistoryStore, unit: str, baseline: StoredBaseline,
         return {}
     params = list(baseline.baseline.parameters)
     values, ses = store.estimates_of(list(todo.index))
-    sym = compute_symptoms(values[params].to_numpy(), baseline.baseline, cfg,
-                           ses[params].to_numpy())
+    values, ses = values.reindex(columns=params), ses.reindex(columns=params)
+    sym = compute_symptoms(values.to_numpy(), baseline.baseline, cfg, ses.to_numpy())
+    have = values.notna().to_numpy()
     changed: dict[int, tuple[str | None, str]] = {}
     for i, tid in enumerate(todo.index):
-        diag = diagnose(sym.to_dict(i), rb)
-        if store.save_evaluation(unit, int(tid), baseline.id, sym.row(i), diag):
+        row = {p: v for j, (p, v) in enumerate(sym.row(i).items()) if have[i, j]}
+        if not row:  # its regimes have no baseline in this version
+            continue
+        diag = diagnose({p: {"high": v["high"], "low": v["low"]} for p, v in row.items()}, rb,
+                        machine.spec.report)
+        if store.save_evaluation(unit, int(tid), baseline.id, row, diag):
             before = todo.loc[tid, "status"]
             changed[int(tid)] = (None if before == "unchecked" else str(before), diag.status)
     return changed
 
 
+def restricted(baseline: Baseline, keys: Sequence[str]) -> Baseline:
+    """The baseline of ``keys`` only (the parameters a test has), in their order."""
+    idx = [baseline.parameters.index(k) for k in keys]
+    counts = baseline.count_array[idx]
+    return Baseline(tuple(keys), tuple(baseline.mean[i] for i in idx),
+                    tuple(baseline.std[i] for i in idx), baseline.n,
+                    None if bool(np.all(counts == baseline.n)) else tuple(map(int, counts)))
+
+
 def evaluate(res: EstimateResult, baseline: Baseline, monitor: MonitorConfig,
-             rules: RuleBase) -> tuple[dict[str, dict[str, float]], Diagnosis]:
+             rules: RuleBase, parameters: Sequence[str] | None = None
+             ) -> tuple[dict[str, dict[str, float]], Diagnosis]:
     """Symptoms and diagnosis of one accepted estimate against a baseline (no store).
+
+    Each of the test's values is compared with the baseline's value of the
+    same name, a regime's with its own regime's (``Tc@forward``); values the
+    baseline has none of (a regime with no baseline yet) are left out.
+    ``parameters``: every parameter the machine reports (the rules may name
+    them; see :func:`~condmon.diagnose.diagnose`).
 
     Returns
     -------
     row : dict
         ``{param: {"percent_change", "high", "low"}}`` (what the store keeps).
     diagnosis : Diagnosis
+
+    Raises
+    ------
+    DataError
+        None of the test's values has a baseline (naming the regimes).
     """
-    values = np.array([res.parameters[p] for p in baseline.parameters])
-    ses = np.array([res.std_errors[p] for p in baseline.parameters])
-    sym = compute_symptoms(values, baseline, monitor, ses)
-    return sym.row(0), diagnose(sym.to_dict(0), rules)
+    stored = res.stored_values()
+    keys = [k for k in baseline.parameters if k in stored]
+    if not keys:
+        raise DataError(f"{res.source}: {no_baseline_yet(list(stored), baseline)}; it is "
+                        "not compared with another regime's")
+    base = restricted(baseline, keys)
+    values = np.array([stored[k][0] for k in keys])
+    ses = np.array([stored[k][1] for k in keys])
+    sym = compute_symptoms(values, base, monitor, ses)
+    return sym.row(0), diagnose(sym.to_dict(0), rules, parameters)
+
+
+def no_baseline_yet(keys: Sequence[str], baseline: Baseline) -> str:
+    """Which of a test's regimes have no baseline yet, in one clause."""
+    regimes = sorted({split_key(k)[1] or "(none)" for k in missing_regimes(keys, baseline)})
+    have = sorted({split_key(k)[1] for k in baseline.parameters if split_key(k)[1]})
+    return (f"regime(s) {', '.join(repr(r) for r in regimes)} have no baseline yet "
+            f"(the baseline has {', '.join(repr(r) for r in have) or 'no regime'}); add "
+            "healthy tests of them with `condmon baseline add`")
 
 
 def _unit_options(store: HistoryStore, unit: str, opts: EstimateOptions) -> EstimateOptions:
@@ -235,9 +296,27 @@ def _existing_baseline(store: HistoryStore, unit: str) -> Baseline | None:
 
 def _unit_error(res: EstimateResult, baseline: Baseline) -> str | None:
     """Why a test's parameters jump beyond what is believable or flip sign
-    against the baseline ("likely unit or sign error ..."), or None."""
-    return get_model(res.model_key).spec.plausibility.check_against_baseline(
-        res.parameters, dict(zip(baseline.parameters, baseline.mean)), res.units)
+    against the baseline ("likely unit or sign error ..."), or None; each
+    regime's against its own."""
+    plausibility = get_model(res.model_key).spec.plausibility
+    by_regime: dict[str, tuple[dict[str, float], dict[str, float]]] = {}
+    for key, (value, _) in res.stored_values().items():
+        mean = baseline.value(key)
+        if mean is None:
+            continue
+        name, regime = split_key(key)
+        values, means = by_regime.setdefault(regime, ({}, {}))
+        values[name], means[name] = value, mean
+    for regime, (values, means) in by_regime.items():
+        why = plausibility.check_against_baseline(values, means, res.units)
+        if why is not None:
+            return why + (f" (regime {regime!r})" if regime else "")
+    return None
+
+
+def _held(baseline: Baseline | None) -> dict[str, float] | None:
+    """Values to hold unidentified unknowns at: the baseline's means."""
+    return None if baseline is None else dict(zip(baseline.parameters, baseline.mean))
 
 
 def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordLike],
@@ -260,9 +339,9 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
         name = str(rec) if not isinstance(rec, pd.DataFrame) else rec.attrs.get("source", f"record {i}")
         if progress is not None:
             progress(i, len(records), str(name))
-        res, key = opts.run(rec, test_date)
-        prior = _existing_baseline(store, unit) if res.accepted else None
-        why = None if prior is None else _unit_error(res, prior)
+        prior = _existing_baseline(store, unit)
+        res, key = opts.with_hold(_held(prior)).run(rec, test_date)
+        why = None if prior is None or not res.usable else _unit_error(res, prior)
         if why is not None:
             added.append(AddedTest(res.source, -1, False, False, why, refused=True))
             continue
@@ -270,10 +349,11 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
             tid = store.add_test(unit, res, role="baseline", digest=key.content,
                                  file_digest=key.file, fingerprint=key.fingerprint,
                                  test_date=key.test_date)
-            added.append(AddedTest(res.source, tid, res.accepted, False, res.reason,
+            added.append(AddedTest(res.source, tid, res.usable, False,
+                                   None if res.usable else res.reason,
                                    warning=filed_elsewhere(store, unit, key)))
         except DuplicateTestError as dup:
-            added.append(AddedTest(res.source, dup.test_id, res.accepted, True,
+            added.append(AddedTest(res.source, dup.test_id, res.usable, True,
                                    "already in the history"))
     if progress is not None:
         progress(len(records), len(records), "")
@@ -282,15 +362,36 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
         return BaselineAddResult(tuple(added), None, None, str(_too_few(unit, 0)))
     ids, latest = baseline_members(store, unit)
     ids = sorted(set(ids) | set(new))
+    machine = get_model(opts.model or "dc-motor")
+    notes = (describe_generic(),) if machine.monitored_generically else ()
     if len(ids) < MIN_BASELINE_TESTS:
-        return BaselineAddResult(tuple(added), None, None, str(_too_few(unit, len(ids))))
-    stored, fresh = save_current_baseline(
-        store, unit, ids, reason=f"{len(new)} healthy test(s) added" if latest else "first baseline")
+        return BaselineAddResult(tuple(added), None, None, str(_too_few(unit, len(ids))),
+                                 notes=notes)
+    try:
+        stored, fresh = save_current_baseline(
+            store, unit, ids,
+            reason=f"{len(new)} healthy test(s) added" if latest else "first baseline")
+    except DataError as err:  # tests enough, but no regime has 3 of them yet
+        return BaselineAddResult(tuple(added), None, None, f"unit {unit!r}: {err}",
+                                 notes=notes)
     if fresh:
         reevaluate(store, unit, stored)
+    regimes = _regime_counts(stored.baseline)
     return BaselineAddResult(tuple(added), stored.baseline, stored.id,
                              f"baseline of {unit!r} from {stored.baseline.n} accepted healthy "
-                             f"tests ({stored.name!r} v{stored.version})", stored.flags)
+                             f"tests ({stored.name!r} v{stored.version})"
+                             + (f"; regimes: {regimes}" if regimes else ""), stored.flags,
+                             notes)
+
+
+def _regime_counts(baseline: Baseline) -> str:
+    """``forward 5 tests, reverse 5 tests`` ("" without regimes)."""
+    counts: dict[str, int] = {}
+    for key, n in zip(baseline.parameters, baseline.count_array):
+        regime = split_key(key)[1]
+        if regime:
+            counts[regime] = max(counts.get(regime, 0), int(n))
+    return ", ".join(f"{r} {n} tests" for r, n in counts.items())
 
 
 def filed_elsewhere(store: HistoryStore, unit: str, key: RecordKey) -> str | None:
@@ -333,6 +434,11 @@ class CheckResult:
         When the test was run, if known (UTC).
     warning : str or None
         Something to look at (the same record already filed under another unit).
+    note : str or None
+        Regimes of the record with no baseline yet (not compared with another's).
+    against : str
+        What the test was compared with: ``unit`` (its own baseline),
+        ``group NAME`` or ``unit NAME`` (another's).
     """
 
     unit: str
@@ -346,6 +452,8 @@ class CheckResult:
     baseline_flags: tuple[dict[str, Any], ...] = ()
     test_date: datetime | None = None
     warning: str | None = None
+    note: str | None = None
+    against: str = "unit"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready result (the ``condmon check --json`` document)."""
@@ -368,6 +476,14 @@ class CheckResult:
                        [f.to_dict() for f in self.diagnosis.faults]),
             "summary": (self.diagnosis.summary if self.diagnosis is not None else
                         f"retest: {self.estimate.reason}"),
+            "regime": self.estimate.regime_label,
+            "windows": est["windows"],
+            "identifiable": {**est["identifiable"],
+                             **{regime_key(k, o.regime): k in o.identified
+                                for o in self.estimate.others for k in o.parameters}},
+            "held": est["held"],
+            "against": self.against,
+            "note": self.note,
             "condition": None if self.diagnosis is None else self.diagnosis.condition,
             "preprocessing_applied": ([] if self.diagnosis is None
                                       else list(self.diagnosis.applied)),
@@ -403,24 +519,24 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
     """
     opts = _unit_options(store, unit, options or EstimateOptions())
     machine = get_model(opts.model or "dc-motor")
-    cfg = monitor or load_monitor_config(machine.breakpoints)
-    rb = rules or load_rules(machine.rules)
     baseline, ids = current_baseline(store, unit)
-    rb.check_parameters(baseline.parameters)
-    res, key = opts.run(record, test_date)
-    why = _unit_error(res, baseline) if res.accepted else None
+    cfg, rb = monitoring_of(machine, baseline, monitor, rules)
+    res, key = opts.with_hold(_held(baseline)).run(record, test_date)
+    why = _unit_error(res, baseline) if res.usable else None
     if why is not None:
         raise DataError(f"{res.source}: refused, {why}; nothing was stored")
     latest = store.latest_baseline(unit)
     flags = latest.flags if latest is not None and list(latest.test_ids) == ids else ()
-    if not res.accepted:
+    if not res.usable:
         tid = -1 if dry_run else store.add_test(unit, res, role="check", digest=key.content,
                                                 file_digest=key.file,
                                                 fingerprint=key.fingerprint,
                                                 test_date=key.test_date)
         return CheckResult(unit, tid, res, "retest", baseline, baseline_flags=flags,
                            test_date=key.test_date, warning=filed_elsewhere(store, unit, key))
-    row, diag = evaluate(res, baseline, cfg, rb)
+    row, diag = evaluate(res, baseline, cfg, rb, machine.spec.report)
+    missing = missing_regimes(list(res.stored_values()), baseline)
+    note = no_baseline_yet(missing, baseline) if missing else None
     if dry_run:
         tid = -1
     else:
@@ -434,4 +550,4 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
     return CheckResult(unit, tid, res, diag.status, baseline,
                        {p: v["percent_change"] for p, v in row.items()},
                        {p: {"high": v["high"], "low": v["low"]} for p, v in row.items()},
-                       diag, flags, key.test_date, filed_elsewhere(store, unit, key))
+                       diag, flags, key.test_date, filed_elsewhere(store, unit, key), note)

@@ -4,10 +4,12 @@ history (content hash, file hash, test date). Nothing here touches the store, so
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import dataclasses
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 
@@ -16,6 +18,7 @@ from condmon.identify.fit import DEFAULT_FIT_THRESHOLD
 from condmon.io.dates import parse_date
 from condmon.io.digest import content_hash, file_hash, fingerprint
 from condmon.io.records import read_record
+from condmon.io.rig import RecordSettings, apply_record_settings
 
 __all__ = ["EstimateOptions", "RecordKey", "RecordLike", "record_key"]
 
@@ -61,10 +64,15 @@ def record_key(df: pd.DataFrame, path: str | Path | None = None,
 
 @dataclass(frozen=True)
 class EstimateOptions:
-    """How each record is estimated (see :func:`condmon.estimate`).
+    """How each record is read and estimated (see :func:`condmon.estimate`).
 
     ``model`` None: the unit's model (the one its history was started with),
-    else ``dc-motor``.
+    else ``dc-motor``. ``record``: how the rig writes its files, over the
+    model's own ``[record]`` table (a unit folder's ``unit.toml``, a manifest
+    row and the command line merged, the later winning); ``columns`` maps
+    names on top. ``metadata``: the record's fields the regimes may name
+    (``load = "ball"``). ``window``: a span chosen by hand [s]. ``hold``:
+    values for unknowns a record does not identify (a unit's baseline).
     """
 
     model: str | None = None
@@ -75,25 +83,59 @@ class EstimateOptions:
     columns: dict[str, str] | None = None
     route: str | None = None
     constants: dict[str, float] | None = None
+    record: RecordSettings | None = None
+    metadata: dict[str, Any] | None = None
+    window: tuple[float, float] | None = None
+    hold: dict[str, float] | None = None
+
+    def settings(self) -> RecordSettings:
+        """The record settings in force: the model's ``[record]``, then
+        :attr:`record`, then :attr:`columns`."""
+        from condmon.models.registry import get_model
+
+        return get_model(self.model or "dc-motor").record.merged(self.record).merged(
+            RecordSettings(dict(self.columns or {}), sources=("--columns",) if self.columns
+                           else ()))
+
+    def read(self, record: str | Path) -> pd.DataFrame:
+        """Read a record file and apply the record settings (model columns, SI units)."""
+        settings = self.settings()
+        df = read_record(record, settings.columns)
+        out = apply_record_settings(df, dataclasses.replace(settings, columns={}), str(record))
+        out.attrs["record_settings"] = settings.describe()
+        return out
+
+    def prepared(self, record: pd.DataFrame) -> pd.DataFrame:
+        """An in-memory record with the record settings applied (once)."""
+        if record.attrs.get("record_settings") is not None:
+            return record
+        out = apply_record_settings(record, self.settings())
+        out.attrs.setdefault("record_settings", "as written")
+        return out
 
     def run(self, record: RecordLike, test_date: str | datetime | None = None
             ) -> tuple[EstimateResult, RecordKey]:
         """Read (if a path), estimate; returns the result and how the record is known."""
         if isinstance(record, pd.DataFrame):
-            key = record_key(record, None, test_date)
-            source, mapped = str(record.attrs.get("source", "record")), False
-            df = record
+            df = self.prepared(record)
+            key = record_key(df, None, test_date)
+            source = str(record.attrs.get("source", "record"))
         else:
-            df = read_record(record, self.columns)
-            key, source, mapped = record_key(df, record, test_date), str(record), True
-        return self.estimate_parsed(df, source, mapped=mapped), key
+            df = self.read(record)
+            key, source = record_key(df, record, test_date), str(record)
+        return self.estimate_parsed(df, source), key
 
     def estimate_parsed(self, df: pd.DataFrame, source: str, *, mapped: bool = True
                         ) -> EstimateResult:
-        """Estimate a parsed record (``mapped``: its columns already carry the
-        canonical names, else :attr:`columns` maps them); ``source`` names it in
-        messages."""
-        return estimate(df, self.model or "dc-motor", method=self.method, gamma=self.gamma,
+        """Estimate a parsed record (``mapped``: the record settings were
+        applied, as :meth:`read` does; else they are applied now); ``source``
+        names it in messages."""
+        frame = df if mapped else self.prepared(df)
+        return estimate(frame, self.model or "dc-motor", method=self.method, gamma=self.gamma,
                         excitation=self.excitation, fit_threshold=self.fit_threshold,
-                        columns=None if mapped else self.columns, source=source,
-                        route=self.route, constants=self.constants)
+                        source=source, route=self.route, constants=self.constants,
+                        metadata=self.metadata, window=self.window, hold=self.hold)
+
+    def with_hold(self, hold: Mapping[str, float] | None) -> EstimateOptions:
+        """These options holding unidentified unknowns at ``hold`` (a baseline's means)."""
+        return dataclasses.replace(self, hold=dict(hold) if hold else None)

@@ -1,0 +1,162 @@
+"""Monitoring any declared machine: breakpoints from the baseline's spread, generic rules.
+
+A declaration without a ``[monitor]`` table says nothing of how much change
+matters or what it means. condmon then takes both from the data:
+
+- **Breakpoints** (:func:`spread_breakpoints`): a parameter's symptom starts
+  at ``r1 = r1_sigma · s`` and is full at ``r2 = r2_sigma · s``, with ``s``
+  the relative spread of the baseline the test is compared with (its sample
+  standard deviation over its mean, widened for few tests by the ratio of
+  Student's t to the normal quantile, floored at ``min_relative_spread``).
+- **Rules** (:func:`condmon.diagnose.rules.generic_rules`): ``<parameter>
+  increase`` if high, ``<parameter> decrease`` if low, named by the
+  parameter's description.
+
+The same breakpoints judge a unit against a group of its peers
+(:mod:`condmon.monitor.group`). The numbers are data
+(``condmon/data/generic-monitor.toml``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from condmon.errors import ConfigError
+from condmon.io.config import load_default
+from condmon.models.machine import Machine
+from condmon.monitor.baseline import Baseline, BaselineChecks
+from condmon.monitor.fuzzy import MonitorConfig
+
+__all__ = ["GenericSettings", "load_generic_settings", "spread_breakpoints", "generic_config",
+           "describe_generic", "StatusPoints", "machine_monitor"]
+
+#: Membership functions of the status (go, advisory, no-go) on [0, 1]: 3 or 4 points each.
+StatusPoints = tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]
+
+
+@dataclass(frozen=True)
+class GenericSettings:
+    """The numbers of generic monitoring (``generic-monitor.toml``).
+
+    Attributes
+    ----------
+    r1_sigma, r2_sigma : float
+        Breakpoints in relative spreads of the baseline. [-]
+    min_relative_spread : float
+        Floor of the relative spread. [%]
+    k : float
+        Symptom half-width in spreads. [-]
+    severity : str
+        Of the generic faults ("major" or "minor").
+    status : tuple of three tuples of float
+        The go, advisory and no-go membership functions of the generic rules.
+    baseline : BaselineChecks
+    """
+
+    r1_sigma: float = 4.0
+    r2_sigma: float = 8.0
+    min_relative_spread: float = 1.0
+    k: float = 2.0
+    severity: str = "major"
+    status: StatusPoints = ((0.0, 0.0, 0.25, 0.5), (0.25, 0.5, 0.75), (0.5, 0.75, 1.0, 1.0))
+    baseline: BaselineChecks = BaselineChecks()
+
+
+def load_generic_settings() -> GenericSettings:
+    """The shipped settings (``condmon/data/generic-monitor.toml``).
+
+    Example
+    -------
+    >>> s = load_generic_settings()
+    >>> s.r1_sigma, s.r2_sigma
+    (4.0, 8.0)
+    """
+    raw = load_default("generic-monitor.toml")
+    st = raw.get("status", {})
+    try:
+        go, adv, nogo = (tuple(float(v) for v in st[k]) for k in ("go", "advisory", "no_go"))
+        status: StatusPoints = (go, adv, nogo)
+        out = GenericSettings(float(raw["r1_sigma"]), float(raw["r2_sigma"]),
+                              float(raw["min_relative_spread"]), float(raw["k"]),
+                              str(raw["severity"]), status,
+                              BaselineChecks(**{k: float(v) for k, v in
+                                                dict(raw.get("baseline", {})).items()}))
+    except (KeyError, TypeError, ValueError) as err:
+        raise ConfigError(f"condmon/data/generic-monitor.toml: {err}") from None
+    if not 0 < out.r1_sigma < out.r2_sigma or out.severity not in ("major", "minor"):
+        raise ConfigError("condmon/data/generic-monitor.toml: needs 0 < r1_sigma < r2_sigma "
+                          "and severity major or minor")
+    return out
+
+
+def _t_ratio(n: int) -> float:
+    """``t(n-1, 0.975) / z(0.975)``: how much wider a spread of ``n`` tests is read."""
+    if n < 2:
+        return math.inf
+    from scipy.special import stdtrit
+
+    return float(stdtrit(n - 1, 0.975)) / 1.959963984540054
+
+
+def spread_breakpoints(baseline: Baseline, settings: GenericSettings | None = None
+                       ) -> tuple[dict[str, float], dict[str, float]]:
+    """``r1`` and ``r2`` of each of the baseline's parameters from its spread. [%]
+
+    Example
+    -------
+    >>> b = Baseline(("R",), (1.0,), (0.02,), 10)
+    >>> r1, r2 = spread_breakpoints(b)
+    >>> round(r1["R"], 2), round(r2["R"], 2)     # 4 and 8 x 2 %, widened for 10 tests
+    (9.23, 18.47)
+    """
+    cfg = settings or load_generic_settings()
+    r1, r2 = {}, {}
+    for name, mean, std, n in zip(baseline.parameters, baseline.mean, baseline.std,
+                                  baseline.count_array):
+        s = max(100.0 * std / abs(mean) * _t_ratio(int(n)), cfg.min_relative_spread)
+        r1[name], r2[name] = cfg.r1_sigma * s, cfg.r2_sigma * s
+    return r1, r2
+
+
+def generic_config(baseline: Baseline, settings: GenericSettings | None = None
+                   ) -> MonitorConfig:
+    """The monitor configuration of a machine without ``[monitor]``, for checks
+    against ``baseline``."""
+    cfg = settings or load_generic_settings()
+    r1, r2 = spread_breakpoints(baseline, cfg)
+    return MonitorConfig(r1, r2, cfg.k, "generic monitoring (condmon/data/generic-monitor.toml)",
+                         cfg.baseline)
+
+
+def machine_monitor(machine: Machine, baseline: Baseline | None = None) -> MonitorConfig:
+    """The monitor configuration of a machine: its ``[monitor]`` breakpoints, or
+    generic ones from ``baseline``'s spread when it declares none (without a
+    baseline: the generic settings' floor).
+
+    Example
+    -------
+    >>> from condmon.models.registry import get_model
+    >>> machine_monitor(get_model("dc-motor")).r1["R"]
+    20.0
+    """
+    from condmon.monitor.fuzzy import load_monitor_config
+
+    if machine.breakpoints is not None:
+        return load_monitor_config(machine.breakpoints)
+    cfg = load_generic_settings()
+    if baseline is None:
+        floor = {p: cfg.min_relative_spread for p in machine.spec.report}
+        return MonitorConfig({p: cfg.r1_sigma * v for p, v in floor.items()},
+                             {p: cfg.r2_sigma * v for p, v in floor.items()}, cfg.k,
+                             "generic monitoring (no baseline yet)", cfg.baseline)
+    return generic_config(baseline, cfg)
+
+
+def describe_generic(settings: GenericSettings | None = None) -> str:
+    """One sentence saying how a machine without ``[monitor]`` is monitored."""
+    cfg = settings or load_generic_settings()
+    return (f"no [monitor] table: generic monitoring, each parameter's symptom from "
+            f"{cfg.r1_sigma:g} to {cfg.r2_sigma:g} times the baseline's relative spread "
+            f"(at least {cfg.min_relative_spread:g} %), rules '<parameter> increase' and "
+            "'<parameter> decrease'")

@@ -380,11 +380,19 @@ def check_cmd(
     table = Table()
     for col in ("parameter", "value", "change %", "SymH", "SymL"):
         table.add_column(col, justify="left" if col == "parameter" else "right")
-    for p, v in res.estimate.parameters.items():
+    stored = res.estimate.stored_values()
+    for p, change in res.percent_change.items():
         sym = res.symptoms.get(p, {"high": 0.0, "low": 0.0})
-        table.add_row(escape(p), fmt(v), f"{res.percent_change[p]:+.1f}", f"{sym['high']:.2f}",
-                      f"{sym['low']:.2f}")
+        table.add_row(escape(p), fmt(stored[p][0]) if p in stored else "—", f"{change:+.1f}",
+                      f"{sym['high']:.2f}", f"{sym['low']:.2f}")
     out.print(table)
+    held = {k: v for part in res.estimate.regimes for k, v in part.held.items()}
+    if held:
+        out.print("held (not identified by this record): " + ", ".join(
+            f"{k} ({v})" for k, v in held.items()), highlight=False, markup=False,
+            soft_wrap=True)
+    if res.note:
+        out.print(f"note: {res.note}", highlight=False, markup=False, soft_wrap=True)
     for note in res.estimate.notes:
         if note.startswith("possible structure mismatch"):
             out.print(f"note: {note}", highlight=False, markup=False)

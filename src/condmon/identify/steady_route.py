@@ -12,8 +12,11 @@ stroke identifies one friction level, strokes at several speeds and both
 directions its viscous and Coulomb parts and a load torque.
 
 - **Weights.** Each window's row is weighted by the standard error of its
-  mean residual, taken by batch means (the residual of a steady window is
-  slow, not white: its samples are not independent).
+  mean residual, taken by batch means of the residual with its straight-line
+  trend removed: the residual of a steady window is slow, not white (its
+  samples are not independent), and a drift across the window (a load that
+  varies with the angle) is a repeatable part of the balance, seen in the
+  fit, not noise of its mean.
 - **Steadiness.** A window whose derivative terms (at the held or declared
   values, e.g. ``J dω/dt``) exceed ``steady_tolerance`` of the balance's RMS is
   not steady and is not used.
@@ -102,6 +105,15 @@ def batch_se(x: FloatArray, batches: int = 10) -> float:
         return float(np.std(x) / np.sqrt(max(n, 1)))
     means = np.array([b.mean() for b in np.array_split(x, nb)])
     return float(np.std(means, ddof=1) / np.sqrt(nb))
+
+
+def _detrended(x: FloatArray) -> FloatArray:
+    """``x`` less its least-squares straight line."""
+    t = np.arange(x.size, dtype=np.float64)
+    t -= t.mean()
+    denom = float(t @ t)
+    slope = float(t @ (x - x.mean())) / denom if denom > 0 else 0.0
+    return np.asarray(x - x.mean() - slope * t, dtype=np.float64)
 
 
 @dataclass(frozen=True)
@@ -205,7 +217,7 @@ def steady_route(signals: Sequence[Mapping[str, FloatArray]],
             for w in kept:
                 series = w.known[e] - (w.phi[e] @ theta if theta is not None else 0.0)
                 floor = 1e-9 * max(float(np.sqrt(np.mean(w.known[e] ** 2))), 1e-300)
-                se.append(max(batch_se(series), floor))
+                se.append(max(batch_se(_detrended(series)), floor))
             blocks.append(X)
             rhs.append(y)
             weights.append(1.0 / np.array(se))

@@ -31,7 +31,8 @@ from condmon.identify import estimate
 from condmon.monitor.baseline import assess_baseline
 from condmon.simulate import load_actuator_rig, simulate_actuator
 from condmon.store import open_store
-from condmon.workflows.monitoring import EstimateOptions, add_baseline_tests, check_test
+from condmon.workflows.checks import check_test
+from condmon.workflows.monitoring import EstimateOptions, add_baseline_tests
 
 PARAMS = ("R", "L", "Ke", "Kt", "J", "D")
 

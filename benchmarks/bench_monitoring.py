@@ -24,7 +24,8 @@ import numpy as np
 from _common import table, write_json
 from condmon.workflows.demo import load_demo_config
 from condmon.identify import estimate
-from condmon.workflows.monitoring import add_baseline_tests, check_test
+from condmon.workflows.checks import check_test
+from condmon.workflows.monitoring import add_baseline_tests
 from condmon.simulate import load_actuator_rig, simulate_actuator
 from condmon.store import open_store
 

@@ -14,7 +14,8 @@ import pytest
 
 from condmon.workflows.demo import DemoResult, run_demo
 from condmon.identify import estimate
-from condmon.workflows.monitoring import add_baseline_tests, check_test
+from condmon.workflows.checks import check_test
+from condmon.workflows.monitoring import add_baseline_tests
 from condmon.simulate import ActuatorRig, simulate_actuator
 from condmon.store import open_store
 

@@ -23,7 +23,8 @@ from condmon.workflows.fleet import (
     OUTCOMES, RecordTask, inbox_records, local_cluster, process_record, read_manifest, run_fleet,
 )
 from condmon.workflows.inbox import SimulatedUnit, simulated_inbox
-from condmon.workflows.monitoring import add_baseline_tests, check_test
+from condmon.workflows.checks import check_test
+from condmon.workflows.monitoring import add_baseline_tests
 
 FLEET = [SimulatedUnit("EMA-1"), SimulatedUnit("EMA-2"), SimulatedUnit("EMA-3", fault="D=*7"),
          SimulatedUnit("EMA-4")]

@@ -18,7 +18,8 @@ from condmon.errors import CondmonError
 from condmon.simulate import ActuatorRig, simulate_actuator
 from condmon.store import StoreBusyError, StoreError, open_store
 from condmon.workflows.manage import exclude_test, include_test, rebuild_baseline
-from condmon.workflows.monitoring import add_baseline_tests, check_test
+from condmon.workflows.checks import check_test
+from condmon.workflows.monitoring import add_baseline_tests
 
 DATA = Path(__file__).parent / "data"
 

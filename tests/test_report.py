@@ -23,7 +23,8 @@ from condmon.report.trends import trend_data
 from condmon.simulate import ActuatorRig, simulate_actuator
 from condmon.store import open_store
 from condmon.workflows.manage import exclude_test
-from condmon.workflows.monitoring import EstimateOptions, add_baseline_tests, check_test
+from condmon.workflows.checks import check_test
+from condmon.workflows.monitoring import EstimateOptions, add_baseline_tests
 
 ODD = "<b>EMA[/]7</b>"
 HST = "HST <1> & 'x'"

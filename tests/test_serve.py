@@ -27,7 +27,8 @@ from condmon.simulate import ActuatorRig, simulate_actuator
 from condmon.store import open_store
 from condmon.store.engine import StoreError
 from condmon.workflows.manage import exclude_test
-from condmon.workflows.monitoring import add_baseline_tests, check_test
+from condmon.workflows.checks import check_test
+from condmon.workflows.monitoring import add_baseline_tests
 
 #: A name with everything a URL or a page could trip over.
 ODD = "<b>EMA/7: x</b>"

@@ -49,6 +49,7 @@ RateOpt = Annotated[Optional[float], typer.Option("--sample-rate", help="Samples
 ScaleOpt = Annotated[Optional[str], typer.Option("--scale", help="Scale per column NAME=FACTOR,...: value = raw*FACTOR + OFFSET (raw counts to SI units).")]
 OffsetOpt = Annotated[Optional[str], typer.Option("--offset", help="Offset per column NAME=VALUE,... [SI], added after the scale.")]
 IgnoreOpt = Annotated[Optional[str], typer.Option("--ignore", help="File columns to leave out, comma-separated (a logger's own columns).")]
+GroupOpt = Annotated[Optional[str], typer.Option("--group", help="Put the unit in this group of peer units (a unit without a baseline of its own is checked against its group's).")]
 MetaOpt = Annotated[Optional[str], typer.Option("--meta", help="The record's metadata KEY=VALUE,... that regimes may name, e.g. load=ball.")]
 WindowOpt = Annotated[Optional[str], typer.Option("--window", help="Only this span of the record, START:END in seconds (either side may be empty).")]
 
@@ -273,6 +274,7 @@ def baseline_add_cmd(
     ignore: IgnoreOpt = None,
     meta: MetaOpt = None,
     window: WindowOpt = None,
+    group: GroupOpt = None,
 ) -> None:
     """Estimate healthy tests and store them as the unit's baseline."""
     from condmon.workflows.monitoring import add_baseline_tests
@@ -298,9 +300,10 @@ def baseline_add_cmd(
                 def tick(done: int, total: int, label: str) -> None:
                     prog.update(task, completed=done, description=Path(label).name or "done")
 
-                res = add_baseline_tests(store, unit, records, opts, tick, test_date=date)
+                res = add_baseline_tests(store, unit, records, opts, tick, test_date=date,
+                                         group=group)
         else:
-            res = add_baseline_tests(store, unit, records, opts, test_date=date)
+            res = add_baseline_tests(store, unit, records, opts, test_date=date, group=group)
     for t in res.tests:
         if t.refused:
             err.print(f"refused {t.source}: {t.reason}", highlight=False, markup=False, soft_wrap=True)
@@ -314,6 +317,8 @@ def baseline_add_cmd(
                       soft_wrap=True)
     n_new = sum(1 for t in res.tests if not (t.duplicate or t.refused))
     out.print(f"{n_new} test(s) added to {unit!r}; {res.message}", markup=False)
+    for note in res.notes:
+        out.print(f"note: {note}", highlight=False, markup=False, soft_wrap=True)
     if res.baseline is not None:
         table = Table(title=escape(f"Baseline of {unit} (N = {res.baseline.n})"))
         for col in ("parameter", "mean", "std", "std %"):
@@ -346,13 +351,15 @@ def check_cmd(
     ignore: IgnoreOpt = None,
     meta: MetaOpt = None,
     window: WindowOpt = None,
+    group: GroupOpt = None,
+    against: Annotated[Optional[str], typer.Option("--against", help="Compare with another unit's or a group's baseline (UNIT, GROUP, unit:NAME or group:NAME) instead of the unit's own.")] = None,
     dry_run: Annotated[bool, typer.Option("--dry-run", help="Estimate and diagnose, store nothing.")] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
 ) -> None:
     """Check one test against the unit's baseline: go / advisory / no-go and faults."""
     from condmon.diagnose.rules import load_rules
     from condmon.monitor.fuzzy import load_monitor_config
-    from condmon.workflows.monitoring import check_test
+    from condmon.workflows.checks import check_test
     from condmon.store.db import open_store
 
     opts = _options(method, gamma, excitation, columns, fit_threshold, model, route, constants,
@@ -360,7 +367,8 @@ def check_cmd(
     cfg = load_monitor_config(monitor) if monitor is not None else None
     rb = load_rules(rules) if rules is not None else None
     with open_store(db, create=False) as store:
-        res = check_test(store, unit, record, opts, cfg, rb, dry_run=dry_run, test_date=date)
+        res = check_test(store, unit, record, opts, cfg, rb, dry_run=dry_run, test_date=date,
+                         against=against, group=group)
     if as_json:
         write_json(res.to_dict())
         return
@@ -372,6 +380,9 @@ def check_cmd(
     print_flags(res.baseline_flags, unit)
     out.print(f"{escape(unit)} — {escape(str(record))}: {_status_text(res.status)}  "
               f"(fit {res.estimate.fit_percent:.1f} %"
+              + (f", regime {escape(res.estimate.regime_label)}"
+                 if res.estimate.regime_label else "")
+              + (f", against {escape(res.against)}" if res.against != "unit" else "")
               + (f", test #{res.test_id})" if res.test_id >= 0 else ", not stored)"))
     if res.diagnosis is None:
         out.print(f"rejected: {res.estimate.reason}; the test is stored but changes no trend. "
@@ -412,29 +423,43 @@ def units_cmd(
     from condmon.store.db import open_store
     from condmon.store.engine import redact
 
+    from condmon.workflows.groups import unit_rows
+
     with open_store(db, create=False) as store:
-        rows = store.unit_summaries()
+        rows = unit_rows(store)
     if as_json:
         write_json({"units": rows})
         return
+    grouped = any(r["group"] for r in rows)
+    regimes = any(r["latest_regime"] for r in rows)
     table = Table(title=escape(f"Units in {redact(db)}"), box=box.SIMPLE_HEAD)
-    for col in ("unit", "model", "tests", "latest", "date", "status"):
+    cols = ("unit", "model", *(("group",) if grouped else ()), "tests", "latest",
+            *(("regime",) if regimes else ()), "date", "status")
+    for col in cols:
         table.add_column(col, justify="right" if col == "tests" else "left",
                          no_wrap=col in ("date", "status"))
     flagged = []
     for r in rows:
         model = Path(str(r["model"])).name
         count = str(r["tests"]) if not r["isolations"] else f"{r['isolations']} iso"
-        table.add_row(escape(str(r["unit"])), escape(model), count,
+        status = _status_text(str(r["status"])) if r["status"] else "—"
+        if r["group_flags"]:
+            status += " [yellow]⚑[/]"
+        table.add_row(escape(str(r["unit"])), escape(model),
+                      *((escape(str(r["group"] or "—")),) if grouped else ()), count,
                       escape(Path(str(r["latest_source"] or "—")).name),
-                      str(r["latest_date"] or "—")[:10],
-                      _status_text(str(r["status"])) if r["status"] else "—")
+                      *((escape(str(r["latest_regime"] or "—")),) if regimes else ()),
+                      str(r["latest_date"] or "—")[:10], status)
         if r["baseline_flags"]:
             flagged.append(str(r["unit"]))
     out.print(table)
     if flagged:
         err.print(f"warning: baseline flagged for {', '.join(flagged)} (`condmon baseline list "
                   "--unit U` shows why)", highlight=False, markup=False, soft_wrap=True)
+    for r in rows:
+        for f in r["group_flags"]:
+            err.print(f"⚑ {r['unit']} is unlike its group {f['group']!r}: {f['message']}",
+                      highlight=False, markup=False, soft_wrap=True)
 
 
 @app.command("history")

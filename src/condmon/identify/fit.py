@@ -6,7 +6,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from condmon.identify.defaults import DEFAULT_FIT_THRESHOLD
 from condmon.models.transfer import DiscreteTF

@@ -26,7 +26,6 @@ References
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -34,18 +33,17 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from condmon.errors import ConversionError, EstimationError, ModelError
+from condmon.errors import ConversionError, ModelError
 from condmon.identify._common import TFEstimate
 from condmon.identify.fit import FitCheck, fit_check, residual_figures
 from condmon.identify.identifiability import Identifiability, assess_identifiability
 from condmon.io.records import Record
 from condmon.models.conversion import d2c_coefficients_fast, tf_d2c
-from condmon.models.declared import substituted_equations, symbols_of
-from condmon.models.machine import InverseStructure, LinearStructure, Machine
+from condmon.models.machine import LinearStructure, Machine
 from condmon.models.transfer import ContinuousTF
 
 if TYPE_CHECKING:
-    import sympy as sp
+    pass
 
 # sympy and scipy are imported by the routes and fall-backs that use them: the
 # linear route of a cached declaration (condmon.models.derived_cache) needs neither.

@@ -29,7 +29,7 @@ from condmon.monitor.baseline import Baseline, BaselineChecks
 from condmon.monitor.fuzzy import MonitorConfig
 
 __all__ = ["GenericSettings", "load_generic_settings", "spread_breakpoints", "generic_config",
-           "describe_generic", "StatusPoints", "machine_monitor"]
+           "describe_generic", "StatusPoints", "machine_monitor", "peer_monitor"]
 
 #: Membership functions of the status (go, advisory, no-go) on [0, 1]: 3 or 4 points each.
 StatusPoints = tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]
@@ -52,6 +52,11 @@ class GenericSettings:
     status : tuple of three tuples of float
         The go, advisory and no-go membership functions of the generic rules.
     baseline : BaselineChecks
+    group_min_units : int
+        Fewest units with a baseline a group baseline is made of.
+    group_flag_z : float
+        A unit's own baseline further than this many between-unit standard
+        deviations from its peers' is flagged. [-]
     """
 
     r1_sigma: float = 4.0
@@ -61,6 +66,8 @@ class GenericSettings:
     severity: str = "major"
     status: StatusPoints = ((0.0, 0.0, 0.25, 0.5), (0.25, 0.5, 0.75), (0.5, 0.75, 1.0, 1.0))
     baseline: BaselineChecks = BaselineChecks()
+    group_min_units: int = 3
+    group_flag_z: float = 3.0
 
 
 def load_generic_settings() -> GenericSettings:
@@ -77,11 +84,13 @@ def load_generic_settings() -> GenericSettings:
     try:
         go, adv, nogo = (tuple(float(v) for v in st[k]) for k in ("go", "advisory", "no_go"))
         status: StatusPoints = (go, adv, nogo)
+        group = dict(raw.get("group", {}))
         out = GenericSettings(float(raw["r1_sigma"]), float(raw["r2_sigma"]),
                               float(raw["min_relative_spread"]), float(raw["k"]),
                               str(raw["severity"]), status,
                               BaselineChecks(**{k: float(v) for k, v in
-                                                dict(raw.get("baseline", {})).items()}))
+                                                dict(raw.get("baseline", {})).items()}),
+                              int(group.get("min_units", 3)), float(group.get("flag_z", 3.0)))
     except (KeyError, TypeError, ValueError) as err:
         raise ConfigError(f"condmon/data/generic-monitor.toml: {err}") from None
     if not 0 < out.r1_sigma < out.r2_sigma or out.severity not in ("major", "minor"):
@@ -151,6 +160,34 @@ def machine_monitor(machine: Machine, baseline: Baseline | None = None) -> Monit
                              {p: cfg.r2_sigma * v for p, v in floor.items()}, cfg.k,
                              "generic monitoring (no baseline yet)", cfg.baseline)
     return generic_config(baseline, cfg)
+
+
+def peer_monitor(machine: Machine, reference: Baseline) -> MonitorConfig:
+    """Breakpoints of a check against a group's (or another unit's) baseline:
+    the spread-based ones (:func:`spread_breakpoints`), capped at the
+    machine's own when it declares them. Against peers, a deviation beyond
+    what the peers show is a symptom even below the change the machine's
+    breakpoints call a fault over a unit's own life; a change those call a
+    fault is one against peers too.
+
+    Example
+    -------
+    >>> from condmon.models.registry import get_model
+    >>> ref = Baseline(("R", "D"), (1.0, 1e-4), (0.03, 1e-5), 20)
+    >>> cfg = peer_monitor(get_model("dc-motor"), ref)
+    >>> round(cfg.r1["R"], 1), round(cfg.r1["D"], 1)     # 4 x 3 % x 1.07; 4 x 10 % x 1.07 (20 units)
+    (12.8, 42.7)
+    """
+    settings = load_generic_settings()
+    r1, r2 = spread_breakpoints(reference, settings)
+    own = machine_monitor(machine, reference)
+    if machine.breakpoints is not None:
+        mine = own.arrays(reference.parameters)
+        for i, key in enumerate(reference.parameters):
+            r1[key] = min(r1[key], float(mine[0][i]))
+            r2[key] = max(min(r2[key], float(mine[1][i])), r1[key] * (1 + 1e-9) + 1e-12)
+    return MonitorConfig(r1, r2, own.k, f"peer comparison ({own.source}, capped at "
+                         f"{settings.r1_sigma:g}/{settings.r2_sigma:g} spreads)", own.baseline)
 
 
 def describe_generic(settings: GenericSettings | None = None) -> str:

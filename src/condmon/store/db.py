@@ -14,14 +14,14 @@ audit trail. Several processes may write at once (see
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import pandas as pd
 import sqlalchemy as sa
 
 from condmon.io.digest import content_hash, file_hash
 from condmon.store import schema as S
-from condmon.store.baselines import DEFAULT_BASELINE, BaselinesMixin, StoredBaseline
+from condmon.store.baselines import DEFAULT_BASELINE, StoredBaseline
+from condmon.store.groups import GroupsMixin
 from condmon.store.engine import (
     StoreBusyError, StoreError, database_url, default_timeout, make_engine, redact,
     sqlite_path, store_error,
@@ -39,7 +39,7 @@ def frame_hash(df: pd.DataFrame) -> str:
     return content_hash(df)
 
 
-class HistoryStore(TestsMixin, BaselinesMixin, IsolationsMixin, ViewsMixin):
+class HistoryStore(TestsMixin, GroupsMixin, IsolationsMixin, ViewsMixin):
     """A history database. Open with :func:`open_store`.
 
     Use it as a context manager (or call :meth:`close`) so that its connections

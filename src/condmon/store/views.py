@@ -127,8 +127,9 @@ class ViewsMixin(StoreBase):
 
     def unit_summaries(self) -> list[dict[str, Any]]:
         """Every unit with its model, number of tests and isolations, its
-        latest test or isolation (by date), that one's status, and the
-        active baseline's flags (``baseline_flags``: how many warnings).
+        latest test or isolation (by date), that one's status and operating
+        regime (``latest_regime``), its ``group``, and the active baseline's
+        flags (``baseline_flags``: how many warnings).
 
         A unit whose latest record is a baseline test while no version of its
         active baseline is saved yet is ``building`` (as ``condmon fleet run``
@@ -150,7 +151,7 @@ class ViewsMixin(StoreBase):
             t_when = sa.func.coalesce(t.c.test_date, t.c.created_at)
             # a unit's status is its latest check's; baseline tests only without checks
             ranked = (sa.select(t.c.unit_id, t.c.id, t.c.source, t.c.role, t.c.accepted,
-                                t.c.excluded, t_when.label("at"), t.c.reason,
+                                t.c.excluded, t_when.label("at"), t.c.reason, t.c.regime,
                                 sa.func.row_number().over(
                                     partition_by=t.c.unit_id,
                                     order_by=((t.c.role == "check").desc(), t_when.desc(),
@@ -160,7 +161,7 @@ class ViewsMixin(StoreBase):
             last = {r[0]: r[1:] for r in c.execute(
                 sa.select(ranked.c.unit_id, ranked.c.id, ranked.c.source, ranked.c.role,
                           ranked.c.accepted, ranked.c.excluded, d.c.status, ranked.c.at,
-                          d.c.summary, ranked.c.reason)
+                          d.c.summary, ranked.c.reason, ranked.c.regime)
                 .outerjoin(ld, ld.c.test_id == ranked.c.id)
                 .outerjoin(d, sa.and_(d.c.test_id == ranked.c.id, d.c.baseline_id == ld.c.bid))
                 .where(ranked.c.rank == 1))}
@@ -183,26 +184,27 @@ class ViewsMixin(StoreBase):
             out = []
             for u in units:
                 test, iso = last.get(u.id), isos.get(u.id)
-                status, source, when, summary = None, None, None, None
+                status, source, when, summary, regime = None, None, None, None, None
                 active = (u.id, u.baseline_name or "default")
                 n, accepted = n_tests.get(u.id, (0, 0))
                 if test is not None:
                     status = test_status(test[2], bool(test[3]), bool(test[4]), test[5])
-                    source, when = test[1], test[6]
+                    source, when, regime = test[1], test[6], test[9] or None
                     summary = test[7] if test[3] else test[8]
                     if status in ("baseline", "rejected") and active not in flags_of:
                         status = "building"
                         summary = building_summary(accepted, None if test[3] else test[8])
                 if iso is not None and (when is None or _after(iso[5], when)):
                     status = isolation_status(bool(iso[2]), bool(iso[3]))
-                    source, when, summary = iso[1], iso[5], iso[4]
+                    source, when, summary, regime = iso[1], iso[5], iso[4], None
                 flags = flags_of.get(active)
                 stamp = as_utc(when)
                 out.append({"unit": u.name, "model": u.model_source or u.model,
                             "tests": n,
                             "isolations": int(n_isos.get(u.id, 0)), "latest_source": source,
                             "latest_date": None if stamp is None else stamp.isoformat(),
-                            "status": status, "summary": summary,
+                            "status": status, "summary": summary, "latest_regime": regime,
+                            "group": u.group_name,
                             "baseline_flags": len(json.loads(flags)) if flags else 0})
             return out
 

@@ -23,7 +23,8 @@ from condmon.errors import ConfigError
 from condmon.models.declared import load_plant_model
 from condmon.io.config import load_default, load_toml
 from condmon.workflows.isolation import store_isolation
-from condmon.workflows.monitoring import CheckResult, add_baseline_tests, check_test
+from condmon.workflows.checks import CheckResult, check_test
+from condmon.workflows.monitoring import add_baseline_tests
 from condmon.report.html import write_fleet_report
 from condmon.report.names import page_name
 from condmon.report.isolation_figures import write_isolation_figures

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
 
@@ -26,7 +26,7 @@ from condmon.errors import DataError
 from condmon.identify.estimate import EstimateResult
 from condmon.io.dates import parse_date
 from condmon.models.machine import Machine
-from condmon.models.regimes import regime_key, split_key
+from condmon.models.regimes import split_key
 from condmon.models.registry import get_model
 from condmon.monitor.baseline import (
     MIN_BASELINE_TESTS, Baseline, assess_baseline, make_baseline, missing_regimes,
@@ -37,8 +37,8 @@ from condmon.store.baselines import StoredBaseline
 from condmon.store.db import DuplicateTestError, HistoryStore
 from condmon.workflows.records import EstimateOptions, RecordKey, RecordLike, record_key
 
-__all__ = ["EstimateOptions", "AddedTest", "BaselineAddResult", "CheckResult", "RecordKey",
-           "add_baseline_tests", "current_baseline", "check_test", "RecordLike",
+__all__ = ["EstimateOptions", "AddedTest", "BaselineAddResult", "RecordKey",
+           "add_baseline_tests", "current_baseline", "RecordLike",
            "unit_monitor", "save_current_baseline", "reevaluate", "parse_date", "record_key",
            "evaluate", "baseline_members", "filed_elsewhere", "monitoring_of", "restricted",
            "no_baseline_yet"]
@@ -322,7 +322,8 @@ def _held(baseline: Baseline | None) -> dict[str, float] | None:
 def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordLike],
                        options: EstimateOptions | None = None,
                        progress: Progress | None = None,
-                       test_date: str | datetime | None = None) -> BaselineAddResult:
+                       test_date: str | datetime | None = None,
+                       group: str | None = None) -> BaselineAddResult:
     """Estimate healthy records and store them as the unit's baseline tests.
 
     Each record is committed on its own, so an interruption keeps every record
@@ -331,9 +332,14 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
     tests exist, the new ones join the unit's active baseline (a new version,
     with its plausibility flags) and the unit's checks are evaluated against it.
     ``test_date`` applies to every record (default: each record's own date,
-    if its metadata has one).
+    if its metadata has one). ``group``: put the unit in this group of peers
+    (once a test of it is stored).
     """
     opts = _unit_options(store, unit, options or EstimateOptions())
+    if group is not None:
+        from condmon.store.base import check_name
+
+        check_name(group, "group name")
     added = []
     for i, rec in enumerate(records):
         name = str(rec) if not isinstance(rec, pd.DataFrame) else rec.attrs.get("source", f"record {i}")
@@ -360,6 +366,8 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
     new = [t.test_id for t in added if t.accepted and not (t.duplicate or t.refused)]
     if store.unit_model(unit) is None:  # nothing stored: every record refused
         return BaselineAddResult(tuple(added), None, None, str(_too_few(unit, 0)))
+    if group is not None:
+        store.set_group(unit, group)
     ids, latest = baseline_members(store, unit)
     ids = sorted(set(ids) | set(new))
     machine = get_model(opts.model or "dc-motor")
@@ -408,146 +416,3 @@ def _too_few(unit: str, n: int) -> DataError:
     return DataError(f"unit {unit!r} has {n} accepted healthy test(s); a baseline needs at "
                      f"least {MIN_BASELINE_TESTS}: add them with "
                      f"`condmon baseline add REC... --unit {unit}`")
-
-
-@dataclass(frozen=True)
-class CheckResult:
-    """Outcome of checking one test against the unit's baseline.
-
-    Attributes
-    ----------
-    unit : str
-    test_id : int
-    estimate : EstimateResult
-    status : {"go", "advisory", "no-go", "retest"}
-        "retest" when the test was rejected (fit below threshold): it is stored
-        as rejected and changes no symptom or trend.
-    baseline : Baseline or None
-    percent_change : dict of str to float
-        Against the baseline mean. [%]
-    symptoms : dict
-        ``{param: {"high", "low"}}`` before preprocessing.
-    diagnosis : Diagnosis or None
-    baseline_flags : tuple of dict
-        Why the baseline may not be trustworthy (empty when nothing is suspicious).
-    test_date : datetime or None
-        When the test was run, if known (UTC).
-    warning : str or None
-        Something to look at (the same record already filed under another unit).
-    note : str or None
-        Regimes of the record with no baseline yet (not compared with another's).
-    against : str
-        What the test was compared with: ``unit`` (its own baseline),
-        ``group NAME`` or ``unit NAME`` (another's).
-    """
-
-    unit: str
-    test_id: int
-    estimate: EstimateResult
-    status: str
-    baseline: Baseline | None = None
-    percent_change: dict[str, float] = field(default_factory=dict)
-    symptoms: dict[str, dict[str, float]] = field(default_factory=dict)
-    diagnosis: Diagnosis | None = None
-    baseline_flags: tuple[dict[str, Any], ...] = ()
-    test_date: datetime | None = None
-    warning: str | None = None
-    note: str | None = None
-    against: str = "unit"
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready result (the ``condmon check --json`` document)."""
-        est = self.estimate.to_dict()
-        return {
-            "unit": self.unit,
-            "test_id": self.test_id,
-            "source": self.estimate.source,
-            "test_date": None if self.test_date is None else self.test_date.isoformat(),
-            "status": self.status,
-            "accepted": self.estimate.accepted,
-            "reason": self.estimate.reason,
-            "fit_percent": est["fit_percent"],
-            "fits": est["fits"],
-            "parameters": est["parameters"],
-            "std_errors": est["std_errors"],
-            "percent_change": self.percent_change,
-            "symptoms": self.symptoms,
-            "faults": ([] if self.diagnosis is None else
-                       [f.to_dict() for f in self.diagnosis.faults]),
-            "summary": (self.diagnosis.summary if self.diagnosis is not None else
-                        f"retest: {self.estimate.reason}"),
-            "regime": self.estimate.regime_label,
-            "windows": est["windows"],
-            "identifiable": {**est["identifiable"],
-                             **{regime_key(k, o.regime): k in o.identified
-                                for o in self.estimate.others for k in o.parameters}},
-            "held": est["held"],
-            "against": self.against,
-            "note": self.note,
-            "condition": None if self.diagnosis is None else self.diagnosis.condition,
-            "preprocessing_applied": ([] if self.diagnosis is None
-                                      else list(self.diagnosis.applied)),
-            "baseline": None if self.baseline is None else self.baseline.to_dict(),
-            "baseline_flags": list(self.baseline_flags),
-            "warning": self.warning,
-            "method": est["method"],
-            "closed_loop_instruments": est["closed_loop_instruments"],
-            "notes": est["notes"],
-        }
-
-
-def check_test(store: HistoryStore, unit: str, record: RecordLike,
-               options: EstimateOptions | None = None, monitor: MonitorConfig | None = None,
-               rules: RuleBase | None = None, dry_run: bool = False,
-               test_date: str | datetime | None = None) -> CheckResult:
-    """Estimate a test, store it, compute symptoms against the baseline and diagnose.
-
-    The monitor breakpoints and the rule base are the model's own (declared in
-    its ``[monitor]`` table), the shipped DC-motor ones otherwise, unless given.
-    ``dry_run``: estimate and diagnose, store nothing (``test_id`` is -1; a
-    record already in the history is checked again). ``test_date``: when the
-    test was run (default: from the record's metadata, if any).
-
-    Raises
-    ------
-    DataError
-        The unit has no baseline yet (fewer than 3 accepted healthy tests), or
-        the test's parameters jump beyond the model's believable change or flip
-        sign against the baseline (a likely unit or sign error; nothing stored).
-    DuplicateTestError
-        The record is already in the unit's history.
-    """
-    opts = _unit_options(store, unit, options or EstimateOptions())
-    machine = get_model(opts.model or "dc-motor")
-    baseline, ids = current_baseline(store, unit)
-    cfg, rb = monitoring_of(machine, baseline, monitor, rules)
-    res, key = opts.with_hold(_held(baseline)).run(record, test_date)
-    why = _unit_error(res, baseline) if res.usable else None
-    if why is not None:
-        raise DataError(f"{res.source}: refused, {why}; nothing was stored")
-    latest = store.latest_baseline(unit)
-    flags = latest.flags if latest is not None and list(latest.test_ids) == ids else ()
-    if not res.usable:
-        tid = -1 if dry_run else store.add_test(unit, res, role="check", digest=key.content,
-                                                file_digest=key.file,
-                                                fingerprint=key.fingerprint,
-                                                test_date=key.test_date)
-        return CheckResult(unit, tid, res, "retest", baseline, baseline_flags=flags,
-                           test_date=key.test_date, warning=filed_elsewhere(store, unit, key))
-    row, diag = evaluate(res, baseline, cfg, rb, machine.spec.report)
-    missing = missing_regimes(list(res.stored_values()), baseline)
-    note = no_baseline_yet(missing, baseline) if missing else None
-    if dry_run:
-        tid = -1
-    else:
-        if latest is None or list(latest.test_ids) != ids:
-            latest, _ = save_current_baseline(store, unit, ids, monitor=cfg,
-                                              reason="baseline of the first check")
-            flags = latest.flags
-        tid = store.add_test(unit, res, role="check", digest=key.content, file_digest=key.file, fingerprint=key.fingerprint,
-                             test_date=key.test_date, symptoms=row, baseline_id=latest.id,
-                             diagnosis=diag)
-    return CheckResult(unit, tid, res, diag.status, baseline,
-                       {p: v["percent_change"] for p, v in row.items()},
-                       {p: {"high": v["high"], "low": v["low"]} for p, v in row.items()},
-                       diag, flags, key.test_date, filed_elsewhere(store, unit, key), note)

@@ -1,0 +1,315 @@
+"""Checking one test: against the unit's own baseline, its group's, or another unit's.
+
+A test is compared with the unit's own baseline when it has one; a unit
+without one is judged against its group of peers (:mod:`condmon.monitor.group`:
+the spread a new unit's test has among them), and ``against`` compares any
+unit with another unit's or a group's baseline explicitly. A comparison with
+another baseline is stored against a copy of it kept under the checked unit
+(``group:NAME`` or ``unit:NAME``, not its active baseline), so the history says
+exactly what the test was compared with; once the unit has a baseline of its
+own, its checks are evaluated against that too.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from datetime import datetime
+from typing import Any
+
+from condmon.diagnose.diagnoser import Diagnosis
+from condmon.diagnose.rules import RuleBase, machine_rules
+from condmon.errors import DataError
+from condmon.identify.estimate import EstimateResult
+from condmon.models.machine import Machine
+from condmon.models.regimes import regime_key
+from condmon.models.registry import get_model
+from condmon.monitor.baseline import Baseline, missing_regimes
+from condmon.monitor.fuzzy import MonitorConfig
+from condmon.monitor.generic import load_generic_settings, peer_monitor
+from condmon.monitor.group import GroupBaseline, group_baseline
+from condmon.store.db import HistoryStore
+from condmon.workflows.monitoring import (
+    _existing_baseline, _held, _unit_error, _unit_options, current_baseline, evaluate,
+    filed_elsewhere, monitoring_of, no_baseline_yet, save_current_baseline,
+)
+from condmon.workflows.records import EstimateOptions, RecordLike
+
+__all__ = ["CheckResult", "check_test", "Reference", "reference_for", "resolve_against",
+           "group_reference"]
+
+
+@dataclass(frozen=True)
+class CheckResult:
+    """Outcome of checking one test against the unit's baseline.
+
+    Attributes
+    ----------
+    unit : str
+    test_id : int
+    estimate : EstimateResult
+    status : {"go", "advisory", "no-go", "retest"}
+        "retest" when the test was rejected (fit below threshold): it is stored
+        as rejected and changes no symptom or trend.
+    baseline : Baseline or None
+    percent_change : dict of str to float
+        Against the baseline mean. [%]
+    symptoms : dict
+        ``{param: {"high", "low"}}`` before preprocessing.
+    diagnosis : Diagnosis or None
+    baseline_flags : tuple of dict
+        Why the baseline may not be trustworthy (empty when nothing is suspicious).
+    test_date : datetime or None
+        When the test was run, if known (UTC).
+    warning : str or None
+        Something to look at (the same record already filed under another unit).
+    note : str or None
+        Regimes of the record with no baseline yet (not compared with another's).
+    against : str
+        What the test was compared with: ``unit`` (its own baseline),
+        ``group NAME`` or ``unit NAME`` (another's).
+    """
+
+    unit: str
+    test_id: int
+    estimate: EstimateResult
+    status: str
+    baseline: Baseline | None = None
+    percent_change: dict[str, float] = field(default_factory=dict)
+    symptoms: dict[str, dict[str, float]] = field(default_factory=dict)
+    diagnosis: Diagnosis | None = None
+    baseline_flags: tuple[dict[str, Any], ...] = ()
+    test_date: datetime | None = None
+    warning: str | None = None
+    note: str | None = None
+    against: str = "unit"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready result (the ``condmon check --json`` document)."""
+        est = self.estimate.to_dict()
+        return {
+            "unit": self.unit,
+            "test_id": self.test_id,
+            "source": self.estimate.source,
+            "test_date": None if self.test_date is None else self.test_date.isoformat(),
+            "status": self.status,
+            "accepted": self.estimate.accepted,
+            "reason": self.estimate.reason,
+            "fit_percent": est["fit_percent"],
+            "fits": est["fits"],
+            "parameters": est["parameters"],
+            "std_errors": est["std_errors"],
+            "percent_change": self.percent_change,
+            "symptoms": self.symptoms,
+            "faults": ([] if self.diagnosis is None else
+                       [f.to_dict() for f in self.diagnosis.faults]),
+            "summary": (self.diagnosis.summary if self.diagnosis is not None else
+                        f"retest: {self.estimate.reason}"),
+            "regime": self.estimate.regime_label,
+            "windows": est["windows"],
+            "identifiable": {**est["identifiable"],
+                             **{regime_key(k, o.regime): k in o.identified
+                                for o in self.estimate.others for k in o.parameters}},
+            "held": est["held"],
+            "against": self.against,
+            "note": self.note,
+            "condition": None if self.diagnosis is None else self.diagnosis.condition,
+            "preprocessing_applied": ([] if self.diagnosis is None
+                                      else list(self.diagnosis.applied)),
+            "baseline": None if self.baseline is None else self.baseline.to_dict(),
+            "baseline_flags": list(self.baseline_flags),
+            "warning": self.warning,
+            "method": est["method"],
+            "closed_loop_instruments": est["closed_loop_instruments"],
+            "notes": est["notes"],
+        }
+
+
+@dataclass(frozen=True)
+class Reference:
+    """A baseline a test is compared with other than the unit's own.
+
+    Attributes
+    ----------
+    baseline : Baseline
+        For a group, its :meth:`~condmon.monitor.group.GroupBaseline.predictive`.
+    label : str
+        ``group NAME`` or ``unit NAME``.
+    name : str
+        The name its copy is kept under in the checked unit's history
+        (``group:NAME``, ``unit:NAME``).
+    test_ids : tuple of int
+        The tests behind it (of other units).
+    group : GroupBaseline or None
+        The group's baseline, for a group.
+    """
+
+    baseline: Baseline
+    label: str
+    name: str
+    test_ids: tuple[int, ...]
+    group: GroupBaseline | None = None
+
+
+def resolve_against(store: HistoryStore, text: str) -> tuple[str, str]:
+    """``("unit" | "group", name)`` of ``--against`` (a unit's or a group's
+    name, or ``unit:NAME`` / ``group:NAME``).
+
+    Raises
+    ------
+    DataError
+        No such unit or group (the known ones named), or a name that is both.
+    """
+    kind, _, name = text.partition(":")
+    if name and kind in ("unit", "group"):
+        wanted: str | None = kind
+    else:
+        wanted, name = None, text
+    units = set(store.units())
+    groups = store.groups()
+    is_unit, is_group = name in units, name in groups
+    if wanted == "unit" and is_unit or (wanted is None and is_unit and not is_group):
+        return "unit", name
+    if wanted == "group" and is_group or (wanted is None and is_group and not is_unit):
+        return "group", name
+    if is_unit and is_group:
+        raise DataError(f"--against {name!r} is both a unit and a group: write unit:{name} or "
+                        f"group:{name}")
+    raise DataError(f"--against {text!r}: no such {wanted or 'unit or group'}; units: "
+                    f"{', '.join(sorted(units)[:10]) or 'none'}; groups: "
+                    f"{', '.join(sorted(groups)) or 'none'}")
+
+
+def group_reference(store: HistoryStore, group: str, model: str,
+                    exclude: str | None = None) -> Reference:
+    """The baseline of ``group`` for a unit of ``model`` (its units of that
+    model with a baseline of their own, ``exclude`` left out).
+
+    Raises
+    ------
+    DataError
+        The group is unknown, or has too few units with a baseline.
+    """
+    groups = store.groups()
+    if group not in groups:
+        raise DataError(f"no group {group!r} in the history; groups: "
+                        f"{', '.join(sorted(groups)) or 'none yet'} (put units in one with "
+                        "--group NAME)")
+    machine = get_model(model)
+    members = {u: b for u, b in store.group_baselines(group).items()
+               if u != exclude and store.unit_model(u) in (machine.name, machine.origin)}
+    settings = load_generic_settings()
+    if not members:
+        raise DataError(f"group {group!r} has no unit of model {machine.name!r} with a "
+                        f"baseline of its own (units: {', '.join(groups[group])}); add "
+                        "healthy tests to its units with `condmon baseline add`")
+    g = group_baseline(group, {u: b.baseline for u, b in members.items()},
+                       settings.group_min_units)
+    ids = tuple(sorted({i for b in members.values() for i in b.test_ids}))
+    return Reference(g.predictive(), f"group {group}", f"group:{group}", ids, g)
+
+
+def reference_for(store: HistoryStore, unit: str, machine: Machine, against: str | None,
+                  group: str | None) -> Reference | None:
+    """What a test of ``unit`` is compared with: None for its own baseline,
+    else the reference ``against`` names, or its group's when it has no
+    baseline of its own."""
+    if against is not None:
+        kind, name = resolve_against(store, against)
+        if kind == "group":
+            return group_reference(store, name, machine.origin or machine.name, exclude=unit)
+        if name == unit:
+            return None
+        other = store.unit_model(name)
+        if other not in (machine.name, machine.origin):
+            raise DataError(f"--against unit {name!r} is monitored with model {other!r}; "
+                            f"{unit!r} with {machine.name!r}")
+        baseline, ids = current_baseline(store, name)
+        return Reference(baseline, f"unit {name}", f"unit:{name}", tuple(ids))
+    if _existing_baseline(store, unit) is not None:
+        return None
+    peers = group or store.unit_group(unit)
+    if peers is None:
+        return None
+    return group_reference(store, peers, machine.origin or machine.name, exclude=unit)
+
+
+def check_test(store: HistoryStore, unit: str, record: RecordLike,
+               options: EstimateOptions | None = None, monitor: MonitorConfig | None = None,
+               rules: RuleBase | None = None, dry_run: bool = False,
+               test_date: str | datetime | None = None, against: str | None = None,
+               group: str | None = None) -> CheckResult:
+    """Estimate a test, store it, compute symptoms against the baseline and diagnose.
+
+    The baseline is the unit's own; for a unit without one, its group's
+    (``group``, or the one it is in); ``against`` names another unit or a
+    group to compare with explicitly (a unit in that group is left out of
+    it). The monitor breakpoints and the rule base are the model's own
+    (declared in its ``[monitor]`` table; generic ones without it), unless
+    given; against peers, the breakpoints are capped at the peers' spread
+    (:func:`~condmon.monitor.generic.peer_monitor`). ``dry_run``: estimate and
+    diagnose, store nothing (``test_id`` is -1; a record already in the
+    history is checked again). ``test_date``: when the test was run
+    (default: from the record's metadata, if any). ``group`` also puts the
+    unit in that group (not on a dry run).
+
+    Raises
+    ------
+    DataError
+        The unit has no baseline yet (fewer than 3 accepted healthy tests) and
+        no group with one, the group or unit to compare with has none, or the
+        test's parameters jump beyond the model's believable change or flip
+        sign against the baseline (a likely unit or sign error; nothing stored).
+    DuplicateTestError
+        The record is already in the unit's history.
+    """
+    opts = _unit_options(store, unit, options or EstimateOptions())
+    machine = get_model(opts.model or "dc-motor")
+    if group is not None and not dry_run:
+        store.set_group(unit, group, model=machine.name, model_source=machine.origin)
+    ref = reference_for(store, unit, machine, against, group)
+    if ref is None:
+        baseline, ids = current_baseline(store, unit)
+        cfg, rb = monitoring_of(machine, baseline, monitor, rules)
+        latest = store.latest_baseline(unit) if store.unit_model(unit) else None
+        flags = latest.flags if latest is not None and list(latest.test_ids) == ids else ()
+    else:
+        baseline, ids = ref.baseline, list(ref.test_ids)
+        cfg, rb = monitoring_of(machine, baseline, monitor or peer_monitor(machine, baseline),
+                                rules or machine_rules(machine))
+        latest, flags = None, ()
+    res, key = opts.with_hold(_held(baseline)).run(record, test_date)
+    why = _unit_error(res, baseline) if res.usable else None
+    if why is not None:
+        raise DataError(f"{res.source}: refused, {why}; nothing was stored")
+    against_label = "unit" if ref is None else ref.label
+    if not res.usable:
+        tid = -1 if dry_run else store.add_test(unit, res, role="check", digest=key.content,
+                                                file_digest=key.file,
+                                                fingerprint=key.fingerprint,
+                                                test_date=key.test_date)
+        return CheckResult(unit, tid, res, "retest", baseline, baseline_flags=flags,
+                           test_date=key.test_date, warning=filed_elsewhere(store, unit, key),
+                           against=against_label)
+    row, diag = evaluate(res, baseline, cfg, rb, machine.spec.report)
+    missing = missing_regimes(list(res.stored_values()), baseline)
+    note = no_baseline_yet(missing, baseline) if missing else None
+    if dry_run:
+        tid = -1
+    else:
+        if ref is not None:
+            bid = store.save_baseline(unit, baseline, ids, name=ref.name, activate=False,
+                                      reason=f"compared with {ref.label}")
+        else:
+            if latest is None or list(latest.test_ids) != ids:
+                latest, _ = save_current_baseline(store, unit, ids, monitor=cfg,
+                                                  reason="baseline of the first check")
+                flags = latest.flags
+            bid = latest.id
+        tid = store.add_test(unit, res, role="check", digest=key.content, file_digest=key.file,
+                             fingerprint=key.fingerprint, test_date=key.test_date,
+                             symptoms=row, baseline_id=bid, diagnosis=diag)
+    return CheckResult(unit, tid, res, diag.status, baseline,
+                       {p: v["percent_change"] for p, v in row.items()},
+                       {p: {"high": v["high"], "low": v["low"]} for p, v in row.items()},
+                       diag, flags, key.test_date, filed_elsewhere(store, unit, key), note,
+                       against_label)

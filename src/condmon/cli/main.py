@@ -423,10 +423,8 @@ def units_cmd(
     from condmon.store.db import open_store
     from condmon.store.engine import redact
 
-    from condmon.workflows.groups import unit_rows
-
     with open_store(db, create=False) as store:
-        rows = unit_rows(store)
+        rows = store.unit_summaries()
     if as_json:
         write_json({"units": rows})
         return
@@ -493,16 +491,24 @@ def history_cmd(
         if not len(isos):
             out.print(f"{escape(unit)} has no tests yet")
         return
-    # the estimated parameters (derived ones, e.g. Ke = gamma Kt, move with them)
-    params = [p for p in get_model(model).spec.unknowns if p in hist.columns]
+    # the estimated parameters (derived ones, e.g. Ke = gamma Kt, move with them); a
+    # regime's (Tc@forward) in its parameter's column, the regime in a column of its own
+    from condmon.models.regimes import regime_key, split_key
+
+    keyed = [c for c in hist.columns if f"{c}_se" in hist.columns]
+    params = [p for p in get_model(model).spec.unknowns
+              if any(split_key(c)[0] == p for c in keyed)]
+    regimes = bool(hist["regime"].notna().any())
     dated = hist["test_date"].notna().any()
     table = Table(title=escape(f"History of {unit} ({Path(model).name}): change against the "
                                "baseline [%]"), box=box.SIMPLE_HEAD, padding=(0, 1),
                   pad_edge=False, collapse_padding=True)
     # fits 80 columns with a date and five parameters
     widths = {"#": 3, "fit": 4, "status": 8, "date": 8, "source": 8}
-    for col in ("#", *(("date",) if dated else ()), "source", "fit", "status", *params):
-        table.add_column(col, justify="left" if col in ("source", "status", "date") else "right",
+    for col in ("#", *(("date",) if dated else ()), "source", *(("regime",) if regimes else ()),
+                "fit", "status", *params):
+        table.add_column(col, justify="left" if col in ("source", "status", "date", "regime")
+                         else "right",
                          no_wrap=True, overflow="ellipsis", min_width=widths.get(col, 5),
                          max_width={"source": 10 if dated else 14, "date": 8}.get(col))
     notes = []
@@ -511,14 +517,21 @@ def history_cmd(
         shown = (_status_text(status) if status in ("go", "advisory", "no-go", "retest")
                  else {"rejected": "[red]rejected[/]", "excluded": "[dim]excluded[/]"}.get(
                      status, escape(str(status))))
-        changes = ([] if status == "excluded" else
-                   [f"{r[f'{p}_change']:+.1f}" if f"{p}_change" in r and pd.notna(r[f"{p}_change"])
-                    else "" for p in params])
+        label = str(r["regime"]) if pd.notna(r["regime"]) else ""
+        own = [x.strip() for x in label.split(";") if x.strip()] or [""]
+        changes = []
+        for p in params if status != "excluded" else ():
+            found = [r[f"{regime_key(p, g)}_change"] for g in own
+                     if f"{regime_key(p, g)}_change" in r
+                     and pd.notna(r[f"{regime_key(p, g)}_change"])]
+            changes.append(f"{found[0]:+.1f}" if found else "")
         changes += [""] * (len(params) - len(changes))
         fit = f"{r['fit_percent']:.1f}" if pd.notna(r["fit_percent"]) else "—"
         when = ((f"{r['test_date']:%y-%m-%d}" if pd.notna(r["test_date"]) else "—",)
                 if dated else ())
-        table.add_row(str(tid), *when, escape(Path(str(r["source"])).name), fit, shown, *changes)
+        table.add_row(str(tid), *when, escape(Path(str(r["source"])).name),
+                      *((escape(label or "—"),) if regimes else ()), fit, shown,
+                      *changes)
         if status == "excluded":
             notes.append(f"#{tid} excluded: {r['excluded_reason']}")
         elif isinstance(r["summary"], str) and r["role"] == "check":

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -41,9 +41,6 @@ from condmon.io.records import Record
 from condmon.models.conversion import d2c_coefficients_fast, tf_d2c
 from condmon.models.machine import LinearStructure, Machine
 from condmon.models.transfer import ContinuousTF
-
-if TYPE_CHECKING:
-    pass
 
 # sympy and scipy are imported by the routes and fall-backs that use them: the
 # linear route of a cached declaration (condmon.models.derived_cache) needs neither.

@@ -5,6 +5,7 @@ See :mod:`condmon.identify.refine` for the criterion and the optimiser.
 
 from __future__ import annotations
 
+import numpy as np  # noqa: F401  (used in the docstring example)
 from numpy.typing import ArrayLike
 
 from condmon._filter import lfilter  # noqa: F401  (used in the docstring example)

@@ -179,7 +179,7 @@ class EstimateResult:
         """What the history keeps: ``{name: (value, std_error)}``, a regime's
         parameters named ``Tc@forward``. For a usable record the identified
         quantities of each accepted regime; otherwise (kept for the record,
-        never trended) every parameter of this estimate.
+        never trended) every parameter of this estimate that has a value.
 
         Example
         -------
@@ -192,7 +192,7 @@ class EstimateResult:
 
         if not self.usable:
             return {regime_key(k, self.regime): (v, self.std_errors[k])
-                    for k, v in self.parameters.items()}
+                    for k, v in self.parameters.items() if np.isfinite(v)}
         return {regime_key(k, p.regime): (p.parameters[k], p.std_errors[k])
                 for p in self.regimes if p.accepted for k in p.identified}
 

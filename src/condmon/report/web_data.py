@@ -230,17 +230,20 @@ def read_unit(store: HistoryStore, unit: str) -> UnitData:
         advice_test = int(latest["_id"])
         if latest["accepted"]:
             faults = _faults(store, advice_test, latest["baseline_id"])
-    return UnitData(unit, model, _overview(unit, model, hist, isos, baseline), hist, isos,
-                    baseline, advice_test, faults, monitor)
+    group = store.unit_group(unit)
+    unlike = store.group_flags().get(unit, []) if group else []
+    return UnitData(unit, model, _overview(unit, model, hist, isos, baseline, group, unlike),
+                    hist, isos, baseline, advice_test, faults, monitor)
 
 
 def _overview(unit: str, model: str, hist: pd.DataFrame, isos: pd.DataFrame,
-              baseline: StoredBaseline | None) -> dict[str, Any]:
+              baseline: StoredBaseline | None, group: str | None,
+              unlike: list[dict[str, Any]]) -> dict[str, Any]:
     """The unit's entry of :meth:`HistoryStore.unit_summaries`, from what the page
     has read anyway (that method reads every unit: seconds for a large fleet)."""
     from condmon.store.views import building_summary
 
-    status = source = when = summary = None
+    status = source = when = summary = regime = None
     tests = hist[~hist["excluded"]] if len(hist) else hist
     if len(tests):
         # the latest check; baseline tests only without checks (as unit_summaries)
@@ -248,6 +251,7 @@ def _overview(unit: str, model: str, hist: pd.DataFrame, isos: pd.DataFrame,
             ["_check", "date", "_id"]).iloc[-1]
         status, source, when = str(last["status"]), last["source"], last["date"]
         summary = last["summary"] if last["accepted"] else last["reason"]
+        regime = last["regime"] if isinstance(last["regime"], str) and last["regime"] else None
         if status in ("baseline", "rejected") and baseline is None:
             status = "building"
             healthy = (tests["role"] == "baseline") & tests["accepted"]
@@ -259,12 +263,14 @@ def _overview(unit: str, model: str, hist: pd.DataFrame, isos: pd.DataFrame,
         last = done.assign(_id=done.index).sort_values(["date", "_id"]).iloc[-1]
         if when is None or last["date"] >= when:
             status, source, when = str(last["status"]), last["source"], last["date"]
-            summary = last["statement"]
+            summary, regime = last["statement"], None
     doc: dict[str, Any] = json_safe({
         "unit": unit, "model": model, "tests": len(hist), "isolations": len(isos),
         "latest_source": source, "latest_date": None if when is None else when.isoformat(),
         "status": status, "summary": summary if isinstance(summary, str) else None,
-        "baseline_flags": 0 if baseline is None else len(baseline.flags)})
+        "latest_regime": regime, "group": group,
+        "baseline_flags": 0 if baseline is None else len(baseline.flags),
+        "group_flags": unlike})
     return doc
 
 

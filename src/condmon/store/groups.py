@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import sqlalchemy as sa
 
 from condmon.store import schema as S
@@ -68,4 +70,25 @@ class GroupsMixin(BaselinesMixin, StoreBase):
             latest = self.latest_baseline(unit)
             if latest is not None:
                 out[unit] = latest
+        return out
+
+    def group_flags(self) -> dict[str, list[dict[str, Any]]]:
+        """For every unit in a group with a baseline of its own, where that
+        baseline lies outside its peers' between-unit spread (peers of the same
+        model; see :func:`condmon.monitor.group.unlike_group`, limits in
+        ``condmon/data/generic-monitor.toml``); units like their peers are left out."""
+        from condmon.monitor.generic import load_generic_settings
+        from condmon.monitor.group import unlike_group
+
+        settings = load_generic_settings()
+        out: dict[str, list[dict[str, Any]]] = {}
+        for group in self.groups():
+            members = self.group_baselines(group)
+            models = {u: self.unit_model(u) for u in members}
+            for unit, own in members.items():
+                peers = {u: b.baseline for u, b in members.items() if models[u] == models[unit]}
+                flags = unlike_group(unit, own.baseline, peers, settings.group_flag_z,
+                                     settings.group_min_units)
+                if flags:
+                    out[unit] = [{**f, "group": group} for f in flags]
         return out

@@ -68,9 +68,11 @@ class ViewsMixin(StoreBase):
         ``test_date`` (when run, if known), ``date`` (the test date, else when
         stored), ``source, role, accepted, excluded, excluded_reason, reason,
         fit_percent, fits, method, status`` (see :func:`test_status`),
-        ``summary, baseline_id`` (of the evaluation shown: the newest), then
-        each parameter's value, ``<param>_se`` (its standard error) and, for
-        checked tests, ``<param>_change`` [%], ``<param>_high``, ``<param>_low``.
+        ``summary, baseline_id`` (of the evaluation shown: the newest),
+        ``regime`` (the operating regime(s) estimated, None without), then
+        each parameter's value (a regime's as ``Tc@forward``), ``<param>_se``
+        (its standard error) and, for checked tests, ``<param>_change`` [%],
+        ``<param>_high``, ``<param>_low``.
         """
         def run(c: sa.Connection) -> tuple[list[Any], list[Any], list[Any]]:
             urow = self._unit_row(c, unit)
@@ -82,7 +84,7 @@ class ViewsMixin(StoreBase):
                 sa.select(t.c.id, t.c.created_at, t.c.test_date, t.c.source, t.c.role,
                           t.c.accepted, t.c.excluded, t.c.excluded_reason, t.c.reason,
                           t.c.fit_percent, t.c.fits, t.c.method, d.c.status, d.c.summary,
-                          d.c.baseline_id)
+                          d.c.baseline_id, t.c.regime)
                 .outerjoin(ld, ld.c.test_id == t.c.id)
                 .outerjoin(d, sa.and_(d.c.test_id == t.c.id, d.c.baseline_id == ld.c.bid))
                 .where(t.c.unit_id == urow.id).order_by(t.c.id)).all()
@@ -101,7 +103,7 @@ class ViewsMixin(StoreBase):
         base, est, sym = self._read(run)
         cols = ["test_id", "created_at", "test_date", "source", "role", "accepted", "excluded",
                 "excluded_reason", "reason", "fit_percent", "fits", "method", "status",
-                "summary", "baseline_id"]
+                "summary", "baseline_id", "regime"]
         df = pd.DataFrame(base, columns=cols).set_index("test_id")
         df["created_at"] = utc_column(df["created_at"])
         df["test_date"] = utc_column(df["test_date"])
@@ -128,8 +130,9 @@ class ViewsMixin(StoreBase):
     def unit_summaries(self) -> list[dict[str, Any]]:
         """Every unit with its model, number of tests and isolations, its
         latest test or isolation (by date), that one's status and operating
-        regime (``latest_regime``), its ``group``, and the active baseline's
-        flags (``baseline_flags``: how many warnings).
+        regime (``latest_regime``), its ``group`` and where its own baseline
+        lies outside its peers' spread (``group_flags``), and the active
+        baseline's flags (``baseline_flags``: how many warnings).
 
         A unit whose latest record is a baseline test while no version of its
         active baseline is saved yet is ``building`` (as ``condmon fleet run``
@@ -208,7 +211,11 @@ class ViewsMixin(StoreBase):
                             "baseline_flags": len(json.loads(flags)) if flags else 0})
             return out
 
-        return self._read(run)
+        rows = self._read(run)
+        unlike = self.group_flags() if any(r["group"] for r in rows) else {}  # type: ignore[attr-defined]
+        for r in rows:
+            r["group_flags"] = unlike.get(str(r["unit"]), [])
+        return rows
 
 
 def _after(a: Any, b: Any) -> bool:

@@ -13,6 +13,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from condmon.cli._console import err, out, progress, write_json
+from condmon.identify.defaults import DEFAULT_FIT_THRESHOLD
 
 if TYPE_CHECKING:
     from condmon.workflows.fleet import FleetResult
@@ -36,7 +37,13 @@ def register(app: typer.Typer) -> None:
         manifest: Annotated[Optional[Path], typer.Option("--manifest", help="CSV or TOML manifest instead of an inbox: columns unit, file, model, date (files relative to the manifest's folder).")] = None,
         workers: Annotated[Optional[int], typer.Option("--workers", help="Worker processes of the local cluster (default: the machine's cores).")] = None,
         scheduler: Annotated[Optional[str], typer.Option("--scheduler", help="An existing dask.distributed scheduler, tcp://host:port, instead of a local cluster.")] = None,
-        baseline_count: Annotated[int, typer.Option("--baseline-count", help="A unit without a baseline builds it from its first N accepted records (date order, else file-name order).")] = 3,
+        baseline_count: Annotated[int, typer.Option("--baseline-count", help="A unit without a baseline builds it from its first N accepted records (date order, else file-name order); a new operating regime from its first N of that regime.")] = 3,
+        columns: Annotated[Optional[str], typer.Option("--columns", help="Column mapping CANONICAL=FILE_COLUMN,... for every record (over unit.toml's and the manifest's).")] = None,
+        fit_threshold: Annotated[float, typer.Option("--fit-threshold", help="Reject below this percentage fit [%].")] = DEFAULT_FIT_THRESHOLD,
+        sample_rate: Annotated[Optional[float], typer.Option("--sample-rate", help="Samples per second when t counts samples or is absent [Hz].")] = None,
+        scale: Annotated[Optional[str], typer.Option("--scale", help="Scale per column NAME=FACTOR,...: value = raw*FACTOR + OFFSET.")] = None,
+        offset: Annotated[Optional[str], typer.Option("--offset", help="Offset per column NAME=VALUE,... [SI].")] = None,
+        ignore: Annotated[Optional[str], typer.Option("--ignore", help="File columns to leave out, comma-separated.")] = None,
         as_json: Annotated[bool, typer.Option("--json", help="Print every record's outcome as JSON.")] = False,
     ) -> None:
         """Estimate (or isolate) and check every new record of every unit, storing the results.
@@ -49,17 +56,26 @@ def register(app: typer.Typer) -> None:
         go on.
         """
         from condmon.errors import ConfigError
+        from condmon.io.records import parse_column_map
+        from condmon.io.rig import settings_from_options
         from condmon.workflows.fleet import FleetInterrupted, run_fleet
+        from condmon.workflows.records import EstimateOptions
 
         if (inbox is None) == (manifest is None):
             raise ConfigError("give an INBOX folder or --manifest FILE (one of them)")
+        if not (0.0 <= fit_threshold <= 100.0):
+            raise ConfigError(f"--fit-threshold must be in 0..100 %, got {fit_threshold:g}")
+        record = settings_from_options(parse_column_map(columns) or None, sample_rate, scale,
+                                       offset, ignore)
+        options = EstimateOptions(fit_threshold=fit_threshold,
+                                  record=None if record.empty else record)
         source = manifest if manifest is not None else inbox
         assert source is not None
         try:
             with _ticker() as tick:
                 res = run_fleet(source, db, manifest=manifest is not None, workers=workers,
                                 scheduler=scheduler, baseline_count=baseline_count,
-                                progress=tick)
+                                options=options, progress=tick)
         except FleetInterrupted as stop:
             err.print(str(stop), highlight=False, markup=False, soft_wrap=True)
             raise typer.Exit(130) from None

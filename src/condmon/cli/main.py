@@ -193,6 +193,20 @@ def demo_cmd(
     out.print(f"report:  {res.report}  (open it in a browser)")
 
 
+def _remove_if_empty(path: Path) -> None:
+    """Remove a SQLite history that holds no unit (made by a call that failed)."""
+    from condmon.store.db import open_store
+
+    try:
+        with open_store(str(path), create=False) as store:
+            empty = not store.units()
+    except CondmonError:
+        return
+    if empty:
+        for suffix in ("", "-wal", "-shm", "-journal"):
+            Path(str(path) + suffix).unlink(missing_ok=True)
+
+
 def _status_text(status: str) -> str:
     color = {"go": "green", "advisory": "yellow", "no-go": "red", "retest": "blue"}.get(status, "white")
     return f"[bold {color}]{status}[/]"
@@ -292,18 +306,29 @@ def baseline_add_cmd(
     missing = [str(r) for r in records if not r.exists()]
     if missing:
         raise CondmonError(f"no such file: {', '.join(missing)}; nothing was stored")
-    with open_store(db) as store:
-        if len(records) > 1:
-            with progress() as prog:
-                task = prog.add_task("estimating", total=len(records))
+    from condmon.store.engine import database_url, sqlite_path
 
-                def tick(done: int, total: int, label: str) -> None:
-                    prog.update(task, completed=done, description=Path(label).name or "done")
+    path = sqlite_path(database_url(db))
+    fresh = path is not None and not path.exists()
+    try:
+        with open_store(db) as store:
+            if len(records) > 1:
+                with progress() as prog:
+                    task = prog.add_task("estimating", total=len(records))
 
-                res = add_baseline_tests(store, unit, records, opts, tick, test_date=date,
+                    def tick(done: int, total: int, label: str) -> None:
+                        prog.update(task, completed=done,
+                                    description=Path(label).name or "done")
+
+                    res = add_baseline_tests(store, unit, records, opts, tick, test_date=date,
+                                             group=group)
+            else:
+                res = add_baseline_tests(store, unit, records, opts, test_date=date,
                                          group=group)
-        else:
-            res = add_baseline_tests(store, unit, records, opts, test_date=date, group=group)
+    except CondmonError:
+        if fresh and path is not None:  # a history made for this call, still empty
+            _remove_if_empty(path)
+        raise
     for t in res.tests:
         if t.refused:
             err.print(f"refused {t.source}: {t.reason}", highlight=False, markup=False, soft_wrap=True)

@@ -261,8 +261,10 @@ def estimate_joint(records: Sequence[pd.DataFrame], model: str | Machine = "dc-m
 
     The records (one sample interval) enter one criterion: the output error
     summed over all of them (each simulated from rest), one stacked
-    inverse-model regression, or the balances of every steady window. A
-    linear model takes the output-error route.
+    inverse-model regression, or the balances of every steady window, the
+    windows of every regime together (strokes in both directions tell a
+    Coulomb friction from a load torque). A linear model takes the
+    output-error route.
 
     Parameters
     ----------
@@ -305,7 +307,8 @@ def estimate_joint(records: Sequence[pd.DataFrame], model: str | Machine = "dc-m
     consts.update(given)
     consts.update(fixed)
     return estimate_record(recs, machine, fit_threshold=fit_threshold, route=chosen,
-                           constants=consts, metadata=metadata, hold=hold, fixed=fixed)
+                           constants=consts, metadata=metadata, hold=hold, fixed=fixed,
+                           pool=True)
 
 
 def _check_constants(machine: Machine, constants: Mapping[str, float],
@@ -407,13 +410,15 @@ def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-m
                     window: tuple[float, float] | None = None,
                     hold: Mapping[str, float] | None = None,
                     fixed: Mapping[str, float] | None = None,
-                    notes: Sequence[str] = ()) -> EstimateResult:
+                    notes: Sequence[str] = (), pool: bool = False) -> EstimateResult:
     """:func:`estimate` on already validated :class:`~condmon.io.Record` (s).
 
     Several records are estimated together by the output-error, inverse-model
     or steady route (a linear model takes the output-error route then).
     ``fixed``: unknowns fixed for the run (already constants of ``model``),
-    reported as held; ``notes``: said in the result.
+    reported as held; ``notes``: said in the result; ``pool``: the windows of
+    every regime in one estimate (regime ``forward + reverse``: friction
+    against speed and direction), not one estimate per regime.
     """
     machine = model if isinstance(model, Machine) else get_model(model)
     records = [rec] if isinstance(rec, Record) else list(rec)
@@ -441,6 +446,11 @@ def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-m
     except CondmonError as err:
         text = str(err)
         raise type(err)(text if text.startswith(source) else f"{source}: {text}") from None
+    if pool:
+        label = " + ".join(sorted({w.regime for p in plans for w in p.windows if w.used}))
+        plans = [dataclasses.replace(p, windows=tuple(
+            dataclasses.replace(w, regime=label) if w.used else w for w in p.windows))
+            for p in plans]
     durations: dict[str, float] = {}
     for p in plans:
         for w in p.windows:
@@ -518,8 +528,12 @@ def _estimate_regime(plans: Sequence[_Plan], regime: str, machine: Machine, chos
                 values, ucov, fit, idf = st.values, st.covariance, st.fit, st.identifiability
                 diagnostics = st.diagnostics()
                 unsteady = st.unsteady
-                notes.append(f"steady balances over {st.windows} window(s), {st.samples} "
-                             f"samples{f' in regime {regime!r}' if regime else ''}")
+                if st.windows == 0:
+                    rejection = ("not identifiable: no steady window ("
+                                 + "; ".join(sorted(set(unsteady.values()))) + ")")
+                else:
+                    notes.append(f"steady balances over {st.windows} window(s), {st.samples} "
+                                 f"samples{f' in regime {regime!r}' if regime else ''}")
             else:
                 from condmon.identify.inverse_route import inverse_route
 

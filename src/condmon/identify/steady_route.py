@@ -42,9 +42,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from condmon.errors import EstimationError
 from condmon.identify.fit import FitCheck, residual_figures
 from condmon.identify.greybox import RouteResult
+from condmon.identify.identifiability import Identifiability
 from condmon.identify.inverse_route import absent_unknowns, evaluate
 from condmon.identify.regression import identified_lstsq
 from condmon.models.machine import Machine
@@ -154,11 +154,8 @@ def steady_route(signals: Sequence[Mapping[str, FloatArray]],
     Returns
     -------
     SteadyRouteResult
-
-    Raises
-    ------
-    EstimationError
-        No steady window with enough samples.
+        With ``windows == 0`` and nothing identifiable when no window offered
+        is steady (``unsteady`` says why).
     """
     import sympy as sp
 
@@ -201,9 +198,12 @@ def steady_route(signals: Sequence[Mapping[str, FloatArray]],
                                     f"of the balance (limit {100 * spec.steady_tolerance:g} %)")
                 continue
             kept.append(_Window(i, j, rows, phi, known))
-    if not kept:
+    if not kept:  # nothing to estimate from: every unknown held, no fit
         why = "; ".join(sorted(set(unsteady.values()))) or "no window offered"
-        raise EstimationError(f"{source}: no steady window to estimate from ({why})")
+        idf = Identifiability(names, (), {u: f"no steady window ({why})" for u in names})
+        return SteadyRouteResult(dict(held), np.zeros((p, p)),
+                                 FitCheck({}, float("nan"), float(fit_threshold), False), {}, {},
+                                 identifiability=idf, windows=0, samples=0, unsteady=unsteady)
     n_eq = len(inv.equations)
 
     def rows_of(theta: FloatArray | None) -> tuple[list[FloatArray], list[FloatArray],

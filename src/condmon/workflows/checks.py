@@ -264,8 +264,6 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
     """
     opts = _unit_options(store, unit, options or EstimateOptions())
     machine = get_model(opts.model or "dc-motor")
-    if group is not None and not dry_run:
-        store.set_group(unit, group, model=machine.name, model_source=machine.origin)
     ref = reference_for(store, unit, machine, against, group)
     if ref is None:
         baseline, ids = current_baseline(store, unit)
@@ -282,6 +280,8 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
     if why is not None:
         raise DataError(f"{res.source}: refused, {why}; nothing was stored")
     against_label = "unit" if ref is None else ref.label
+    if group is not None and not dry_run:  # the unit joins its group with its first test
+        store.set_group(unit, group, model=machine.name, model_source=machine.origin)
     if not res.usable:
         tid = -1 if dry_run else store.add_test(unit, res, role="check", digest=key.content,
                                                 file_digest=key.file,

@@ -160,6 +160,12 @@ def _commit_unit(store: HistoryStore, plan: _Unit, baseline_count: int) -> list[
     reports = []
     seen: dict[str, str] = {}
     checker: list[_Checker | None] = [None]  # loaded at the unit's first check
+    group = next((rec.group for rec, _ in items if rec.group), None)
+    if group is not None and plan.model is not None and any(o.error is None for _, o in items):
+        from condmon.models.registry import get_model
+
+        machine = get_model(plan.model)
+        store.set_group(plan.name, group, model=machine.name, model_source=machine.origin)
     if plan.kind == "estimate":
         from condmon.workflows.monitoring import baseline_members
 

@@ -303,3 +303,40 @@ def test_a_declaration_without_monitor_is_monitored_generically(
     res = json.loads(capsys.readouterr().out)
     assert res["status"] == "no-go"
     assert any(f["name"] == "winding resistance (R) increase" for f in res["faults"])
+
+
+# --- the steady route on a machine whose balances need unmeasured states ------------------
+
+def test_the_transmission_steady_state_is_a_case_of_the_steady_route(tmp_path: Path) -> None:
+    """The HST's declaration with an [estimation] table: the motor pressure is
+    not measured, so the route solves the model's whole steady state in each
+    window (the fault isolation's solver). One operating point cannot tell a
+    viscous load from a constant one; two can."""
+    from condmon.models.declared import load_plant_model
+    from condmon.models.machine import DATA_DIR
+    from condmon.simulate.plant import simulate_plant
+
+    src = DATA_DIR / "hst.toml"
+    decl = tmp_path / "hst-est.toml"
+    decl.write_text(src.read_text() + """
+[regimes]
+settle = 4.0
+min_duration = 2.0
+[regimes.full]
+when = "omega_p > 140"
+[regimes.part]
+when = "omega_p <= 140"
+
+[estimation]
+estimate = ["Rv", "Tld"]
+route = "steady"
+""")
+    rec = simulate_plant(load_plant_model("hst"), ["Tld=+20@0s"], seed=3)
+    one = estimate(rec, str(decl))
+    assert one.regime == "full" and one.identified == ("Rv",)
+    assert "collinear with Rv" in one.identifiability.reasons["Tld"]  # type: ignore[union-attr]
+    both = estimate_joint([rec], str(decl))
+    assert both.regime == "full + part" and both.identified == ("Rv", "Tld")
+    assert both.parameters["Rv"] == pytest.approx(11.271, rel=0.01)
+    assert both.parameters["Tld"] == pytest.approx(20.0, abs=3 * both.std_errors["Tld"] + 0.5)
+    assert both.fit_percent > 99.0

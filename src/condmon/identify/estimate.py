@@ -82,7 +82,19 @@ def _required_columns(machine: Machine, route: str) -> tuple[str, ...]:
     if route == "linear":
         lin = machine.linear()
         return (lin.input, *lin.outputs)
+    if route == "steady" and not _has_balances(machine):
+        return machine.plant.sensor_names
     return machine.inverse().columns
+
+
+def _has_balances(machine: Machine) -> bool:
+    """Whether the steady route can use the balances of measured signals (an
+    inverse structure), else it solves the model's whole steady state."""
+    try:
+        machine.inverse()
+    except ModelError:
+        return False
+    return True
 
 
 def _split_constants(machine: Machine, constants: Mapping[str, Any]
@@ -353,7 +365,7 @@ def _plan(rec: Record, machine: Machine, route: str, metadata: Mapping[str, Any]
           window: tuple[float, float] | None) -> _Plan:
     sig: dict[str, FloatArray] = {}
     edge = 0
-    if route in ("inverse", "steady"):
+    if route == "inverse" or (route == "steady" and _has_balances(machine)):
         from condmon.identify.inverse_route import filter_edge, route_cutoff, route_signals
 
         cutoff = route_cutoff(machine, 1.0 / rec.dt, rec.source)
@@ -520,11 +532,16 @@ def _estimate_regime(plans: Sequence[_Plan], regime: str, machine: Machine, chos
                              f"linear part exact (ZOH), started from {how}, "
                              f"{oe_res.evaluations} optimiser evaluations")
             elif chosen == "steady":
-                from condmon.identify.steady_route import steady_route
+                from condmon.identify.steady_route import steady_output_error, steady_route
 
-                st = steady_route([p.signals for p in plans], [p.rows(regime) for p in plans],
-                                  machine, constants=consts, hold=held_at,
-                                  fit_threshold=fit_threshold, source=source)
+                windows = [p.rows(regime) for p in plans]
+                st = (steady_route([p.signals for p in plans], windows, machine,
+                                   constants=consts, hold=held_at, fit_threshold=fit_threshold,
+                                   source=source)
+                      if _has_balances(machine) else
+                      steady_output_error(records, windows, machine, constants=consts,
+                                          hold=held_at, fit_threshold=fit_threshold,
+                                          source=source))
                 values, ucov, fit, idf = st.values, st.covariance, st.fit, st.identifiability
                 diagnostics = st.diagnostics()
                 unsteady = st.unsteady
@@ -589,8 +606,8 @@ def _estimate_regime(plans: Sequence[_Plan], regime: str, machine: Machine, chos
     held = {k: ("given" if k in fixed else origin.get(k, "nominal"))
             for k in names if k not in trended} if rejection is None else {}
     if rejection is None:
-        shown = {k: v for k, v in zip(names, vals) if k in trended}
-        rejection = spec.plausibility.check_values(shown, machine.units,
+        judged = {k: v for k, v in zip(names, vals) if k in trended}
+        rejection = spec.plausibility.check_values(judged, machine.units,
                                                    {k: v for k, v in zip(names, se)
                                                     if k in trended})
     if rejection is None and not np.all(np.isfinite(se)):
@@ -598,7 +615,7 @@ def _estimate_regime(plans: Sequence[_Plan], regime: str, machine: Machine, chos
     if held and idf is not None and idf.held:
         notes.append("held (not identified by this record): " + ", ".join(
             f"{k} at its {origin.get(k, 'nominal')} value" for k in idf.held))
-    windows = []
+    listed: list[Window] = []
     for i, p in enumerate(plans):
         used_j = 0
         for w in p.windows:
@@ -610,10 +627,10 @@ def _estimate_regime(plans: Sequence[_Plan], regime: str, machine: Machine, chos
             elif w.used:
                 w = dataclasses.replace(w, used=False, why=f"estimated separately (regime "
                                                            f"{w.regime!r})")
-            windows.append(w)
+            listed.append(w)
     return EstimateResult(
         parameters={k: float(v) for k, v in zip(names, vals)},
         std_errors={k: float(v) for k, v in zip(names, se)},
         covariance=pcov, fit=fit, discrete=discrete, continuous=cont, rejection=rejection,
-        notes=tuple(notes), diagnostics=diagnostics, regime=regime, windows=tuple(windows),
+        notes=tuple(notes), diagnostics=diagnostics, regime=regime, windows=tuple(listed),
         identifiability=idf, held=held, trended=trended, **common)

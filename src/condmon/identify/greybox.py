@@ -61,8 +61,7 @@ def choose_route(machine: Machine, route: str | None = None) -> str:
         When the route asked for does not fit the model (with the reason).
     """
     want = route or machine.spec.route
-    if want == "steady":
-        machine.inverse()
+    if want == "steady":  # balances of measured signals, else the model's whole steady state
         return "steady"
     if want == "oe":
         from condmon.models.semilinear import semilinear_structure

@@ -47,9 +47,10 @@ from condmon.identify.greybox import RouteResult
 from condmon.identify.identifiability import Identifiability
 from condmon.identify.inverse_route import absent_unknowns, evaluate
 from condmon.identify.regression import identified_lstsq
+from condmon.io.records import Record
 from condmon.models.machine import Machine
 
-__all__ = ["SteadyRouteResult", "steady_route", "batch_se"]
+__all__ = ["SteadyRouteResult", "steady_route", "steady_output_error", "batch_se"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
@@ -248,4 +249,85 @@ def steady_route(signals: Sequence[Mapping[str, FloatArray]],
     samples = int(sum(w.rows.size for w in kept))
     return SteadyRouteResult(fit_.values, fit_.covariance, fit, nrmse, white,
                              identifiability=fit_.identifiability, windows=len(kept),
+                             samples=samples, unsteady=unsteady)
+
+
+def steady_output_error(records: Sequence[Record], windows: Sequence[Sequence[IntArray]],
+                        machine: Machine, *, constants: Mapping[str, float] | None = None,
+                        hold: Mapping[str, float] | None = None, fit_threshold: float = 90.0,
+                        source: str = "record") -> SteadyRouteResult:
+    """The steady route of a machine whose balances need states neither measured
+    nor derived (a transmission's motor pressure): in each window the model's
+    whole steady state is solved (the fault isolation's steady-state solver,
+    :func:`~condmon.identify.steady_state.fit_steady_states`) and the unknowns
+    fitted so its sensor readings match the window means, each weighted by its
+    batch-means standard error. The fit is ``1 − Σ(predicted − mean)²/Σ mean²``
+    per sensor over the windows.
+
+    Parameters
+    ----------
+    records : sequence of Record
+        With every sensor column; an input column is used when present (else
+        the input's nominal value and the test's schedule).
+    windows : sequence of sequence of ndarray
+        Per record, the rows of each window offered.
+    machine, constants, hold, fit_threshold, source
+        As for :func:`steady_route`.
+
+    Returns
+    -------
+    SteadyRouteResult
+    """
+    import pandas as pd
+
+    from condmon.identify.steady_state import SteadyWindow, fit_steady_states
+    from condmon.simulate.plant import input_signals, integrate
+
+    spec = machine.spec
+    held = {**machine.nominal(), **dict(hold or {})}
+    plant = machine.plant.with_parameters({**machine.constants(constants), **held})
+    compiled = plant.compile()
+    sensors = list(plant.sensor_names)
+    steady: list[SteadyWindow] = []
+    unsteady: dict[tuple[int, int], str] = {}
+    for i, (rec, wins) in enumerate(zip(records, windows)):
+        t = rec["t"]
+        frame = pd.DataFrame({k: v for k, v in rec.columns.items() if k in plant.input_names})
+        u = input_signals(plant, t, frame)
+        x = integrate(compiled, t, u)
+        y = rec.stack(sensors)
+        for j, rows in enumerate(wins):
+            if rows.size < MIN_WINDOW_SAMPLES:
+                unsteady[(i, j)] = f"{rows.size} samples (fewer than {MIN_WINDOW_SAMPLES})"
+                continue
+            se = np.array([max(batch_se(_detrended(y[rows, c])), 1e-12 * (abs(y[rows, c]).max()
+                                                                         + 1e-300))
+                           for c in range(len(sensors))])
+            steady.append(SteadyWindow(float(t[rows[0]]), float(t[rows[-1]]),
+                                       u[rows].mean(axis=0), y[rows].mean(axis=0), se,
+                                       x[rows[-1]].copy()))
+    names = spec.unknowns
+    p = len(names)
+    if not steady:
+        why = "; ".join(sorted(set(unsteady.values()))) or "no window offered"
+        idf = Identifiability(names, (), {u: f"no steady window ({why})" for u in names})
+        return SteadyRouteResult(dict(held), np.zeros((p, p)),
+                                 FitCheck({}, float("nan"), float(fit_threshold), False), {}, {},
+                                 identifiability=idf, windows=0, samples=0, unsteady=unsteady)
+    fit_ = fit_steady_states(plant, names, steady, hold=held, limits=spec.identifiability)
+    r2, nrmse = {}, {}
+    resid = fit_.misfit.reshape(len(steady), len(sensors)) * np.array([w.std_error
+                                                                       for w in steady])
+    means = np.array([w.mean for w in steady])
+    for c, name in enumerate(sensors):
+        total = float(np.sum(means[:, c] ** 2))
+        r2[name] = 1.0 - float(np.sum(resid[:, c] ** 2)) / total if total > 0 else float("-inf")
+        nrmse[name] = float(np.sqrt(np.mean(resid[:, c] ** 2) / np.mean(means[:, c] ** 2))) \
+            if total > 0 else float("inf")
+    fit_pct = 100.0 * float(np.mean(list(r2.values())))
+    fit = FitCheck(r2, fit_pct, float(fit_threshold),
+                   bool(fit_pct >= fit_threshold and fit_.converged))
+    samples = int(sum(w.size for ws in windows for w in ws))
+    return SteadyRouteResult(fit_.values, fit_.covariance, fit, nrmse, {},
+                             identifiability=fit_.identifiability, windows=len(steady),
                              samples=samples, unsteady=unsteady)

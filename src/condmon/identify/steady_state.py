@@ -14,17 +14,20 @@ suspect explains the data, much more when it does not.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy import optimize
 
+from condmon.identify.identifiability import Identifiability, assess_identifiability
 from condmon.models.declared import CompiledModel, PlantModel
+from condmon.models.plausibility import IdentifiabilityLimits
 from condmon.simulate.plant import operating_segments
 
-__all__ = ["SteadyWindow", "SteadyStateEstimate", "steady_windows", "estimate_steady_state"]
+__all__ = ["SteadyWindow", "SteadyStateEstimate", "SteadyFit", "steady_windows",
+           "estimate_steady_state", "fit_steady_states"]
 
 FloatArray = NDArray[np.float64]
 _RUNAWAY = 8.0  # |log(value/nominal)| beyond which the search ran away (factor ~3000)
@@ -111,9 +114,145 @@ def steady_windows(t: FloatArray, u: FloatArray, y: FloatArray, states: FloatArr
     return out
 
 
+@dataclass(frozen=True, eq=False)
+class SteadyFit:
+    """Several unknowns fitted to the steady windows (:func:`fit_steady_states`).
+
+    Attributes
+    ----------
+    values : dict of str to float
+        Each unknown: estimated, or held. [SI]
+    covariance : ndarray
+        Of the unknowns in their order (zero rows for held ones). [SI²]
+    identifiability : Identifiability or None
+        Which unknowns the windows identify (None: not assessed).
+    consistency : float or None
+        sqrt(chi²/dof) of the weighted misfit; None without redundancy. [-]
+    converged : bool
+        Whether a value made the steady state match and moved it.
+    misfit : ndarray
+        The weighted residual of each window's sensor means at the estimate. [-]
+    """
+
+    values: dict[str, float]
+    covariance: FloatArray
+    identifiability: Identifiability | None
+    consistency: float | None
+    converged: bool
+    misfit: FloatArray
+
+
+def fit_steady_states(model: PlantModel, unknowns: Sequence[str],
+                      windows: Sequence[SteadyWindow], *,
+                      hold: Mapping[str, float] | None = None,
+                      limits: IdentifiabilityLimits | None = None,
+                      assess: bool = True) -> SteadyFit:
+    """Fit unknowns so the model's steady state in each window matches its sensor means.
+
+    The output-error form of the steady route (the model's whole steady state
+    solved in every window, :func:`_steady_state`; the one steady-state solver
+    of the fault isolation and of a declared machine's steady route). Each
+    unknown is searched on a relative scale (its logarithm when its nominal is
+    positive, else in steps of its nominal's size, or of half its declared
+    ``range`` when the nominal is 0, else 1).
+
+    Parameters
+    ----------
+    model : PlantModel
+    unknowns : sequence of str
+        In order of preference.
+    windows : sequence of SteadyWindow
+    hold : mapping, optional
+        Values of the unknowns when not identified (default: nominal). [SI]
+    limits : IdentifiabilityLimits, optional
+    assess : bool
+        Assess identifiability on the sensitivities at the held values and fit
+        the identifiable unknowns only (else fit all).
+
+    Returns
+    -------
+    SteadyFit
+    """
+    compiled = model.compile()
+    names = list(unknowns)
+    start = {k: float((hold or {}).get(k, model.parameter(k).value)) for k in names}
+    idx = [model.parameter_names.index(k) for k in names]
+    p0 = compiled.parameter_vector(start)
+    positive = [start[k] > 0 for k in names]
+    scale = [abs(start[k]) if start[k] != 0 else _zero_scale(model, k) for k in names]
+
+    def values_of(s: FloatArray, which: Sequence[int]) -> FloatArray:
+        p = p0.copy()
+        for j, v in zip(which, s):
+            base = start[names[j]]
+            p[idx[j]] = base * math.exp(float(v)) if positive[j] else base + scale[j] * float(v)
+        return p
+
+    def misfit_of(which: Sequence[int]) -> Callable[[FloatArray], FloatArray]:
+        def misfit(s: FloatArray) -> FloatArray:
+            p = values_of(s, which)
+            out = []
+            for w in windows:
+                xs = _steady_state(compiled, w, p, w.guess)
+                if xs is None:
+                    return np.full(len(windows) * len(w.mean), 1e6)
+                out.append((compiled.outputs(xs, w.inputs, p) - w.mean) / w.std_error)
+            return np.concatenate(out)
+        return misfit
+
+    k = len(names)
+    held_values = {n: start[n] for n in names}
+    if not windows:
+        return SteadyFit(held_values, np.zeros((k, k)), None, None, False, np.zeros(0))
+    idf = None
+    chosen = list(range(k))
+    if assess:
+        base_misfit = misfit_of(chosen)
+        r0 = base_misfit(np.zeros(k))
+        S = np.empty((r0.size, k))
+        for j in range(k):
+            step = np.zeros(k)
+            step[j] = 1e-4
+            S[:, j] = (base_misfit(step) - r0) / 1e-4
+        idf = assess_identifiability(S, names, limits=limits)
+        chosen = [names.index(n) for n in idf.identifiable]
+        if not chosen:
+            return SteadyFit(held_values, np.zeros((k, k)), idf, None, False, r0)
+    misfit = misfit_of(chosen)
+    sol = optimize.least_squares(misfit, np.zeros(len(chosen)), method="lm", x_scale=1.0,
+                                 diff_step=1e-6, max_nfev=200 * len(chosen))
+    p = values_of(sol.x, chosen)
+    values = {n: float(p[idx[j]]) for j, n in enumerate(names)}
+    resid = misfit(sol.x)
+    dof = len(resid) - len(chosen)
+    chi2 = float(resid @ resid)
+    moves = bool(np.all(np.any(np.abs(sol.jac) > 1e-9, axis=0)))
+    # a value that runs off by orders of magnitude means no finite value explains the data
+    runaway = any(positive[j] and abs(float(v)) >= _RUNAWAY for j, v in zip(chosen, sol.x))
+    ok = bool(sol.success) and moves and chi2 < 1e11 and not runaway
+    cov = np.zeros((k, k))
+    try:
+        cov_s = np.linalg.inv(sol.jac.T @ sol.jac)
+        d = np.array([values[names[j]] if positive[j] else scale[j] for j in chosen])
+        cov[np.ix_(chosen, chosen)] = d[:, None] * cov_s * d[None, :]
+    except np.linalg.LinAlgError:
+        cov[np.ix_(chosen, chosen)] = np.nan
+    consistency = math.sqrt(chi2 / dof) if dof > 0 else None
+    return SteadyFit(values, cov, idf, consistency, ok, resid)
+
+
+def _zero_scale(model: PlantModel, name: str) -> float:
+    """A step size for an unknown whose nominal is 0: half its declared range, else 1."""
+    rng = model.parameter(name).range
+    if rng is not None and math.isfinite(rng[1] - rng[0]):
+        return float(rng[1] - rng[0]) / 2.0
+    return 1.0
+
+
 def estimate_steady_state(model: PlantModel, parameter: str, windows: Sequence[SteadyWindow]
                           ) -> SteadyStateEstimate:
-    """Estimate ``parameter`` from the steady windows, all others nominal.
+    """Estimate ``parameter`` from the steady windows, all others nominal
+    (a suspect of the fault isolation: :func:`fit_steady_states` of one unknown).
 
     Parameters
     ----------
@@ -142,40 +281,12 @@ def estimate_steady_state(model: PlantModel, parameter: str, windows: Sequence[S
     >>> round(est.value / 11.271, 2)
     1.25
     """
-    compiled = model.compile()
     nominal = model.parameter(parameter).value
-    pi = model.parameter_names.index(parameter)
-    p0 = compiled.parameter_vector()
-    positive = nominal > 0
-    scale = abs(nominal) if nominal != 0 else 1.0
-
-    def value_of(s: float) -> float:
-        return nominal * math.exp(s) if positive else nominal + scale * s
-
-    def misfit(s_arr: FloatArray) -> FloatArray:
-        p = p0.copy()
-        p[pi] = value_of(float(s_arr[0]))
-        out = []
-        for w in windows:
-            xs = _steady_state(compiled, w, p, w.guess)
-            if xs is None:
-                return np.full(len(windows) * len(w.mean), 1e6)
-            out.append((compiled.outputs(xs, w.inputs, p) - w.mean) / w.std_error)
-        return np.concatenate(out)
-
     if not windows:
         return SteadyStateEstimate(parameter, nominal, nominal, None, False)
-    sol = optimize.least_squares(misfit, np.zeros(1), method="lm", x_scale=1.0,
-                                 diff_step=1e-6, max_nfev=200)
-    value = value_of(float(sol.x[0]))
-    resid = misfit(sol.x)
-    dof = len(resid) - 1
-    chi2 = float(resid @ resid)
-    moves = bool(np.any(np.abs(sol.jac) > 1e-9))
-    # a value that runs off by orders of magnitude means no finite value explains the data
-    ok = bool(sol.success) and moves and chi2 < 1e11 and (not positive or abs(float(sol.x[0])) < _RUNAWAY)
-    consistency = math.sqrt(chi2 / dof) if dof > 0 else None
-    return SteadyStateEstimate(parameter, value, nominal, consistency, ok)
+    fit = fit_steady_states(model, [parameter], windows, assess=False)
+    return SteadyStateEstimate(parameter, fit.values[parameter], nominal, fit.consistency,
+                               fit.converged)
 
 
 def _steady_state(compiled: CompiledModel, w: SteadyWindow, p: FloatArray, guess: FloatArray

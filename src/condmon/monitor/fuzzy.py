@@ -24,6 +24,7 @@ built from scikit-fuzzy membership functions.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -78,6 +79,24 @@ class MonitorConfig:
                               f"configured: {sorted(self.r1)}")
         return (np.array([self.r1[key(p)] for p in parameters]),
                 np.array([self.r2[key(p)] for p in parameters]))
+
+
+    def keyed(self, names: Sequence[str]) -> MonitorConfig:
+        """The breakpoints of ``names`` that it knows, under those names (a
+        regime's parameter, ``Tc@forward``, takes ``Tc``'s), in their order.
+
+        Example
+        -------
+        >>> cfg = MonitorConfig({"Tc": 15.0}, {"Tc": 30.0})
+        >>> cfg.keyed(["Tc@forward", "J", "Tc@reverse"]).r1
+        {'Tc@forward': 15.0, 'Tc@reverse': 15.0}
+        """
+        known = [n for n in names if n in self.r1 or split_key(n)[0] in self.r1]
+        if not known:
+            return dataclasses.replace(self, r1={}, r2={})
+        r1, r2 = self.arrays(known)
+        return dataclasses.replace(self, r1=dict(zip(known, map(float, r1))),
+                                   r2=dict(zip(known, map(float, r2))))
 
 
 def load_monitor_config(path: str | Path | None = None, k: float | None = None) -> MonitorConfig:

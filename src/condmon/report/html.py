@@ -215,9 +215,11 @@ def write_report(store: HistoryStore, unit: str, out_dir: str | Path,
     notes: dict[int, str] = {}
     if len(hist):
         from condmon.models.registry import get_model
-        from condmon.monitor.fuzzy import load_monitor_config
+        from condmon.monitor.generic import machine_monitor
 
-        cfg = monitor or load_monitor_config(get_model(model).breakpoints)
+        cfg = monitor or machine_monitor(get_model(model),
+                                         stored.baseline if stored is not None else None)
+        cfg = cfg.keyed([c for c in hist.columns if f"{c}_se" in hist.columns])
         part, figs, trends, fits, notes = _tests_part(store, unit, hist, cfg, stored, out, name,
                                                       fit_threshold)
         body += part

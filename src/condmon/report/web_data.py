@@ -209,7 +209,7 @@ def read_unit(store: HistoryStore, unit: str) -> UnitData:
         No such unit in the history.
     """
     from condmon.models.registry import get_model
-    from condmon.monitor.fuzzy import load_monitor_config
+    from condmon.monitor.generic import machine_monitor
 
     model = store.unit_model(unit)
     if model is None:
@@ -220,7 +220,9 @@ def read_unit(store: HistoryStore, unit: str) -> UnitData:
     monitor = None
     if len(hist):
         try:
-            monitor = load_monitor_config(get_model(model).breakpoints)
+            monitor = machine_monitor(get_model(model),
+                                      None if baseline is None else baseline.baseline)
+            monitor = monitor.keyed([c for c in hist.columns if f"{c}_se" in hist.columns])
         except CondmonError:  # a declaration file moved away: trends without bands
             monitor = None
     checks = hist[(hist["role"] == "check") & ~hist["excluded"]] if len(hist) else hist

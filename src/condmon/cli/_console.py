@@ -11,7 +11,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from condmon.io.jsonable import json_safe
 
-__all__ = ["out", "err", "fmt", "write_json", "json_safe", "progress"]
+__all__ = ["out", "err", "fmt", "write_json", "json_safe", "progress", "status_text"]
 
 out = Console()
 err = Console(stderr=True)
@@ -33,3 +33,9 @@ def progress() -> Progress:
     """A progress bar on stderr that disappears when done."""
     return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                     TimeElapsedColumn(), console=err, transient=True)
+
+
+def status_text(status: str) -> str:
+    """A status in its colour, as rich markup."""
+    color = {"go": "green", "advisory": "yellow", "no-go": "red", "retest": "blue"}.get(status, "white")
+    return f"[bold {color}]{status}[/]"

@@ -12,28 +12,23 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 import pandas as pd
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
-from condmon.errors import CondmonError, EstimationError, ModelError
-from condmon.identify._common import TFEstimate
-from condmon.identify.defaults import ESTIMATORS, list_estimators
+from condmon.errors import CondmonError, ModelError
+from condmon.identify.defaults import list_estimators
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD, FitCheck
-from condmon.identify.greybox import choose_route, linear_route
-from condmon.identify.identifiability import Identifiability
-from condmon.identify.ls import arx, iv
-from condmon.identify.oe import oe
+from condmon.identify.greybox import choose_route
+from condmon.identify.regime_estimate import (
+    ESTIMATOR_FUNCTIONS, estimate_regime, has_balances, plan, unusable,
+)
 from condmon.identify.result import EstimateResult
-from condmon.identify.sriv import sriv
-from condmon.identify.windows import Window, cut_windows
 from condmon.io.records import Record, validate_record
 from condmon.io.rig import RecordSettings, apply_record_settings
 from condmon.models.machine import Machine
-from condmon.models.regimes import regime_key
 from condmon.models.registry import get_model
 
 __all__ = ["EstimateResult", "estimate", "estimate_record", "estimate_joint", "list_estimators",
@@ -44,16 +39,6 @@ IntArray = NDArray[np.intp]
 
 #: Excitation columns used when present and not told otherwise.
 DEFAULT_EXCITATION = ("yd", "ud")
-
-
-class Estimator(Protocol):
-    def __call__(self, u: ArrayLike, y: ArrayLike, order: int, *, dt: float = ...,
-                 excitation: ArrayLike | None = ..., outputs: tuple[str, ...] | None = ...,
-                 input_name: str = ...) -> TFEstimate: ...
-
-
-_ESTIMATORS: dict[str, Estimator] = {"sriv": sriv, "oe": oe, "iv": iv, "arx": arx}
-assert tuple(_ESTIMATORS) == ESTIMATORS, "condmon.identify.defaults names every estimator"
 
 
 def _excitation_columns(record: pd.DataFrame | Record, machine: Machine,
@@ -82,19 +67,9 @@ def _required_columns(machine: Machine, route: str) -> tuple[str, ...]:
     if route == "linear":
         lin = machine.linear()
         return (lin.input, *lin.outputs)
-    if route == "steady" and not _has_balances(machine):
+    if route == "steady" and not has_balances(machine):
         return machine.plant.sensor_names
     return machine.inverse().columns
-
-
-def _has_balances(machine: Machine) -> bool:
-    """Whether the steady route can use the balances of measured signals (an
-    inverse structure), else it solves the model's whole steady state."""
-    try:
-        machine.inverse()
-    except ModelError:
-        return False
-    return True
 
 
 def _split_constants(machine: Machine, constants: Mapping[str, Any]
@@ -210,8 +185,8 @@ def estimate(record: pd.DataFrame, model: str | Machine = "dc-motor", *,
     """
     machine = model if isinstance(model, Machine) else get_model(model)
     machine.require_estimation()
-    if method not in _ESTIMATORS:
-        raise ModelError(f"unknown method {method!r}; allowed: {', '.join(_ESTIMATORS)}")
+    if method not in ESTIMATOR_FUNCTIONS:
+        raise ModelError(f"unknown method {method!r}; allowed: {', '.join(ESTIMATOR_FUNCTIONS)}")
     given, fixed = _split_constants(machine, dict(constants or {}))
     machine = machine.with_fixed(fixed)
     chosen = choose_route(machine, route)
@@ -241,24 +216,6 @@ def estimate(record: pd.DataFrame, model: str | Machine = "dc-motor", *,
 def _condition_columns(machine: Machine) -> tuple[str, ...]:
     """Record columns the regimes' conditions may name (kept when present)."""
     return tuple(sorted({n for r in machine.regimes.regimes for n in r.condition.names}))
-
-
-def _oe_start(rec: Sequence[Record], machine: Machine, consts: Mapping[str, float],
-              fit_threshold: float) -> tuple[dict[str, float], str]:
-    """Starting values of the output-error route: the inverse-model estimate when
-    that route fits the model and gives positive-definite answers, else the
-    declared values."""
-    from condmon.identify.inverse_route import inverse_route
-
-    try:
-        inv = inverse_route(rec, machine, constants=consts, fit_threshold=fit_threshold)
-    except CondmonError:
-        return machine.nominal(), "the declared values"
-    if inv.identifiability is not None and not inv.identifiability.complete:
-        return machine.nominal(), "the declared values"
-    if machine.spec.plausibility.check_values(inv.values, machine.units) is None:
-        return inv.values, "the inverse-model estimate"
-    return machine.nominal(), "the declared values"
 
 
 def estimate_joint(records: Sequence[pd.DataFrame], model: str | Machine = "dc-motor", *,
@@ -347,72 +304,6 @@ def _check_constants(machine: Machine, constants: Mapping[str, float],
     return out
 
 
-@dataclass(frozen=True)
-class _Plan:
-    """One record's route signals (inverse and steady routes) and windows."""
-
-    record: Record
-    signals: dict[str, FloatArray]
-    windows: tuple[Window, ...]
-
-    def rows(self, regime: str) -> list[IntArray]:
-        """Rows of each used window of ``regime``."""
-        return [np.arange(w.first, w.stop) for w in self.windows
-                if w.used and w.regime == regime]
-
-
-def _plan(rec: Record, machine: Machine, route: str, metadata: Mapping[str, Any] | None,
-          window: tuple[float, float] | None) -> _Plan:
-    sig: dict[str, FloatArray] = {}
-    edge = 0
-    if route == "inverse" or (route == "steady" and _has_balances(machine)):
-        from condmon.identify.inverse_route import filter_edge, route_cutoff, route_signals
-
-        cutoff = route_cutoff(machine, 1.0 / rec.dt, rec.source)
-        sig = route_signals(rec, machine, cutoff)
-        edge = filter_edge(1.0 / rec.dt, cutoff)
-    named = {**rec.columns, **sig}
-    windows = cut_windows(rec["t"], named, machine.regimes, metadata, source=rec.source,
-                          span=window, edge=edge)
-    return _Plan(rec, sig, windows)
-
-
-def _slice(plan: _Plan, regime: str, sliced: bool) -> Record:
-    """The record, or its longest used window of ``regime`` (a route that needs
-    contiguous samples: linear, output error)."""
-    if not sliced:
-        return plan.record
-    longest = max((w for w in plan.windows if w.used and w.regime == regime),
-                  key=lambda w: w.stop - w.first)
-    return plan.record.slice(longest.first, longest.stop)
-
-
-def _unusable(plans: Sequence[_Plan]) -> str:
-    """Why no window of the record(s) can be used, in one clause."""
-    parts = []
-    for p in plans:
-        for w in p.windows:
-            parts.append(f"{w.regime or 'record'} {w.start:.3g}-{w.end:.3g} s: {w.why}")
-    shown = "; ".join(parts[:4]) + (f"; and {len(parts) - 4} more" if len(parts) > 4 else "")
-    return f"not identifiable: no window of the record can be used ({shown})"
-
-
-def _held_values(machine: Machine, regime: str, hold: Mapping[str, float] | None
-                 ) -> tuple[dict[str, float], dict[str, str]]:
-    """Values the unknowns are held at when not identified, and where each comes
-    from: the unit's baseline (``NAME@REGIME``, else ``NAME``) or the declaration."""
-    values, origin = {}, {}
-    for name, nominal in machine.nominal().items():
-        key = regime_key(name, regime)
-        if hold and key in hold and math.isfinite(hold[key]):
-            values[name], origin[name] = float(hold[key]), "baseline"
-        elif hold and name in hold and math.isfinite(hold[name]):
-            values[name], origin[name] = float(hold[name]), "baseline"
-        else:
-            values[name], origin[name] = float(nominal), "nominal"
-    return values, origin
-
-
 def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-motor", *,
                     method: str = "sriv", gamma: float | None = None,
                     excitation: Sequence[str] = (),
@@ -454,7 +345,7 @@ def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-m
             notes.append("several records: the linear model is estimated by output error")
         notes.append(f"estimated jointly from {len(records)} records")
     try:
-        plans = [_plan(r, machine, chosen, metadata, window) for r in records]
+        plans = [plan(r, machine, chosen, metadata, window) for r in records]
     except CondmonError as err:
         text = str(err)
         raise type(err)(text if text.startswith(source) else f"{source}: {text}") from None
@@ -476,13 +367,13 @@ def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-m
         nan = {k: float("nan") for k in names}
         return EstimateResult(nan, dict(nan), np.full((len(names),) * 2, np.nan),
                               FitCheck({}, float("nan"), float(fit_threshold), False), None,
-                              None, rejection=_unusable(plans), notes=tuple(notes),
+                              None, rejection=unusable(plans), notes=tuple(notes),
                               windows=tuple(w for p in plans for w in p.windows),
                               trended=(), **common)  # type: ignore[arg-type]
     sliced = machine.regimes.declared or window is not None
     results = []
     for regime in regimes:
-        res = _estimate_regime(plans, regime, machine, chosen, method=method,
+        res = estimate_regime(plans, regime, machine, chosen, method=method,
                                excitation=excitation, fit_threshold=fit_threshold,
                                consts=consts, hold=hold, fixed=dict(fixed or {}),
                                notes=notes, sliced=sliced, common=common)
@@ -491,146 +382,3 @@ def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-m
         dataclasses.replace(r, windows=()) for r in results[1:]))
 
 
-def _estimate_regime(plans: Sequence[_Plan], regime: str, machine: Machine, chosen: str, *,
-                     method: str, excitation: Sequence[str], fit_threshold: float,
-                     consts: dict[str, float], hold: Mapping[str, float] | None,
-                     fixed: dict[str, float], notes: list[str], sliced: bool,
-                     common: dict[str, Any]) -> EstimateResult:
-    """The estimate of one regime's windows (see :func:`estimate_record`)."""
-    spec = machine.spec
-    records = [p.record for p in plans]
-    source = common["source"]
-    notes = list(notes)
-    held_at, origin = _held_values(machine, regime, hold)
-    diagnostics: dict[str, float] = {}
-    discrete = None
-    cont = None
-    rejection = None
-    idf: Identifiability | None = None
-    unsteady: dict[tuple[int, int], str] = {}
-    try:
-        with np.errstate(over="raise", invalid="raise", divide="raise"):
-            if chosen == "linear":
-                lin = linear_route(_slice(plans[0], regime, sliced), machine,
-                                   _ESTIMATORS[method], excitation=excitation, constants=consts,
-                                   fit_threshold=fit_threshold, hold=held_at)
-                values, ucov, fit = lin.values, lin.covariance, lin.fit
-                discrete, cont, rejection = lin.discrete, lin.continuous, lin.rejection
-                diagnostics = dict(lin.diagnostics)
-                notes += list(lin.discrete.notes)
-                idf = lin.identifiability
-            elif chosen == "oe":
-                from condmon.identify.oe_route import oe_route  # sympy, scipy: only this route
-
-                recs = [_slice(p, regime, sliced) for p in plans]
-                start, how = _oe_start(recs, machine, consts, fit_threshold)
-                oe_res = oe_route(recs, machine, start, constants=consts,
-                                  fit_threshold=fit_threshold)
-                values, ucov, fit = oe_res.values, oe_res.covariance, oe_res.fit
-                diagnostics = oe_res.diagnostics()
-                notes.append(f"output error: the declared model simulated with its "
-                             f"linear part exact (ZOH), started from {how}, "
-                             f"{oe_res.evaluations} optimiser evaluations")
-            elif chosen == "steady":
-                from condmon.identify.steady_route import steady_output_error, steady_route
-
-                windows = [p.rows(regime) for p in plans]
-                st = (steady_route([p.signals for p in plans], windows, machine,
-                                   constants=consts, hold=held_at, fit_threshold=fit_threshold,
-                                   source=source)
-                      if _has_balances(machine) else
-                      steady_output_error(records, windows, machine, constants=consts,
-                                          hold=held_at, fit_threshold=fit_threshold,
-                                          source=source))
-                values, ucov, fit, idf = st.values, st.covariance, st.fit, st.identifiability
-                diagnostics = st.diagnostics()
-                unsteady = st.unsteady
-                if st.windows == 0:
-                    rejection = ("not identifiable: no steady window ("
-                                 + "; ".join(sorted(set(unsteady.values()))) + ")")
-                else:
-                    notes.append(f"steady balances over {st.windows} window(s), {st.samples} "
-                                 f"samples{f' in regime {regime!r}' if regime else ''}")
-            else:
-                from condmon.identify.inverse_route import inverse_route
-
-                rows = [np.concatenate(p.rows(regime)) if p.rows(regime) else
-                        np.zeros(0, dtype=np.intp) for p in plans]
-                inv = inverse_route(records, machine, constants=consts,
-                                    fit_threshold=fit_threshold, rows=rows,
-                                    signals=[p.signals for p in plans], hold=held_at)
-                values, ucov, fit, idf = inv.values, inv.covariance, inv.fit, inv.identifiability
-                diagnostics = inv.diagnostics()
-                notes.append(f"inverse model (IDIM-LS): zero-phase low-pass at {inv.cutoff:g} Hz, "
-                             f"central differences, {inv.samples} samples")
-                worst = max(inv.whiteness, key=lambda k: inv.whiteness[k])
-                limit = spec.max_residual_correlation
-                if inv.whiteness[worst] > limit:
-                    rejection = (f"structure mismatch: the residual of {worst} is strongly "
-                                 f"correlated ({inv.whiteness[worst]:.2f} > {limit:g}); the "
-                                 "model misses part of the dynamics (friction, offset, "
-                                 "another mode?)")
-    except CondmonError as err:
-        # Estimators do not know the file: name it (same error class), once.
-        text = str(err)
-        raise type(err)(text if text.startswith(source) else f"{source}: {text}") from None
-    except (ArithmeticError, np.linalg.LinAlgError, ValueError) as err:
-        # The estimators guard every step; this is the last line, never a traceback.
-        raise EstimationError(f"{source}: the estimate failed numerically "
-                              f"({type(err).__name__}: {err})") from None
-    white = {k.split(" ", 1)[1]: v for k, v in diagnostics.items() if k.startswith("whiteness ")}
-    if chosen in ("linear", "oe") and white and max(white.values()) > spec.residual_warning:
-        worst = max(white, key=lambda k: white[k])
-        notes.append(f"possible structure mismatch: the residual of {worst} is correlated "
-                     f"({white[worst]:.2f} > {spec.residual_warning:g}); the model may miss "
-                     "part of the dynamics" + (f" ({spec.structure_hint})"
-                                               if spec.structure_hint else ""))
-    names = spec.report
-    identified = set(idf.identifiable) if idf is not None else set(spec.unknowns)
-    if idf is not None and not idf.identifiable and rejection is None:
-        rejection = "not identifiable: " + "; ".join(f"{k}: {v}" for k, v in idf.reasons.items())
-    if rejection is None or rejection.startswith(("structure mismatch", "not identifiable")):
-        params, G = machine.report_jacobian({**consts, **values})
-        pcov = G @ ucov @ G.T
-        vals = np.array([params[k] for k in names])
-        trended = tuple(k for k, g in zip(names, G)
-                        if np.any(g != 0) and all(spec.unknowns[j] in identified
-                                                  for j in np.flatnonzero(g)))
-    else:
-        vals = np.full(len(names), np.nan)
-        pcov = np.full((len(names), len(names)), np.nan)
-        trended = ()
-    if idf is not None and not idf.identifiable:
-        trended = ()
-    se = np.sqrt(np.clip(np.diag(pcov), 0.0, None))
-    held = {k: ("given" if k in fixed else origin.get(k, "nominal"))
-            for k in names if k not in trended} if rejection is None else {}
-    if rejection is None:
-        judged = {k: v for k, v in zip(names, vals) if k in trended}
-        rejection = spec.plausibility.check_values(judged, machine.units,
-                                                   {k: v for k, v in zip(names, se)
-                                                    if k in trended})
-    if rejection is None and not np.all(np.isfinite(se)):
-        rejection = "the standard errors are not finite: the data do not determine the model"
-    if held and idf is not None and idf.held:
-        notes.append("held (not identified by this record): " + ", ".join(
-            f"{k} at its {origin.get(k, 'nominal')} value" for k in idf.held))
-    listed: list[Window] = []
-    for i, p in enumerate(plans):
-        used_j = 0
-        for w in p.windows:
-            if w.used and w.regime == regime:
-                why = unsteady.get((i, used_j))
-                used_j += 1
-                if why is not None:
-                    w = dataclasses.replace(w, used=False, why=why)
-            elif w.used:
-                w = dataclasses.replace(w, used=False, why=f"estimated separately (regime "
-                                                           f"{w.regime!r})")
-            listed.append(w)
-    return EstimateResult(
-        parameters={k: float(v) for k, v in zip(names, vals)},
-        std_errors={k: float(v) for k, v in zip(names, se)},
-        covariance=pcov, fit=fit, discrete=discrete, continuous=cont, rejection=rejection,
-        notes=tuple(notes), diagnostics=diagnostics, regime=regime, windows=tuple(listed),
-        identifiability=idf, held=held, trended=trended, **common)

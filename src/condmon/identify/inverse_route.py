@@ -38,7 +38,8 @@ from condmon.identify.greybox import RouteResult
 from condmon.identify.regression import identified_lstsq
 from condmon.io.records import Record
 from condmon.models.declared import substituted_equations, symbols_of
-from condmon.models.machine import InverseStructure, Machine
+from condmon.models.inverse import InverseStructure
+from condmon.models.machine import Machine
 
 if TYPE_CHECKING:
     import sympy as sp

@@ -24,24 +24,25 @@ from typing import TYPE_CHECKING, Any, overload
 import numpy as np
 from numpy.typing import NDArray
 
-from condmon.errors import ConfigError, ModelError
-from condmon.io.rig import RecordSettings, parse_record_settings
+from condmon.errors import ModelError
+from condmon.io.rig import RecordSettings
 from condmon.models import derived_cache
 from condmon.models.declared import PlantModel, substituted_equations, symbols_of
 from condmon.models.plausibility import (
-    IdentifiabilityLimits, Plausibility, parse_identifiability_limits, parse_plausibility,
+    IdentifiabilityLimits, Plausibility,
 )
-from condmon.models.regimes import RegimeSpec, parse_regimes
+from condmon.models.regimes import RegimeSpec
 
 if TYPE_CHECKING:
     import sympy as sp
+
+    from condmon.models.inverse import InverseStructure
 
 # sympy is imported where a structure is derived: the linear structure and the
 # derived quantities of a declaration are kept in condmon.models.derived_cache,
 # so estimating a cached model needs no sympy.
 
-__all__ = ["EstimationSpec", "Machine", "LinearStructure", "InverseStructure",
-           "InverseEquation", "machine_from_doc", "ROUTES"]
+__all__ = ["EstimationSpec", "Machine", "LinearStructure", "ROUTES"]
 
 FloatArray = NDArray[np.float64]
 
@@ -190,7 +191,9 @@ class Machine:
 
     def inverse(self) -> InverseStructure:
         """The inverse-model structure; :class:`ModelError` if not linear in the parameters."""
-        return _inverse(self)
+        from condmon.models.inverse import inverse_structure
+
+        return inverse_structure(self)
 
     def derived_functions(self) -> dict[str, tuple[sp.Expr, Callable[..., Any]]]:
         """Each derived quantity as (expression, fn(params dict) -> value)."""
@@ -219,7 +222,7 @@ class Machine:
                 g[unknowns.index(name)] = 1.0
                 values[name] = float(params[name])
             elif name in self.spec.derived:
-                value, gradient = _derived_numeric(self)[name]
+                value, gradient = derived_numeric(self)[name]
                 values[name] = float(value(params))
                 g = gradient(params)
             else:
@@ -456,115 +459,6 @@ def _derive_linear(machine: Machine) -> LinearStructure:
                            _wrap(f_val), _wrap(f_jac), (f_val, f_jac))
 
 
-# -- the inverse-model structure --------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class InverseEquation:
-    """One state equation in linear-in-the-parameters form.
-
-    ``Σ_k θ_k φ_k = known`` with ``θ`` the unknowns in ``terms`` (several terms
-    may share one unknown through known factors).
-
-    Attributes
-    ----------
-    state : str
-        The state whose derivative the equation gives.
-    terms : tuple of (str, sympy.Expr)
-        ``(unknown, regressor)``: the regressor is an expression of signals
-        (states, their derivatives ``d_<state>``, inputs) and known constants.
-    known : sympy.Expr
-        Right-hand side: signals and constants only.
-    """
-
-    state: str
-    terms: tuple[tuple[str, sp.Expr], ...]
-    known: sp.Expr
-
-
-@dataclass(frozen=True)
-class InverseStructure:
-    """Linear-in-the-parameters form of the state equations that carry unknowns.
-
-    Attributes
-    ----------
-    equations : tuple of InverseEquation
-    signals : tuple of str
-        States needed as signals (measured by a sensor or derived by
-        differentiating a measured state), in order of derivation.
-    derivation : dict of str to str
-        ``state -> measured state it is the derivative of`` for derived states.
-    columns : tuple of str
-        Record columns the equations need: inputs, then sensors.
-    """
-
-    equations: tuple[InverseEquation, ...]
-    signals: tuple[str, ...]
-    derivation: dict[str, str]
-    columns: tuple[str, ...] = ()
-
-
-@functools.lru_cache(maxsize=32)
-def _inverse(machine: Machine) -> InverseStructure:
-    import sympy as sp
-
-    plant, spec = machine.plant, machine.spec
-    sym = symbols_of(plant)
-    _, derivs, readings = substituted_equations(plant)
-    where = f"{plant.source}: the inverse-model route"
-    measured = {str(e) for e in readings.values() if isinstance(e, sp.Symbol)}
-    derivation: dict[str, str] = {}
-    for name, e in derivs.items():  # x' = y with y a state: y = dx/dt
-        if isinstance(e, sp.Symbol) and str(e) in plant.state_names and name in measured:
-            derivation[str(e)] = name
-    unknown_syms = {sym[k] for k in spec.unknowns}
-    equations = []
-    for name, e in derivs.items():
-        if not e.free_symbols & unknown_syms:
-            continue
-        dx = sp.Symbol(f"d_{name}", real=True)
-        num, den = sp.fraction(sp.together(e))
-        resid = sp.expand(den * dx - num)  # = 0
-        terms: dict[str, sp.Expr] = {}
-        known = sp.Integer(0)
-        for term in sp.Add.make_args(resid):
-            ps = term.free_symbols & unknown_syms
-            if len(ps) > 1 or (ps and sp.degree(term, next(iter(ps))) != 1):
-                raise ModelError(f"{where}: d{name}/dt = {e} is not linear in the unknowns "
-                                 f"(term {term})")
-            if not ps:
-                known -= term
-                continue
-            p = next(iter(ps))
-            terms[str(p)] = terms.get(str(p), sp.Integer(0)) + term / p
-        equations.append(InverseEquation(name, tuple(terms.items()), sp.simplify(known)))
-    if not equations:
-        raise ModelError(f"{where}: no state equation holds an unknown parameter")
-    available = measured | set(derivation)
-    used: set[str] = set()
-    for eq in equations:
-        need = set()
-        for _, phi in eq.terms:
-            need |= {str(s) for s in phi.free_symbols}
-        need |= {str(s) for s in eq.known.free_symbols}
-        used |= need
-        states_needed = {s for s in need if s in plant.state_names}
-        d_needed = {s[2:] for s in need if s.startswith("d_")}
-        missing = sorted((states_needed | d_needed) - available)
-        if missing:
-            raise ModelError(f"{where}: the equation of {eq.state!r} needs "
-                             f"{', '.join(missing)}, neither measured nor the derivative "
-                             "of a measured state")
-    covered = {p for eq in equations for p, _ in eq.terms}
-    if set(spec.unknowns) - covered:
-        raise ModelError(f"{where}: {', '.join(sorted(set(spec.unknowns) - covered))} "
-                         "appear in no usable equation")
-    signals = tuple(s for s in plant.state_names if s in available)
-    columns = (*(u for u in plant.input_names if u in used),
-               *(name for name, e in readings.items() if str(e) in signals))
-    return InverseStructure(tuple(equations), signals, derivation, columns)
-
-
 # -- derived quantities -----------------------------------------------------------------
 
 
@@ -615,7 +509,7 @@ def _dump_derived(machine: Machine, raw: DerivedRaw) -> dict[str, Any] | None:
 
 
 @functools.lru_cache(maxsize=32)
-def _derived_numeric(machine: Machine) -> dict[str, tuple[Callable[[Mapping[str, float]], Any],
+def derived_numeric(machine: Machine) -> dict[str, tuple[Callable[[Mapping[str, float]], Any],
                                                           Callable[[Mapping[str, float]],
                                                                    FloatArray]]]:
     """Each derived quantity as (value, gradient with respect to the unknowns),
@@ -634,119 +528,3 @@ def _derived_numeric(machine: Machine) -> dict[str, tuple[Callable[[Mapping[str,
         return lambda d: np.asarray(f(*[d[k] for k in names]), dtype=np.float64)
 
     return {k: (value(fv), gradient(fg)) for k, (fv, fg) in raw.items()}
-
-
-# -- reading the [estimation] table ---------------------------------------------------
-
-
-def _names(value: Any, where: str) -> tuple[str, ...]:
-    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
-        raise ConfigError(f"{where} must be a list of names, got {value!r}")
-    return tuple(value)
-
-
-def _fraction(value: Any, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 <= value < 1:
-        raise ConfigError(f"{where} must be a fraction in [0, 1), got {value!r}")
-    return float(value)
-
-
-def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any],
-                     origin: str | None = None) -> Machine:
-    """Read a declaration's ``[estimation]`` and ``[monitor]`` tables (validated
-    against the plant). ``origin``: the file of a user's declaration (its
-    ``[monitor]`` files are relative to it), None for a shipped one.
-
-    Raises
-    ------
-    ConfigError
-        Naming the file and the entry.
-    """
-    src = plant.source
-    mon = doc.get("monitor", {})
-    if not isinstance(mon, dict) or set(mon) - {"rules", "breakpoints"}:
-        raise ConfigError(f"{src}[monitor]: a table with 'rules' and 'breakpoints' (files, "
-                          "relative to the declaration)")
-    base = Path(src).parent if origin is not None else DATA_DIR
-
-    def _file(key: str) -> str | None:
-        if key not in mon:
-            return None
-        if not isinstance(mon[key], str):
-            raise ConfigError(f"{src}[monitor].{key} must be a file name, got {mon[key]!r}")
-        path = base / mon[key]
-        if not path.exists():
-            raise ConfigError(f"{src}[monitor].{key}: {path} not found")
-        return str(path)
-
-    files: dict[str, Any] = {"origin": origin, "rules": _file("rules"),
-                             "breakpoints": _file("breakpoints"),
-                             "record": parse_record_settings(doc.get("record"), f"{src}[record]"),
-                             "regimes": parse_regimes(doc.get("regimes"), src)}
-    est = doc.get("estimation")
-    if est is None:  # a model for residuals and isolation only (e.g. the HST)
-        return Machine(plant, EstimationSpec((), ()), **files)
-    if not isinstance(est, dict):
-        raise ConfigError(f"{src}: [estimation] must be a table")
-    allowed = {"estimate", "report", "derived", "route", "order", "excitation", "cutoff",
-               "decimate", "plausible", "max_change", "min_duration", "sample_interval",
-               "max_residual_correlation", "deadband", "residual_warning", "structure_hint",
-               "identifiability", "steady_tolerance"}
-    unknown = set(est) - allowed
-    if unknown:
-        raise ConfigError(f"{src}[estimation]: unknown key {sorted(unknown)[0]!r}; "
-                          f"allowed: {', '.join(sorted(allowed))}")
-    unknowns = _names(est.get("estimate"), f"{src}[estimation].estimate")
-    if not unknowns:
-        raise ConfigError(f"{src}[estimation].estimate lists no parameter to estimate")
-    for k in unknowns:
-        if k not in plant.parameter_names:
-            raise ConfigError(f"{src}[estimation].estimate: unknown parameter {k!r}; "
-                              f"allowed: {', '.join(plant.parameter_names)}")
-    derived: dict[str, tuple[str, str]] = {}
-    for k, v in dict(est.get("derived", {})).items():
-        if not isinstance(v, dict) or "equation" not in v:
-            raise ConfigError(f"{src}[estimation.derived.{k}] must be {{ equation = \"...\", "
-                              "unit = \"...\" }")
-        derived[k] = (str(v["equation"]), str(v.get("unit", "")))
-    report = _names(est.get("report", [*unknowns, *derived]), f"{src}[estimation].report")
-    for k in report:
-        if k not in unknowns and k not in derived:
-            raise ConfigError(f"{src}[estimation].report: {k!r} is neither estimated nor "
-                              "derived")
-    route = est.get("route", "auto")
-    if route not in ROUTES:
-        raise ConfigError(f"{src}[estimation].route: unknown route {route!r}; "
-                          f"allowed: {', '.join(ROUTES)}")
-    order = est.get("order")
-    if order is not None and (not isinstance(order, int) or isinstance(order, bool) or order < 1):
-        raise ConfigError(f"{src}[estimation].order must be a positive integer, got {order!r}")
-    cutoff = est.get("cutoff")
-    if cutoff is not None and (isinstance(cutoff, bool) or not isinstance(cutoff, (int, float))
-                               or not cutoff > 0):
-        raise ConfigError(f"{src}[estimation].cutoff must be a frequency > 0 [Hz], got {cutoff!r}")
-    decimate = est.get("decimate", 1)
-    if not isinstance(decimate, int) or isinstance(decimate, bool) or decimate < 1:
-        raise ConfigError(f"{src}[estimation].decimate must be an integer >= 1, got {decimate!r}")
-    for table in ("plausible", "max_change"):
-        for k in dict(est.get(table, {})):
-            if k not in report:
-                raise ConfigError(f"{src}[estimation.{table}]: {k!r} is not a reported "
-                                  f"quantity; allowed: {', '.join(report)}")
-    corr = est.get("max_residual_correlation", 0.8)
-    if isinstance(corr, bool) or not isinstance(corr, (int, float)) or not 0 < corr <= 1:
-        raise ConfigError(f"{src}[estimation].max_residual_correlation must be in (0, 1], "
-                          f"got {corr!r}")
-    spec = EstimationSpec(
-        unknowns, report, derived, str(route), order,
-        _names(est.get("excitation", []), f"{src}[estimation].excitation"),
-        None if cutoff is None else float(cutoff), decimate,
-        parse_plausibility(est, f"{src}[estimation]"), float(corr),
-        _fraction(est.get("deadband", 0.01), f"{src}[estimation].deadband"),
-        _fraction(est.get("residual_warning", 0.15), f"{src}[estimation].residual_warning"),
-        str(est.get("structure_hint", "")),
-        parse_identifiability_limits(est.get("identifiability"), src),
-        _fraction(est.get("steady_tolerance", 0.1), f"{src}[estimation].steady_tolerance"))
-    machine = Machine(plant, spec, **files)
-    _derived_numeric(machine)  # every derived equation parses
-    return machine

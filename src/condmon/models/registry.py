@@ -15,7 +15,8 @@ from typing import Any
 from condmon.errors import ConfigError, ModelError
 from condmon.io.config import load_default, load_toml
 from condmon.models.declared import plant_from_doc
-from condmon.models.machine import Machine, machine_from_doc
+from condmon.models.machine import Machine
+from condmon.models.machine_doc import machine_from_doc
 
 __all__ = ["get_model", "list_models", "register_model"]
 

@@ -1,0 +1,208 @@
+"""Reading a history: ``units``, ``history`` and ``report``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any, Optional
+
+import typer
+from rich import box
+from rich.markup import escape
+from rich.table import Table
+
+from condmon.cli._console import err, out, progress, status_text, write_json
+from condmon.cli.history import print_flags
+
+__all__ = ["register"]
+
+DbOpt = Annotated[str, typer.Option("--db", help="History database: a SQLite file or a postgresql:// URL.")]
+UnitOpt = Annotated[str, typer.Option("--unit", help="Unit (machine) name.")]
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``units``, ``history`` and ``report`` to the ``condmon`` application."""
+
+    @app.command("units")
+    def units_cmd(
+        db: DbOpt = "condmon.db",
+        as_json: Annotated[bool, typer.Option("--json", help="Print the units as JSON records.")] = False,
+    ) -> None:
+        """List the units of a history: model, tests and latest status."""
+        from condmon.store.db import open_store
+        from condmon.store.engine import redact
+
+        with open_store(db, create=False) as store:
+            rows = store.unit_summaries()
+        if as_json:
+            write_json({"units": rows})
+            return
+        grouped = any(r["group"] for r in rows)
+        regimes = any(r["latest_regime"] for r in rows)
+        table = Table(title=escape(f"Units in {redact(db)}"), box=box.SIMPLE_HEAD)
+        cols = ("unit", "model", *(("group",) if grouped else ()), "tests", "latest",
+                *(("regime",) if regimes else ()), "date", "status")
+        for col in cols:
+            table.add_column(col, justify="right" if col == "tests" else "left",
+                             no_wrap=col in ("date", "status"))
+        flagged = []
+        for r in rows:
+            model = Path(str(r["model"])).name
+            count = str(r["tests"]) if not r["isolations"] else f"{r['isolations']} iso"
+            status = status_text(str(r["status"])) if r["status"] else "—"
+            if r["group_flags"]:
+                status += " [yellow]⚑[/]"
+            table.add_row(escape(str(r["unit"])), escape(model),
+                          *((escape(str(r["group"] or "—")),) if grouped else ()), count,
+                          escape(Path(str(r["latest_source"] or "—")).name),
+                          *((escape(str(r["latest_regime"] or "—")),) if regimes else ()),
+                          str(r["latest_date"] or "—")[:10], status)
+            if r["baseline_flags"]:
+                flagged.append(str(r["unit"]))
+        out.print(table)
+        if flagged:
+            err.print(f"warning: baseline flagged for {', '.join(flagged)} (`condmon baseline list "
+                      "--unit U` shows why)", highlight=False, markup=False, soft_wrap=True)
+        for r in rows:
+            for f in r["group_flags"]:
+                err.print(f"⚑ {r['unit']} is unlike its group {f['group']!r}: {f['message']}",
+                          highlight=False, markup=False, soft_wrap=True)
+
+
+    @app.command("history")
+    def history_cmd(
+        unit: UnitOpt,
+        db: DbOpt = "condmon.db",
+        as_json: Annotated[bool, typer.Option("--json", help="Print the history as JSON records.")] = False,
+    ) -> None:
+        """Show the unit's tests (fit, status, parameter changes) or isolations."""
+        import pandas as pd
+
+        from condmon.models.registry import get_model
+        from condmon.store.db import open_store
+
+        with open_store(db, create=False) as store:
+            hist = store.history(unit)
+            isos = store.isolations(unit)
+            model = store.unit_model(unit) or "dc-motor"
+            baseline = store.latest_baseline(unit)
+        if as_json:
+            from condmon.io.jsonable import frame_records
+
+            docs = [{"kind": "test", **d} for d in frame_records(hist)]
+            docs += [{"kind": "isolation", **d} for d in frame_records(isos)]
+            write_json(docs)
+            return
+        name = escape(Path(model).name)
+        if len(isos):
+            _print_isolations(unit, name, isos)
+        if len(hist) == 0:
+            if not len(isos):
+                out.print(f"{escape(unit)} has no tests yet")
+            return
+        # the estimated parameters (derived ones, e.g. Ke = gamma Kt, move with them); a
+        # regime's (Tc@forward) in its parameter's column, the regime in a column of its own
+        from condmon.models.regimes import regime_key, split_key
+
+        keyed = [c for c in hist.columns if f"{c}_se" in hist.columns]
+        params = [p for p in get_model(model).spec.unknowns
+                  if any(split_key(c)[0] == p for c in keyed)]
+        regimes = bool(hist["regime"].notna().any())
+        dated = hist["test_date"].notna().any()
+        table = Table(title=escape(f"History of {unit} ({Path(model).name}): change against the "
+                                   "baseline [%]"), box=box.SIMPLE_HEAD, padding=(0, 1),
+                      pad_edge=False, collapse_padding=True)
+        # fits 80 columns with a date and five parameters
+        widths = {"#": 3, "fit": 4, "status": 8, "date": 8, "source": 8}
+        for col in ("#", *(("date",) if dated else ()), "source", *(("regime",) if regimes else ()),
+                    "fit", "status", *params):
+            table.add_column(col, justify="left" if col in ("source", "status", "date", "regime")
+                             else "right",
+                             no_wrap=True, overflow="ellipsis", min_width=widths.get(col, 5),
+                             max_width={"source": 10 if dated else 14, "date": 8}.get(col))
+        notes = []
+        for tid, r in hist.iterrows():
+            status = r["status"]
+            shown = (status_text(status) if status in ("go", "advisory", "no-go", "retest")
+                     else {"rejected": "[red]rejected[/]", "excluded": "[dim]excluded[/]"}.get(
+                         status, escape(str(status))))
+            label = str(r["regime"]) if pd.notna(r["regime"]) else ""
+            own = [x.strip() for x in label.split(";") if x.strip()] or [""]
+            changes = []
+            for p in params if status != "excluded" else ():
+                found = [r[f"{regime_key(p, g)}_change"] for g in own
+                         if f"{regime_key(p, g)}_change" in r
+                         and pd.notna(r[f"{regime_key(p, g)}_change"])]
+                changes.append(f"{found[0]:+.1f}" if found else "")
+            changes += [""] * (len(params) - len(changes))
+            fit = f"{r['fit_percent']:.1f}" if pd.notna(r["fit_percent"]) else "—"
+            when = ((f"{r['test_date']:%y-%m-%d}" if pd.notna(r["test_date"]) else "—",)
+                    if dated else ())
+            table.add_row(str(tid), *when, escape(Path(str(r["source"])).name),
+                          *((escape(label or "—"),) if regimes else ()), fit, shown,
+                          *changes)
+            if status == "excluded":
+                notes.append(f"#{tid} excluded: {r['excluded_reason']}")
+            elif isinstance(r["summary"], str) and r["role"] == "check":
+                notes.append(f"#{tid} {r['summary']}")
+            elif not r["accepted"]:
+                notes.append(f"#{tid} rejected: {r['reason']}")
+        out.print(table)
+        for line in notes:
+            out.print(line, highlight=False, markup=False)
+        if baseline is not None:
+            out.print(f"baseline {baseline.name!r} v{baseline.version} (N = {baseline.baseline.n}): "
+                      + ", ".join(f"#{i}" for i in baseline.test_ids), highlight=False, markup=False)
+            print_flags(baseline.flags, unit)
+
+
+    @app.command("report")
+    def report_cmd(
+        out_dir: Annotated[Path, typer.Option("--out", help="Folder for the HTML pages and PNG figures.")],
+        unit: Annotated[Optional[str], typer.Option("--unit", help="Only this unit's page (default: every unit); the fleet index is refreshed either way.")] = None,
+        db: DbOpt = "condmon.db",
+        monitor: Annotated[Optional[Path], typer.Option(help="Monitor breakpoints TOML (default: each unit's model's).")] = None,
+    ) -> None:
+        """Write HTML pages (a fleet index and a page per unit) with trend, fit and symptom figures."""
+        from condmon.monitor.fuzzy import load_monitor_config
+        from condmon.report.html import write_fleet_report
+        from condmon.store.db import open_store
+
+        cfg = load_monitor_config(monitor) if monitor is not None else None
+        with open_store(db, create=False) as store:  # read only: never makes a database
+            if unit is not None:
+                store.unit_id(unit)  # an unknown unit: the error names the known ones
+            total = 1 if unit is not None else len(store.units())
+            with progress() as prog:
+                task = prog.add_task("writing pages", total=total)
+
+                def step(done: int, _total: int, name: str) -> None:
+                    prog.update(task, completed=done, description=escape(name[:40]))
+
+                rep = write_fleet_report(store, out_dir, None if unit is None else [unit],
+                                         monitor=cfg, progress=step)
+        for p in rep.pages[:20]:
+            figs = f"{len(p.figures)} figure{'s' if len(p.figures) != 1 else ''}"
+            out.print(f"wrote {p.html} ({figs}) for {p.unit}", markup=False,
+                      highlight=False, soft_wrap=True)
+        if len(rep.pages) > 20:
+            out.print(f"... and {len(rep.pages) - 20} more unit pages in {Path(out_dir)}",
+                      markup=False, highlight=False, soft_wrap=True)
+        out.print(f"wrote {len(rep.pages)} unit page{'s' if len(rep.pages) != 1 else ''} and the "
+                  f"fleet index {rep.index}", markup=False, highlight=False, soft_wrap=True)
+
+
+def _print_isolations(unit: str, model: str, isos: Any) -> None:
+    import pandas as pd
+
+    table = Table(title=escape(f"Isolations of {unit} ({model})"), box=box.SIMPLE_HEAD)
+    for col in ("#", "date", "source", "status", "detected", "isolated"):
+        table.add_column(col, no_wrap=col != "isolated", overflow="fold")
+    for iid, r in isos.iterrows():
+        det = f"{r['detection_time']:.2f} s" if pd.notna(r["detection_time"]) else "—"
+        status = "[dim]excluded[/]" if r["excluded"] else status_text(str(r["status"]))
+        table.add_row(f"i{iid}", f"{r['date']:%Y-%m-%d %H:%M}",
+                      escape(Path(str(r["source"])).name), status, det,
+                      escape(", ".join(r["isolated"]) or "—"))
+    out.print(table)
+    for iid, r in isos.iterrows():
+        out.print(f"i{iid} {r['statement']}", highlight=False, markup=False)

@@ -215,6 +215,8 @@ def _test_rows(hist: pd.DataFrame, params: Sequence[str]) -> list[dict[str, Any]
                      "date": _fmt_date(r["date"], pd.isna(r["test_date"])),
                      "source": str(r["source"]), "role": str(r["role"]), "status": status,
                      "fit": f"{r['fit_percent']:.1f}" if pd.notna(r["fit_percent"]) else "—",
+                     "regime": str(r["regime"]) if "regime" in r and pd.notna(r["regime"])
+                     else "",
                      "changes": changes, "note": note, "excluded": excluded})
     return rows
 

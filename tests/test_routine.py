@@ -340,3 +340,47 @@ route = "steady"
     assert both.parameters["Rv"] == pytest.approx(11.271, rel=0.01)
     assert both.parameters["Tld"] == pytest.approx(20.0, abs=3 * both.std_errors["Tld"] + 0.5)
     assert both.fit_percent > 99.0
+
+
+def test_a_fixed_unknown_must_be_physically_possible(tmp_path: Path) -> None:
+    rec = read_record(write_stroke(tmp_path / "r.txt", 1.0, seed=5))
+    with pytest.raises(ModelError, match=r"--constants Tc=-5: Tc must be >= 0"):
+        estimate(rec, MODEL, constants={"Tc": -5.0})
+    res = estimate(rec, MODEL, constants={"Dv": TRUTH["Dv"], "Tl": TRUTH["Tl"]})
+    assert res.parameters["Tc"] == pytest.approx(TRUTH["Tc"], rel=5e-3)
+    assert res.held["Dv"] == "given" and res.held["Tl"] == "given"
+
+
+@pytest.mark.filterwarnings("default::condmon.errors.DataWarning")
+def test_ignoring_a_column_the_file_lacks_is_said(tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    raw = write_stroke(tmp_path / "r.txt", 1.0, seed=6)
+    assert main(["estimate", str(raw), "--model", MODEL, "--ignore", "Nope"]) == 0
+    captured = capsys.readouterr()
+    assert "ignore column(s) 'Nope', which the file does not have" in captured.err
+    assert "3 column(s) ignored" in captured.out  # the declaration's three, not four
+
+
+def test_metadata_the_regimes_need_or_do_not_use_is_said(tmp_path: Path) -> None:
+    rec = read_record(write_stroke(tmp_path / "r.txt", 1.0, seed=7))
+    res = estimate(rec, MODEL, metadata={"lod": "ball"})
+    assert any("metadata lod not used" in n for n in res.notes)
+
+
+def test_pooled_windows_keep_their_regime_and_record(tmp_path: Path) -> None:
+    recs = [read_record(write_stroke(tmp_path / f"r{i}.txt", s, seed=i))
+            for i, s in enumerate((0.8, -1.0))]
+    res = estimate_joint(recs, MODEL)
+    used = [(Path(w.source).name, w.regime) for w in res.windows if w.used]
+    assert used == [("r0.txt", "forward"), ("r1.txt", "reverse")]
+    assert res.regime == "forward + reverse"
+
+
+def test_a_broken_link_in_a_unit_folder_is_refused(tmp_path: Path) -> None:
+    from condmon.workflows.fleet_inbox import inbox_records
+
+    (tmp_path / "A1").mkdir()
+    (tmp_path / "A1" / "gone.txt").symlink_to(tmp_path / "nowhere.txt")
+    recs = inbox_records(tmp_path)
+    assert len(recs) == 1 and "a link to" in str(recs[0].error)
+    assert "which does not exist" in str(recs[0].error)

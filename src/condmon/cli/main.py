@@ -6,6 +6,7 @@ on stderr and exit with status 2; no traceback.
 
 from __future__ import annotations
 
+import math
 import sys
 import warnings
 from pathlib import Path
@@ -103,23 +104,31 @@ def _print_estimate(res: Any, record: str) -> None:
     how = (("closed-loop instruments" if res.closed_loop_instruments else "direct approach")
            if res.route == "linear" else _HOW.get(res.route, res.route))
     regime = f", regime {res.regime}" if res.regime else ""
-    table = Table(title=escape(f"{record} — {res.model}, {res.method.upper()}, {how}{regime}"))
-    for col in ("parameter", "value", "std error", "unit", "from"):
-        table.add_column(col, justify="right" if col not in ("parameter", "from") else "left")
-    for k, v in res.parameters.items():
-        source = "record" if k in res.identified else f"held ({res.held.get(k, 'nominal')})"
-        table.add_row(escape(k), fmt(v), fmt(res.std_errors[k]) if k in res.identified else "—",
-                      escape(res.units[k]), source)
-    out.print(table)
+    title = escape(f"{record} — {res.model}, {res.method.upper()}, {how}{regime}")
+    if any(math.isfinite(v) for v in res.parameters.values()):
+        table = Table(title=title)
+        for col in ("parameter", "value", "std error", "unit", "from"):
+            table.add_column(col, justify="right" if col not in ("parameter", "from") else "left")
+        for k, v in res.parameters.items():
+            source = ("record" if k in res.identified else
+                      f"held ({res.held[k]})" if k in res.held else "—")
+            table.add_row(escape(k), fmt(v),
+                          fmt(res.std_errors[k]) if k in res.identified else "—",
+                          escape(res.units[k]), source)
+        out.print(table)
+    else:
+        out.print(title, highlight=False)
     fits = ", ".join(f"{k} {v:.1f} %" for k, v in res.fit.fits_percent.items())
     verdict = (f"[green]accepted[/green] (threshold {res.fit.threshold:g} %)" if res.accepted
                else f"[red]rejected[/red]: {escape(str(res.reason))}")
     out.print(f"fit {res.fit_percent:.1f} % ({fits}) — {verdict}" if fits else verdict)
     if res.windows and (len(res.windows) > 1 or res.windows[0].regime):
+        several = len({w.source for w in res.windows}) > 1
         for w in res.windows:
             state = "used" if w.used else f"not used: {w.why}"
-            out.print(f"window {w.start:.3g}-{w.end:.3g} s, {w.regime or 'record'}: {state}",
-                      highlight=False, markup=False, soft_wrap=True)
+            where = f"{Path(w.source).name} " if several else ""
+            out.print(f"window {where}{w.start:.3g}-{w.end:.3g} s, {w.regime or 'record'}: "
+                      f"{state}", highlight=False, markup=False, soft_wrap=True)
     if res.identifiability is not None:
         for k, why in res.identifiability.reasons.items():
             out.print(f"{k} not identifiable: {why}", highlight=False, markup=False,
@@ -398,8 +407,9 @@ def check_cmd(
         err.print(f"warning: {record}: {res.warning}", highlight=False, markup=False,
                   soft_wrap=True)
     print_flags(res.baseline_flags, unit)
+    fit = res.estimate.fit_percent
     out.print(f"{escape(unit)} — {escape(str(record))}: {status_text(res.status)}  "
-              f"(fit {res.estimate.fit_percent:.1f} %"
+              + (f"(fit {fit:.1f} %" if math.isfinite(fit) else "(no fit")
               + (f", regime {escape(res.estimate.regime_label)}"
                  if res.estimate.regime_label else "")
               + (f", against {escape(res.against)}" if res.against != "unit" else "")

@@ -31,8 +31,13 @@ def register(app: typer.Typer) -> None:
         from condmon.store.db import open_store
         from condmon.store.engine import redact
 
+        from condmon.monitor.generic import load_generic_settings
+
+        least = load_generic_settings().group_min_units
         with open_store(db, create=False) as store:
             rows = store.unit_summaries()
+            small = {g: len(store.group_baselines(g)) for g in store.groups()}
+        small = {g: n for g, n in small.items() if n < least}
         if as_json:
             write_json({"units": rows})
             return
@@ -49,6 +54,8 @@ def register(app: typer.Typer) -> None:
             model = Path(str(r["model"])).name
             count = str(r["tests"]) if not r["isolations"] else f"{r['isolations']} iso"
             status = status_text(str(r["status"])) if r["status"] else "—"
+            if r["baseline_flags"]:
+                status += " [yellow]⚠[/]"
             if r["group_flags"]:
                 status += " [yellow]⚑[/]"
             table.add_row(escape(str(r["unit"])), escape(model),
@@ -66,6 +73,10 @@ def register(app: typer.Typer) -> None:
             for f in r["group_flags"]:
                 err.print(f"⚑ {r['unit']} is unlike its group {f['group']!r}: {f['message']}",
                           highlight=False, markup=False, soft_wrap=True)
+        for g, n in small.items():
+            err.print(f"note: group {g!r} has {n} unit(s) with a baseline of their own; units are "
+                      f"compared with their peers from {least} on", highlight=False,
+                      markup=False, soft_wrap=True)
 
 
     @app.command("history")
@@ -85,6 +96,7 @@ def register(app: typer.Typer) -> None:
             isos = store.isolations(unit)
             model = store.unit_model(unit) or "dc-motor"
             baseline = store.latest_baseline(unit)
+            names = {b.id: b.name for b in store.baselines(unit)} if len(hist) else {}
         if as_json:
             from condmon.io.jsonable import frame_records
 
@@ -143,7 +155,10 @@ def register(app: typer.Typer) -> None:
             if status == "excluded":
                 notes.append(f"#{tid} excluded: {r['excluded_reason']}")
             elif isinstance(r["summary"], str) and r["role"] == "check":
-                notes.append(f"#{tid} {r['summary']}")
+                ref = names.get(int(r["baseline_id"])) if pd.notna(r["baseline_id"]) else None
+                against = (f" (against {ref.replace(':', ' ', 1)})"
+                           if ref and ref.startswith(("group:", "unit:")) else "")
+                notes.append(f"#{tid} {r['summary']}{against}")
             elif not r["accepted"]:
                 notes.append(f"#{tid} rejected: {r['reason']}")
         out.print(table)

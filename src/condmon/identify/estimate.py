@@ -93,6 +93,11 @@ def _split_constants(machine: Machine, constants: Mapping[str, Any]
                 raise ModelError(f"--constants {k}: {v!r} is not a number") from None
             if not math.isfinite(val):
                 raise ModelError(f"--constants {k}: must be finite, got {val!r}")
+            bound = machine.spec.plausibility.bounds.get(k)
+            why = None if bound is None else bound.violation(val)
+            if why is not None:
+                raise ModelError(f"--constants {k}={val:g}: {k} {why} "
+                                 f"({machine.plant.source}[estimation.plausible])")
             fixed[k] = val
         else:
             rest[k] = v
@@ -280,6 +285,25 @@ def estimate_joint(records: Sequence[pd.DataFrame], model: str | Machine = "dc-m
                            pool=True)
 
 
+def _metadata_notes(machine: Machine, metadata: Mapping[str, Any] | None) -> list[str]:
+    """What to say of the record's metadata: fields the regimes split by but
+    the record lacks, fields given that no regime uses."""
+    spec = machine.regimes
+    given = dict(metadata or {})
+    notes = []
+    missing = [k for k in spec.metadata if k not in given]
+    if missing:
+        notes.append(f"metadata {', '.join(missing)} not given (unit.toml [metadata], a "
+                     "manifest row's metadata or --meta): its regimes read "
+                     + ", ".join(f"{k}=?" for k in missing))
+    used = set(spec.metadata) | {n for r in spec.regimes for n in r.condition.names}
+    unused = [k for k in given if k not in used]
+    if unused:
+        notes.append(f"metadata {', '.join(unused)} not used: the declaration's regimes name "
+                     f"{', '.join(sorted(used)) or 'no metadata'}")
+    return notes
+
+
 def _check_constants(machine: Machine, constants: Mapping[str, float],
                      strict: Sequence[str] = ()) -> dict[str, float]:
     """Validated constants; names in ``strict`` (given by the user) must be known
@@ -351,14 +375,14 @@ def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-m
         raise type(err)(text if text.startswith(source) else f"{source}: {text}") from None
     if pool:
         label = " + ".join(sorted({w.regime for p in plans for w in p.windows if w.used}))
-        plans = [dataclasses.replace(p, windows=tuple(
-            dataclasses.replace(w, regime=label) if w.used else w for w in p.windows))
-            for p in plans]
+        plans = [dataclasses.replace(p, pooled=label) for p in plans]
+    notes += _metadata_notes(machine, metadata)
     durations: dict[str, float] = {}
     for p in plans:
         for w in p.windows:
             if w.used:
-                durations[w.regime] = durations.get(w.regime, 0.0) + w.duration
+                key = p.pooled or w.regime
+                durations[key] = durations.get(key, 0.0) + w.duration
     regimes = sorted(durations, key=lambda k: -durations[k])
     common = dict(model=machine.name, constants=consts, source=source, units=machine.units,
                   route=chosen, model_source=machine.origin)

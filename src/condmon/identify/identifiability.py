@@ -72,7 +72,9 @@ class Identifiability:
         Each identifiable unknown's relative standard error in the estimated
         set (from the sensitivities, before the estimate). [-]
     collinearity : float
-        Collinearity index of the estimated set (1 for a single one). [-]
+        Collinearity index of the estimated set (1 for a single one; JSON
+        ``collinearity_identified``; a reason gives the index of the set the
+        unknown would have made). [-]
     limits : IdentifiabilityLimits
 
     Example
@@ -111,7 +113,7 @@ class Identifiability:
                 "singular_values": [float(s) for s in self.singular_values],
                 "directions": [dict(d) for d in self.directions],
                 "relative_se": {k: float(v) for k, v in self.relative_se.items()},
-                "collinearity": float(self.collinearity),
+                "collinearity_identified": float(self.collinearity),
                 "limits": {"max_collinearity": self.limits.max_collinearity,
                            "max_relative_se": self.limits.max_relative_se}}
 

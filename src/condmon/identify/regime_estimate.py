@@ -89,16 +89,24 @@ class Plan:
         :func:`~condmon.identify.inverse_route.route_signals` (empty for the
         linear and output-error routes).
     windows : tuple of Window
+    pooled : str
+        The label under which the windows of every regime are estimated
+        together ("" when each regime is estimated on its own).
     """
 
     record: Record
     signals: dict[str, FloatArray]
     windows: tuple[Window, ...]
+    pooled: str = ""
+
+    def takes(self, w: Window, regime: str) -> bool:
+        """Whether an estimate of ``regime`` uses window ``w`` (every used one
+        when the regimes are pooled under the label ``regime``)."""
+        return w.used and (w.regime == regime or (bool(self.pooled) and regime == self.pooled))
 
     def rows(self, regime: str) -> list[IntArray]:
-        """Rows of each used window of ``regime``."""
-        return [np.arange(w.first, w.stop) for w in self.windows
-                if w.used and w.regime == regime]
+        """Rows of each window an estimate of ``regime`` uses."""
+        return [np.arange(w.first, w.stop) for w in self.windows if self.takes(w, regime)]
 
 
 def plan(rec: Record, machine: Machine, route: str, metadata: Mapping[str, Any] | None,
@@ -123,7 +131,7 @@ def _slice(plan: Plan, regime: str, sliced: bool) -> Record:
     contiguous samples: linear, output error)."""
     if not sliced:
         return plan.record
-    longest = max((w for w in plan.windows if w.used and w.regime == regime),
+    longest = max((w for w in plan.windows if plan.takes(w, regime)),
                   key=lambda w: w.stop - w.first)
     return plan.record.slice(longest.first, longest.stop)
 
@@ -283,7 +291,7 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
     for i, p in enumerate(plans):
         used_j = 0
         for w in p.windows:
-            if w.used and w.regime == regime:
+            if p.takes(w, regime):
                 why = unsteady.get((i, used_j))
                 used_j += 1
                 if why is not None:

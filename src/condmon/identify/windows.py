@@ -47,6 +47,8 @@ class Window:
         Why not, when not used.
     first, stop : int
         Row range ``[first, stop)`` of the samples used.
+    source : str
+        The record it is a window of.
     """
 
     start: float
@@ -56,6 +58,7 @@ class Window:
     why: str | None
     first: int
     stop: int
+    source: str = ""
 
     @property
     def duration(self) -> float:
@@ -63,9 +66,9 @@ class Window:
         return self.end - self.start
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready form (``start``, ``end`` [s], ``regime``, ``used``, ``why``)."""
-        return {"start": float(self.start), "end": float(self.end), "regime": self.regime,
-                "used": self.used, "why": self.why}
+        """JSON-ready form (``source``, ``start``, ``end`` [s], ``regime``, ``used``, ``why``)."""
+        return {"source": self.source, "start": float(self.start), "end": float(self.end),
+                "regime": self.regime, "used": self.used, "why": self.why}
 
 
 def regime_label(name: str, fields: tuple[str, ...], metadata: Mapping[str, Any]) -> str:
@@ -172,7 +175,8 @@ def cut_windows(t: FloatArray, signals: Mapping[str, FloatArray], spec: RegimeSp
     dt = float(t[1] - t[0]) if t.size > 1 else 1.0
     if not spec.regimes:
         label = regime_label("", spec.metadata, meta)
-        return (Window(float(t[first]), float(t[stop - 1]), label, True, None, first, stop),)
+        return (Window(float(t[first]), float(t[stop - 1]), label, True, None, first, stop,
+                       source),)
     tags = np.full(t.size, -1, dtype=np.int64)
     free = np.ones(t.size, dtype=bool)
     for i, regime in enumerate(spec.regimes):
@@ -191,21 +195,23 @@ def cut_windows(t: FloatArray, signals: Mapping[str, FloatArray], spec: RegimeSp
             continue
         if tag == -1:
             out.append(Window(float(t[a]), float(t[b - 1]), "(none)", False,
-                              "no regime's condition holds", int(a), int(b)))
+                              "no regime's condition holds", int(a), int(b), source))
             continue
         regime = spec.regimes[tag]
         label = regime_label(regime.name, spec.metadata, meta)
         if not regime.use:
             out.append(Window(float(t[a]), float(t[b - 1]), label, False,
                               regime.why or "the declaration does not use this regime",
-                              int(a), int(b)))
+                              int(a), int(b), source))
             continue
         lo, hi = a + settle, b - settle
         if hi - lo < 2 or (t[hi - 1] - t[lo]) < spec.min_duration:
             left = max(0.0, float(t[hi - 1] - t[lo])) if hi - lo >= 2 else 0.0
             out.append(Window(float(t[a]), float(t[b - 1]), label, False,
                               f"{left:.3g} s left after {spec.settle:g} s settling at each end"
-                              f" (shorter than {spec.min_duration:g} s)", int(a), int(b)))
+                              f" (shorter than {spec.min_duration:g} s)", int(a), int(b),
+                              source))
             continue
-        out.append(Window(float(t[lo]), float(t[hi - 1]), label, True, None, int(lo), int(hi)))
+        out.append(Window(float(t[lo]), float(t[hi - 1]), label, True, None, int(lo), int(hi),
+                          source))
     return tuple(out)

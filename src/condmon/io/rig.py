@@ -27,6 +27,7 @@ in seconds from the first sample. Settings from several places are merged with
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -34,7 +35,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from condmon.errors import ConfigError, DataError
+from condmon.errors import ConfigError, DataError, DataWarning
 
 __all__ = ["RecordSettings", "parse_record_settings", "apply_record_settings",
            "parse_assignments", "settings_from_options", "RECORD_KEYS"]
@@ -106,8 +107,9 @@ class RecordSettings:
             tuple(dict.fromkeys((*self.ignore, *later.ignore))),
             tuple(dict.fromkeys((*self.sources, *later.sources))))
 
-    def describe(self) -> str:
-        """One line saying what the settings do (for notes)."""
+    def describe(self, dropped: int | None = None) -> str:
+        """One line saying what the settings do (for notes); ``dropped``: how
+        many of the ignored columns a record had (default: as many as named)."""
         parts = []
         if self.columns:
             parts.append("columns " + ", ".join(f"{k}={v}" for k, v in self.columns.items()))
@@ -116,8 +118,9 @@ class RecordSettings:
         scaled = sorted(set(self.scale) | set(self.offset))
         if scaled:
             parts.append("scaled " + ", ".join(scaled))
-        if self.ignore:
-            parts.append(f"{len(self.ignore)} column(s) ignored")
+        n = len(self.ignore) if dropped is None else dropped
+        if n:
+            parts.append(f"{n} column(s) ignored")
         return "; ".join(parts) or "as written"
 
     def to_dict(self) -> dict[str, Any]:
@@ -307,7 +310,13 @@ def apply_record_settings(df: pd.DataFrame, settings: RecordSettings | None,
         return df
     src = source or str(df.attrs.get("source", "record"))
     attrs = dict(df.attrs)
-    out = df.drop(columns=[c for c in settings.ignore if c in df.columns])
+    dropped = [c for c in settings.ignore if c in df.columns]
+    absent = [c for c in settings.ignore if c not in df.columns]
+    if absent:
+        warnings.warn(f"{src}: the record settings ignore column(s) {', '.join(map(repr, absent))}"
+                      f", which the file does not have (its columns: "
+                      f"{', '.join(map(str, df.columns))})", DataWarning, stacklevel=2)
+    out = df.drop(columns=dropped)
     missing = [f for f in settings.columns.values() if f not in out.columns]
     if missing:
         raise DataError(f"{src}: the record settings map column {missing[0]!r}, which the "
@@ -331,7 +340,8 @@ def apply_record_settings(df: pd.DataFrame, settings: RecordSettings | None,
     if settings.sample_rate is not None:
         out["t"] = _seconds(out, settings.sample_rate, src)
     out.attrs.update(attrs)
-    out.attrs["record_settings"] = settings.describe()
+    out.attrs["record_settings"] = settings.describe(len(dropped))
+    out.attrs["record_ignored"] = dropped
     return out
 
 

@@ -198,12 +198,17 @@ def group_reference(store: HistoryStore, group: str, model: str,
     members = {u: b for u, b in store.group_baselines(group).items()
                if u != exclude and store.unit_model(u) in (machine.name, machine.origin)}
     settings = load_generic_settings()
+    left_out = (f"; {exclude!r} itself is left out of its group's baseline"
+                if exclude is not None and exclude in groups[group] else "")
     if not members:
         raise DataError(f"group {group!r} has no unit of model {machine.name!r} with a "
-                        f"baseline of its own (units: {', '.join(groups[group])}); add "
-                        "healthy tests to its units with `condmon baseline add`")
-    g = group_baseline(group, {u: b.baseline for u, b in members.items()},
-                       settings.group_min_units)
+                        f"baseline of its own (units: {', '.join(groups[group])}){left_out}; "
+                        "add healthy tests to its units with `condmon baseline add`")
+    try:
+        g = group_baseline(group, {u: b.baseline for u, b in members.items()},
+                           settings.group_min_units)
+    except DataError as err:
+        raise DataError(f"{err}{left_out}") from None
     ids = tuple(sorted({i for b in members.values() for i in b.test_ids}))
     return Reference(g.predictive(), f"group {group}", f"group:{group}", ids, g)
 

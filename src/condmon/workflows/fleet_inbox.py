@@ -195,14 +195,21 @@ def _unit_records(folder: Path) -> list[FleetRecord]:
     source = str(folder / UNIT_FILE) if (folder / UNIT_FILE).is_file() else None
     declaration = Path(model).resolve() if model and model.lower().endswith(".toml") else None
     files = sorted((p for p in folder.rglob("*")
-                    if p.is_file() and p.name != UNIT_FILE
+                    if (p.is_file() or _broken_link(p)) and p.name != UNIT_FILE
                     and not any(part.startswith(".") for part in p.relative_to(folder).parts)
                     and (declaration is None or p.resolve() != declaration)),
                    key=lambda p: _name_key(p.relative_to(folder)))
     return [FleetRecord(folder.name, p, fallback_model=model, fallback_source=source,
-                        error=error if _is_record(p) else _not_a_record(p),
+                        error=(f"{p}: a link to {os.readlink(p)}, which does not exist"
+                               if _broken_link(p) else
+                               error if _is_record(p) else _not_a_record(p)),
                         settings=unit_file.settings, metadata=unit_file.metadata,
                         group=unit_file.group) for p in files]
+
+
+def _broken_link(path: Path) -> bool:
+    """A symbolic link whose target does not exist (a record file gone missing)."""
+    return path.is_symlink() and not path.exists()
 
 
 def inbox_records(inbox: str | Path) -> list[FleetRecord]:

@@ -102,7 +102,7 @@ class EstimateOptions:
         settings = self.settings()
         df = read_record(record, settings.columns)
         out = apply_record_settings(df, dataclasses.replace(settings, columns={}), str(record))
-        out.attrs["record_settings"] = settings.describe()
+        out.attrs["record_settings"] = settings.describe(len(out.attrs.get("record_ignored", ())))
         return out
 
     def prepared(self, record: pd.DataFrame) -> pd.DataFrame:

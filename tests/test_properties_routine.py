@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import string
+import warnings
 from typing import Any
 
 import numpy as np
@@ -17,7 +18,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from _strokes import DECLARATION, stroke
-from condmon.errors import CondmonError, ConfigError, DataError
+from condmon.errors import CondmonError, ConfigError, DataError, DataWarning
 from condmon.identify import estimate
 from condmon.io.rig import apply_record_settings, parse_record_settings
 from condmon.models.regimes import parse_condition
@@ -66,11 +67,14 @@ def test_record_tables_are_read_or_refused_by_name(table: dict[str, Any]) -> Non
     assert s.sample_rate is None or (math.isfinite(s.sample_rate) and s.sample_rate > 0)
     assert all(math.isfinite(v) and v != 0 for v in s.scale.values())
     raw = stroke(1.0, n=300)
-    try:
-        out = apply_record_settings(raw, s, "r.txt")
-    except DataError as err:
-        assert str(err).startswith("r.txt") and "\n" not in str(err)
-        return
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            out = apply_record_settings(raw, s, "r.txt")
+        except DataError as err:
+            assert str(err).startswith("r.txt") and "\n" not in str(err)
+            return
+    assert all(issubclass(w.category, DataWarning) for w in caught)
     assert len(out) == len(raw)
 
 

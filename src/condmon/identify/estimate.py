@@ -210,7 +210,7 @@ def estimate(record: pd.DataFrame, model: str | Machine = "dc-motor", *,
         consts["gamma"] = gamma
     notes = tuple(f"{k} fixed at {v:.6g} {machine.plant.parameter(k).unit} for this estimate "
                   "(--constants): not estimated".replace("  ", " ") for k, v in fixed.items())
-    if df.attrs.get("record_settings"):
+    if df.attrs.get("record_settings") not in (None, "", "as written"):
         notes += (f"record read with its settings: {df.attrs['record_settings']}",)
     return estimate_record(rec, machine, method=method, excitation=exc,
                            fit_threshold=fit_threshold, route=chosen, constants=consts,

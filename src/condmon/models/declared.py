@@ -385,21 +385,15 @@ def load_plant_model(model: str | Path = "hst", params: str | Path | Mapping[str
     >>> m.parameter("Rv").value
     12.0
     """
-    from condmon.models.registry import list_models
+    # The one registry of machine models, for a name or a file alike: a
+    # declaration is validated whole, once, the same way for every command
+    # (imported here, as the registry itself is built on this module).
+    from condmon.models.registry import get_model
 
-    if str(model) not in list_models() and (Path(model).suffix.lower() == ".toml"
-                                            or Path(model).is_file()):
-        doc, source = load_toml(model), str(model)
-        plant = plant_from_doc(doc, source)
-    else:
-        # A name: the one registry of machine models (imported here, as the
-        # registry itself is built on this module).
-        from condmon.models.registry import get_model
-
-        try:
-            plant = get_model(str(model)).plant
-        except ModelError as err:
-            raise ConfigError(str(err)) from None
+    try:
+        plant = get_model(model).plant
+    except ModelError as err:
+        raise ConfigError(str(err)) from None
     if params is None:
         return plant
     if isinstance(params, Mapping):

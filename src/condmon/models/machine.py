@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, overload
 import numpy as np
 from numpy.typing import NDArray
 
-from condmon.errors import ModelError
+from condmon.errors import ConfigError, ModelError
 from condmon.io.rig import RecordSettings
 from condmon.models import derived_cache
 from condmon.models.declared import PlantModel, substituted_equations, symbols_of
@@ -472,7 +472,11 @@ def _derived(machine: Machine) -> dict[str, tuple[sp.Expr, Callable[..., Any]]]:
     params = {k: sym[k] for k in machine.plant.parameter_names}
     out = {}
     for name, (eq, _) in machine.spec.derived.items():
-        expr = parse_expression(eq, params, f"{machine.plant.source}[estimation.derived.{name}]")
+        where = f"{machine.plant.source}[estimation.derived.{name}]"
+        expr = parse_expression(eq, params, where)
+        if expr.has(sp.zoo, sp.nan, sp.oo, -sp.oo):
+            raise ConfigError(f"{where}: {eq!r} is infinite or undefined as written: a division "
+                              "by zero?")
         fn = sp.lambdify(list(params.values()), expr, modules="numpy")
         names = list(params)
         out[name] = (expr, (lambda f, ns: lambda d: f(*[d[k] for k in ns]))(fn, names))

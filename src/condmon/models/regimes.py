@@ -53,9 +53,19 @@ __all__ = ["Regime", "RegimeSpec", "Condition", "parse_condition", "parse_regime
 
 FloatArray = NDArray[np.float64]
 
+def _limits() -> dict[str, float]:
+    from condmon.io.config import load_default
+
+    raw = dict(load_default("limits.toml").get("conditions", {}))
+    return {"length": float(raw.get("max_length", 2000)), "depth": float(raw.get("max_depth", 40)),
+            "literal": float(raw.get("max_literal", 1e300)),
+            "exponent": float(raw.get("max_exponent", 16.0))}
+
+
 #: Limits on a condition's text: length [characters], nesting depth, the
-#: magnitude of a numeric literal and of an exponent.
-LIMITS = {"length": 2000, "depth": 40, "literal": 1e300, "exponent": 16.0}
+#: magnitude of a numeric literal and of an exponent (``[conditions]`` of
+#: ``condmon/data/limits.toml``).
+LIMITS = _limits()
 
 _RESERVED = ("settle", "min_duration", "metadata")
 

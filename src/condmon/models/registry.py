@@ -9,12 +9,17 @@ registered under a name with :func:`register_model`.
 
 from __future__ import annotations
 
+import signal
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 from condmon.errors import ConfigError, ModelError
 from condmon.io.config import load_default, load_toml
 from condmon.models.declared import plant_from_doc
+from condmon.models.limits import equation_limits
 from condmon.models.machine import Machine
 from condmon.models.machine_doc import machine_from_doc
 
@@ -68,19 +73,32 @@ def get_model(model: str | Path) -> Machine:
     ('R', 'L', 'Kt', 'J', 'D')
     """
     key = str(model)
-    if key in _CACHE:
-        return _CACHE[key]
-    if key in _USER:
-        machine = _load(_USER[key])
-    elif key in _SHIPPED:
-        machine = _machine(load_default(_SHIPPED[key]), _SHIPPED[key], shipped=True)
-    elif Path(key).suffix.lower() == ".toml" or Path(key).is_file():
-        machine = _load(Path(key))
-    else:
+    if key in _USER or key in _SHIPPED:
+        if key in _CACHE:
+            return _CACHE[key]
+        machine = (_load(_USER[key]) if key in _USER else
+                   _machine(load_default(_SHIPPED[key]), _SHIPPED[key], shipped=True))
+        _CACHE[key] = machine
+        return machine
+    if not (Path(key).suffix.lower() == ".toml" or Path(key).is_file()):
         raise ModelError(f"unknown model {key!r}; give a declaration file (.toml) or one "
                          f"of: {', '.join(list_models())}")
-    _CACHE[key] = machine
-    return machine
+    # a file: known by its content too, so an edited declaration is read again
+    cached = f"{key}\0{_content(Path(key))}"
+    if cached not in _CACHE:
+        _CACHE[cached] = _load(Path(key))
+    return _CACHE[cached]
+
+
+def _content(path: Path) -> str:
+    """A digest of a declaration file's bytes ("" when it cannot be read: the
+    loading says why)."""
+    import hashlib
+
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        return ""
 
 
 def _load(path: Path) -> Machine:
@@ -91,4 +109,28 @@ def _load(path: Path) -> Machine:
 
 def _machine(doc: dict[str, Any], source: str, shipped: bool = False) -> Machine:
     origin = None if shipped else str(Path(source).resolve())
-    return machine_from_doc(plant_from_doc(doc, source), doc, origin)
+    with _time_limit(equation_limits().time_limit, source):
+        return machine_from_doc(plant_from_doc(doc, source), doc, origin)
+
+
+@contextmanager
+def _time_limit(seconds: float, source: str) -> Iterator[None]:
+    """Refuse a declaration whose reading takes longer than ``seconds`` (a
+    backstop behind the equations' limits; on the main thread where the
+    platform has interval timers, else not enforced)."""
+    if (threading.current_thread() is not threading.main_thread()
+            or not hasattr(signal, "setitimer")):
+        yield
+        return
+
+    def expired(signum: int, frame: Any) -> None:
+        raise ConfigError(f"{source}: reading the declaration took longer than {seconds:g} s "
+                          "([equations] time_limit of condmon/data/limits.toml)")
+
+    previous = signal.signal(signal.SIGALRM, expired)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)

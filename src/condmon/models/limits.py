@@ -1,0 +1,54 @@
+"""Limits on what a user's declaration may ask (``condmon/data/limits.toml``), without sympy."""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+__all__ = ["EquationLimits", "equation_limits"]
+
+
+@dataclass(frozen=True)
+class EquationLimits:
+    """What one equation may hold (``[equations]`` of ``condmon/data/limits.toml``).
+
+    Attributes
+    ----------
+    max_length : int
+        Characters.
+    max_depth : int
+        Nesting of operations and calls.
+    max_exponent : float
+        Largest magnitude of an exponent, which must be a number. [-]
+    max_literal : float
+        Largest magnitude of a number, and of a power of numbers. [-]
+    max_exp_nesting : int
+        Exponentials nested in each other.
+    time_limit : float
+        To parse a declaration and derive what it implies. [s]
+    """
+
+    max_length: int = 20000
+    max_depth: int = 200
+    max_exponent: float = 64.0
+    max_literal: float = 1e300
+    max_exp_nesting: int = 2
+    time_limit: float = 10.0
+
+
+@functools.lru_cache(maxsize=1)
+def equation_limits() -> EquationLimits:
+    """The shipped limits (``condmon/data/limits.toml``).
+
+    Example
+    -------
+    >>> equation_limits().max_exponent
+    64.0
+    """
+    from condmon.io.config import load_default
+
+    raw = dict(load_default("limits.toml").get("equations", {}))
+    return EquationLimits(int(raw.get("max_length", 20000)), int(raw.get("max_depth", 200)),
+                          float(raw.get("max_exponent", 64.0)),
+                          float(raw.get("max_literal", 1e300)),
+                          int(raw.get("max_exp_nesting", 2)), float(raw.get("time_limit", 10.0)))

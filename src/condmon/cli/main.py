@@ -468,6 +468,11 @@ def main(argv: list[str] | None = None) -> int:
         err.print(f"error: {where}{': ' if where else ''}{why}", highlight=False, markup=False,
                   soft_wrap=True)
         return 2
+    except MemoryError:
+        err.print("error: out of memory: the record is too large for this machine; lower "
+                  "[records] max_samples of condmon/data/limits.toml (or CONDMON_MAX_SAMPLES)",
+                  highlight=False, markup=False, soft_wrap=True)
+        return 2
     except KeyboardInterrupt:
         err.print("interrupted")
         return 130

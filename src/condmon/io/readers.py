@@ -31,6 +31,7 @@ import pandas as pd
 
 from condmon.errors import DataError
 from condmon.io.raw import RawRecord, one_line, time_to_seconds
+from condmon.io.size import check_record_size
 
 __all__ = ["READABLE_SUFFIXES", "read_record"]
 
@@ -103,9 +104,13 @@ def read_record(path: str | Path, columns: Mapping[str, str] | None = None) -> p
     if p.stat().st_size == 0:
         raise DataError(f"{p}: the file is empty")
     try:
+        check_record_size(p, suffix)
         return _finish(_read_raw(p, suffix, mapping.get("t")), p, mapping)
     except DataError:
         raise
+    except MemoryError:
+        raise DataError(f"{p}: the record does not fit in memory; shorten it or lower "
+                        "[records] max_samples of condmon/data/limits.toml") from None
     except Exception as err:  # parser errors of every kind become one clear line
         raise DataError(f"{p}: cannot read as a {_KINDS[suffix]} file: {one_line(err)}") from None
 

@@ -176,11 +176,15 @@ def register(app: typer.Typer, baseline_app: typer.Typer) -> None:
         table = Table(title=escape(f"Audit trail of {unit or redact(db)}"), box=box.SIMPLE_HEAD)
         for col in ("at (UTC)", "who", "action", "unit", "test", "reason"):
             table.add_column(col, overflow="fold", no_wrap=col in ("at (UTC)", "action", "test"))
+        import pandas as pd
+
         for _, r in trail.iterrows():
             def text(key: str) -> str:
-                return "" if r[key] is None or r[key] != r[key] else escape(str(r[key]))
+                return "" if bool(pd.isna(r[key])) else escape(str(r[key]))
 
-            tid = r["test_id"]
+            tid, iid = r["test_id"], r.get("isolation_id")
+            ref = ("" if bool(pd.isna(tid)) else f"#{int(tid)}") if iid is None or bool(
+                pd.isna(iid)) else f"i{int(iid)}"
             table.add_row(str(r["at"])[:16], text("actor"), text("action"), text("unit"),
-                          "" if tid is None or tid != tid else f"#{int(tid)}", text("reason"))
+                          ref, text("reason"))
         out.print(table)

@@ -356,6 +356,11 @@ def baseline_add_cmd(
             table.add_row(escape(p), fmt(m), fmt(sd), f"{100 * sd / abs(m):.2f}")
         out.print(table)
     print_flags(res.flags, unit)
+    offered = [t for t in res.tests if not t.duplicate]
+    if offered and not any(t.accepted and not t.refused for t in offered):
+        err.print(f"no test accepted: 0 of {len(offered)} record(s) could join the baseline "
+                  "(see why above)", highlight=False, markup=False, soft_wrap=True)
+        raise typer.Exit(1)
 
 
 @app.command("check")

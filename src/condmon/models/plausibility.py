@@ -111,7 +111,9 @@ class Plausibility:
             Naming the file, the measured interval or duration and the limits.
         """
         lo, hi = self.sample_interval
-        if not lo <= dt <= hi:
+        # a relative tolerance on the bounds: a 500 Hz record's interval reads
+        # 0.002 +- 2e-16 s, and 0.002 s is the bound
+        if not lo * (1 - 1e-9) <= dt <= hi * (1 + 1e-9):
             hint = ""
             if dt >= 0.05 and lo <= dt / 1000.0 <= hi:
                 hint = " — is column 't' in milliseconds? (condmon expects seconds)"
@@ -119,7 +121,7 @@ class Plausibility:
                 hint = " — is column 't' in kiloseconds or scaled by 1/1000?"
             raise DataError(f"{source}: sample interval {dt:.6g} s is outside the "
                             f"{lo:g}..{hi:g} s the {model} model needs{hint}")
-        if duration < self.min_duration:
+        if duration < self.min_duration * (1 - 1e-9):
             raise DataError(f"{source}: the record lasts {duration:.4g} s; the {model} model "
                             f"needs at least {self.min_duration:g} s for a trustworthy estimate")
 

@@ -1,0 +1,69 @@
+"""Output an engineer need not second-guess: every table prints, boundaries are
+not refused by rounding, a baseline add that adds nothing says so."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from condmon.cli.main import main
+from condmon.simulate import load_actuator_rig, simulate_actuator
+
+
+@pytest.fixture(scope="module")
+def history(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, Path]:
+    """A history with baseline tests, checks, an excluded test, a rejected one and
+    an isolation."""
+    folder = tmp_path_factory.mktemp("outputs")
+    files = []
+    for k, fault in enumerate([None, None, None, None, "R=+40%"]):
+        path = folder / f"r{k}.csv"
+        args = ["simulate", "actuator", "--out", str(path), "--seed", str(k + 1)]
+        assert main(args + (["--fault", fault] if fault else [])) == 0
+        files.append(str(path))
+    db = str(folder / "h.db")
+    assert main(["baseline", "add", *files[:3], "--unit", "E1", "--db", db]) == 0
+    assert main(["check", files[3], "--unit", "E1", "--db", db]) == 0
+    assert main(["check", files[4], "--unit", "E1", "--db", db]) == 0
+    assert main(["exclude", "2", "--reason", "a wrong record", "--db", db]) == 0
+    hst = folder / "hst.csv"
+    assert main(["simulate", "hst", "--out", str(hst), "--fault", "Rv=+40%@10s"]) == 0
+    assert main(["isolate", "hst", str(hst), "--unit", "H1", "--db", db]) == 0
+    return db, folder
+
+
+@pytest.mark.parametrize("args", [["units"], ["history", "--unit", "E1"],
+                                  ["history", "--unit", "H1"], ["audit"],
+                                  ["audit", "--unit", "E1"], ["audit", "--unit", "H1"],
+                                  ["baseline", "list", "--unit", "E1"]])
+def test_every_table_prints(history: tuple[str, Path], args: list[str],
+                            capsys: pytest.CaptureFixture[str]) -> None:
+    db, _ = history
+    capsys.readouterr()
+    assert main([*args, "--db", db]) == 0
+    captured = capsys.readouterr()
+    assert "Traceback" not in captured.err and captured.out.strip()
+
+
+def test_a_sample_interval_on_the_model_s_bound_is_accepted(tmp_path: Path) -> None:
+    """500 Hz: dt = 0.002 s +- 2e-16, the dc-motor model's limit is 0.002 s."""
+    rig = dataclasses.replace(load_actuator_rig(), sample_rate=500.0)
+    rec = simulate_actuator(rig, seed=3)
+    rec["t"] = pd.Series(range(len(rec))) * (1 / 500.0)
+    path = tmp_path / "r500.csv"
+    rec.to_csv(path, index=False)
+    assert main(["estimate", str(path)]) == 0
+
+
+def test_a_baseline_add_that_adds_nothing_exits_1(tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "noisy.csv"
+    rig = dataclasses.replace(load_actuator_rig(), noise_I=5.0, noise_omega=40.0)
+    simulate_actuator(rig, seed=4).to_csv(path, index=False)
+    db = str(tmp_path / "h.db")
+    assert main(["baseline", "add", str(path), "--unit", "E9", "--db", db]) == 1
+    err = capsys.readouterr().err
+    assert "stored" in err and "no test accepted: 0 of 1 record(s)" in err

@@ -67,3 +67,31 @@ def test_a_baseline_add_that_adds_nothing_exits_1(tmp_path: Path,
     assert main(["baseline", "add", str(path), "--unit", "E9", "--db", db]) == 1
     err = capsys.readouterr().err
     assert "stored" in err and "no test accepted: 0 of 1 record(s)" in err
+
+
+def test_an_estimate_beyond_a_bound_by_a_few_errors_is_said() -> None:
+    from condmon.identify import estimate
+
+    res = estimate(simulate_actuator(seed=2), "dc-motor-coulomb")  # a rig without Coulomb
+    tc, se = res.parameters["Tc"], res.std_errors["Tc"]
+    assert res.accepted and abs(tc) < 3 * se
+    assert any(n.startswith("Tc = ") and ("consistent with 0" in n or "cannot tell" in n)
+               for n in res.notes)
+
+
+def test_a_truncated_tdms_file_is_said_to_be_truncated(tmp_path: Path) -> None:
+    import numpy as np
+    from nptdms import ChannelObject, TdmsWriter
+
+    from condmon.errors import DataError
+    from condmon.io import read_record
+
+    full = tmp_path / "full.tdms"
+    with TdmsWriter(full) as w:
+        w.write_segment([ChannelObject("rig", c, np.arange(10000.0), {"wf_increment": 1e-3})
+                         for c in ("V", "I", "omega")])
+    data = full.read_bytes()
+    cut = tmp_path / "cut.tdms"
+    cut.write_bytes(data[: len(data) // 2])
+    with pytest.raises(DataError, match="cut.tdms: the file is truncated: its channels hold"):
+        read_record(cut)

@@ -284,6 +284,10 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
                                                     if k in trended})
     if rejection is None and not np.all(np.isfinite(se)):
         rejection = "the standard errors are not finite: the data do not determine the model"
+    if rejection is None:
+        notes += spec.plausibility.bound_notes(
+            {k: v for k, v in zip(names, vals) if k in trended}, machine.units,
+            {k: v for k, v in zip(names, se) if k in trended})
     if held and idf is not None and idf.held:
         notes.append("held (not identified by this record): " + ", ".join(
             f"{k} at its {origin.get(k, 'nominal')} value" for k in idf.held))

@@ -69,10 +69,14 @@ def read_tdms(path: Path, time_column: str | None = None) -> RawRecord:
 
     with _npTDMS_log() as messages:
         tdms = TdmsFile.read(path)
+    channels = [(group.name, channel) for group in tdms.groups() for channel in group.channels()]
+    lengths = {len(channel) for _, channel in channels}
+    if messages and len(lengths) > 1:  # the file ends inside a segment: channels cut short
+        raise DataError(f"{path}: the file is truncated: its channels hold {min(lengths)} to "
+                        f"{max(lengths)} samples (npTDMS: {'; '.join(dict.fromkeys(messages))})")
     if messages:
         warnings.warn(f"{path}: {'; '.join(dict.fromkeys(messages))} (npTDMS; an incomplete "
                       "file?)", DataWarning, stacklevel=4)
-    channels = [(group.name, channel) for group in tdms.groups() for channel in group.channels()]
     count = Counter(channel.name for _, channel in channels)
     items: dict[str, np.ndarray[Any, Any]] = {}
     props: dict[str, dict[str, Any]] = {}

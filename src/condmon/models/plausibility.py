@@ -102,6 +102,38 @@ class Plausibility:
                 if len(negative) >= 2 else "")
         return "not physically possible: " + ", ".join(bad) + hint
 
+    def bound_notes(self, values: Mapping[str, float], units: Mapping[str, str],
+                    std_errors: Mapping[str, float]) -> list[str]:
+        """What to say of estimates near a bound: one outside it by less than 3
+        standard errors (kept: consistent with it), or inside it by less than
+        one (the data cannot tell it from the bound).
+
+        Example
+        -------
+        >>> p = Plausibility({"Tc": Bound((("ge", 0.0),))})
+        >>> p.bound_notes({"Tc": -6.5e-5}, {"Tc": "N m"}, {"Tc": 1.6e-4})[0][:62]
+        'Tc = -6.5e-05 N m lies outside its bound >= 0 by 0.41 standard'
+        """
+        notes = []
+        for name, bound in self.bounds.items():
+            if name not in values or name not in std_errors:
+                continue
+            v, se = float(values[name]), float(std_errors[name])
+            if not (math.isfinite(v) and math.isfinite(se) and se > 0):
+                continue
+            unit = f" {units.get(name, '')}".rstrip()
+            for op, b in bound.limits:
+                sym, ok = _OPS[op]
+                gap = abs(v - b) / se
+                if not ok(v, b) and gap <= 3.0:
+                    notes.append(f"{name} = {v:.3g}{unit} lies outside its bound {sym} {b:g} "
+                                 f"by {gap:.2g} standard errors: consistent with {b:g}, kept")
+                elif ok(v, b) and gap < 1.0:
+                    notes.append(f"{name} = {v:.3g}{unit} is within one standard error "
+                                 f"({se:.2g}{unit}) of its bound {sym} {b:g}: the record "
+                                 f"cannot tell it from {b:g}")
+        return notes
+
     def check_timing(self, dt: float, duration: float, source: str, model: str) -> None:
         """Refuse a record the model cannot be estimated from.
 

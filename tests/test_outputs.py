@@ -95,3 +95,37 @@ def test_a_truncated_tdms_file_is_said_to_be_truncated(tmp_path: Path) -> None:
     cut.write_bytes(data[: len(data) // 2])
     with pytest.raises(DataError, match="cut.tdms: the file is truncated: its channels hold"):
         read_record(cut)
+
+
+def test_a_row_that_cannot_be_read_does_not_take_the_history_down(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import json
+    import sqlite3
+
+    from condmon.report.web import create_app
+
+    files = []
+    for k in range(4):
+        path = tmp_path / f"r{k}.csv"
+        simulate_actuator(seed=k + 1).to_csv(path, index=False)
+        files.append(str(path))
+    db = str(tmp_path / "h.db")
+    assert main(["baseline", "add", *files[:3], "--unit", "E1", "--db", db]) == 0
+    assert main(["check", files[3], "--unit", "E1", "--db", db]) == 0
+    assert main(["baseline", "add", *files[:3], "--unit", "E2", "--db", db]) == 0
+    con = sqlite3.connect(db)  # a row written by hand, or by another tool
+    con.execute("UPDATE tests SET test_date = 'garbage', fit_percent = 'abc' WHERE id = 4")
+    con.execute("UPDATE estimates SET value = 'n/a' WHERE test_id = 4 AND parameter = 'R'")
+    con.commit()
+    con.close()
+    capsys.readouterr()
+    for args in (["history", "--unit", "E1"], ["units"], ["history", "--unit", "E1", "--json"],
+                 ["report", "--out", str(tmp_path / "rep")]):
+        assert main([*args, "--db", db]) == 0, args
+    out = capsys.readouterr()
+    assert "Traceback" not in out.err
+    client = create_app(db).test_client()
+    for url in ("/", "/api/units", "/units/E1", "/units/E2", "/api/units/E1"):
+        assert client.get(url).status_code == 200, url
+    doc = json.loads(client.get("/api/units/E1").data)
+    assert doc["tests"][3]["fit_percent"] is None

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from datetime import datetime
+from typing import Any
 
 import sqlalchemy as sa
 
@@ -19,6 +21,44 @@ NAME_LENGTH = 200
 #: Longest parameter name: a declared name with its regime (``Tc@forward, load=ball``).
 PARAMETER_LENGTH = 200
 
+class TolerantDateTime(sa.types.TypeDecorator[datetime]):
+    """A date-time column that reads a value it cannot parse (a row written by
+    hand or by another tool) as unknown (None) instead of failing the whole
+    query: one bad row must not take a history's pages down."""
+
+    impl = sa.DateTime(timezone=True)
+    cache_ok = True
+
+    def result_processor(self, dialect: sa.Dialect, coltype: Any) -> Any:
+        inner = self.impl_instance.dialect_impl(dialect).result_processor(dialect, coltype)
+
+        def process(value: Any) -> Any:
+            if value is None:
+                return None
+            if isinstance(value, datetime):
+                return value
+            try:
+                return inner(value) if inner is not None else value
+            except (ValueError, TypeError, OverflowError):
+                return None
+        return process
+
+
+class TolerantFloat(sa.types.TypeDecorator[float]):
+    """A number column that reads a value that is not a number as unknown (None)."""
+
+    impl = sa.Float
+    cache_ok = True
+
+    def process_result_value(self, value: Any, dialect: sa.Dialect) -> float | None:
+        if value is None:
+            return None
+        try:
+            return float(value)
+        except (ValueError, TypeError, OverflowError):
+            return None
+
+
 metadata = sa.MetaData()
 
 meta = sa.Table(
@@ -32,7 +72,7 @@ units = sa.Table(
     sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
     sa.Column("name", sa.String(NAME_LENGTH), nullable=False, unique=True),
     sa.Column("model", sa.String(64), nullable=False),
-    sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+    sa.Column("created_at", TolerantDateTime(), nullable=False),
     sa.Column("model_source", sa.Text, nullable=True),        # declaration file, if not shipped
     sa.Column("baseline_name", sa.String(64), nullable=False, server_default="default"),
     sa.Column("group_name", sa.String(NAME_LENGTH), nullable=True),  # v5: peers it is judged with
@@ -42,13 +82,13 @@ tests = sa.Table(
     "tests", metadata,
     sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
     sa.Column("unit_id", sa.Integer, sa.ForeignKey("units.id"), nullable=False),
-    sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+    sa.Column("created_at", TolerantDateTime(), nullable=False),
     sa.Column("source", sa.Text, nullable=False),
     sa.Column("file_hash", sa.String(64), nullable=False),
     sa.Column("role", sa.String(16), nullable=False),          # "baseline" | "check"
     sa.Column("accepted", sa.Boolean, nullable=False),
     sa.Column("reason", sa.Text, nullable=True),
-    sa.Column("fit_percent", sa.Float, nullable=True),
+    sa.Column("fit_percent", TolerantFloat(), nullable=True),
     sa.Column("fits", sa.Text, nullable=False),                # JSON {output: %}
     sa.Column("method", sa.String(16), nullable=False),
     sa.Column("closed_loop", sa.Boolean, nullable=False),
@@ -56,7 +96,7 @@ tests = sa.Table(
     # v3: the record's content hash (a re-saved copy is the same test), the
     # test's own date, and exclusion (a test is never deleted)
     sa.Column("record_hash", sa.String(64), nullable=False, server_default=""),
-    sa.Column("test_date", sa.DateTime(timezone=True), nullable=True),
+    sa.Column("test_date", TolerantDateTime(), nullable=True),
     sa.Column("excluded", sa.Boolean, nullable=False, server_default=sa.false()),
     sa.Column("excluded_reason", sa.Text, nullable=True),
     # v4: a few figures per column, to recognise a copy rounded otherwise
@@ -71,15 +111,15 @@ estimates = sa.Table(
     "estimates", metadata,
     sa.Column("test_id", sa.Integer, sa.ForeignKey("tests.id"), primary_key=True),
     sa.Column("parameter", sa.String(PARAMETER_LENGTH), primary_key=True),
-    sa.Column("value", sa.Float, nullable=True),
-    sa.Column("std_error", sa.Float, nullable=True),
+    sa.Column("value", TolerantFloat(), nullable=True),
+    sa.Column("std_error", TolerantFloat(), nullable=True),
 )
 
 baselines = sa.Table(
     "baselines", metadata,
     sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
     sa.Column("unit_id", sa.Integer, sa.ForeignKey("units.id"), nullable=False),
-    sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+    sa.Column("created_at", TolerantDateTime(), nullable=False),
     sa.Column("n", sa.Integer, nullable=False),
     sa.Column("test_ids", sa.Text, nullable=False),            # JSON list
     sa.Column("name", sa.String(64), nullable=False, server_default="default"),
@@ -92,8 +132,8 @@ baseline_values = sa.Table(
     "baseline_values", metadata,
     sa.Column("baseline_id", sa.Integer, sa.ForeignKey("baselines.id"), primary_key=True),
     sa.Column("parameter", sa.String(PARAMETER_LENGTH), primary_key=True),
-    sa.Column("mean", sa.Float, nullable=False),
-    sa.Column("std", sa.Float, nullable=False),
+    sa.Column("mean", TolerantFloat(), nullable=False),
+    sa.Column("std", TolerantFloat(), nullable=False),
     sa.Column("n", sa.Integer, nullable=True),  # v5: tests with this parameter (NULL: all)
 )
 
@@ -102,9 +142,9 @@ symptoms = sa.Table(
     sa.Column("test_id", sa.Integer, sa.ForeignKey("tests.id"), primary_key=True),
     sa.Column("parameter", sa.String(PARAMETER_LENGTH), primary_key=True),
     sa.Column("baseline_id", sa.Integer, sa.ForeignKey("baselines.id"), primary_key=True),
-    sa.Column("percent_change", sa.Float, nullable=False),
-    sa.Column("high", sa.Float, nullable=False),
-    sa.Column("low", sa.Float, nullable=False),
+    sa.Column("percent_change", TolerantFloat(), nullable=False),
+    sa.Column("high", TolerantFloat(), nullable=False),
+    sa.Column("low", TolerantFloat(), nullable=False),
 )
 
 diagnoses = sa.Table(
@@ -112,7 +152,7 @@ diagnoses = sa.Table(
     sa.Column("test_id", sa.Integer, sa.ForeignKey("tests.id"), primary_key=True),
     sa.Column("baseline_id", sa.Integer, sa.ForeignKey("baselines.id"), primary_key=True),
     sa.Column("status", sa.String(16), nullable=False),
-    sa.Column("condition", sa.Float, nullable=False),
+    sa.Column("condition", TolerantFloat(), nullable=False),
     sa.Column("summary", sa.Text, nullable=False),
 )
 
@@ -121,7 +161,7 @@ diagnosis_faults = sa.Table(
     sa.Column("test_id", sa.Integer, sa.ForeignKey("tests.id"), primary_key=True),
     sa.Column("baseline_id", sa.Integer, sa.ForeignKey("baselines.id"), primary_key=True),
     sa.Column("name", sa.String(NAME_LENGTH), primary_key=True),
-    sa.Column("degree", sa.Float, nullable=False),
+    sa.Column("degree", TolerantFloat(), nullable=False),
     sa.Column("severity", sa.String(16), nullable=False),
     sa.Column("advice", sa.Text, nullable=False),
 )
@@ -130,14 +170,14 @@ isolations = sa.Table(
     "isolations", metadata,
     sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
     sa.Column("unit_id", sa.Integer, sa.ForeignKey("units.id"), nullable=False),
-    sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
-    sa.Column("test_date", sa.DateTime(timezone=True), nullable=True),
+    sa.Column("created_at", TolerantDateTime(), nullable=False),
+    sa.Column("test_date", TolerantDateTime(), nullable=True),
     sa.Column("source", sa.Text, nullable=False),
     sa.Column("file_hash", sa.String(64), nullable=False),
     sa.Column("record_hash", sa.String(64), nullable=False),
     sa.Column("model", sa.String(64), nullable=False),
     sa.Column("detected", sa.Boolean, nullable=False),
-    sa.Column("detection_time", sa.Float, nullable=True),
+    sa.Column("detection_time", TolerantFloat(), nullable=True),
     sa.Column("decided", sa.Boolean, nullable=False),
     sa.Column("reason", sa.Text, nullable=True),
     sa.Column("statement", sa.Text, nullable=False),
@@ -154,10 +194,10 @@ isolation_estimates = sa.Table(
     "isolation_estimates", metadata,
     sa.Column("isolation_id", sa.Integer, sa.ForeignKey("isolations.id"), primary_key=True),
     sa.Column("parameter", sa.String(PARAMETER_LENGTH), primary_key=True),
-    sa.Column("value", sa.Float, nullable=True),
-    sa.Column("nominal", sa.Float, nullable=True),
-    sa.Column("change_percent", sa.Float, nullable=True),
-    sa.Column("error_sigma", sa.Float, nullable=True),          # model output error [noise sd]
+    sa.Column("value", TolerantFloat(), nullable=True),
+    sa.Column("nominal", TolerantFloat(), nullable=True),
+    sa.Column("change_percent", TolerantFloat(), nullable=True),
+    sa.Column("error_sigma", TolerantFloat(), nullable=True),          # model output error [noise sd]
     sa.Column("rejected", sa.Text, nullable=True),              # why left out, if it was
 )
 
@@ -165,7 +205,7 @@ isolation_estimates = sa.Table(
 audit = sa.Table(
     "audit", metadata,
     sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
-    sa.Column("at", sa.DateTime(timezone=True), nullable=False),
+    sa.Column("at", TolerantDateTime(), nullable=False),
     sa.Column("actor", sa.String(NAME_LENGTH), nullable=False),  # user@host
     sa.Column("action", sa.String(32), nullable=False),
     sa.Column("unit_id", sa.Integer, sa.ForeignKey("units.id"), nullable=True),

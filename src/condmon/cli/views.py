@@ -124,13 +124,14 @@ def register(app: typer.Typer) -> None:
                                    "baseline [%]"), box=box.SIMPLE_HEAD, padding=(0, 1),
                       pad_edge=False, collapse_padding=True)
         # fits 80 columns with a date and five parameters
-        widths = {"#": 3, "fit": 4, "status": 8, "date": 8, "source": 8}
+        widths = {"#": 3, "fit": 4, "status": 8, "date": 10, "source": 8}
         for col in ("#", *(("date",) if dated else ()), "source", *(("regime",) if regimes else ()),
                     "fit", "status", *params):
             table.add_column(col, justify="left" if col in ("source", "status", "date", "regime")
                              else "right",
                              no_wrap=True, overflow="ellipsis", min_width=widths.get(col, 5),
-                             max_width={"source": 10 if dated else 14, "date": 8}.get(col))
+                             max_width={"source": max(10 if dated else 14, out.width - 70),
+                                        "date": 10}.get(col))
         notes = []
         for tid, r in hist.iterrows():
             status = r["status"]
@@ -147,7 +148,7 @@ def register(app: typer.Typer) -> None:
                 changes.append(f"{found[0]:+.1f}" if found else "")
             changes += [""] * (len(params) - len(changes))
             fit = f"{r['fit_percent']:.1f}" if pd.notna(r["fit_percent"]) else "—"
-            when = ((f"{r['test_date']:%y-%m-%d}" if pd.notna(r["test_date"]) else "—",)
+            when = ((f"{r['test_date']:%Y-%m-%d}" if pd.notna(r["test_date"]) else "—",)
                     if dated else ())
             table.add_row(str(tid), *when, escape(Path(str(r["source"])).name),
                           *((escape(label or "—"),) if regimes else ()), fit, shown,

@@ -129,3 +129,25 @@ def test_a_row_that_cannot_be_read_does_not_take_the_history_down(
         assert client.get(url).status_code == 200, url
     doc = json.loads(client.get("/api/units/E1").data)
     assert doc["tests"][3]["fit_percent"] is None
+
+
+def test_the_numbers_a_user_reads_carry_their_units(history: tuple[str, Path], tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    _, folder = history
+    db = str(tmp_path / "u.db")
+    assert main(["baseline", "add", *(str(folder / f"r{k}.csv") for k in range(3)),
+                 "--unit", "E1", "--db", db]) == 0
+    capsys.readouterr()
+    assert main(["check", str(folder / "r4.csv"), "--unit", "E1", "--db", db, "--dry-run"]) == 0
+    rows = {line.split("│")[1].strip(): line for line in capsys.readouterr().out.splitlines()
+            if line.count("│") > 3}
+    assert "ohm" in rows["R"] and "N m s/rad" in rows["D"] and "kg m^2" in rows["J"]
+    assert main(["simulate", "actuator", "--out", str(tmp_path / "a.csv"),
+                 "--fault", "R=+40%"]) == 0
+    assert "R=1.4 ohm" in capsys.readouterr().err.replace("\n", " ")
+    assert main(["simulate", "hst", "--out", str(tmp_path / "h.csv"),
+                 "--fault", "Tld=+20@10s"]) == 0
+    assert "Tld=20 N m at 10 s" in capsys.readouterr().err.replace("\n", " ")
+    # a unit in brackets in an option's help is shown, not taken for markup
+    assert main(["serve", "--help"]) == 0
+    assert "often [s]" in " ".join(capsys.readouterr().out.split())

@@ -29,7 +29,7 @@ from condmon.identify.defaults import DEFAULT_FIT_THRESHOLD, list_estimators
 if TYPE_CHECKING:
     from condmon.workflows.records import EstimateOptions
 
-app = typer.Typer(add_completion=False, no_args_is_help=True,
+app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode="markdown",
                   help="Model-based condition monitoring: estimate, trend, diagnose.")
 simulate_app = typer.Typer(no_args_is_help=True, help="Simulate test-beds with known parameters.")
 app.add_typer(simulate_app, name="simulate")
@@ -146,14 +146,16 @@ def simulate_actuator_cmd(
     linear: Annotated[bool, typer.Option(help="Switch every nonlinear effect off.")] = False,
 ) -> None:
     """Simulate one closed-loop built-in test of the actuator rig."""
-    from condmon.simulate.actuator import load_actuator_rig, simulate_actuator
-
     from condmon.io.records import write_record
+    from condmon.models.registry import get_model
+    from condmon.simulate.actuator import load_actuator_rig, simulate_actuator
 
     rig = load_actuator_rig(params, fault or ())
     rec = simulate_actuator(rig, seed=seed, linear=linear)
     write_record(rec, out_path)
-    truth = ", ".join(f"{k}={fmt(v)}" for k, v in rig.physical().items())
+    units = get_model("dc-motor").units
+    truth = ", ".join(f"{k}={fmt(v)} {units.get(k, '')}".rstrip()
+                      for k, v in rig.physical().items())
     err.print(f"wrote {len(rec)} samples to {out_path} ({truth})", markup=False)
 
 
@@ -392,6 +394,7 @@ def check_cmd(
 ) -> None:
     """Check one test against the unit's baseline: go / advisory / no-go and faults."""
     from condmon.diagnose.rules import load_rules
+    from condmon.models.regimes import split_key
     from condmon.monitor.fuzzy import load_monitor_config
     from condmon.workflows.checks import check_test
     from condmon.store.db import open_store
@@ -424,12 +427,14 @@ def check_cmd(
                   "Retest.", markup=False)
         return
     table = Table()
-    for col in ("parameter", "value", "change %", "SymH", "SymL"):
-        table.add_column(col, justify="left" if col == "parameter" else "right")
+    for col in ("parameter", "value", "unit", "change %", "SymH", "SymL"):
+        table.add_column(col, justify="left" if col in ("parameter", "unit") else "right")
     stored = res.estimate.stored_values()
+    units = res.estimate.units
     for p, change in res.percent_change.items():
         sym = res.symptoms.get(p, {"high": 0.0, "low": 0.0})
-        table.add_row(escape(p), fmt(stored[p][0]) if p in stored else "—", f"{change:+.1f}",
+        table.add_row(escape(p), fmt(stored[p][0]) if p in stored else "—",
+                      escape(units.get(split_key(p)[0], "")), f"{change:+.1f}",
                       f"{sym['high']:.2f}", f"{sym['low']:.2f}")
     out.print(table)
     held = {k: v for part in res.estimate.regimes for k, v in part.held.items()}

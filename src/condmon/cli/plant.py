@@ -130,7 +130,9 @@ def _simulate(model: str, out_path: Path, fault: list[str] | None, params: Path 
     steps = parameter_steps(plant, fault or ())
     rec = simulate_plant(plant, fault or (), seed=seed, duration=duration)
     write_record(rec, out_path)
-    faults = ", ".join(f"{s.name}={fmt(s.value)}@{s.at:g}s" for s in steps) or "none"
+    units = {p.name: p.unit for p in plant.parameters}
+    faults = ", ".join(f"{s.name}={fmt(s.value)} {units.get(s.name, '')} at {s.at:g} s"
+                       .replace("  at", " at") for s in steps) or "none"
     err.print(f"wrote {len(rec)} samples to {out_path} (model {plant.name}, faults: {faults})",
               highlight=False)
 

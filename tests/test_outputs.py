@@ -148,6 +148,10 @@ def test_the_numbers_a_user_reads_carry_their_units(history: tuple[str, Path], t
     assert main(["simulate", "hst", "--out", str(tmp_path / "h.csv"),
                  "--fault", "Tld=+20@10s"]) == 0
     assert "Tld=20 N m at 10 s" in capsys.readouterr().err.replace("\n", " ")
+    assert main(["isolate", "hst", str(folder / "hst.csv")]) == 0
+    rows = {line.split("│")[1].strip(): line for line in capsys.readouterr().out.splitlines()
+            if line.count("│") > 3}
+    assert "N m s/rad" in rows["Rv"] and "m^3/rad" in rows["Dm"]
     # a unit in brackets in an option's help is shown, not taken for markup
     assert main(["serve", "--help"]) == 0
     assert "often [s]" in " ".join(capsys.readouterr().out.split())

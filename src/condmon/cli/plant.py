@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Optional
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from condmon.cli._console import err, fmt, out, progress, write_json
@@ -152,8 +153,9 @@ def _print_isolation(res: IsolationResult) -> None:
               f"fired: {', '.join(res.fired_residuals)}; suspects: {', '.join(res.suspects)}",
               highlight=False)
     table = Table(title="Suspects: steady-state estimate and model output error")
-    for col in ("suspect", "estimate", "nominal", "change %", "consistency", "error [σ]"):
-        table.add_column(col, justify="left" if col == "suspect" else "right")
+    for col in ("suspect", "estimate", "nominal", "unit", "change %", "consistency",
+                "error [σ]"):
+        table.add_column(col, justify="left" if col in ("suspect", "unit") else "right")
     for p in sorted(res.suspects, key=lambda p: res.errors.get(p, float("inf"))):
         e = res.estimates[p]
         change = "" if e.change_percent is None or not math.isfinite(e.change_percent) else (
@@ -161,7 +163,8 @@ def _print_isolation(res: IsolationResult) -> None:
         cons = "" if e.consistency is None else f"{e.consistency:.2f}"
         error = f"{res.errors[p]:.2f}" if p in res.errors else "—"
         name = f"[bold]{p}[/]" if p in res.isolated else p
-        table.add_row(name, fmt(e.value), fmt(e.nominal), change, cons,
+        table.add_row(name, fmt(e.value), fmt(e.nominal), escape(res.units.get(p, "")), change,
+                      cons,
                       "rejected" if p in res.rejected else error)
     out.print(table)
     for p, why in res.rejected.items():

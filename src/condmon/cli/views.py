@@ -124,9 +124,9 @@ def register(app: typer.Typer) -> None:
                                    "baseline [%]"), box=box.SIMPLE_HEAD, padding=(0, 1),
                       pad_edge=False, collapse_padding=True)
         # fits 80 columns with a date and five parameters
-        widths = {"#": 3, "fit": 4, "status": 8, "date": 10, "source": 8}
+        widths = {"#": 3, "fit %": 5, "status": 8, "date": 10, "source": 8}
         for col in ("#", *(("date",) if dated else ()), "source", *(("regime",) if regimes else ()),
-                    "fit", "status", *params):
+                    "fit %", "status", *params):
             table.add_column(col, justify="left" if col in ("source", "status", "date", "regime")
                              else "right",
                              no_wrap=True, overflow="ellipsis", min_width=widths.get(col, 5),

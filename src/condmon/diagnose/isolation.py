@@ -170,6 +170,8 @@ class IsolationResult:
         Other things the user should know (pooled normalisation, ...).
     time_limit : float or None
         Wall-time limit of each suspect's model run. [s]
+    units : dict of str to str
+        Unit of each parameter of the model (of an estimate and its nominal).
     """
 
     model: str
@@ -194,6 +196,7 @@ class IsolationResult:
     rejected: dict[str, str] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
     time_limit: float | None = None
+    units: dict[str, str] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary (keys ``detected``, ``decided``, ``reason``,
@@ -213,6 +216,7 @@ class IsolationResult:
             "fsm": self.fsm.to_dict(),
             "suspects": list(self.suspects),
             "estimates": {p: _finite(e.value) for p, e in self.estimates.items()},
+            "units": {p: self.units.get(p, "") for p in self.estimates},
             "estimate_change_percent": {p: _finite(e.change_percent)
                                         for p, e in self.estimates.items()},
             "consistency": {p: _finite(e.consistency) for p, e in self.estimates.items()},
@@ -348,7 +352,8 @@ def isolate(record: pd.DataFrame, model: PlantModel, *,
     noise = _sensor_noise(model, norm, gens)
     quiet = IsolationResult(model.name, False, None, None, (), fsm, (), {}, {}, (),
                             "no fault detected", res, norm, det, {}, None, noise,
-                            notes=(*norm.notes, *_input_notes(model, res)))
+                            notes=(*norm.notes, *_input_notes(model, res)),
+                            units={p.name: p.unit for p in model.parameters})
     if not det.detected or det.time is None or det.onset is None:
         if det.undecidable is not None:
             return dataclasses.replace(quiet, statement=f"undecided: {det.undecidable}",

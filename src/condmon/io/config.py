@@ -7,14 +7,18 @@ changes.
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import tomllib
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from condmon.errors import ConfigError
 
-__all__ = ["load_toml", "load_default", "merge"]
+__all__ = ["load_toml", "load_default", "merge", "shipped_limits"]
+
+T = TypeVar("T")
 
 
 def load_toml(path: str | Path) -> dict[str, Any]:
@@ -45,6 +49,36 @@ def load_default(name: str) -> dict[str, Any]:
     ref = resources.files("condmon") / "data" / name
     with ref.open("rb") as fh:
         return tomllib.load(fh)
+
+
+@functools.lru_cache(maxsize=None)
+def _limits_table(section: str) -> tuple[tuple[str, Any], ...]:
+    return tuple(load_default("limits.toml").get(section, {}).items())
+
+
+def shipped_limits(section: str, cls: type[T]) -> T:
+    """One table of the shipped ``condmon/data/limits.toml`` as ``cls``, a frozen
+    dataclass whose fields carry their defaults: a key the table sets overrides
+    its field (cast to the default's type), an unknown key is refused.
+
+    Example
+    -------
+    >>> from condmon.io.size import RecordLimits
+    >>> shipped_limits("records", RecordLimits).max_bytes
+    1000000000
+    """
+    table = dict(_limits_table(section))
+    fields: dict[str, Any] = {f.name: f.default
+                              for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+    unknown = sorted(set(table) - set(fields))
+    if unknown:
+        raise ConfigError(f"condmon/data/limits.toml: [{section}] has no {unknown[0]!r}; "
+                          f"allowed: {', '.join(fields)}")
+    try:
+        return cls(**{k: type(fields[k])(v) for k, v in table.items()})
+    except (TypeError, ValueError):
+        raise ConfigError(f"condmon/data/limits.toml: [{section}] holds a value that is not "
+                          "a number") from None
 
 
 def merge(base: dict[str, Any], override: dict[str, Any], source: str = "") -> dict[str, Any]:

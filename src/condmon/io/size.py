@@ -12,7 +12,6 @@ with one line naming the limit and how to raise it; nothing is loaded.
 
 from __future__ import annotations
 
-import functools
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,14 +41,6 @@ class RecordLimits:
     max_bytes: int = 1_000_000_000
 
 
-@functools.lru_cache(maxsize=8)
-def _shipped() -> tuple[int, int]:
-    from condmon.io.config import load_default
-
-    raw = dict(load_default("limits.toml").get("records", {}))
-    return int(raw.get("max_samples", 10_000_000)), int(raw.get("max_bytes", 1_000_000_000))
-
-
 def record_limits() -> RecordLimits:
     """The limits in force: ``CONDMON_MAX_SAMPLES`` and ``CONDMON_MAX_RECORD_BYTES``
     when set, else the shipped ``[records]`` table.
@@ -59,8 +50,11 @@ def record_limits() -> RecordLimits:
     >>> record_limits().max_samples > 1_000_000
     True
     """
-    samples, size = _shipped()
-    env = {"CONDMON_MAX_SAMPLES": samples, "CONDMON_MAX_RECORD_BYTES": size}
+    from condmon.io.config import shipped_limits
+
+    shipped = shipped_limits("records", RecordLimits)
+    env = {"CONDMON_MAX_SAMPLES": shipped.max_samples,
+           "CONDMON_MAX_RECORD_BYTES": shipped.max_bytes}
     for name in env:
         text = os.environ.get(name, "").strip()
         if text:

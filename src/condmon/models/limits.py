@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
-__all__ = ["EquationLimits", "equation_limits"]
+__all__ = ["EquationLimits", "equation_limits", "condition_limits"]
 
 
 @dataclass(frozen=True)
 class EquationLimits:
-    """What one equation may hold (``[equations]`` of ``condmon/data/limits.toml``).
+    """What one equation (``[equations]`` of ``condmon/data/limits.toml``) or
+    a regime's condition (``[conditions]``) may hold.
 
     Attributes
     ----------
@@ -36,7 +36,6 @@ class EquationLimits:
     time_limit: float = 10.0
 
 
-@functools.lru_cache(maxsize=1)
 def equation_limits() -> EquationLimits:
     """The shipped limits (``condmon/data/limits.toml``).
 
@@ -45,10 +44,20 @@ def equation_limits() -> EquationLimits:
     >>> equation_limits().max_exponent
     64.0
     """
-    from condmon.io.config import load_default
+    from condmon.io.config import shipped_limits
 
-    raw = dict(load_default("limits.toml").get("equations", {}))
-    return EquationLimits(int(raw.get("max_length", 20000)), int(raw.get("max_depth", 200)),
-                          float(raw.get("max_exponent", 64.0)),
-                          float(raw.get("max_literal", 1e300)),
-                          int(raw.get("max_exp_nesting", 2)), float(raw.get("time_limit", 10.0)))
+    return shipped_limits("equations", EquationLimits)
+
+
+def condition_limits() -> EquationLimits:
+    """The shipped limits on a regime's condition (``[conditions]`` of
+    ``condmon/data/limits.toml``; of its fields, the first four apply).
+
+    Example
+    -------
+    >>> condition_limits().max_depth
+    40
+    """
+    from condmon.io.config import shipped_limits
+
+    return shipped_limits("conditions", EquationLimits)

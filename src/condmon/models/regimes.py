@@ -32,7 +32,7 @@ comparisons (``< <= > >= == !=``, chained), ``and``, ``or``, ``not``,
 parentheses, ``abs``, ``sqrt``, ``exp``, ``log``, ``sin``, ``cos``, ``tanh``,
 ``sign``, ``min``, ``max``, and text constants compared with metadata
 (``load == "butterfly"``). It is parsed with :mod:`ast`, never evaluated by
-Python, and refused beyond :data:`LIMITS`.
+Python, and refused beyond :func:`~condmon.models.limits.condition_limits`.
 """
 
 from __future__ import annotations
@@ -47,25 +47,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from condmon.errors import ConfigError, DataError
+from condmon.models.limits import condition_limits
 
 __all__ = ["Regime", "RegimeSpec", "Condition", "parse_condition", "parse_regimes",
-           "LIMITS", "regime_key", "split_key"]
+           "regime_key", "split_key"]
 
 FloatArray = NDArray[np.float64]
-
-def _limits() -> dict[str, float]:
-    from condmon.io.config import load_default
-
-    raw = dict(load_default("limits.toml").get("conditions", {}))
-    return {"length": float(raw.get("max_length", 2000)), "depth": float(raw.get("max_depth", 40)),
-            "literal": float(raw.get("max_literal", 1e300)),
-            "exponent": float(raw.get("max_exponent", 16.0))}
-
-
-#: Limits on a condition's text: length [characters], nesting depth, the
-#: magnitude of a numeric literal and of an exponent (``[conditions]`` of
-#: ``condmon/data/limits.toml``).
-LIMITS = _limits()
 
 _RESERVED = ("settle", "min_duration", "metadata")
 
@@ -187,13 +174,14 @@ def parse_condition(text: Any, where: str) -> Condition:
     ------
     ConfigError
         Naming ``where``: a syntax error, an unknown function, an unsupported
-        construct, or a text beyond :data:`LIMITS`.
+        construct, or a text beyond :func:`~condmon.models.limits.condition_limits`.
     """
     if not isinstance(text, str) or not text.strip():
         raise ConfigError(f"{where}.when must be a condition such as \"omega > 0.1\"")
-    if len(text) > LIMITS["length"]:
+    lim = condition_limits()
+    if len(text) > lim.max_length:
         raise ConfigError(f"{where}.when: the condition is {len(text)} characters long "
-                          f"(limit {LIMITS['length']:g})")
+                          f"(limit {lim.max_length:g})")
     try:
         tree = ast.parse(text.strip(), mode="eval")
     except (SyntaxError, RecursionError, MemoryError, ValueError) as err:
@@ -202,15 +190,15 @@ def parse_condition(text: Any, where: str) -> Condition:
     names: set[str] = set()
 
     def check(node: ast.AST, depth: int) -> None:
-        if depth > LIMITS["depth"]:
+        if depth > lim.max_depth:
             raise ConfigError(f"{where}.when: {text!r} is nested deeper than "
-                              f"{LIMITS['depth']:g} levels")
+                              f"{lim.max_depth:g} levels")
         if isinstance(node, ast.Constant):
             if isinstance(node.value, bool) or not isinstance(node.value, (int, float, str)):
                 raise ConfigError(f"{where}.when: cannot use {ast.unparse(node)!r} in {text!r}")
-            if isinstance(node.value, (int, float)) and not abs(node.value) <= LIMITS["literal"]:
+            if isinstance(node.value, (int, float)) and not abs(node.value) <= lim.max_literal:
                 raise ConfigError(f"{where}.when: the number {ast.unparse(node)[:20]} in "
-                                  f"{text[:60]!r} is beyond {LIMITS['literal']:g}")
+                                  f"{text[:60]!r} is beyond {lim.max_literal:g}")
             return
         if isinstance(node, ast.Name):
             names.add(node.id)
@@ -220,9 +208,9 @@ def parse_condition(text: Any, where: str) -> Condition:
                 exp = node.right
                 value = exp.value if isinstance(exp, ast.Constant) else None
                 if (not isinstance(value, (int, float)) or isinstance(value, bool)
-                        or abs(value) > LIMITS["exponent"]):
+                        or abs(value) > lim.max_exponent):
                     raise ConfigError(f"{where}.when: an exponent must be a number within "
-                                      f"±{LIMITS['exponent']:g} in {text[:60]!r}")
+                                      f"±{lim.max_exponent:g} in {text[:60]!r}")
             check(node.left, depth + 1)
             check(node.right, depth + 1)
             return

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 import pytest
@@ -155,3 +156,35 @@ def test_the_numbers_a_user_reads_carry_their_units(history: tuple[str, Path], t
     # a unit in brackets in an option's help is shown, not taken for markup
     assert main(["serve", "--help"]) == 0
     assert "often [s]" in " ".join(capsys.readouterr().out.split())
+
+
+def _commands(group: Any, path: tuple[str, ...] = ()) -> list[tuple[tuple[str, ...], Any]]:
+    out = [(path, group)]
+    for name, cmd in getattr(group, "commands", {}).items():
+        out += _commands(cmd, (*path, name))
+    return out
+
+
+def test_help_is_whole_sentences_with_its_units(capsys: pytest.CaptureFixture[str],
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    import re
+
+    import typer
+
+    from condmon.cli.main import app
+
+    monkeypatch.setenv("COLUMNS", "250")
+    for path, cmd in _commands(typer.main.get_command(app)):
+        capsys.readouterr()
+        assert main([*path, "--help"]) == 0
+        text = capsys.readouterr().out
+        flat = " ".join(re.sub(r"[│╭╮╰╯─]", " ", text).split())
+        # every sentence of the command's own help and of each option's is there whole
+        for param in cmd.params:
+            for unit in re.findall(r"\[[^\]]*\]", getattr(param, "help", None) or ""):
+                assert unit in flat, (path, param.name, unit)
+        for name, sub in getattr(cmd, "commands", {}).items():
+            row = next(line for line in text.splitlines() if line.startswith(f"│ {name} "))
+            assert row.rstrip(" │").endswith("."), (path, name, row)
+            first = (sub.help or "").split("\n\n")[0]
+            assert " ".join(first.split()) in flat, (path, name)

@@ -4,6 +4,7 @@ not refused by rounding, a baseline add that adds nothing says so."""
 from __future__ import annotations
 
 import dataclasses
+import re
 from pathlib import Path
 from typing import Any
 
@@ -138,11 +139,16 @@ def test_the_numbers_a_user_reads_carry_their_units(history: tuple[str, Path], t
     db = str(tmp_path / "u.db")
     assert main(["baseline", "add", *(str(folder / f"r{k}.csv") for k in range(3)),
                  "--unit", "E1", "--db", db]) == 0
-    capsys.readouterr()
+    rows = {line.split("│")[1].strip(): line for line in capsys.readouterr().out.splitlines()
+            if line.count("│") > 3}
+    assert "ohm" in rows["R"] and "H" in rows["L"]  # the baseline's table
     assert main(["check", str(folder / "r4.csv"), "--unit", "E1", "--db", db, "--dry-run"]) == 0
     rows = {line.split("│")[1].strip(): line for line in capsys.readouterr().out.splitlines()
             if line.count("│") > 3}
     assert "ohm" in rows["R"] and "N m s/rad" in rows["D"] and "kg m^2" in rows["J"]
+    assert main(["baseline", "list", "--unit", "E1", "--db", db]) == 0
+    listed = capsys.readouterr().out
+    assert "#1-#3" in listed and re.search(r"\n  R: [0-9.e-]+ ± [0-9.e-]+ ohm\n", listed)
     assert main(["simulate", "actuator", "--out", str(tmp_path / "a.csv"),
                  "--fault", "R=+40%"]) == 0
     assert "R=1.4 ohm" in capsys.readouterr().err.replace("\n", " ")
@@ -167,8 +173,6 @@ def _commands(group: Any, path: tuple[str, ...] = ()) -> list[tuple[tuple[str, .
 
 def test_help_is_whole_sentences_with_its_units(capsys: pytest.CaptureFixture[str],
                                                 monkeypatch: pytest.MonkeyPatch) -> None:
-    import re
-
     import typer
 
     from condmon.cli.main import app

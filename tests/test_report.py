@@ -191,7 +191,8 @@ def test_flags_and_baseline_are_shown(fleet: tuple[str, dict[str, int]],
     assert box is not None and "may not be trustworthy (2 warnings)" in box.group(0)
     assert f"<a href='#t{ids['worn']}'>#{ids['worn']}</a>" in box.group(0)
     assert "<h2 id='baseline'>Baseline default v1</h2>" in html and "N = 5" in html
-    assert re.search(r"<td class='l'>D</td><td>[0-9.e-]+ ± [0-9.e-]+</td>", html)
+    assert re.search(r"<td class='l'>D</td><td>[0-9.e-]+ ± [0-9.e-]+</td>"
+                     r"<td class='l'>N m s/rad</td>", html)
 
 
 def test_excluding_the_worn_test_changes_the_report(fleet: tuple[str, dict[str, int]],

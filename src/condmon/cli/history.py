@@ -130,11 +130,14 @@ def register(app: typer.Typer, baseline_app: typer.Typer) -> None:
         as_json: JsonOpt = False,
     ) -> None:
         """Every version of the unit's baselines: tests, reason, flags (* = active)."""
+        from condmon.models.regimes import split_key
+        from condmon.models.registry import get_model
         from condmon.store.db import open_store
 
         with open_store(db, create=False) as store:
             versions = store.baselines(unit)
             active = store.active_baseline_name(unit)
+            model = store.unit_model(unit)
         latest = {b.name: b.id for b in versions}
         if as_json:
             write_json({"unit": unit, "active": active,
@@ -146,14 +149,19 @@ def register(app: typer.Typer, baseline_app: typer.Typer) -> None:
         for b in versions:
             mark = "*" if b.name == active and latest[b.name] == b.id else ""
             table.add_row(mark, escape(b.name), str(b.version), f"{b.created_at:%Y-%m-%d %H:%M}",
-                          str(b.baseline.n), ",".join(f"#{i}" for i in b.test_ids),
+                          str(b.baseline.n), _id_ranges(b.test_ids),
                           str(len(b.flags)) if b.flags else "", escape(b.reason or ""))
         out.print(table)
         current = [b for b in versions if b.name == active and latest[b.name] == b.id]
         if current:
             b = current[0]
+            units = get_model(model).units if model is not None else {}
+            out.print(f"{b.name} v{b.version}: mean ± standard deviation of its tests",
+                      highlight=False, markup=False)
             for p, m, sd in zip(b.baseline.parameters, b.baseline.mean, b.baseline.std):
-                out.print(f"  {p}: {fmt(m)} ± {fmt(sd)}", highlight=False, markup=False)
+                unit_of = units.get(split_key(p)[0], "")
+                out.print(f"  {p}: {fmt(m)} ± {fmt(sd)} {unit_of}".rstrip(), highlight=False,
+                          markup=False)
             print_flags(b.flags, unit)
 
     @app.command("audit")
@@ -188,3 +196,14 @@ def register(app: typer.Typer, baseline_app: typer.Typer) -> None:
             table.add_row(str(r["at"])[:16], text("actor"), text("action"), text("unit"),
                           ref, text("reason"))
         out.print(table)
+
+
+def _id_ranges(ids: Any) -> str:
+    """Test ids as runs: ``#1-#5,#8`` for 1, 2, 3, 4, 5, 8."""
+    runs: list[list[int]] = []
+    for i in sorted(int(x) for x in ids):
+        if runs and i == runs[-1][1] + 1:
+            runs[-1][1] = i
+        else:
+            runs.append([i, i])
+    return ",".join(f"#{a}" if a == b else f"#{a}-#{b}" for a, b in runs)

@@ -302,6 +302,7 @@ def baseline_add_cmd(
 
     from condmon.io.dates import parse_date
     from condmon.models.registry import get_model
+    from condmon.models.regimes import split_key
 
     opts = _options(method, gamma, excitation, columns, fit_threshold, model, route, constants,
                     sample_rate, scale, offset, ignore, meta, window)
@@ -352,10 +353,11 @@ def baseline_add_cmd(
         out.print(f"note: {note}", highlight=False, markup=False, soft_wrap=True)
     if res.baseline is not None:
         table = Table(title=escape(f"Baseline of {unit} (N = {res.baseline.n})"))
-        for col in ("parameter", "mean", "std", "std %"):
-            table.add_column(col, justify="left" if col == "parameter" else "right")
+        for col in ("parameter", "mean", "std", "unit", "std %"):
+            table.add_column(col, justify="left" if col in ("parameter", "unit") else "right")
         for p, m, sd in zip(res.baseline.parameters, res.baseline.mean, res.baseline.std):
-            table.add_row(escape(p), fmt(m), fmt(sd), f"{100 * sd / abs(m):.2f}")
+            table.add_row(escape(p), fmt(m), fmt(sd), escape(res.units.get(split_key(p)[0], "")),
+                          f"{100 * sd / abs(m):.2f}")
         out.print(table)
     print_flags(res.flags, unit)
     offered = [t for t in res.tests if not t.duplicate]

@@ -114,7 +114,7 @@ def _head(unit: str, model: str, hist: Any, isos: Any, summary: Mapping[str, Any
 
 
 def _tests_part(store: HistoryStore, unit: str, hist: Any, cfg: MonitorConfig, stored: Any,
-                out: Path, name: str, fit_threshold: float
+                out: Path, name: str, fit_threshold: float, units: Mapping[str, str]
                 ) -> tuple[list[str], list[Path], tuple[TrendData, ...], FitData, dict[int, str]]:
     """The checks, baseline, figures and tests table of an actuator unit."""
     from condmon.report import figures as F
@@ -135,7 +135,7 @@ def _tests_part(store: HistoryStore, unit: str, hist: Any, cfg: MonitorConfig, s
         body.append(f"<p>Latest check <a href='#t{tid}'>#{tid}</a> ({when(last['date'])} UTC): "
                     f"{badge(last['status'])} {esc(what)}</p>")
         body.append(faults_table(check_faults(store, tid, last["baseline_id"])))
-    body.append(baseline_section(stored, cfg))
+    body.append(baseline_section(stored, cfg, units))
     trends = tuple(trend_data(hist, p, by_id, cfg.r1[p], cfg.r2[p], cfg.k, active)
                    for p in params)
     fits = fit_data(hist)
@@ -217,11 +217,11 @@ def write_report(store: HistoryStore, unit: str, out_dir: str | Path,
         from condmon.models.registry import get_model
         from condmon.monitor.generic import machine_monitor
 
-        cfg = monitor or machine_monitor(get_model(model),
-                                         stored.baseline if stored is not None else None)
+        machine = get_model(model)
+        cfg = monitor or machine_monitor(machine, stored.baseline if stored is not None else None)
         cfg = cfg.keyed([c for c in hist.columns if f"{c}_se" in hist.columns])
         part, figs, trends, fits, notes = _tests_part(store, unit, hist, cfg, stored, out, name,
-                                                      fit_threshold)
+                                                      fit_threshold, machine.units)
         body += part
     iso_data = None
     if len(isos):

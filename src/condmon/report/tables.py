@@ -92,9 +92,13 @@ def flags_box(stored: Any) -> str:
             "rebuilt and the checks re-evaluated.</div>")
 
 
-def baseline_section(stored: Any, cfg: MonitorConfig) -> str:
+def baseline_section(stored: Any, cfg: MonitorConfig,
+                     units: Mapping[str, str] | None = None) -> str:
     """The active baseline: name, version, tests, reason, and per parameter
-    mean ± std with the band it draws (±k·std) and the breakpoints."""
+    mean ± std in its unit (``units``: by parameter, a regime's ``Tc@forward``
+    under ``Tc``) with the band it draws (±k·std) and the breakpoints."""
+    from condmon.models.regimes import split_key
+
     if stored is None:
         return ("<h2 id='baseline'>Baseline</h2><p class='sub'>No baseline yet (fewer than 3 "
                 "accepted healthy tests): checks are not evaluated.</p>")
@@ -103,7 +107,9 @@ def baseline_section(stored: Any, cfg: MonitorConfig) -> str:
     for p, m, s in zip(b.parameters, b.mean, b.std):
         rel = 100.0 * s / abs(m) if m else float("nan")
         r1, r2 = cfg.r1.get(p), cfg.r2.get(p)
+        unit = (units or {}).get(split_key(p)[0], "")
         rows.append(f"<tr><td class='l'>{esc(p)}</td><td>{m:.5g} ± {s:.3g}</td>"
+                    f"<td class='l'>{esc(unit)}</td>"
                     f"<td>{rel:.2f}</td><td>±{cfg.k * rel:.2f}</td>"
                     f"<td>{'—' if r1 is None else f'{r1:g}'}</td>"
                     f"<td>{'—' if r2 is None else f'{r2:g}'}</td></tr>")
@@ -111,7 +117,8 @@ def baseline_section(stored: Any, cfg: MonitorConfig) -> str:
     return (f"<h2 id='baseline'>Baseline {esc(stored.name)} v{stored.version}</h2>"
             f"<p class='sub'>N = {b.n}, made {when(stored.created_at)} UTC{reason}; tests "
             f"{_test_links(stored.test_ids)}</p>"
-            "<table><tr><th class='l'>parameter</th><th>mean ± std</th><th>std [%]</th>"
+            "<table><tr><th class='l'>parameter</th><th>mean ± std</th><th class='l'>unit</th>"
+            "<th>std [%]</th>"
             f"<th>band ±{cfg.k:g}·std [%]</th><th>r1 [%]</th><th>r2 [%]</th></tr>"
             f"{''.join(rows)}</table>")
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
 
@@ -82,6 +82,9 @@ class BaselineAddResult:
         :func:`condmon.monitor.assess_baseline`); empty when nothing is suspicious.
     notes : tuple of str
         What the user should know at once (a model monitored generically).
+    units : dict of str to str
+        Unit of each of the model's parameters (a regime's ``Tc@forward`` has
+        ``Tc``'s); empty without a baseline.
     """
 
     tests: tuple[AddedTest, ...]
@@ -90,6 +93,7 @@ class BaselineAddResult:
     message: str
     flags: tuple[dict[str, Any], ...] = ()
     notes: tuple[str, ...] = ()
+    units: dict[str, str] = field(default_factory=dict)
 
 
 def unit_monitor(store: HistoryStore, unit: str, baseline: Baseline | None = None
@@ -389,7 +393,7 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
                              f"baseline of {unit!r} from {stored.baseline.n} accepted healthy "
                              f"tests ({stored.name!r} v{stored.version})"
                              + (f"; regimes: {regimes}" if regimes else ""), stored.flags,
-                             notes)
+                             notes, machine.units)
 
 
 def _regime_counts(baseline: Baseline) -> str:

@@ -149,6 +149,8 @@ def test_the_numbers_a_user_reads_carry_their_units(history: tuple[str, Path], t
     assert main(["baseline", "list", "--unit", "E1", "--db", db]) == 0
     listed = capsys.readouterr().out
     assert "#1-#3" in listed and re.search(r"\n  R: [0-9.e-]+ ± [0-9.e-]+ ohm\n", listed)
+    assert main(["history", "--unit", "E1", "--db", db]) == 0
+    assert "(N = 3): #1-#3" in capsys.readouterr().out
     assert main(["simulate", "actuator", "--out", str(tmp_path / "a.csv"),
                  "--fault", "R=+40%"]) == 0
     assert "R=1.4 ohm" in capsys.readouterr().err.replace("\n", " ")

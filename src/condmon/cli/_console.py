@@ -22,6 +22,17 @@ def fmt(value: float) -> str:
     return f"{value:.5g}"
 
 
+def id_runs(ids: Any) -> str:
+    """Test ids as runs: ``#1-#5,#8`` for 1, 2, 3, 4, 5, 8."""
+    runs: list[list[int]] = []
+    for i in sorted(int(x) for x in ids):
+        if runs and i == runs[-1][1] + 1:
+            runs[-1][1] = i
+        else:
+            runs.append([i, i])
+    return ",".join(f"#{a}" if a == b else f"#{a}-#{b}" for a, b in runs)
+
+
 def write_json(doc: Any) -> None:
     """Print ``doc`` as JSON. Never raises on the content: a non-finite number
     (NaN, ±inf) becomes null, numpy scalars and arrays become numbers and lists,

@@ -10,7 +10,7 @@ from rich import box
 from rich.markup import escape
 from rich.table import Table
 
-from condmon.cli._console import err, fmt, out, write_json
+from condmon.cli._console import err, fmt, id_runs, out, write_json
 
 if TYPE_CHECKING:
     from condmon.store.db import HistoryStore
@@ -149,7 +149,7 @@ def register(app: typer.Typer, baseline_app: typer.Typer) -> None:
         for b in versions:
             mark = "*" if b.name == active and latest[b.name] == b.id else ""
             table.add_row(mark, escape(b.name), str(b.version), f"{b.created_at:%Y-%m-%d %H:%M}",
-                          str(b.baseline.n), _id_ranges(b.test_ids),
+                          str(b.baseline.n), id_runs(b.test_ids),
                           str(len(b.flags)) if b.flags else "", escape(b.reason or ""))
         out.print(table)
         current = [b for b in versions if b.name == active and latest[b.name] == b.id]
@@ -197,13 +197,3 @@ def register(app: typer.Typer, baseline_app: typer.Typer) -> None:
                           ref, text("reason"))
         out.print(table)
 
-
-def _id_ranges(ids: Any) -> str:
-    """Test ids as runs: ``#1-#5,#8`` for 1, 2, 3, 4, 5, 8."""
-    runs: list[list[int]] = []
-    for i in sorted(int(x) for x in ids):
-        if runs and i == runs[-1][1] + 1:
-            runs[-1][1] = i
-        else:
-            runs.append([i, i])
-    return ",".join(f"#{a}" if a == b else f"#{a}-#{b}" for a, b in runs)

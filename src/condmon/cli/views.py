@@ -10,7 +10,7 @@ from rich import box
 from rich.markup import escape
 from rich.table import Table
 
-from condmon.cli._console import err, out, progress, status_text, write_json
+from condmon.cli._console import err, id_runs, out, progress, status_text, write_json
 from condmon.cli.history import print_flags
 
 __all__ = ["register"]
@@ -167,7 +167,7 @@ def register(app: typer.Typer) -> None:
             out.print(line, highlight=False, markup=False)
         if baseline is not None:
             out.print(f"baseline {baseline.name!r} v{baseline.version} (N = {baseline.baseline.n}): "
-                      + ", ".join(f"#{i}" for i in baseline.test_ids), highlight=False, markup=False)
+                      + id_runs(baseline.test_ids), highlight=False, markup=False)
             print_flags(baseline.flags, unit)
 
 

@@ -37,9 +37,13 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
     @simulate_app.command("plant")
     def simulate_plant_cmd(model: ModelArg, out_path: OutOpt, fault: FaultOpt = None,
                            params: ParamsOpt = None, seed: SeedOpt = 0,
-                           duration: DurationOpt = None) -> None:
-        """Simulate the built-in test of any declared plant model (a .toml file)."""
-        _simulate(model, out_path, fault, params, seed, duration)
+                           duration: DurationOpt = None,
+                           si: Annotated[bool, typer.Option("--si", help="Write the model's columns in SI units, not as the rig writes its files (the declaration's [record]).")] = False) -> None:
+        """Simulate the built-in test of any declared plant model (a .toml file).
+
+        A declaration with a [record] table gets a file as its rig writes it
+        (file column names, raw units), which its own estimate reads back."""
+        _simulate(model, out_path, fault, params, seed, duration, si)
 
     @app.command("isolate")
     def isolate_cmd(
@@ -122,20 +126,28 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
 
 
 def _simulate(model: str, out_path: Path, fault: list[str] | None, params: Path | None,
-              seed: int, duration: float | None) -> None:
+              seed: int, duration: float | None, si: bool = False) -> None:
     from condmon.io.records import write_record
+    from condmon.io.rig import rig_layout
     from condmon.models.declared import load_plant_model
+    from condmon.models.registry import get_model
     from condmon.simulate.plant import parameter_steps, simulate_plant
 
     plant = load_plant_model(model, params)
     steps = parameter_steps(plant, fault or ())
     rec = simulate_plant(plant, fault or (), seed=seed, duration=duration)
+    rig = None if si else get_model(model).record
+    if rig is not None and not rig.empty:
+        rec = rig_layout(rec, rig)
     write_record(rec, out_path)
     units = {p.name: p.unit for p in plant.parameters}
     faults = ", ".join(f"{s.name}={fmt(s.value)} {units.get(s.name, '')} at {s.at:g} s"
                        .replace("  at", " at") for s in steps) or "none"
-    err.print(f"wrote {len(rec)} samples to {out_path} (model {plant.name}, faults: {faults})",
-              highlight=False)
+    layout = (f"; written as the rig writes it ({', '.join(map(str, rec.columns))}, its "
+              "[record] settings; --si for model columns in SI units)"
+              if rig is not None and not rig.empty else "")
+    err.print(f"wrote {len(rec)} samples to {out_path} (model {plant.name}, faults: {faults})"
+              + layout, highlight=False, markup=False)
 
 
 def _print_isolation(res: IsolationResult) -> None:

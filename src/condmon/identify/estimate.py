@@ -200,7 +200,7 @@ def estimate(record: pd.DataFrame, model: str | Machine = "dc-motor", *,
     n_unknowns = len(machine.spec.unknowns)
     rec = validate_record(df, (*_required_columns(machine, chosen), *exc),
                           input_name=machine.linear().input if chosen == "linear" else None,
-                          min_samples=10 * (n_unknowns + 1), source=source,
+                          inputs=machine.plant.input_names, min_samples=10 * (n_unknowns + 1), source=source,
                           optional=_condition_columns(machine))
     consts = dict(df.attrs.get("constants", {}) or {})
     _check_constants(machine, given, strict=tuple(given))
@@ -276,7 +276,7 @@ def estimate_joint(records: Sequence[pd.DataFrame], model: str | Machine = "dc-m
         frame = _record_frame(df, machine, columns, settings, name)
         consts.update(dict(frame.attrs.get("constants", {}) or {}))
         recs.append(validate_record(frame, _required_columns(machine, chosen),
-                                    min_samples=10 * (len(machine.spec.unknowns) + 1),
+                                    inputs=machine.plant.input_names, min_samples=10 * (len(machine.spec.unknowns) + 1),
                                     source=name, optional=_condition_columns(machine)))
     consts.update(given)
     consts.update(fixed)

@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 from condmon.errors import ConfigError, ModelError
 from condmon.io.config import load_default, load_toml
 from condmon.models import derived_cache
+from condmon.models.excitation import Excitation, parse_excitation
 
 if TYPE_CHECKING:
     import sympy as sp
@@ -127,11 +128,13 @@ class InputStep:
 
 @dataclass(frozen=True)
 class BuiltInTest:
-    """The built-in test: ``duration`` [s] at ``sample_rate`` [Hz], known input steps."""
+    """The built-in test: ``duration`` [s] at ``sample_rate`` [Hz], known input steps
+    and the excitation added to the inputs (:mod:`condmon.models.excitation`)."""
 
     duration: float
     sample_rate: float
     schedule: tuple[InputStep, ...] = ()
+    excitation: tuple[Excitation, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -486,7 +489,8 @@ def _from_doc(doc: Mapping[str, Any], src: str) -> PlantModel:
                               _range(f, f"{src}[sensors.{k}].range", finite=False)
                               if "range" in f else (-math.inf, math.inf),
                               f.get("description", "")))
-    t = _fields(_table(doc, "test", src), f"{src}[test]", ("duration", "sample_rate"), ("schedule",))
+    t = _fields(_table(doc, "test", src), f"{src}[test]", ("duration", "sample_rate"),
+                ("schedule", "excitation"))
     steps = []
     for i, s in enumerate(t.get("schedule", [])):
         where = f"{src}[test].schedule[{i}]"
@@ -498,7 +502,9 @@ def _from_doc(doc: Mapping[str, Any], src: str) -> PlantModel:
                                _number(f["value"], where) if "value" in f else None))
     test = BuiltInTest(_number(t["duration"], f"{src}[test].duration"),
                        _number(t["sample_rate"], f"{src}[test].sample_rate"),
-                       tuple(sorted(steps, key=lambda s: s.at)))
+                       tuple(sorted(steps, key=lambda s: s.at)),
+                       parse_excitation(t.get("excitation", []), f"{src}[test]",
+                                        [u.name for u in inputs]))
     smooth = _fields(_table(doc, "smoothing", src), f"{src}[smoothing]", (), ("eps",))
     eps = _number(smooth["eps"], f"{src}[smoothing].eps") if "eps" in smooth else None
     if eps is not None and eps < 0:

@@ -105,3 +105,27 @@ def test_a_record_whose_inputs_never_move_is_refused_naming_them(
     assert main(["estimate", str(rec), "--model", model]) == 2
     err = capsys.readouterr().err
     assert "column 'vir' is constant: no excitation" in err and "overflow" not in err
+
+
+@pytest.mark.parametrize("entry,message", [
+    ('{ input = "u", signal = "chirp", amplitude = 1.0, period = 1.0 }',
+     "'chirp' is not a signal; allowed: prbs, square, sine"),
+    ('{ input = "w", signal = "prbs", amplitude = 1.0, hold = 0.05 }',
+     "unknown input 'w'; allowed: u"),
+    ('{ input = "u", signal = "prbs", amplitude = 1.0, hold = 1e-12 }',
+     "hold: 1e-12 s is shorter than one sample (0.001 s at 1000 Hz)"),
+    ('{ input = "u", signal = "sine", amplitude = 1.0, hold = 0.1 }',
+     "unknown key 'hold'; a sine excitation takes amplitude, input, period, signal"),
+    ('{ input = "u", signal = "square", amplitude = 1.0, period = -2 }',
+     "period must be > 0 [s], not -2"),
+])
+def test_a_bad_excitation_is_refused_naming_the_entry(
+        entry: str, message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    text = (EXAMPLES / "template.toml").read_text()
+    start = text.index("excitation = [")
+    end = text.index("\n", start)
+    decl = tmp_path / "m.toml"
+    decl.write_text(text[:start] + f"excitation = [{entry}]" + text[end:])
+    assert main(["simulate", "plant", str(decl), "--out", str(tmp_path / "r.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "m.toml[test].excitation[0]" in err and message in " ".join(err.split()), err

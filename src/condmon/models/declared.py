@@ -500,11 +500,11 @@ def _from_doc(doc: Mapping[str, Any], src: str) -> PlantModel:
         steps.append(InputStep(str(f["input"]), _number(f["at"], f"{where}.at"),
                                _number(f["factor"], where) if "factor" in f else None,
                                _number(f["value"], where) if "value" in f else None))
-    test = BuiltInTest(_number(t["duration"], f"{src}[test].duration"),
-                       _number(t["sample_rate"], f"{src}[test].sample_rate"),
+    fs = _number(t["sample_rate"], f"{src}[test].sample_rate")
+    test = BuiltInTest(_number(t["duration"], f"{src}[test].duration"), fs,
                        tuple(sorted(steps, key=lambda s: s.at)),
                        parse_excitation(t.get("excitation", []), f"{src}[test]",
-                                        [u.name for u in inputs]))
+                                        [u.name for u in inputs], fs))
     smooth = _fields(_table(doc, "smoothing", src), f"{src}[smoothing]", (), ("eps",))
     eps = _number(smooth["eps"], f"{src}[smoothing].eps") if "eps" in smooth else None
     if eps is not None and eps < 0:

@@ -82,7 +82,8 @@ def _number(value: Any, where: str) -> float:
     return float(value)
 
 
-def parse_excitation(entries: Any, where: str, inputs: Sequence[str]) -> tuple[Excitation, ...]:
+def parse_excitation(entries: Any, where: str, inputs: Sequence[str],
+                     sample_rate: float = math.inf) -> tuple[Excitation, ...]:
     """The ``excitation`` list of a ``[test]`` table, validated.
 
     Parameters
@@ -93,12 +94,15 @@ def parse_excitation(entries: Any, where: str, inputs: Sequence[str]) -> tuple[E
         The declaration's name and table, for messages (``"x.toml[test]"``).
     inputs : sequence of str
         The declared inputs.
+    sample_rate : float
+        The test's sample rate: a ``prbs`` level is held one sample at least. [Hz]
 
     Raises
     ------
     ConfigError
         Naming the entry and the key: an unknown input or signal, a missing
-        or non-positive time scale, an unknown key.
+        or non-positive time scale (a ``prbs`` hold shorter than a sample), an
+        unknown key.
 
     Example
     -------
@@ -134,6 +138,9 @@ def parse_excitation(entries: Any, where: str, inputs: Sequence[str]) -> tuple[E
         interval = _number(e[scale], f"{at}.{scale}")
         if not interval > 0:
             raise ConfigError(f"{at}.{scale} must be > 0 [s], not {interval:g}")
+        if signal == "prbs" and 0 < sample_rate and interval * sample_rate < 1.0 - 1e-9:
+            raise ConfigError(f"{at}.hold: {interval:g} s is shorter than one sample "
+                              f"({1.0 / sample_rate:g} s at {sample_rate:g} Hz)")
         start = _number(e.get("start", 0.0), f"{at}.start")
         stop = _number(e["stop"], f"{at}.stop") if "stop" in e else math.inf
         if not stop > start:

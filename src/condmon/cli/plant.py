@@ -68,6 +68,7 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
         from condmon.errors import ConfigError
         from condmon.io.records import parse_column_map, read_record
         from condmon.models.declared import load_plant_model
+        from condmon.models.registry import recognised_records
 
         mapping = parse_column_map(columns) or None
         if residuals not in RESIDUAL_KINDS:
@@ -95,8 +96,9 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
             def tick(done: int, total: int, label: str) -> None:
                 prog.update(task, completed=done, total=total, description=label)
 
-            res = isolate(rec, plant, normalisation=norm, kind=residuals,  # type: ignore[arg-type]
-                          settings=cfg, workers=workers, progress=tick, source=str(record))
+            with recognised_records(model):
+                res = isolate(rec, plant, normalisation=norm, kind=residuals,  # type: ignore[arg-type]
+                              settings=cfg, workers=workers, progress=tick, source=str(record))
         if plots is not None:
             from condmon.report.isolation_figures import write_isolation_figures
 

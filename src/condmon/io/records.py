@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 
-from condmon.errors import DataError, DataWarning
+from condmon.errors import DataError, DataWarning, MissingColumnsError
 from condmon.io.readers import read_record
 
 __all__ = ["Record", "read_record", "validate_record", "check_time_base", "parse_column_map",
@@ -200,9 +200,11 @@ def validate_record(df: pd.DataFrame, required: Sequence[str],
     names = ["t", *required]
     missing = [c for c in names if c not in df.columns]
     if missing:
-        raise DataError(f"{src}: missing column(s) {', '.join(repr(m) for m in missing)}; "
-                        f"the record has {list(map(str, df.columns))} "
-                        "(map names with --columns V=your_name,...)")
+        raise MissingColumnsError(
+            f"{src}: missing column(s) {', '.join(repr(m) for m in missing)}; the record has "
+            f"{list(map(str, df.columns))} (map names with the record settings: "
+            f"{missing[0]}=FILE_COLUMN in --columns or [record.columns])", tuple(missing),
+            tuple(map(str, df.columns)))
     names += [c for c in optional if c in df.columns and c not in names]
     n_rows = len(df)
     cols: dict[str, FloatArray] = {}

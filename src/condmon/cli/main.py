@@ -452,8 +452,15 @@ def check_cmd(
     if res.diagnosis.no_fault:
         out.print("no fault")
     for f in res.diagnosis.faults:
-        out.print(f"[bold]{escape(f.name)}[/] — degree {f.degree:.2f} ({escape(f.severity)}): "
+        level = ("major: at no-go level" if f.severity == "major" else
+                 "minor: at advisory level" + (", a major fault if it grows"
+                                               if f.rule_severity == "major" else ""))
+        out.print(f"[bold]{escape(f.name)}[/] — degree {f.degree:.2f} ({level}): "
                   f"{escape(f.advice)}")
+    if res.diagnosis.watch:
+        out.print("to watch (below advisory level, not faults): " + ", ".join(
+            f"{f.name} ({f.degree:.2f})" for f in res.diagnosis.watch), highlight=False,
+            markup=False, soft_wrap=True)
 
 
 register_view_commands(app)  # after the commands above: their order in --help

@@ -11,6 +11,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from condmon.cli._console import err, fmt, out, progress, write_json
+from condmon.cli._options import greedy_command
 
 if TYPE_CHECKING:
     from condmon.diagnose.isolation import IsolationResult
@@ -45,13 +46,13 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
         (file column names, raw units), which its own estimate reads back."""
         _simulate(model, out_path, fault, params, seed, duration, si)
 
-    @app.command("isolate")
+    @app.command("isolate", cls=greedy_command("--healthy"))
     def isolate_cmd(
         model: ModelArg,
         record: Annotated[Path, typer.Argument(help="Record (CSV, Parquet, .mat, TDMS) with t and the sensor columns.")],
         params: ParamsOpt = None,
         columns: Annotated[Optional[str], typer.Option(help="Column mapping CANONICAL=FILE_COLUMN,... e.g. Ps=p_sys,omega_m=speed.")] = None,
-        healthy: Annotated[Optional[list[Path]], typer.Option(help="Healthy record to learn the residuals' normalisation from (repeatable; default: the sensors' declared noise).")] = None,
+        healthy: Annotated[Optional[list[Path]], typer.Option(help="Healthy records to learn the residuals' normalisation from (--healthy h1.csv h2.csv, or h*.csv; default: the sensors' declared noise).")] = None,
         residuals: Annotated[str, typer.Option(help="Residual set: simulation (one per sensor, the model from its inputs) or structured (every MSO computable by integration).")] = "simulation",
         settings: Annotated[Optional[Path], typer.Option(help="Detection/estimation/isolation settings TOML (default: the shipped isolation.toml).")] = None,
         workers: Annotated[Optional[int], typer.Option(help="Processes for the suspects' models (1: one after the other).")] = None,

@@ -238,6 +238,19 @@ class CompiledModel:
                                                           default=lambda x, u, p: [])
     _variables_raw: Callable[..., Any] = dataclasses.field(repr=False, compare=False,
                                                             default=lambda x, u, p: [])
+    _rhs_raw: Callable[..., Any] = dataclasses.field(repr=False, compare=False,
+                                                      default=lambda x, u, p: [])
+
+    def rhs_batch(self, x: FloatArray, u: FloatArray, p: FloatArray) -> FloatArray:
+        """Derivatives of many copies at once: ``x`` (n_states, N), ``u``
+        (n_inputs, N), ``p`` (n_params,) shared; returns (n_states, N)."""
+        return np.array([np.broadcast_to(np.asarray(v, dtype=np.float64), x.shape[1:])
+                         for v in self._rhs_raw(x, u, p)], dtype=np.float64)
+
+    def outputs_batch(self, x: FloatArray, u: FloatArray, p: FloatArray) -> FloatArray:
+        """Sensor readings of many copies: shapes as :meth:`rhs_batch`, (n_sensors, N)."""
+        return np.array([np.broadcast_to(np.asarray(v, dtype=np.float64), x.shape[1:])
+                         for v in self._outputs_raw(x, u, p)], dtype=np.float64)
 
     def outputs_on(self, x: FloatArray, u: FloatArray, p: FloatArray) -> FloatArray:
         """Sensor readings for many samples: ``x`` (n, n_states), ``u`` (n, n_inputs)."""
@@ -322,7 +335,8 @@ def _compile(model: PlantModel) -> CompiledModel:
             return np.array(fn(x, u, p), dtype=np.float64)
         return call
 
-    return CompiledModel(model, make(rhs), make(outputs), make(variables), outputs, variables)
+    return CompiledModel(model, make(rhs), make(outputs), make(variables), outputs, variables,
+                         rhs)
 
 
 def _lambdified(model: PlantModel, eps: float) -> tuple[Callable[..., Any], ...]:

@@ -1,0 +1,246 @@
+"""Many units of one plant model tracked online: model beside each stream, residuals, detection.
+
+A :class:`ModelTracker` holds one :class:`~condmon.simulate.stepper.BatchStepper`
+(the model's copies, one per unit, advanced together) and one
+:class:`~condmon.diagnose.online.OnlineDetector` per unit. Each call of
+:meth:`ModelTracker.feed` takes the chunks that arrived (any number of units,
+any lengths), advances every unit's model through its chunk, forms the
+residuals (measured − model) and judges them.
+
+What a stream does that a file does not is handled here, once:
+
+- a chunk that starts at or before the end of the unit's last one (a duplicate,
+  or one out of order) is dropped and counted;
+- a gap longer than ``max_gap`` samples, a change of sample interval, or a
+  restart of the clock resets the unit's model and detector, with a note;
+- a chunk's known inputs come from its columns, or the input's nominal value.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from condmon.diagnose.online import OnlineDetection, OnlineDetector, noise_figures
+from condmon.diagnose.residuals import DetectionSettings, Normalisation
+from condmon.errors import DataError
+from condmon.models.declared import PlantModel
+from condmon.simulate.stepper import BatchStepper
+
+__all__ = ["ChunkOutcome", "ModelTracker"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ChunkOutcome:
+    """What one chunk of one unit gave.
+
+    Attributes
+    ----------
+    unit : str
+    samples : int
+        Samples judged (0 when the chunk was dropped).
+    detection : OnlineDetection or None
+        The unit's detection, when it happened in this chunk.
+    dropped : str or None
+        Why the chunk was dropped (duplicate, out of order), None when used.
+    notes : tuple of str
+        Resets and assumptions (a gap, a restart, an input at its nominal value).
+    end : float
+        Time of the chunk's last sample. [s]
+    """
+
+    unit: str
+    samples: int
+    detection: OnlineDetection | None = None
+    dropped: str | None = None
+    notes: tuple[str, ...] = ()
+    end: float = math.nan
+
+
+@dataclass
+class _Unit:
+    slot: int
+    detector: OnlineDetector | None = None
+    last_t: float = -math.inf
+    dt: float = math.nan
+    last_u: FloatArray | None = None
+    pending: dict[str, FloatArray] | None = None
+
+
+@dataclass
+class ModelTracker:
+    """Track every unit of ``model`` beside its stream.
+
+    Parameters
+    ----------
+    model : PlantModel
+    settings : DetectionSettings
+    substeps : int
+        Runge-Kutta steps per sample of the model's copies.
+    max_gap : float
+        A gap longer than this many sample intervals resets the unit. [-]
+    normalisation : mapping of unit to Normalisation, optional
+        Learned figures per unit; others use the sensors' declared noise.
+
+    Example
+    -------
+    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.simulate.plant import simulate_plant
+    >>> m = load_plant_model("hst")
+    >>> rec = simulate_plant(m, ["Rv=+40%@10s"], seed=2, duration=16.0)
+    >>> tr = ModelTracker(m, DetectionSettings())
+    >>> cols = {c: rec[c].to_numpy() for c in rec.columns}
+    >>> out = [tr.feed({"HST-1": {c: v[k:k + 100] for c, v in cols.items()}})[0]
+    ...        for k in range(0, len(rec), 100)]
+    >>> [(o.end, o.detection.time) for o in out if o.detection]
+    [(10.99, 10.53)]
+    """
+
+    model: PlantModel
+    settings: DetectionSettings
+    substeps: int = 10
+    max_gap: float = 5.0
+    normalisation: Mapping[str, Normalisation] = field(default_factory=dict)
+    dropped: int = 0
+    _stepper: BatchStepper = field(init=False, repr=False)
+    _units: dict[str, _Unit] = field(init=False, repr=False, default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self._stepper = BatchStepper(self.model, self.substeps)
+
+    @property
+    def units(self) -> list[str]:
+        """The units tracked."""
+        return list(self._units)
+
+    def detection(self, unit: str) -> OnlineDetection | None:
+        """The unit's detection since its last reset (None: none)."""
+        u = self._units.get(unit)
+        return u.detector.detected if u is not None and u.detector is not None else None
+
+    def reset(self, unit: str) -> None:
+        """Start the unit's model and detector again (after an isolation, say)."""
+        u = self._units.get(unit)
+        if u is not None:
+            self._stepper.reset([u.slot])
+            if u.detector is not None:
+                u.detector.reset()
+
+    def feed(self, chunks: Mapping[str, Mapping[str, FloatArray]]) -> list[ChunkOutcome]:
+        """Advance and judge one chunk per unit (columns ``t`` and the sensors).
+
+        Chunks are validated first (:func:`condmon.io.stream.chunk_columns`
+        does it for a message); one of unequal lengths here is a DataError.
+        """
+        outcomes: dict[str, ChunkOutcome] = {}
+        ready: list[tuple[str, _Unit, FloatArray, FloatArray, FloatArray, list[str]]] = []
+        for name, given in chunks.items():
+            unit = self._units.get(name)
+            if unit is None:
+                unit = self._units[name] = _Unit(self._stepper.add())
+            cols = {c: np.asarray(v, dtype=np.float64) for c, v in given.items()}
+            if unit.pending is not None:
+                cols = {c: np.concatenate([unit.pending[c], v]) for c, v in cols.items()
+                        if c in unit.pending}
+                unit.pending = None
+            t = cols["t"]
+            if unit.detector is None and len(t) == 1:
+                # a stream's first sample alone tells no sample interval: kept for the next
+                unit.pending = cols
+                outcomes[name] = ChunkOutcome(name, 0, notes=(
+                    "first sample held until the next gives the sample interval",),
+                    end=float(t[0]))
+                continue
+            if len(t) == 0:
+                outcomes[name] = ChunkOutcome(name, 0, dropped="empty chunk")
+                continue
+            if t[0] <= unit.last_t and t[-1] >= unit.last_t - self.max_gap * unit.dt:
+                self.dropped += 1
+                what = "a duplicate" if t[-1] <= unit.last_t else "out of order"
+                outcomes[name] = ChunkOutcome(name, 0, dropped=(
+                    f"{what}: starts at t = {t[0]:g} s, not after the last sample "
+                    f"(t = {unit.last_t:g} s)"), end=float(t[-1]))
+                continue
+            notes = self._restart_if_needed(name, unit, t)
+            y = np.column_stack([np.asarray(cols[s], dtype=np.float64)
+                                 for s in self.model.sensor_names])
+            u = np.empty((len(t), len(self.model.inputs)))
+            for j, inp in enumerate(self.model.inputs):
+                if inp.name in cols:
+                    u[:, j] = np.asarray(cols[inp.name], dtype=np.float64)
+                else:
+                    u[:, j] = self.model.input_nominal(inp.name)
+                    notes.append(f"input {inp.name!r} not in the stream: at its nominal value")
+            ready.append((name, unit, t, y, u, notes))
+        predicted = self._advance(ready)
+        for (name, unit, t, y, u, notes), pred in zip(ready, predicted):
+            bad = ~np.isfinite(pred).all(axis=1)
+            if bad.any():
+                notes.append(f"the model's states overflowed at t = {t[int(np.argmax(bad))]:g} s: "
+                             "reset")
+                self.reset(name)
+            assert unit.detector is not None
+            found = unit.detector.feed(t, np.where(bad[:, None], 0.0, y - pred), u)
+            unit.last_t = float(t[-1])
+            outcomes[name] = ChunkOutcome(name, len(t), found, None, tuple(notes), float(t[-1]))
+        return [outcomes[n] for n in chunks]
+
+    def _restart_if_needed(self, name: str, unit: _Unit, t: FloatArray) -> list[str]:
+        """Start the unit afresh at its first chunk, after a gap, or at a new
+        sample interval; say why."""
+        dt = float(np.median(np.diff(t))) if len(t) > 1 else (
+            unit.dt if math.isfinite(unit.dt) else math.nan)
+        if not dt > 0:
+            if math.isfinite(unit.last_t):
+                dt = float(t[0]) - unit.last_t
+            if not dt > 0:
+                raise DataError(f"unit {name!r}: the chunk's sample interval is unknown "
+                                "(one sample, and none before it)")
+        notes: list[str] = []
+        if unit.detector is not None:
+            gap = float(t[0]) - unit.last_t
+            if abs(dt - unit.dt) > 1e-6 * unit.dt:
+                notes.append(f"sample interval changed from {unit.dt:g} s to {dt:g} s: the "
+                             "model is started again")
+            elif gap > self.max_gap * unit.dt:
+                notes.append(f"a gap of {gap:g} s in the stream (from t = {unit.last_t:g} s): "
+                             "the model is started again")
+            else:
+                return notes
+        norm = self.normalisation.get(name) or noise_figures(self.model, dt, self.settings)
+        self._stepper.reset([unit.slot])
+        unit.last_u = None
+        unit.detector = OnlineDetector(norm, self.settings, dt)
+        unit.dt = dt
+        return notes
+
+    def _advance(self, ready: list[tuple[str, _Unit, FloatArray, FloatArray, FloatArray,
+                                        list[str]]]) -> list[FloatArray]:
+        """The model's readings for every ready chunk, the units advanced together
+        sample by sample (a shorter chunk's unit stands still once it is done)."""
+        if not ready:
+            return []
+        slots = np.array([r[1].slot for r in ready], dtype=np.intp)
+        lengths = np.array([len(r[2]) for r in ready])
+        n_max = int(lengths.max())
+        n_in = len(self.model.inputs)
+        inputs = np.zeros((n_max, n_in, len(ready)))
+        steps = np.zeros((n_max, len(ready)))
+        for i, (_, unit, t, _, u, _) in enumerate(ready):
+            # the step to sample k holds the input of sample k-1 (as a logger
+            # holds it); the first sample of a fresh unit is its initial state
+            fresh = unit.last_u is None
+            inputs[: len(t), :, i] = np.vstack([u[:1] if fresh else unit.last_u, u[:-1]])
+            first = 0.0 if fresh else float(t[0]) - unit.last_t
+            steps[: len(t), i] = np.diff(t, prepend=float(t[0]) - first)
+            unit.last_u = u[-1:].copy()
+        out = np.empty((n_max, len(self.model.sensors), len(ready)))
+        for k in range(n_max):
+            out[k] = self._stepper.step(slots, inputs[k], steps[k])
+        return [out[: lengths[i], :, i] for i in range(len(ready))]

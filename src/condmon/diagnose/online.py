@@ -187,7 +187,7 @@ class OnlineDetector:
         assert self._start is not None
         ok = t >= self._start + self.settings.startup
         if self.settings.input_settle <= 0 or inputs.shape[1] == 0:
-            return ok  # type: ignore[no-any-return]
+            return ok
         for i in range(len(t)):
             u = inputs[i]
             if self._level is None:
@@ -201,4 +201,4 @@ class OnlineDetector:
                 self._level_n += 1
             if t[i] < self._settle_until:
                 ok[i] = False
-        return ok  # type: ignore[no-any-return]
+        return ok

@@ -180,7 +180,7 @@ class ModelTracker:
             ready.append((name, unit, t, y, u, notes))
         predicted = self._advance(ready)
         for (name, unit, t, y, u, notes), pred in zip(ready, predicted):
-            bad = ~np.isfinite(pred).all(axis=1)
+            bad = np.asarray(~np.isfinite(pred).all(axis=1), dtype=bool)
             if bad.any():
                 notes.append(f"the model's states overflowed at t = {t[int(np.argmax(bad))]:g} s: "
                              "reset")
@@ -235,8 +235,9 @@ class ModelTracker:
         for i, (_, unit, t, _, u, _) in enumerate(ready):
             # the step to sample k holds the input of sample k-1 (as a logger
             # holds it); the first sample of a fresh unit is its initial state
+            held = u[:1] if unit.last_u is None else unit.last_u
             fresh = unit.last_u is None
-            inputs[: len(t), :, i] = np.vstack([u[:1] if fresh else unit.last_u, u[:-1]])
+            inputs[: len(t), :, i] = np.vstack([held, u[:-1]])
             first = 0.0 if fresh else float(t[0]) - unit.last_t
             steps[: len(t), i] = np.diff(t, prepend=float(t[0]) - first)
             unit.last_u = u[-1:].copy()

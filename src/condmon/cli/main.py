@@ -23,6 +23,7 @@ from condmon.cli.history import register as register_history_commands
 from condmon.cli.plant import register as register_plant_commands
 from condmon.cli.serve import register as register_serve_command
 from condmon.cli.views import register as register_view_commands
+from condmon.cli.watch import register as register_watch_command
 from condmon.errors import CondmonError
 from condmon.identify.defaults import DEFAULT_FIT_THRESHOLD, list_estimators
 
@@ -39,6 +40,7 @@ register_plant_commands(app, simulate_app)
 register_history_commands(app, baseline_app)
 register_serve_command(app)
 register_fleet_commands(app)
+register_watch_command(app)
 
 
 

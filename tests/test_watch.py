@@ -1,0 +1,261 @@
+"""Live monitoring through a real MQTT broker (Debian's mosquitto, started here):
+plant-model units tracked online, detected, isolated and stored; a healthy
+stream raises nothing; malformed messages are refused and the stream goes on;
+a dc-motor test sent as chunks is checked as by `condmon check`; the last
+status of each unit is retained on the broker."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from condmon.models.declared import load_plant_model
+from condmon.simulate.plant import simulate_plant
+from condmon.store import open_store
+from condmon.workflows.live import watch_mqtt
+
+HST = load_plant_model("hst")
+
+
+def _mosquitto() -> str | None:
+    for exe in ("/usr/sbin/mosquitto", shutil.which("mosquitto")):
+        if exe and os.access(exe, os.X_OK):
+            return exe
+    return None
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+class Broker:
+    """A mosquitto process on a loopback port, its sessions persisted in ``folder``."""
+
+    def __init__(self, folder: Path) -> None:
+        exe = _mosquitto()
+        if exe is None:
+            why = ("no MQTT broker: needs Debian's mosquitto (apt-get install mosquitto; "
+                   ".ci/broker.sh installs it)")
+            if os.environ.get("CONDMON_REQUIRE_BROKER"):
+                pytest.fail(why)
+            pytest.skip(why)
+        self.exe, self.folder, self.port = exe, folder, _free_port()
+        self.conf = folder / "mosquitto.conf"
+        self.conf.write_text(f"listener {self.port} 127.0.0.1\nallow_anonymous true\n"
+                             f"persistence true\npersistence_location {folder}/\n"
+                             "autosave_interval 1\n")
+        self.proc: subprocess.Popen[bytes] | None = None
+        self.start()
+
+    @property
+    def address(self) -> str:
+        return f"127.0.0.1:{self.port}"
+
+    def start(self) -> None:
+        self.proc = subprocess.Popen([self.exe, "-c", str(self.conf)],
+                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline:
+            try:
+                socket.create_connection(("127.0.0.1", self.port), timeout=0.2).close()
+                return
+            except OSError:
+                time.sleep(0.05)
+        raise RuntimeError("mosquitto did not start")
+
+    def kill(self) -> None:
+        if self.proc is not None:
+            self.proc.send_signal(signal.SIGTERM)  # saves its sessions, as a restart does
+            self.proc.wait(10)
+            self.proc = None
+
+
+@pytest.fixture
+def broker(tmp_path: Path) -> Iterator[Broker]:
+    b = Broker(tmp_path)
+    yield b
+    b.kill()
+
+
+def _client(client_id: str) -> object:
+    import paho.mqtt.client as mqtt
+    from paho.mqtt.enums import CallbackAPIVersion
+
+    return mqtt.Client(CallbackAPIVersion.VERSION2, client_id=client_id)
+
+
+class Listener:
+    """Collects the status events of every unit."""
+
+    def __init__(self, broker: Broker, name: str = "listener") -> None:
+        self.events: list[dict] = []
+        self.client = _client(name)
+        self.client.on_message = lambda c, u, m: self.events.append(json.loads(m.payload))
+        self.client.connect("127.0.0.1", broker.port)
+        self.client.subscribe("condmon/+/status", qos=1)
+        self.client.loop_start()
+
+    def wait(self, predicate, timeout: float = 90.0) -> bool:  # type: ignore[no-untyped-def]
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if predicate(self.events):
+                return True
+            time.sleep(0.1)
+        return False
+
+    def close(self) -> None:
+        self.client.loop_stop()
+        self.client.disconnect()
+
+
+def _publish_records(broker: Broker, records: dict[str, pd.DataFrame], chunk: int = 50,
+                     extra: list[tuple[str, bytes]] = ()) -> None:  # type: ignore[assignment]
+    pub = _client("publisher")
+    pub.connect("127.0.0.1", broker.port)
+    pub.loop_start()
+    n = max(len(r) for r in records.values())
+    infos = []
+    for topic, payload in extra:
+        infos.append(pub.publish(topic, payload, qos=1))
+    for k in range(0, n, chunk):
+        for unit, rec in records.items():
+            part = rec.iloc[k:k + chunk]
+            if len(part):
+                infos.append(pub.publish(f"condmon/{unit}/samples", json.dumps(
+                    {c: part[c].tolist() for c in part.columns}), qos=1))
+    for info in infos:
+        info.wait_for_publish(30)
+    pub.loop_stop()
+    pub.disconnect()
+
+
+def _watch_in_thread(db: str, broker: Broker, stop: threading.Event, lines: list[str],
+                     model: str = "hst") -> tuple[threading.Thread, dict]:
+    result: dict = {}
+
+    def run() -> None:
+        with open_store(db) as store:
+            result["summary"] = watch_mqtt(store, broker.address, model=model, stop=stop,
+                                           log=lines.append, client_id="test-watch")
+
+    th = threading.Thread(target=run, daemon=True)
+    th.start()
+    return th, result
+
+
+def test_plant_units_are_tracked_detected_isolated_and_stored(
+        broker: Broker, tmp_path: Path) -> None:
+    records = {f"HST-{i}": simulate_plant(HST, seed=10 + i, duration=20.0) for i in range(4)}
+    records["HST-RV"] = simulate_plant(HST, ["Rv=+40%@8s"], seed=3, duration=20.0)
+    db = str(tmp_path / "live.db")
+    listen = Listener(broker)
+    stop, lines = threading.Event(), []
+    th, result = _watch_in_thread(db, broker, stop, lines)
+    assert listen.wait(lambda ev: False, timeout=1.0) is False  # the watcher connects
+    bad = [("condmon/HST-0/samples", b"not json"),
+           ("condmon/HST-0/samples", b'{"t": [0, 0.01], "Ps": [1.0]}'),
+           ("condmon/HST-0/samples", b'{"Ps": [1.0, 2.0]}'),
+           ("condmon/HST-0/samples", b'{"t": [0, 0.01], "Ps": [1.0, NaN]}'),
+           ("condmon/bad unit!/samples", b'{"t": [0]}')]
+    _publish_records(broker, records, extra=bad)
+    assert listen.wait(lambda ev: any(e["kind"] == "isolated" for e in ev)), lines
+    time.sleep(1.0)
+    stop.set()
+    th.join(60)
+    listen.close()
+    summary = result["summary"]
+    events = listen.events
+    faulty = [e for e in events if e["unit"] == "HST-RV"]
+    detected = next(e for e in faulty if e["kind"] == "detected")
+    assert 8.0 < detected["t"] <= 8.0 + 0.5 + 0.5  # within persistence + 0.5 s of onset
+    isolated = next(e for e in faulty if e["kind"] == "isolated")
+    assert "Rv" in isolated["isolated"] and set(isolated["isolated"]) <= {"Rv", "Tld"}
+    for unit in (f"HST-{i}" for i in range(4)):  # the healthy units raise nothing
+        assert [e["status"] for e in events if e["unit"] == unit] == ["go"], unit
+    with open_store(db) as store:
+        iso = store.isolations("HST-RV")
+        assert len(iso) == 1
+        assert all(len(store.isolations(f"HST-{i}")) == 0 for i in range(4))
+    c = summary.counters
+    assert c.detections == 1 and c.isolations == 1
+    # the four malformed messages and the bad topic: refused in one line each
+    refused = [ln for ln in lines if ln.startswith("refused")]
+    assert c.refused == 5 and len(refused) == 5, refused
+    assert sum("unit 'HST-0' (topic condmon/HST-0/samples)" in ln for ln in refused) == 4
+    assert "topic 'condmon/bad unit!/samples' is not condmon/<unit>/samples" in refused[-1]
+    assert c.samples == sum(len(r) for r in records.values())
+    # the last status of every unit is retained: a late subscriber sees it at once
+    late = Listener(broker, "late")
+    assert late.wait(lambda ev: {e["unit"] for e in ev} >= set(records), timeout=5)
+    last = {e["unit"]: e for e in late.events}
+    late.close()
+    assert last["HST-RV"]["kind"] == "isolated" and last["HST-0"]["status"] == "go"
+
+
+def test_a_dc_motor_test_sent_as_chunks_is_checked_as_by_check(
+        broker: Broker, tmp_path: Path) -> None:
+    from condmon.simulate import simulate_actuator
+    from condmon.workflows.checks import check_test
+    from condmon.workflows.monitoring import add_baseline_tests
+
+    db = str(tmp_path / "dc.db")
+    with open_store(db) as store:
+        add_baseline_tests(store, "EMA-1", [simulate_actuator(seed=s) for s in (1, 2, 3)])
+    shutil.copy(db, tmp_path / "ref.db")
+    test = simulate_actuator(seed=9)
+    with open_store(str(tmp_path / "ref.db")) as store:
+        ref = check_test(store, "EMA-1", test.copy())
+    listen = Listener(broker)
+    stop, lines = threading.Event(), []
+    th, _ = _watch_in_thread(db, broker, stop, lines, model="dc-motor")
+    time.sleep(1.0)
+    _publish_records(broker, {"EMA-1": test}, chunk=500,
+                     extra=[])
+    pub = _client("ender")
+    pub.connect("127.0.0.1", broker.port)
+    pub.loop_start()
+    pub.publish("condmon/EMA-1/samples", b'{"end": true}', qos=1).wait_for_publish(10)
+    pub.loop_stop()
+    assert listen.wait(lambda ev: any(e["kind"] == "checked" for e in ev)), lines
+    stop.set()
+    th.join(60)
+    listen.close()
+    checked = next(e for e in listen.events if e["kind"] == "checked")
+    assert checked["status"] == ref.status
+    with open_store(db) as live, open_store(str(tmp_path / "ref.db")) as offline:
+        a, b = live.history("EMA-1"), offline.history("EMA-1")
+        assert len(a) == len(b) == 4
+        for p in ("R", "L", "Kt", "J", "D"):
+            assert a[p].iloc[-1] == pytest.approx(b[p].iloc[-1], rel=1e-9), p
+
+
+def test_the_command_stops_on_sigterm_and_says_what_it_saw(
+        broker: Broker, tmp_path: Path) -> None:
+    db = tmp_path / "cmd.db"
+    proc = subprocess.Popen([sys.executable, "-m", "condmon.cli.main", "watch", "--mqtt",
+                             broker.address, "--db", str(db), "--model", "hst"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    listen = Listener(broker)
+    time.sleep(3.0)
+    _publish_records(broker, {"HST-9": simulate_plant(HST, seed=4, duration=3.0)})
+    assert listen.wait(lambda ev: any(e["unit"] == "HST-9" for e in ev), timeout=30)
+    proc.send_signal(signal.SIGTERM)
+    out, err = proc.communicate(timeout=60)
+    listen.close()
+    assert proc.returncode == 0, err
+    assert "301 samples" in out and "0 refused" in out, out
+    assert f"connected to {broker.address}" in err

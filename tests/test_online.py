@@ -84,3 +84,5 @@ def test_duplicates_and_gaps_are_counted_and_said() -> None:
     gap = tr.feed({"U": part(300, 400)})[0]
     assert gap.samples == 100 and "a gap of 2.01 s" in gap.notes[0]
     assert tr.detection("U") is None
+    restart = tr.feed({"U": part(0, 100)})[0]  # the clock starts again from 0
+    assert restart.samples == 100 and "the stream's clock went back" in restart.notes[0]

@@ -12,7 +12,8 @@ What a stream does that a file does not is handled here, once:
 - a chunk that starts at or before the end of the unit's last one (a duplicate,
   or one out of order) is dropped and counted;
 - a gap longer than ``max_gap`` samples, a change of sample interval, or a
-  restart of the clock resets the unit's model and detector, with a note;
+  restart of the clock (a chunk wholly before the last, by more than
+  ``max_gap`` samples) resets the unit's model and detector, with a note;
 - a chunk's known inputs come from its columns, or the input's nominal value.
 """
 
@@ -205,7 +206,10 @@ class ModelTracker:
         notes: list[str] = []
         if unit.detector is not None:
             gap = float(t[0]) - unit.last_t
-            if abs(dt - unit.dt) > 1e-6 * unit.dt:
+            if gap <= 0:
+                notes.append(f"the stream's clock went back (t = {t[0]:g} s after "
+                             f"{unit.last_t:g} s): a restart; the model is started again")
+            elif abs(dt - unit.dt) > 1e-6 * unit.dt:
                 notes.append(f"sample interval changed from {unit.dt:g} s to {dt:g} s: the "
                              "model is started again")
             elif gap > self.max_gap * unit.dt:

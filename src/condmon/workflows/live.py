@@ -34,6 +34,7 @@ from condmon.workflows.watch import WatchCounters, WatchEvent, Watcher
 __all__ = ["parse_broker", "LiveSummary", "watch_mqtt"]
 
 SUBSCRIPTION = "condmon/+/samples"
+BATCH = 2000  # messages handled together at most (one integration of many units)
 
 
 def parse_broker(text: str) -> tuple[str, int]:
@@ -162,19 +163,15 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
             if duration is not None and time.monotonic() - started >= duration:
                 break
             try:
-                topic, payload = inbox.get(timeout=0.1)
+                first = inbox.get(timeout=0.1)
             except queue.Empty:
                 w.poll()
                 continue
-            _handle(w, topic, payload, lim, log)
+            _handle(w, [first, *_drain(inbox, BATCH)], lim, log)
             w.poll()
         # flush: what arrived before the stop is handled, pending isolations stored
-        while True:
-            try:
-                topic, payload = inbox.get_nowait()
-            except queue.Empty:
-                break
-            _handle(w, topic, payload, lim, log)
+        while messages := _drain(inbox, BATCH):
+            _handle(w, messages, lim, log)
         w.close()
     finally:
         _restore_signals(previous)
@@ -186,20 +183,33 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
                        state["connections"])
 
 
-def _handle(w: Watcher, topic: str, payload: bytes, lim: StreamLimits,
+def _drain(inbox: queue.Queue[tuple[str, bytes]], most: int) -> list[tuple[str, bytes]]:
+    """Up to ``most`` messages waiting in the queue (none: an empty list)."""
+    out: list[tuple[str, bytes]] = []
+    while len(out) < most:
+        try:
+            out.append(inbox.get_nowait())
+        except queue.Empty:
+            break
+    return out
+
+
+def _handle(w: Watcher, messages: list[tuple[str, bytes]], lim: StreamLimits,
             log: Callable[[str], None]) -> None:
+    """Validate messages and hand the good ones to the watcher together."""
+    chunks = []
+    for topic, payload in messages:
+        try:
+            chunks.append(parse_chunk(topic, payload, lim))
+        except CondmonError as exc:
+            w.counters.received += 1
+            w.counters.refused += 1
+            log(f"refused: {exc}")
     try:
-        chunk = parse_chunk(topic, payload, lim)
-    except CondmonError as exc:
-        w.counters.received += 1
-        w.counters.refused += 1
-        log(f"refused: {exc}")
-        return
-    try:
-        w.handle(chunk)
+        w.handle_many(chunks)
     except StoreError:
         raise
-    except CondmonError as exc:  # handled per unit; the stream goes on
+    except CondmonError as exc:  # handled per unit inside; a last guard: the stream goes on
         log(f"refused: {exc}")
 
 

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from typing import Any
@@ -34,7 +34,7 @@ import pandas as pd
 
 from condmon.diagnose.isolation import IsolationResult, IsolationSettings, isolate
 from condmon.diagnose.online import OnlineDetection
-from condmon.diagnose.tracking import ModelTracker
+from condmon.diagnose.tracking import ChunkOutcome, ModelTracker
 from condmon.errors import CondmonError, DataError
 from condmon.io.stream import Chunk
 from condmon.models.machine import Machine
@@ -161,17 +161,59 @@ class Watcher:
 
     def handle(self, chunk: Chunk) -> list[WatchEvent]:
         """Take one validated chunk; the events it causes."""
-        self.counters.received += 1
-        self.counters.samples += chunk.samples
-        try:
-            name, machine = self.machine_of(chunk.unit)
-            if machine.spec.unknowns:
-                return self._test_chunk(chunk, name)
-            return self._plant_chunk(chunk, name, machine)
-        except CondmonError as exc:
-            self.counters.refused += 1
-            self.log(f"refused: {exc}")
-            return []
+        return self.handle_many([chunk])
+
+    def handle_many(self, chunks: Sequence[Chunk]) -> list[WatchEvent]:
+        """Take validated chunks in arrival order; the events they cause.
+
+        The chunks of plant-model units are fed to their model's tracker
+        together (one chunk per unit per round), so many units cost one
+        vectorised integration.
+        """
+        events: list[WatchEvent] = []
+        rounds: dict[str, list[dict[str, Chunk]]] = {}
+        for chunk in chunks:
+            self.counters.received += 1
+            self.counters.samples += chunk.samples
+            try:
+                name, machine = self.machine_of(chunk.unit)
+                if machine.spec.unknowns:
+                    events += self._test_chunk(chunk, name)
+                    continue
+                if not chunk.columns:
+                    continue
+                missing = [s for s in machine.plant.sensor_names if s not in chunk.columns]
+                if missing:
+                    raise DataError(
+                        f"unit {chunk.unit!r}: the chunk has no column "
+                        f"{', '.join(map(repr, missing))}; model {machine.name!r} needs t, "
+                        f"{', '.join(machine.plant.sensor_names)}")
+            except CondmonError as exc:
+                self.counters.refused += 1
+                self.log(f"refused: {exc}")
+                continue
+            queue = rounds.setdefault(name, [])
+            slot = next((r for r in queue if chunk.unit not in r), None)
+            if slot is None:
+                slot = {}
+                queue.append(slot)
+            slot[chunk.unit] = chunk
+        for name, queue in rounds.items():
+            machine = get_model(name)
+            tracker = self._trackers.get(name)
+            if tracker is None:
+                tracker = self._trackers[name] = ModelTracker(machine.plant,
+                                                              self.settings.detection)
+            for batch in queue:
+                try:
+                    outs = tracker.feed({u: c.columns for u, c in batch.items()})
+                except CondmonError as exc:
+                    self.counters.refused += len(batch)
+                    self.log(f"refused: {exc}")
+                    continue
+                for chunk, out in zip(batch.values(), outs):
+                    events += self._tracked(chunk, out, machine)
+        return events
 
     def poll(self, wait: bool = False) -> list[WatchEvent]:
         """Isolations finished since the last call, stored; their events."""
@@ -197,19 +239,10 @@ class Watcher:
 
     # -- plant-model units --------------------------------------------------------
 
-    def _plant_chunk(self, chunk: Chunk, name: str, machine: Machine) -> list[WatchEvent]:
-        if not chunk.columns:
-            return []
-        missing = [s for s in machine.plant.sensor_names if s not in chunk.columns]
-        if missing:
-            raise DataError(f"unit {chunk.unit!r}: the chunk has no column "
-                            f"{', '.join(map(repr, missing))}; model {machine.name!r} needs t, "
-                            f"{', '.join(machine.plant.sensor_names)}")
-        tracker = self._trackers.get(name)
-        if tracker is None:
-            tracker = self._trackers[name] = ModelTracker(machine.plant, self.settings.detection)
+    def _tracked(self, chunk: Chunk, out: ChunkOutcome, machine: Machine) -> list[WatchEvent]:
+        """What one tracked chunk means: notes, the first status, a detection, and
+        the isolation started once enough data has followed the detection."""
         plant = self._plants.setdefault(chunk.unit, _Plant())
-        out = tracker.feed({chunk.unit: chunk.columns})[0]
         events: list[WatchEvent] = []
         if out.dropped is not None:
             self.counters.dropped += 1

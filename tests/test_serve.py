@@ -182,6 +182,53 @@ def test_unit_page_shows_trends_advice_tests_and_isolations(fleet: dict[str, Any
     assert '<svg class="trend"' not in hst
 
 
+def _bar(panel: str, test_id: int) -> tuple[float, float, float]:
+    """The drawn error bar of test ``test_id`` in an SVG panel: its centre and
+    half-length in the panel's percent, read from the y ticks' positions."""
+    ticks = [(float(y), float(v)) for y, v in
+             re.findall(r'<text class="ytick" x="[^"]*" y="([-0-9.]+)">([-+0-9.e]+)</text>',
+                        panel)]
+    (y0, v0), (y1, v1) = ticks[0], ticks[-1]
+    per_px = (v1 - v0) / (y1 - y0)  # percent per pixel (negative: y grows down)
+    point = re.search(rf'<a href="#t{test_id}"><g .*?</g></a>', panel, re.S)
+    assert point is not None, test_id
+    line = re.search(r'<line [^>]*y1="([-0-9.]+)" y2="([-0-9.]+)"', point.group(0))
+    cy = re.search(r'cy="([-0-9.]+)"', point.group(0))
+    assert line is not None and cy is not None, point.group(0)
+    lo, hi = float(line.group(1)), float(line.group(2))
+    centre = v0 + (float(cy.group(1)) + 3 - y0) * per_px  # tick labels sit 3 px low
+    return centre, abs(hi - lo) / 2 * abs(per_px), (lo + hi) / 2
+
+
+def test_one_error_bar_the_symptom_width(fleet: dict[str, Any], client: Any) -> None:
+    """The page, its JSON and the report draw ±k·max(σ, SE) of the evaluation
+    the status rests on, and say so; never a bare standard error."""
+    from condmon.monitor.fuzzy import load_monitor_config
+
+    ids, k = fleet["ids"], load_monitor_config().k
+    with open_store(fleet["db"], create=False) as store:
+        hist = store.history(ODD)
+        used = store.baseline_by_id(ODD, int(hist.loc[ids["bad"], "baseline_id"])).baseline
+    j = used.parameters.index("D")
+    want = k * 100 * max(used.std[j], hist.loc[ids["bad"], "D_se"]) / abs(used.mean[j])
+    one_se = 100 * hist.loc[ids["bad"], "D_se"] / used.mean[j]
+    assert abs(want - one_se) > 5  # the two definitions differ visibly here
+    page = client.get("/units/" + quote(ODD, safe="/")).get_data(as_text=True)
+    d_panel = next(p for p in re.findall(r'<svg class="trend".*?</svg>', page, re.S)
+                   if "D change [%]" in p)
+    centre, half, middle = _bar(d_panel, ids["bad"])
+    assert half == pytest.approx(want, rel=0.02, abs=0.6)  # pixels rounded to 0.1
+    assert centre == pytest.approx(hist.loc[ids["bad"], "D_change"], abs=1.0)
+    assert "±1 standard error" not in page and "(SE)" not in page
+    from condmon.report.trends import error_bar
+
+    assert error_bar(k, words=True) in html_unescape(page)
+    doc = _api(client, "/api/units/" + quote(ODD, safe="/"))
+    assert doc["error_bars"] == {"definition": error_bar(k, words=True), "k": k, "unit": "%"}
+    d = next(t for t in doc["trends"] if t["parameter"] == "D")
+    assert d["half_width"][d["test_ids"].index(ids["bad"])] == pytest.approx(want)
+
+
 # -- read-only ---------------------------------------------------------------------------
 def test_never_writes_or_creates(fleet: dict[str, Any], client: Any, tmp_path: Path,
                                  capsys: pytest.CaptureFixture[str]) -> None:

@@ -5,7 +5,8 @@ content can be checked without pixels. Tests are numbered by their id in the
 history (``#12``) everywhere and, when the tests carry dates, placed on a time
 axis. The trend figure draws what a check's status depends on: the r1/r2
 bands, the active baseline's spread (±k·σ) around 0, and for each check the
-symptom half-width ±k·max(σ, SE) of its evaluation as an error bar; each point
+symptom half-width ±k·max(σ, SE) of its evaluation as its error bar (the one
+error bar of every figure and page, :func:`condmon.report.trends.error_bar`); each point
 is coloured by the status stored for it and filled when this parameter's
 symptom is above 0, so the picture agrees with the table. Excluded tests are
 never drawn; rejected ones only in the fit figure.
@@ -102,6 +103,8 @@ def plot_trends(trends: Sequence[TrendData], path: Target) -> Target:
     """
     from matplotlib.lines import Line2D
 
+    from condmon.report.trends import error_bar
+
     plt = _pyplot()
     n = max(len(trends), 1)
     rows = (n + 1) // 2
@@ -149,9 +152,9 @@ def plot_trends(trends: Sequence[TrendData], path: Target) -> Target:
         seen["open: this symptom = 0"] = Line2D([], [], ls="", marker="o", mec="0.3", mfc="white")
         axes[0, 0].legend(seen.values(), seen.keys(), loc="upper left", fontsize=6, ncol=2)
     k = trends[0].k if trends else float("nan")
-    fig.suptitle("Change against the healthy baseline; bars: symptom width "
-                 f"±{k:g}·max(σ baseline, SE); excluded and rejected tests not drawn",
-                 fontsize=9)
+    fig.suptitle(f"Change against the healthy baseline; error bars: {error_bar(k)} (symptom "
+                 "half-width, σ: baseline std, SE: standard error); excluded and rejected "
+                 "tests not drawn", fontsize=9)
     return _finish(plt, fig, path)
 
 

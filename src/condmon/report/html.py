@@ -119,7 +119,7 @@ def _tests_part(store: HistoryStore, unit: str, hist: Any, cfg: MonitorConfig, s
     """The checks, baseline, figures and tests table of an actuator unit."""
     from condmon.report import figures as F
     from condmon.report.reading import check_faults
-    from condmon.report.trends import fit_data, trend_data, unexplained
+    from condmon.report.trends import error_bar, fit_data, trend_data, unexplained
 
     every = store.baselines(unit)
     by_id = {b.id: b.baseline for b in every}
@@ -147,10 +147,8 @@ def _tests_part(store: HistoryStore, unit: str, hist: Any, cfg: MonitorConfig, s
                 F.plot_symptoms(trends, out / f"{name}-symptoms.png")]
         body.append(
             "<p class='sub'>Each check's change against its baseline, coloured by its "
-            "status; the bar is the symptom width ±k·max(baseline std, the estimate's "
-            "standard error) the status was computed with, so a parameter's symptom is "
-            "above 0 exactly when its bar reaches the shaded r1..r2 band (filled marker). "
-            "Blue: the active baseline's ±k·std. Excluded and rejected tests are not "
+            f"status; {esc(error_bar(cfg.k, words=True))} (filled marker: above 0). Blue: "
+            f"the active baseline's ±{cfg.k:g}·σ. Excluded and rejected tests are not "
             "drawn.</p>")
     else:
         body.append("<p class='sub'>No accepted check to trend yet.</p>")

@@ -16,8 +16,8 @@ Routes
 ``/units/<unit>``
     One unit: latest status and fault advice, trend figure (inline SVG: change
     against the baseline over the test dates, or the test ids when none is
-    recorded; r1/r2 bands, the baseline spread, each estimate's standard
-    error), baseline, tests, isolations.
+    recorded; r1/r2 bands, the baseline spread, each test's symptom
+    half-width ±k·max(σ, SE) as its error bar), baseline, tests, isolations.
 ``/api/units``
     ``{"units": [...]}`` as ``condmon units --json`` (same filters as ``/``).
 ``/api/units/<unit>``
@@ -52,6 +52,7 @@ from werkzeug.routing import BaseConverter
 
 from condmon.errors import CondmonError
 from condmon.report.figures import STATUS_COLOURS
+from condmon.report.trends import error_bar
 from condmon.report.web_data import (
     STATUSES, FilterError, UnitData, UnknownUnitError, _filtered, _History, _statuses,
     fleet_document, read_unit, readonly_url, unit_document,
@@ -129,7 +130,7 @@ def create_app(db: str | Path, *, refresh: float = 30.0) -> Flask:
     app.url_map.strict_slashes = False
     app.url_map.converters["unit"] = _UnitConverter
     app.config["CONDMON_DB"] = history.db
-    app.jinja_env.globals.update(unit_href=unit_href, colours=STATUS_COLOURS,
+    app.jinja_env.globals.update(unit_href=unit_href, colours=STATUS_COLOURS, error_bar=error_bar,
                                  db_name=Path(history.db).name if "://" not in history.db
                                  else history.db.split("@")[-1])
     app.jinja_env.filters["model_name"] = lambda m: Path(str(m)).name

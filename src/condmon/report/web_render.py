@@ -4,7 +4,7 @@ This module holds the rendering side of :mod:`condmon.report.web`, free of
 the web framework: the trend panels a unit's page draws as SVG (each
 parameter's change against the baseline over the test dates, or the test ids
 when none is recorded, with the r1/r2 bands, the baseline spread and each
-estimate's standard error), the rows of its tests and isolations tables, and
+test's symptom half-width ±k·max(σ, SE) as its error bar), the rows of its tests and isolations tables, and
 the dates as the page writes them. The templates turn these into HTML.
 """
 
@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any, cast
 
 from condmon.report.figures import STATUS_COLOURS
 from condmon.report.tables import test_note
+from condmon.report.trends import error_bar
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -91,8 +92,13 @@ def _time_ticks(lo: float, hi: float) -> list[tuple[float, str]]:
 
 def _trends(data: UnitData) -> _Trends:
     """The trend panels: accepted checks that are not excluded, at their change
-    against the baseline they were evaluated with, and the active baseline's
-    tests at their deviation from its mean; error bars ±1 SE."""
+    against the baseline they were evaluated with (:func:`trend_data`, as the
+    report's trend figure), and the active baseline's tests at their deviation
+    from its mean; every error bar is the symptom half-width ±k·max(σ, SE)
+    (:func:`condmon.monitor.fuzzy.symptom_width`)."""
+    from condmon.monitor.fuzzy import symptom_width
+    from condmon.report.trends import trend_data
+
     hist, cfg, stored = data.history, data.monitor, data.baseline
     if not len(hist):
         return _Trends()
@@ -131,18 +137,22 @@ def _trends(data: UnitData) -> _Trends:
         v: Any = hist.loc[i, column] if column in hist.columns else None
         return float(v) if isinstance(v, (int, float)) and v == v else math.nan
 
+    by_id = {b.id: b.baseline for b in data.baselines}
+    active = None if stored is None else stored.id
     panels, seen = [], []
     for p in params:
         mean, std = stats.get(p, (math.nan, math.nan))
         scale = 100.0 / abs(mean)  # nan without a baseline
-        pts = [(i, (value(i, p) - mean) * scale, value(i, f"{p}_se") * scale, "baseline", True)
+        pts = [(i, (value(i, p) - mean) * scale,
+                float(symptom_width(mean, std, value(i, f"{p}_se"), k)), "baseline", True)
                for i in members]
-        pts += [(i, value(i, f"{p}_change"), value(i, f"{p}_se") * scale,
-                 str(hist.loc[i, "status"]), False) for i in checks]
-        pts = [t for t in pts if math.isfinite(t[1])]
-        spread = k * std * scale if math.isfinite(std * scale) else 0.0
         r1 = cfg.r1.get(p, math.nan) if cfg is not None else math.nan
         r2 = cfg.r2.get(p, math.nan) if cfg is not None else math.nan
+        d = trend_data(hist, p, by_id, r1, r2, k, active)
+        pts += [(i, float(c), float(w), s, False)
+                for i, c, w, s in zip(d.test_ids, d.change, d.width, d.status)]
+        pts = [t for t in pts if math.isfinite(t[1])]
+        spread = k * std * scale if math.isfinite(std * scale) else 0.0
         reach = [abs(c) + (e if math.isfinite(e) else 0.0) for _, c, e, _, _ in pts]
         top = max([r2 * 1.15 if math.isfinite(r2) else 0.0, spread * 1.3, *reach, 1.0]) * 1.08
         step = _nice(2 * top)
@@ -159,14 +169,14 @@ def _trends(data: UnitData) -> _Trends:
             bands.append((py(min(spread, top)), py(-min(spread, top)), "spread"))
         ticks = [v * step for v in range(-int(top // step), int(top // step) + 1)]
         points = []
-        for i, c, e, s, member in pts:
+        for i, c, e, s, member in sorted(pts, key=lambda t: (where[t[0]], t[0])):
             when = datetime.fromtimestamp(stamps[i], timezone.utc).strftime("%Y-%m-%d %H:%M")
-            sd = f" ± {e:.2g} % (SE)" if math.isfinite(e) else ""
+            bar = f" ± {e:.2g} % ({error_bar(k)})" if math.isfinite(e) else ""
             role = "baseline test" if member else s
             points.append(_Point(px(where[i]), py(c), py(c - e) if math.isfinite(e) else py(c),
                                  py(c + e) if math.isfinite(e) else py(c),
                                  STATUS_COLOURS.get(s, "#444"), i,
-                                 f"#{i} {when} {role}: {p} {c:+.1f} %{sd}", member))
+                                 f"#{i} {when} {role}: {p} {c:+.1f} %{bar}", member))
             seen.append(s)
         line = " ".join(f"{q.x:.1f},{q.y:.1f}" for q in points if not q.member)
         panels.append(_Panel(p, bands, py(0.0), [(py(v), f"{v:+g}") for v in ticks],

@@ -20,7 +20,7 @@ only.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -335,6 +335,10 @@ class IsolationTrend:
         estimated or rejected from the comparison). [%]
     isolated : dict of str to ndarray of bool
         Per suspect, whether that isolation named it.
+    unshown : dict of str to str
+        Suspects with no change to draw, and why: ``rejected from the
+        comparison``, ``nominal 0: no change in %`` (the estimate is in the
+        table) or ``not estimated``.
     """
 
     isolation_ids: tuple[int, ...]
@@ -343,6 +347,7 @@ class IsolationTrend:
     status: tuple[str, ...]
     change: dict[str, FloatArray]
     isolated: dict[str, np.ndarray[Any, np.dtype[np.bool_]]]
+    unshown: dict[str, str] = field(default_factory=dict)
 
 
 def isolation_trend(isolations: pd.DataFrame) -> IsolationTrend:
@@ -361,12 +366,17 @@ def isolation_trend(isolations: pd.DataFrame) -> IsolationTrend:
     rows, x = _ordered(kept, _dated(isolations))
     label = axis_label(isolations).replace("test #", "isolation #")
     params = sorted(c[: -len("_change")] for c in rows.columns if c.endswith("_change"))
-    change, isolated = {}, {}
+    change, isolated, unshown = {}, {}, {}
     for p in params:
         y = _column(rows, f"{p}_change")
-        if f"{p}_rejected" in rows:
-            y = np.where(rows[f"{p}_rejected"].fillna(False).astype(bool), np.nan, y)
+        rejected = (rows[f"{p}_rejected"].fillna(False).astype(bool).to_numpy()
+                    if f"{p}_rejected" in rows else np.zeros(len(rows), dtype=bool))
+        y = np.where(rejected, np.nan, y)
         change[p] = y
         isolated[p] = np.array([p in list(v) for v in rows["isolated"]], dtype=bool)
+        if not np.isfinite(y).any():
+            valued = np.isfinite(_column(rows, p)) & ~rejected
+            unshown[p] = ("nominal 0: no change in %" if valued.any() else
+                          "rejected from the comparison" if rejected.any() else "not estimated")
     return IsolationTrend(tuple(int(i) for i in rows.index), x, label,
-                          tuple(str(s) for s in rows["status"]), change, isolated)
+                          tuple(str(s) for s in rows["status"]), change, isolated, unshown)

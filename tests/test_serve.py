@@ -229,6 +229,33 @@ def test_one_error_bar_the_symptom_width(fleet: dict[str, Any], client: Any) -> 
     assert d["half_width"][d["test_ids"].index(ids["bad"])] == pytest.approx(want)
 
 
+def _images(client: Any, url: str) -> dict[str, bytes]:
+    """The figures of a unit page: name to the PNG it shows."""
+    import base64
+
+    page = client.get(url).get_data(as_text=True)
+    return {name: base64.b64decode(data) for name, data in re.findall(
+        r'<figure class="report" id="fig-([a-z]+)"><img src="data:image/png;base64,([^"]+)"',
+        page)}
+
+
+def test_unit_page_shows_the_report_s_figures(fleet: dict[str, Any], client: Any,
+                                              tmp_path: Path) -> None:
+    """The fit, symptom and isolation figures are the report's own, pixel for pixel."""
+    from condmon.report import page_name, write_report
+
+    with open_store(fleet["db"], create=False) as store:
+        write_report(store, ODD, tmp_path)
+        write_report(store, "HST-1", tmp_path)
+    ema = _images(client, "/units/" + quote(ODD, safe="/"))
+    assert sorted(ema) == ["fits", "symptoms"]
+    for name, png in ema.items():
+        assert png.startswith(b"\x89PNG") and png == (
+            tmp_path / f"{page_name(ODD)}-{name}.png").read_bytes(), name
+    assert _images(client, "/units/HST-1") == {
+        "isolations": (tmp_path / "HST-1-isolations.png").read_bytes()}
+
+
 # -- read-only ---------------------------------------------------------------------------
 def test_never_writes_or_creates(fleet: dict[str, Any], client: Any, tmp_path: Path,
                                  capsys: pytest.CaptureFixture[str]) -> None:
@@ -549,3 +576,25 @@ def test_in_a_browser(fleet: dict[str, Any], browser_page: tuple[Any, str],
     page.goto(url + "units/HST-1")
     assert "fault isolated: Rv" in page.locator("#isolations").inner_text()
     assert time.monotonic() - started < 20
+
+
+def test_figures_in_a_browser(fleet: dict[str, Any], browser_page: tuple[Any, str],
+                              tmp_path: Path) -> None:
+    """The report's figures load in the page at their size; screenshots of both
+    unit pages are kept (in ``CONDMON_SCREENSHOTS`` when set) to be looked at."""
+    page, url = browser_page
+    shots = Path(os.environ.get("CONDMON_SCREENSHOTS") or tmp_path)
+    shots.mkdir(parents=True, exist_ok=True)
+    page.set_viewport_size({"width": 1200, "height": 900})
+    for path, name, figures in ((quote(ODD, safe="/"), "ema", ("fits", "symptoms")),
+                                ("HST-1", "hst", ("isolations",))):
+        page.goto(url + "units/" + path)
+        for fig in figures:
+            img = page.locator(f"#fig-{fig} img")
+            img.scroll_into_view_if_needed()
+            size = img.evaluate("i => [i.complete, i.naturalWidth, i.naturalHeight]")
+            assert size[0] and size[1] == 1100 and size[2] > 300, (fig, size)
+            box = img.bounding_box()
+            assert box is not None and box["width"] > 600, (fig, box)
+        page.screenshot(path=str(shots / f"live-{name}.png"), full_page=True)
+        assert (shots / f"live-{name}.png").stat().st_size > 10_000

@@ -17,7 +17,9 @@ Routes
     One unit: latest status and fault advice, trend figure (inline SVG: change
     against the baseline over the test dates, or the test ids when none is
     recorded; r1/r2 bands, the baseline spread, each test's symptom
-    half-width ±k·max(σ, SE) as its error bar), baseline, tests, isolations.
+    half-width ±k·max(σ, SE) as its error bar), the report's fit, symptom and
+    isolation figures (drawn by :mod:`condmon.report.figures` at each request,
+    as ``data:`` images), baseline, tests, isolations.
 ``/api/units``
     ``{"units": [...]}`` as ``condmon units --json`` (same filters as ``/``).
 ``/api/units/<unit>``
@@ -57,7 +59,9 @@ from condmon.report.web_data import (
     STATUSES, FilterError, UnitData, UnknownUnitError, _filtered, _History, _statuses,
     fleet_document, read_unit, readonly_url, unit_document,
 )
-from condmon.report.web_render import _fmt_date, _isolation_rows, _test_rows, _trends
+from condmon.report.web_render import (
+    _figures, _fmt_date, _isolation_rows, _test_rows, _trends,
+)
 
 __all__ = ["create_app", "serve", "readonly_url", "fleet_document", "unit_document",
            "read_unit", "UnitData", "UnknownUnitError", "STATUSES"]
@@ -200,6 +204,7 @@ def create_app(db: str | Path, *, refresh: float = 30.0) -> Flask:
                       isinstance(r["summary"], str) else f"retest: {r['reason']}",
                       "date": _fmt_date(r["date"])}
         return render_template("unit.html", d=data, o=data.overview, trends=trends,
+                               figures=_figures(data, trends),
                                tests=_test_rows(data.history, params), params=params,
                                suspects=suspects, isolations=iso_rows, advice=advice,
                                api=unit_href(unit, api=True))

@@ -23,6 +23,7 @@ from condmon.report.trends import error_bar
 if TYPE_CHECKING:
     import pandas as pd
 
+    from condmon.report.trends import TrendData
     from condmon.report.web_data import UnitData
 
 __all__: list[str] = []
@@ -74,6 +75,7 @@ class _Trends:
     banded: bool = False
     spread: bool = False
     untrended: list[str] = field(default_factory=list)
+    checks: tuple[TrendData, ...] = ()  # what the report's trend and symptom figures draw
 
 
 def _nice(span: float, count: int = 5) -> float:
@@ -139,7 +141,7 @@ def _trends(data: UnitData) -> _Trends:
 
     by_id = {b.id: b.baseline for b in data.baselines}
     active = None if stored is None else stored.id
-    panels, seen = [], []
+    panels, seen, drawn = [], [], []
     for p in params:
         mean, std = stats.get(p, (math.nan, math.nan))
         scale = 100.0 / abs(mean)  # nan without a baseline
@@ -149,6 +151,7 @@ def _trends(data: UnitData) -> _Trends:
         r1 = cfg.r1.get(p, math.nan) if cfg is not None else math.nan
         r2 = cfg.r2.get(p, math.nan) if cfg is not None else math.nan
         d = trend_data(hist, p, by_id, r1, r2, k, active)
+        drawn.append(d)
         pts += [(i, float(c), float(w), s, False)
                 for i, c, w, s in zip(d.test_ids, d.change, d.width, d.status)]
         pts = [t for t in pts if math.isfinite(t[1])]
@@ -188,7 +191,54 @@ def _trends(data: UnitData) -> _Trends:
               "test # (no test dates recorded)")
     order: list[str] = [s for s in ("baseline", "go", "advisory", "no-go", "unchecked")
                         if s in seen]
-    return _Trends(panels, xlabel, order, k, cfg is not None, bool(stats), _untrended(hist))
+    return _Trends(panels, xlabel, order, k, cfg is not None, bool(stats), _untrended(hist),
+                   tuple(drawn))
+
+
+# -- the report's figures, as images in the page ------------------------------------------
+@dataclass(frozen=True)
+class _Figure:
+    name: str
+    caption: str
+    uri: str
+
+
+def _png_uri(fig: Any) -> str:
+    """A figure as a ``data:`` URI of its PNG (the page never writes a file)."""
+    import base64
+    import io
+
+    from condmon.report.figures import save_figure
+
+    png = io.BytesIO()
+    save_figure(fig, png)
+    return "data:image/png;base64," + base64.b64encode(png.getvalue()).decode("ascii")
+
+
+def _figures(data: UnitData, trends: _Trends) -> dict[str, _Figure]:
+    """The report's fit, symptom and isolation figures of the unit, drawn by
+    the report's own code (:mod:`condmon.report.figures`) from what the page
+    read: ``fits``, ``symptoms`` (with trended checks) and ``isolations``."""
+    from condmon.identify.defaults import DEFAULT_FIT_THRESHOLD
+    from condmon.report.figures import fit_figure, isolation_figure, symptom_figure
+    from condmon.report.trends import fit_data, isolation_trend
+
+    out = {}
+    if len(data.history):
+        out["fits"] = _Figure("fits", "Model fit of every test that is not excluded, with the "
+                              f"{DEFAULT_FIT_THRESHOLD:g} % threshold [%]",
+                              _png_uri(fit_figure(fit_data(data.history),
+                                                  DEFAULT_FIT_THRESHOLD)))
+    if trends.checks and trends.checks[0].test_ids:
+        out["symptoms"] = _Figure("symptoms", "Fuzzy symptoms of each trended check, SymH up "
+                                  "and SymL down, per parameter [-]",
+                                  _png_uri(symptom_figure(trends.checks)))
+    iso = isolation_trend(data.isolations) if len(data.isolations) else None
+    if iso is not None and iso.isolation_ids:
+        out["isolations"] = _Figure("isolations", "Each suspect's steady-state estimate "
+                                    "against nominal, per isolation [%]",
+                                    _png_uri(isolation_figure(iso)))
+    return out
 
 
 def _untrended(hist: pd.DataFrame) -> list[str]:

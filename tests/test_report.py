@@ -228,8 +228,9 @@ def test_isolation_unit_page(report: FleetReport) -> None:
     page = _page(report, HST)
     html = page.html.read_text()
     assert "<h2>Isolations</h2>" in html and "fault isolated: Rv" in html
-    assert "<td class='l'>Rv</td>" in html and "<b>+25.0</b>" in html
-    assert "title='estimate +1e+30 %, left out of the comparison'>rejected</td>" in html
+    assert "<td class='l'>Rv</td>" in html and "<b>+25.0 %</b>" in html
+    assert ("title='estimate 1e+28 N m, nominal 1 N m, model error 1 noise σ, left out of "
+            "the comparison'>rejected</td>") in html
     iso = page.isolations
     assert iso is not None and iso.isolation_ids == (2, 1)  # by date
     assert iso.xlabel == "test date (UTC)"

@@ -256,6 +256,54 @@ def test_unit_page_shows_the_report_s_figures(fleet: dict[str, Any], client: Any
         "isolations": (tmp_path / "HST-1-isolations.png").read_bytes()}
 
 
+def _suspect_cells(page: str, n: int) -> list[str]:
+    """The last ``n`` cells (the suspects') of every isolation row (either page)."""
+    rows = re.findall(r"<tr id=[\"']i\d+[\"'].*?</tr>", page, re.S)
+    cells = [c for r in rows for c in re.findall(r"<td[^>]*>(.*?)</td>", r, re.S)[-n:]]
+    return [html_unescape(re.sub(r"</?b>", "", c)) for c in cells]
+
+
+def _suspects_table(page: str) -> dict[str, list[str]]:
+    """The latest isolation's suspects table: suspect to its cells."""
+    table = re.search(r"<table class=[\"']suspects[\"']>(.*?)</table>", page, re.S)
+    assert table is not None
+    rows = [[html_unescape(c) for c in re.findall(r"<t[dh][^>]*>(.*?)</t[dh]>", r, re.S)]
+            for r in re.findall(r"<tr>(.*?)</tr>", table.group(1), re.S)]
+    assert rows[0] == ["suspect", "estimate", "nominal", "unit", "change [%]",
+                       "model error [noise σ]", ""]
+    return {r[0]: r[1:] for r in rows[1:]}
+
+
+def test_hst_numbers_carry_their_units(fleet: dict[str, Any], client: Any,
+                                       tmp_path: Path) -> None:
+    """Every estimate and nominal of an HST unit, on the report's page and the
+    fleet page, is written with the unit its model declares."""
+    from condmon.models.declared import load_plant_model
+    from condmon.report import write_report
+
+    units = load_plant_model("hst").parameter_units()
+    assert units["Rv"] == "N m s/rad"
+    with open_store(fleet["db"], create=False) as store:
+        iso = store.isolations("HST-1").iloc[0]
+        report = write_report(store, "HST-1", tmp_path).html.read_text()
+    live = client.get("/units/HST-1").get_data(as_text=True)
+    for page in (report, live):
+        cells = _suspect_cells(page, 6)  # Dp, Rlkgp, Dm, Rlkgm, Rv, Tld
+        assert all(re.fullmatch(r"rejected|[-+][0-9.]+ %|= [-+]?[0-9.e+-]+ (.+)", c)
+                   for c in cells), cells
+        assert f"= {iso['Tld']:.4g} N m" in cells  # a nominal of 0: the estimate, in N m
+        table = _suspects_table(page)
+        assert table["Rv"] == [f"{iso['Rv']:.4g}", "11.27", "N m s/rad",
+                               f"{iso['Rv_change']:+.1f}", f"{iso['Rv_error']:.2g}", "isolated"]
+        assert table["Dm"][1:3] == ["4.45e-05", "m^3/rad"]
+        assert all(row[2] == units[p] for p, row in table.items())
+        assert f"estimate {iso['Rv']:.4g} N m s/rad, nominal 11.27 N m s/rad" in (
+            html_unescape(page))  # on hover in the table of every isolation
+    assert re.search(r"<td class=\"l\">D</td><td>[^<]+</td><td>[^<]+</td>"
+                     r"<td class=\"l\">N m s/rad</td>",
+                     client.get("/units/" + quote(ODD, safe="/")).get_data(as_text=True))
+
+
 # -- read-only ---------------------------------------------------------------------------
 def test_never_writes_or_creates(fleet: dict[str, Any], client: Any, tmp_path: Path,
                                  capsys: pytest.CaptureFixture[str]) -> None:

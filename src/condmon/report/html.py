@@ -211,20 +211,25 @@ def write_report(store: HistoryStore, unit: str, out_dir: str | Path,
     trends: tuple[TrendData, ...] = ()
     fits: FitData | None = None
     notes: dict[int, str] = {}
-    if len(hist):
+    units: dict[str, str] = {}
+    if len(hist) or len(isos):
         from condmon.models.registry import get_model
-        from condmon.monitor.generic import machine_monitor
+        from condmon.report.reading import model_units
 
         machine = get_model(model)
+        units = model_units(machine)
+    if len(hist):
+        from condmon.monitor.generic import machine_monitor
+
         cfg = monitor or machine_monitor(machine, stored.baseline if stored is not None else None)
         cfg = cfg.keyed([c for c in hist.columns if f"{c}_se" in hist.columns])
         part, figs, trends, fits, notes = _tests_part(store, unit, hist, cfg, stored, out, name,
-                                                      fit_threshold, machine.units)
+                                                      fit_threshold, units)
         body += part
     iso_data = None
     if len(isos):
         iso_data = isolation_trend(isos)
-        body += ["<h2>Isolations</h2>", isolations_table(isos)]
+        body += ["<h2>Isolations</h2>", isolations_table(isos, units)]
         if iso_data.isolation_ids:
             fig = plot_isolation_trends(iso_data, out / f"{name}-isolations.png")
             figs.append(fig)

@@ -54,6 +54,7 @@ from werkzeug.routing import BaseConverter
 
 from condmon.errors import CondmonError
 from condmon.report.figures import STATUS_COLOURS
+from condmon.report.tables import unit_of
 from condmon.report.trends import error_bar
 from condmon.report.web_data import (
     STATUSES, FilterError, UnitData, UnknownUnitError, _filtered, _History, _statuses,
@@ -135,6 +136,7 @@ def create_app(db: str | Path, *, refresh: float = 30.0) -> Flask:
     app.url_map.converters["unit"] = _UnitConverter
     app.config["CONDMON_DB"] = history.db
     app.jinja_env.globals.update(unit_href=unit_href, colours=STATUS_COLOURS, error_bar=error_bar,
+                                 unit_of=unit_of,
                                  db_name=Path(history.db).name if "://" not in history.db
                                  else history.db.split("@")[-1])
     app.jinja_env.filters["model_name"] = lambda m: Path(str(m)).name
@@ -194,8 +196,8 @@ def create_app(db: str | Path, *, refresh: float = 30.0) -> Flask:
         trends = _trends(data)
         params = [p.parameter for p in trends.panels] or sorted(
             c[:-len("_change")] for c in data.history.columns if c.endswith("_change"))
-        suspects, iso_rows = (_isolation_rows(data.isolations) if len(data.isolations)
-                              else ([], []))
+        suspects, iso_rows, latest = (_isolation_rows(data.isolations, data.units)
+                                      if len(data.isolations) else ([], [], None))
         advice = None
         if data.advice_test is not None:
             r = data.history.loc[data.advice_test]
@@ -206,7 +208,8 @@ def create_app(db: str | Path, *, refresh: float = 30.0) -> Flask:
         return render_template("unit.html", d=data, o=data.overview, trends=trends,
                                figures=_figures(data, trends),
                                tests=_test_rows(data.history, params), params=params,
-                               suspects=suspects, isolations=iso_rows, advice=advice,
+                               suspects=suspects, isolations=iso_rows, latest=latest,
+                               advice=advice,
                                api=unit_href(unit, api=True))
 
     @app.get("/units/<unit:unit>")

@@ -11,13 +11,15 @@ the dates as the page writes them. The templates turn these into HTML.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from typing import TYPE_CHECKING, Any, cast
 
 from condmon.report.figures import STATUS_COLOURS
-from condmon.report.tables import test_note
+from condmon.report.tables import (
+    SUSPECT_HEADS, isolation_suspects, latest_isolation, suspect_cells, test_note,
+)
 from condmon.report.trends import error_bar
 
 if TYPE_CHECKING:
@@ -281,23 +283,18 @@ def _test_rows(hist: pd.DataFrame, params: Sequence[str]) -> list[dict[str, Any]
     return rows
 
 
-def _isolation_rows(isos: pd.DataFrame) -> tuple[list[str], list[dict[str, Any]]]:
+def _isolation_rows(isos: pd.DataFrame, units: Mapping[str, str]
+                    ) -> tuple[list[str], list[dict[str, Any]], dict[str, Any] | None]:
+    """The isolations table's suspects and rows (each suspect's cell as the
+    report's, :func:`~condmon.report.tables.suspect_cells`), and the latest
+    isolation's suspects table (``id``, ``heads``, ``cells``: every estimate
+    and nominal with its unit), as the report's."""
     import pandas as pd
 
-    suspects = sorted({s for v in isos["suspects"] for s in v})
+    suspects = isolation_suspects(isos)
     rows = []
     for iid, r in isos.iterrows():
-        cells = []
-        for p in suspects:
-            change, err, est = r.get(f"{p}_change"), r.get(f"{p}_error"), r.get(p)
-            flag = r.get(f"{p}_rejected")
-            rejected = bool(flag is not None and flag == flag and flag)  # NaN: not estimated
-            text = ("" if est is None or pd.isna(est) else f"= {est:.4g}"
-                    ) if change is None or pd.isna(change) else f"{change:+.1f} %"
-            if err is not None and pd.notna(err):
-                text += f" ({err:.2g} σ)"
-            cells.append({"text": "rejected" if rejected else text,
-                          "isolated": p in r["isolated"], "rejected": rejected})
+        cells = suspect_cells(r, suspects, units)
         det = r["detection_time"]
         rows.append({"id": int(cast(int, iid)),
                      "date": _fmt_date(r["date"], pd.isna(r["test_date"])),
@@ -308,4 +305,8 @@ def _isolation_rows(isos: pd.DataFrame) -> tuple[list[str], list[dict[str, Any]]
                      "statement": str(r["statement"] or ""),
                      "reason": str(r["reason"]) if isinstance(r["reason"], str) else "",
                      "cells": cells})
-    return suspects, rows
+    latest = latest_isolation(isos)
+    table = None if latest is None else {
+        "id": int(latest.name), "heads": SUSPECT_HEADS,
+        "cells": suspect_cells(latest, suspects, units)}
+    return suspects, rows, table

@@ -97,16 +97,21 @@ def _latest_check(hist: Any) -> Any:
     return checks.sort_index().sort_values("date", kind="stable").iloc[-1]
 
 
-def _head(unit: str, model: str, hist: Any, isos: Any, summary: Mapping[str, Any]) -> list[str]:
+def _head(unit: str, model: str, hist: Any, isos: Any, summary: Mapping[str, Any],
+          stored: Any) -> list[str]:
     n = len(hist)
     counts = (f"{n} tests ({int((hist['role'] == 'baseline').sum())} baseline, "
               f"{int((hist['role'] == 'check').sum())} checks, "
               f"{int((hist['status'] == 'excluded').sum())} excluded)" if n else "no tests")
     latest = summary.get("latest_source")
+    in_use = ("" if not n else "<p class='sub' id='in-use'>No baseline in use yet.</p>"
+              if stored is None else
+              f"<p class='sub' id='in-use'>In use: <a href='#baseline'>"
+              f"{esc(stored.describe(hist))}</a>.</p>")
     return ["<p><a href='index.html'>← all units</a></p>", f"<h1>{esc(unit)}</h1>",
             f"<p class='sub'>model {esc(Path(model).name)} — {counts}, {len(isos)} "
             f"isolation{'s' if len(isos) != 1 else ''}; page written "
-            f"{when(datetime.now(timezone.utc))} UTC</p>",
+            f"{when(datetime.now(timezone.utc))} UTC</p>", in_use,
             f"<h2>Latest: {badge(summary.get('status'))}</h2>",
             "" if latest is None else
             f"<p>{esc(latest)} — {when(summary.get('latest_date'))} UTC"
@@ -135,7 +140,7 @@ def _tests_part(store: HistoryStore, unit: str, hist: Any, cfg: MonitorConfig, s
         body.append(f"<p>Latest check <a href='#t{tid}'>#{tid}</a> ({when(last['date'])} UTC): "
                     f"{badge(last['status'])} {esc(what)}</p>")
         body.append(faults_table(check_faults(store, tid, last["baseline_id"])))
-    body.append(baseline_section(stored, cfg, units))
+    body.append(baseline_section(stored, cfg, units, hist))
     trends = tuple(trend_data(hist, p, by_id, cfg.r1[p], cfg.r2[p], cfg.k, active)
                    for p in params)
     fits = fit_data(hist)
@@ -205,7 +210,7 @@ def write_report(store: HistoryStore, unit: str, out_dir: str | Path,
     info = _summary(store, unit) if summary is None else summary
     stored = store.latest_baseline(unit)
     name = page_name(unit)
-    body = _head(unit, str(info.get("model") or model), hist, isos, info)
+    body = _head(unit, str(info.get("model") or model), hist, isos, info, stored)
     body.append(flags_box(stored))
     figs: list[Path] = []
     trends: tuple[TrendData, ...] = ()

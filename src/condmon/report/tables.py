@@ -110,8 +110,9 @@ def unit_of(units: Mapping[str, str], key: str) -> str:
 
 
 def baseline_section(stored: Any, cfg: MonitorConfig,
-                     units: Mapping[str, str] | None = None) -> str:
-    """The active baseline: name, version, tests, reason, and per parameter
+                     units: Mapping[str, str] | None = None, history: Any = None) -> str:
+    """The baseline in use: name, version, when it was built, the tests it
+    holds (per regime too, counted in ``history`` when given), reason, and per parameter
     mean ± std in its unit (``units``: by parameter, a regime's ``Tc@forward``
     under ``Tc``) with the band it draws (±k·std) and the breakpoints."""
     if stored is None:
@@ -129,8 +130,8 @@ def baseline_section(stored: Any, cfg: MonitorConfig,
                     f"<td>{'—' if r1 is None else f'{r1:g}'}</td>"
                     f"<td>{'—' if r2 is None else f'{r2:g}'}</td></tr>")
     reason = f" — {esc(stored.reason)}" if stored.reason else ""
-    return (f"<h2 id='baseline'>Baseline {esc(stored.name)} v{stored.version}</h2>"
-            f"<p class='sub'>N = {b.n}, made {when(stored.created_at)} UTC{reason}; tests "
+    return (f"<h2 id='baseline'>Baseline in use: {esc(stored.name)} v{stored.version}</h2>"
+            f"<p class='sub'>{esc(stored.describe(history))}{reason}; tests "
             f"{_test_links(stored.test_ids)}</p>"
             "<table><tr><th class='l'>parameter</th><th>mean ± std</th><th class='l'>unit</th>"
             "<th>std [%]</th>"

@@ -291,7 +291,8 @@ def unit_document(data: UnitData) -> dict[str, Any]:
 
     Keys: ``unit``, ``overview`` (as in ``/api/units``), ``tests`` (as
     ``condmon history --json``), ``isolations``, ``baseline`` (the active
-    baseline's latest version, or None), ``advice`` (``test_id`` of the
+    baseline's latest version, the one in use, with its ``description``:
+    name, version, when built, its tests, per regime; or None), ``advice`` (``test_id`` of the
     latest check and its ``faults``, or None), ``error_bars`` (what every
     error bar is, :func:`condmon.report.trends.error_bar`: ``definition``,
     ``k``, ``unit``) and ``trends`` (per parameter, the trended checks'
@@ -316,7 +317,8 @@ def unit_document(data: UnitData) -> dict[str, Any]:
         "unit": data.unit, "overview": data.overview,
         "tests": frame_records(data.history) if len(data.history) else [],
         "isolations": frame_records(data.isolations) if len(data.isolations) else [],
-        "baseline": None if data.baseline is None else data.baseline.to_dict(),
+        "baseline": None if data.baseline is None else {
+            **data.baseline.to_dict(), "description": data.baseline.describe(data.history)},
         "advice": advice,
         "error_bars": {"definition": error_bar(k, words=True), "k": k, "unit": "%"},
         "trends": trends})

@@ -3,11 +3,13 @@
 Every name is escaped (text and attributes) and every unit gets its own file
 (:func:`~condmon.report.names.page_name`); tests are numbered by their id in
 the history everywhere. A unit page shows what its latest status rests on: the
-baseline (name, version, tests, mean ± std, warnings), the trend figure with
-the bands and symptom widths the status was computed with, the tests
-(excluded ones greyed with their reason, never trended; rejected ones in the
-fit figure and the table only) and, for plant-model units, the isolations
-with each suspect's estimate over time. The index lists every unit with its
+baseline in use (name, version, when built, its tests and how many per
+regime, in the header too; mean ± std with units, warnings), the trend figure
+with the bands and symptom widths the status was computed with (the one error
+bar, :func:`condmon.report.trends.error_bar`), the fit and symptom figures,
+the tests (excluded ones greyed with their reason, never trended; rejected
+ones in the fit figure and the table only) and, for plant-model units, the
+isolations with each suspect's estimate over time, in its unit. The index lists every unit with its
 latest status and links to each page; each page links back.
 
 Nothing here writes to the history.

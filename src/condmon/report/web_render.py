@@ -1,11 +1,15 @@
-"""What the live fleet page draws: a unit's trend figure (inline SVG) and the rows of its tables.
+"""What the live fleet page draws: a unit's trend figure (inline SVG), the
+report's figures and the rows of its tables.
 
 This module holds the rendering side of :mod:`condmon.report.web`, free of
 the web framework: the trend panels a unit's page draws as SVG (each
 parameter's change against the baseline over the test dates, or the test ids
 when none is recorded, with the r1/r2 bands, the baseline spread and each
-test's symptom half-width ±k·max(σ, SE) as its error bar), the rows of its tests and isolations tables, and
-the dates as the page writes them. The templates turn these into HTML.
+test's symptom half-width ±k·max(σ, SE) as its error bar), the report's fit,
+symptom and isolation figures as ``data:`` images (drawn by
+:mod:`condmon.report.figures`), the rows of its tests and isolations tables
+(each suspect's numbers with their units, as the report's), and the dates as
+the page writes them. The templates turn these into HTML.
 """
 
 from __future__ import annotations

@@ -186,6 +186,10 @@ class PlantModel:
         """Nominal value of every parameter [SI]."""
         return {p.name: p.value for p in self.parameters}
 
+    def parameter_units(self) -> dict[str, str]:
+        """Unit of every parameter, as declared (``"-"``: dimensionless)."""
+        return {p.name: p.unit for p in self.parameters}
+
     def parameter(self, name: str) -> Parameter:
         """The parameter ``name``; :class:`ConfigError` naming the allowed ones."""
         for p in self.parameters:

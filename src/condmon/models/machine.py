@@ -162,7 +162,7 @@ class Machine:
     @property
     def units(self) -> dict[str, str]:
         """Unit of every reported quantity."""
-        units = {p.name: p.unit for p in self.plant.parameters}
+        units = self.plant.parameter_units()
         units.update({k: u for k, (_, u) in self.spec.derived.items()})
         return {k: units.get(k, "") for k in self.spec.report}
 

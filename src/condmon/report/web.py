@@ -16,8 +16,10 @@ Routes
 ``/units/<unit>``
     One unit: latest status and fault advice, trend figure (inline SVG: change
     against the baseline over the test dates, or the test ids when none is
-    recorded; r1/r2 bands, the baseline spread, each estimate's standard
-    error), baseline, tests, isolations.
+    recorded; r1/r2 bands, the baseline spread, each test's symptom
+    half-width ±k·max(σ, SE) as its error bar), the report's fit, symptom and
+    isolation figures (drawn by :mod:`condmon.report.figures` at each request,
+    as ``data:`` images), baseline, tests, isolations.
 ``/api/units``
     ``{"units": [...]}`` as ``condmon units --json`` (same filters as ``/``).
 ``/api/units/<unit>``
@@ -52,11 +54,15 @@ from werkzeug.routing import BaseConverter
 
 from condmon.errors import CondmonError
 from condmon.report.figures import STATUS_COLOURS
+from condmon.report.tables import unit_of
+from condmon.report.trends import error_bar
 from condmon.report.web_data import (
     STATUSES, FilterError, UnitData, UnknownUnitError, _filtered, _History, _statuses,
     fleet_document, read_unit, readonly_url, unit_document,
 )
-from condmon.report.web_render import _fmt_date, _isolation_rows, _test_rows, _trends
+from condmon.report.web_render import (
+    _figures, _fmt_date, _isolation_rows, _test_rows, _trends,
+)
 
 __all__ = ["create_app", "serve", "readonly_url", "fleet_document", "unit_document",
            "read_unit", "UnitData", "UnknownUnitError", "STATUSES"]
@@ -129,7 +135,8 @@ def create_app(db: str | Path, *, refresh: float = 30.0) -> Flask:
     app.url_map.strict_slashes = False
     app.url_map.converters["unit"] = _UnitConverter
     app.config["CONDMON_DB"] = history.db
-    app.jinja_env.globals.update(unit_href=unit_href, colours=STATUS_COLOURS,
+    app.jinja_env.globals.update(unit_href=unit_href, colours=STATUS_COLOURS, error_bar=error_bar,
+                                 unit_of=unit_of,
                                  db_name=Path(history.db).name if "://" not in history.db
                                  else history.db.split("@")[-1])
     app.jinja_env.filters["model_name"] = lambda m: Path(str(m)).name
@@ -189,8 +196,8 @@ def create_app(db: str | Path, *, refresh: float = 30.0) -> Flask:
         trends = _trends(data)
         params = [p.parameter for p in trends.panels] or sorted(
             c[:-len("_change")] for c in data.history.columns if c.endswith("_change"))
-        suspects, iso_rows = (_isolation_rows(data.isolations) if len(data.isolations)
-                              else ([], []))
+        suspects, iso_rows, latest = (_isolation_rows(data.isolations, data.units)
+                                      if len(data.isolations) else ([], [], None))
         advice = None
         if data.advice_test is not None:
             r = data.history.loc[data.advice_test]
@@ -199,8 +206,10 @@ def create_app(db: str | Path, *, refresh: float = 30.0) -> Flask:
                       isinstance(r["summary"], str) else f"retest: {r['reason']}",
                       "date": _fmt_date(r["date"])}
         return render_template("unit.html", d=data, o=data.overview, trends=trends,
+                               figures=_figures(data, trends),
                                tests=_test_rows(data.history, params), params=params,
-                               suspects=suspects, isolations=iso_rows, advice=advice,
+                               suspects=suspects, isolations=iso_rows, latest=latest,
+                               advice=advice,
                                api=unit_href(unit, api=True))
 
     @app.get("/units/<unit:unit>")

@@ -259,3 +259,45 @@ def test_the_command_stops_on_sigterm_and_says_what_it_saw(
     assert proc.returncode == 0, err
     assert "301 samples" in out and "0 refused" in out, out
     assert f"connected to {broker.address}" in err
+
+
+def test_a_dropped_file_gets_the_fleet_run_result(tmp_path: Path) -> None:
+    """Files dropped in a watched inbox, one by one, end as `fleet run` leaves them."""
+    from condmon.simulate import simulate_actuator
+    from condmon.workflows.fleet import run_fleet
+    from condmon.workflows.watch_folder import watch_folder
+
+    inbox, staging = tmp_path / "inbox", tmp_path / "staging"
+    (inbox / "EMA-1").mkdir(parents=True)
+    staging.mkdir()
+    files = []
+    for i, seed in enumerate((1, 2, 3, 9)):
+        f = staging / f"test-{i + 1}.csv"
+        simulate_actuator(seed=seed).to_csv(f, index=False)
+        files.append(f)
+    stop, lines, events = threading.Event(), [], []
+    db = str(tmp_path / "watched.db")
+    result: dict = {}
+    th = threading.Thread(target=lambda: result.update(summary=watch_folder(
+        inbox, db, settle=0.5, poll=0.2, stop=stop, log=lines.append,
+        publish=events.append)), daemon=True)
+    th.start()
+    for f in files:  # written elsewhere, renamed into place: complete at once
+        os.replace(f, inbox / "EMA-1" / f.name)
+        time.sleep(1.0)
+    deadline = time.monotonic() + 120
+    while len(events) < 4 and time.monotonic() < deadline:
+        time.sleep(0.2)
+    stop.set()
+    th.join(120)
+    assert result["summary"].files == 4 and result["summary"].stored == 4, lines
+    ref = run_fleet(inbox, str(tmp_path / "fleet.db"), workers=1)
+    assert ref.stored == 4
+    with open_store(db) as a, open_store(str(tmp_path / "fleet.db")) as b:
+        ha, hb = a.history("EMA-1"), b.history("EMA-1")
+        assert list(ha["status"]) == list(hb["status"])
+        for p in ("R", "L", "Kt", "J", "D"):
+            assert ha[p].to_numpy() == pytest.approx(hb[p].to_numpy(), rel=1e-9), p
+    assert [e.unit for e in events] == ["EMA-1"] * 4
+    # running the fleet again over the watched history stores nothing new
+    assert run_fleet(inbox, db, workers=1).stored == 0

@@ -31,7 +31,7 @@ from condmon.store.db import HistoryStore
 from condmon.store.engine import StoreError
 from condmon.workflows.watch import WatchCounters, WatchEvent, Watcher
 
-__all__ = ["parse_broker", "LiveSummary", "watch_mqtt"]
+__all__ = ["parse_broker", "LiveSummary", "watch_mqtt", "stop_on_signals", "restore_signals"]
 
 SUBSCRIPTION = "condmon/+/samples"
 BATCH = 2000  # messages handled together at most (one integration of many units)
@@ -156,7 +156,7 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
     except OSError as exc:
         raise ConfigError(f"--mqtt {broker}: cannot reach the broker ({exc})") from None
     client.loop_start()
-    previous = _stop_on_signals(halt)
+    previous = stop_on_signals(halt)
     started = time.monotonic()
     try:
         while not halt.is_set():
@@ -174,7 +174,7 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
             _handle(w, messages, lim, log)
         w.close()
     finally:
-        _restore_signals(previous)
+        restore_signals(previous)
         client.loop_stop()
         client.disconnect()
     counters = w.counters
@@ -213,7 +213,7 @@ def _handle(w: Watcher, messages: list[tuple[str, bytes]], lim: StreamLimits,
         log(f"refused: {exc}")
 
 
-def _stop_on_signals(halt: threading.Event) -> dict[int, Any]:
+def stop_on_signals(halt: threading.Event) -> dict[int, Any]:
     """SIGTERM and SIGINT set ``halt`` (main thread only); the previous handlers."""
     if threading.current_thread() is not threading.main_thread():
         return {}
@@ -223,6 +223,7 @@ def _stop_on_signals(halt: threading.Event) -> dict[int, Any]:
     return previous
 
 
-def _restore_signals(previous: dict[int, Any]) -> None:
+def restore_signals(previous: dict[int, Any]) -> None:
+    """Put back the handlers :func:`stop_on_signals` replaced."""
     for sig, handler in previous.items():
         signal.signal(sig, handler)

@@ -55,9 +55,14 @@ class Broker:
             pytest.skip(why)
         self.exe, self.folder, self.port = exe, folder, _free_port()
         self.conf = folder / "mosquitto.conf"
+        store = folder / "broker-store"
+        store.mkdir()
+        # started as root, mosquitto would drop to its own user, which cannot
+        # reach a private temporary folder: it stays the user that started it
+        user = "user root\n" if os.geteuid() == 0 else ""
         self.conf.write_text(f"listener {self.port} 127.0.0.1\nallow_anonymous true\n"
-                             f"persistence true\npersistence_location {folder}/\n"
-                             "autosave_interval 1\n")
+                             f"persistence true\npersistence_location {store}/\n"
+                             f"autosave_interval 1\n{user}")
         self.proc: subprocess.Popen[bytes] | None = None
         self.start()
 
@@ -301,3 +306,33 @@ def test_a_dropped_file_gets_the_fleet_run_result(tmp_path: Path) -> None:
     assert [e.unit for e in events] == ["EMA-1"] * 4
     # running the fleet again over the watched history stores nothing new
     assert run_fleet(inbox, db, workers=1).stored == 0
+
+
+def test_the_broker_restarted_mid_stream_loses_nothing(broker: Broker, tmp_path: Path) -> None:
+    records = {"HST-A": simulate_plant(HST, seed=21, duration=20.0),
+               "HST-B": simulate_plant(HST, ["Rv=+40%@12s"], seed=22, duration=20.0)}
+    db = str(tmp_path / "restart.db")
+    stop, lines = threading.Event(), []
+    th, result = _watch_in_thread(db, broker, stop, lines)
+    time.sleep(1.0)
+    first = {u: r.iloc[:900] for u, r in records.items()}
+    second = {u: r.iloc[900:] for u, r in records.items()}
+    _publish_records(broker, first)
+    time.sleep(1.0)
+    broker.kill()           # stopped mid-stream ...
+    time.sleep(2.0)
+    broker.start()          # ... and back on the same port with its saved sessions
+    _publish_records(broker, second)
+    listen = Listener(broker)
+    assert listen.wait(lambda ev: any(e["kind"] == "isolated" for e in ev)), lines
+    time.sleep(1.0)
+    stop.set()
+    th.join(60)
+    listen.close()
+    summary = result["summary"]
+    assert summary.connections >= 2
+    assert any("again" in ln for ln in lines) and any("lost the broker" in ln for ln in lines)
+    assert summary.counters.samples == sum(len(r) for r in records.values())  # nothing lost
+    assert summary.counters.dropped == 0
+    with open_store(db) as store:
+        assert len(store.isolations("HST-B")) == 1 and len(store.isolations("HST-A")) == 0

@@ -26,11 +26,13 @@ def register(app: typer.Typer) -> None:
         settle: Annotated[float, typer.Option(help="A dropped file is complete once unchanged this long [s].", min=0)] = 2.0,
         client_id: Annotated[str, typer.Option(help="MQTT client id: the broker keeps this session's messages while the watcher is away.")] = "condmon-watch",
     ) -> None:
-        """Watch units live: streams over MQTT (the model beside each plant-model unit's
-        stream: residuals, detection, isolation; an estimation-model unit's test checked
-        when its last chunk arrives) and record files dropped in a folder (as by fleet
-        run). Every status change is published, retained, on condmon/UNIT/status and
-        kept in the history. Ctrl-C or SIGTERM stops."""
+        """Watch units live: MQTT streams and record files dropped in a folder.
+
+        The model runs beside each plant-model unit's stream (residuals, detection,
+        isolation); an estimation-model unit's test is checked when its last chunk
+        arrives; a dropped file is handled as by fleet run. Every status change is
+        published, retained, on condmon/UNIT/status and kept in the history. Ctrl-C
+        or SIGTERM stops."""
         import threading
 
         from condmon.errors import ConfigError

@@ -336,3 +336,75 @@ def test_the_broker_restarted_mid_stream_loses_nothing(broker: Broker, tmp_path:
     assert summary.counters.dropped == 0
     with open_store(db) as store:
         assert len(store.isolations("HST-B")) == 1 and len(store.isolations("HST-A")) == 0
+
+
+class _Hook:
+    """A local webhook: answers 500 to the first post, then 200 after a delay."""
+
+    def __init__(self, delay: float = 0.0) -> None:
+        import http.server
+
+        self.posts: list[dict] = []
+        hook = self
+
+        class Handler(http.server.BaseHTTPRequestHandler):
+            def do_POST(self) -> None:  # noqa: N802
+                body = json.loads(self.rfile.read(int(self.headers["Content-Length"])))
+                hook.posts.append(body)
+                if len(hook.posts) == 1:
+                    self.send_response(500)
+                else:
+                    time.sleep(delay)
+                    self.send_response(200)
+                self.end_headers()
+
+            def log_message(self, *args: object) -> None:
+                pass
+
+        self.server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+        self.url = f"http://127.0.0.1:{self.server.server_address[1]}/hook"
+        threading.Thread(target=self.server.serve_forever, daemon=True).start()
+
+    def close(self) -> None:
+        self.server.shutdown()
+        self.server.server_close()
+
+
+def test_events_are_posted_with_retries_and_a_slow_hook_never_holds_the_stream(
+        broker: Broker, tmp_path: Path) -> None:
+    from condmon.workflows.notify import Notifier
+
+    hook = _Hook(delay=1.5)   # each post takes 1.5 s to answer
+    notifier = Notifier(hook.url, backoff=0.1)
+    records = {f"HST-{i}": simulate_plant(HST, seed=30 + i, duration=4.0) for i in range(3)}
+    stop, lines = threading.Event(), []
+    result: dict = {}
+
+    def run() -> None:
+        with open_store(str(tmp_path / "n.db")) as store:
+            result["summary"] = watch_mqtt(store, broker.address, model="hst", stop=stop,
+                                           log=lines.append, client_id="notify-watch",
+                                           notify=notifier.send)
+
+    th = threading.Thread(target=run, daemon=True)
+    th.start()
+    time.sleep(1.0)
+    started = time.monotonic()
+    _publish_records(broker, records)
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline:
+        if result.get("summary") is None and sum(ln.endswith("the stream") for ln in lines) == 3:
+            break
+        time.sleep(0.05)
+    handled = time.monotonic() - started
+    stop.set()
+    th.join(30)
+    assert result["summary"].counters.samples == 3 * 401
+    # three events at 1.5 s a post (one retried): the stream did not wait for them
+    assert handled < 3.0, handled
+    notifier.close()
+    hook.close()
+    assert notifier.sent == 3 and notifier.failed == 0
+    assert len(hook.posts) == 4  # the first was answered 500 and posted again
+    assert {p["unit"] for p in hook.posts} == set(records)
+    assert all(p["status"] == "go" and p["kind"] == "watching" for p in hook.posts)

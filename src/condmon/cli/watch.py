@@ -25,6 +25,7 @@ def register(app: typer.Typer) -> None:
         isolate_after: Annotated[float, typer.Option(help="Data after a detection before its isolation starts [s].", min=0)] = 6.0,
         settle: Annotated[float, typer.Option(help="A dropped file is complete once unchanged this long [s].", min=0)] = 2.0,
         client_id: Annotated[str, typer.Option(help="MQTT client id: the broker keeps this session's messages while the watcher is away.")] = "condmon-watch",
+        notify: Annotated[Optional[str], typer.Option(help="Webhook URL: every event is POSTed to it as JSON, with retries, never holding the stream back.")] = None,
     ) -> None:
         """Watch units live: MQTT streams and record files dropped in a folder.
 
@@ -41,7 +42,8 @@ def register(app: typer.Typer) -> None:
         from condmon.store.engine import redact
         from condmon.workflows.live import (parse_broker, restore_signals, stop_on_signals,
                                             watch_mqtt)
-        from condmon.workflows.watch import Watcher
+        from condmon.workflows.notify import Notifier
+        from condmon.workflows.watch import Watcher, WatchEvent
         from condmon.workflows.watch_folder import FolderSummary, watch_folder
 
         if folder is None and mqtt is None:
@@ -58,11 +60,16 @@ def register(app: typer.Typer) -> None:
 
         halt = threading.Event()
         folder_result: dict[str, FolderSummary] = {}
+        notifier = Notifier(notify, log=log) if notify is not None else None
+
+        def post(event: WatchEvent) -> None:
+            if notifier is not None:
+                notifier.send(event.to_dict())
 
         def run_folder() -> None:
             assert folder is not None
             folder_result["summary"] = watch_folder(folder, db, settle=settle, stop=halt,
-                                                    duration=duration, log=log)
+                                                    duration=duration, log=log, publish=post)
 
         if mqtt is None:
             previous = stop_on_signals(halt)
@@ -78,7 +85,8 @@ def register(app: typer.Typer) -> None:
             with open_store(db) as store:
                 watcher = Watcher(store, model=model, isolate_after=isolate_after)
                 summary = watch_mqtt(store, mqtt, watcher=watcher, duration=duration, log=log,
-                                     client_id=client_id, stop=halt)
+                                     client_id=client_id, stop=halt,
+                                     notify=notifier.send if notifier else None)
             halt.set()
             if thread is not None:
                 thread.join()
@@ -88,6 +96,11 @@ def register(app: typer.Typer) -> None:
                       f"({summary.overflow} for a full queue), {c.detections} detections, "
                       f"{c.isolations} isolations stored, {c.checks} tests checked, "
                       f"{c.events} events; history {redact(db)}", markup=False,
+                      highlight=False, soft_wrap=True)
+        if notifier is not None:
+            notifier.close()
+            out.print(f"webhook {notify}: {notifier.sent} events posted, {notifier.failed} "
+                      f"given up, {notifier.dropped} dropped for a full queue", markup=False,
                       highlight=False, soft_wrap=True)
         fs = folder_result.get("summary")
         if fs is not None:

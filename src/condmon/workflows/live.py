@@ -79,8 +79,8 @@ class LiveSummary:
 def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
                watcher: Watcher | None = None, duration: float | None = None,
                stop: threading.Event | None = None, log: Callable[[str], None] = print,
-               client_id: str = "condmon-watch", limits: StreamLimits | None = None
-               ) -> LiveSummary:
+               client_id: str = "condmon-watch", limits: StreamLimits | None = None,
+               notify: Callable[[dict[str, Any]], object] | None = None) -> LiveSummary:
     """Watch the units streaming to ``broker`` until stopped.
 
     Parameters
@@ -102,6 +102,9 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
         The MQTT client id (a persistent session is kept under it).
     limits : StreamLimits, optional
         Message and queue bounds (default: shipped).
+    notify : callable, optional
+        Also takes every event's JSON object (a :class:`~condmon.workflows.notify.
+        Notifier`'s ``send``: it must not block).
 
     Returns
     -------
@@ -146,6 +149,8 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
     def publish(event: WatchEvent) -> None:
         client.publish(STATUS_TOPIC.format(unit=event.unit), json.dumps(event.to_dict()),
                        qos=1, retain=True)
+        if notify is not None:
+            notify(event.to_dict())
         log(f"{event.unit}: {event.status}: {event.reason}")
 
     w = watcher or Watcher(store, model=model)

@@ -86,3 +86,14 @@ def test_duplicates_and_gaps_are_counted_and_said() -> None:
     assert tr.detection("U") is None
     restart = tr.feed({"U": part(0, 100)})[0]  # the clock starts again from 0
     assert restart.samples == 100 and "the stream's clock went back" in restart.notes[0]
+
+
+def test_a_stream_joined_while_the_plant_runs_raises_nothing_and_still_detects() -> None:
+    """The model starts from the first readings of the states the sensors read
+    (the others settle in the start-up): joining at t = 5 s is no fault."""
+    settings = DetectionSettings()
+    healthy = simulate_plant(HST, seed=8, duration=20.0).iloc[500:].reset_index(drop=True)
+    faulty = simulate_plant(HST, ["Rv=+40%@12s"], seed=9, duration=20.0).iloc[500:]
+    found = _stream(ModelTracker(HST, settings), {"ok": healthy, "rv": faulty}, 100)
+    assert "ok" not in found
+    assert 12.0 < found["rv"].time <= 13.0

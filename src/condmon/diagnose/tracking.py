@@ -32,7 +32,7 @@ from condmon.errors import DataError
 from condmon.models.declared import PlantModel
 from condmon.simulate.stepper import BatchStepper
 
-__all__ = ["ChunkOutcome", "ModelTracker"]
+__all__ = ["ChunkOutcome", "ModelTracker", "measured_start", "started_at"]
 
 FloatArray = NDArray[np.float64]
 
@@ -72,6 +72,7 @@ class _Unit:
     dt: float = math.nan
     last_u: FloatArray | None = None
     pending: dict[str, FloatArray] | None = None
+    initial: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass
@@ -133,6 +134,11 @@ class ModelTracker:
             if u.detector is not None:
                 u.detector.reset()
 
+    def initial_states(self, unit: str) -> dict[str, float]:
+        """The states the unit's model started from at its stream's (re)start. [SI]"""
+        u = self._units.get(unit)
+        return dict(u.initial) if u is not None else {}
+
     def feed(self, chunks: Mapping[str, Mapping[str, FloatArray]]) -> list[ChunkOutcome]:
         """Advance and judge one chunk per unit (columns ``t`` and the sensors).
 
@@ -168,7 +174,7 @@ class ModelTracker:
                     f"{what}: starts at t = {t[0]:g} s, not after the last sample "
                     f"(t = {unit.last_t:g} s)"), end=float(t[-1]))
                 continue
-            notes = self._restart_if_needed(name, unit, t)
+            notes = self._restart_if_needed(name, unit, t, cols)
             y = np.column_stack([np.asarray(cols[s], dtype=np.float64)
                                  for s in self.model.sensor_names])
             u = np.empty((len(t), len(self.model.inputs)))
@@ -192,7 +198,8 @@ class ModelTracker:
             outcomes[name] = ChunkOutcome(name, len(t), found, None, tuple(notes), float(t[-1]))
         return [outcomes[n] for n in chunks]
 
-    def _restart_if_needed(self, name: str, unit: _Unit, t: FloatArray) -> list[str]:
+    def _restart_if_needed(self, name: str, unit: _Unit, t: FloatArray,
+                           chunk: Mapping[str, FloatArray]) -> list[str]:
         """Start the unit afresh at its first chunk, after a gap, or at a new
         sample interval; say why."""
         dt = float(np.median(np.diff(t))) if len(t) > 1 else (
@@ -218,7 +225,8 @@ class ModelTracker:
             else:
                 return notes
         norm = self.normalisation.get(name) or noise_figures(self.model, dt, self.settings)
-        self._stepper.reset([unit.slot])
+        unit.initial = measured_start(self.model, chunk)
+        self._stepper.set_states(unit.slot, unit.initial)
         unit.last_u = None
         unit.detector = OnlineDetector(norm, self.settings, dt)
         unit.dt = dt
@@ -249,3 +257,44 @@ class ModelTracker:
         for k in range(n_max):
             out[k] = self._stepper.step(slots, inputs[k], steps[k])
         return [out[: lengths[i], :, i] for i in range(len(ready))]
+
+
+def measured_start(model: PlantModel, chunk: Mapping[str, FloatArray]) -> dict[str, float]:
+    """Initial states of a stream joined at any moment: each state a sensor reads
+    directly, from the stream's first reading (a plant at rest gives its
+    declared initial state within the sensor's noise; a running one its
+    operating point; one sample, as a plant starting up moves fast). The
+    others stay at their declared initial values and settle during the
+    start-up, which is not judged. [state units]
+
+    Example
+    -------
+    >>> from condmon.models.declared import load_plant_model
+    >>> measured_start(load_plant_model("hst"), {"t": np.arange(3.0), "Ps": np.full(3, 4e6),
+    ...                                          "omega_m": np.full(3, 14.0)})
+    {'Ps': 4000000.0, 'omega_m': 14.0}
+    """
+    out = {}
+    states = set(model.state_names)
+    for s in model.sensors:
+        name = s.measures.strip()
+        if name in states and s.name in chunk and len(chunk[s.name]):
+            out[name] = float(np.asarray(chunk[s.name], dtype=np.float64)[0])
+    return out
+
+
+def started_at(model: PlantModel, initial: Mapping[str, float]) -> PlantModel:
+    """The model with some states starting elsewhere than declared (a stream
+    joined while the plant runs: the isolation's model runs from there too).
+
+    Example
+    -------
+    >>> from condmon.models.declared import load_plant_model
+    >>> [s.initial for s in started_at(load_plant_model("hst"), {"Ps": 4e6}).states]
+    [4000000.0, 0.0, 0.0]
+    """
+    import dataclasses
+
+    return dataclasses.replace(model, states=tuple(
+        dataclasses.replace(s, initial=float(initial[s.name])) if s.name in initial else s
+        for s in model.states))

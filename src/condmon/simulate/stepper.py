@@ -98,6 +98,15 @@ class BatchStepper:
         """Start copies again from the declared initial states."""
         self._x[:, np.asarray(slots, dtype=np.intp)] = self.initial[:, None]
 
+    def set_states(self, slot: int, values: Mapping[str, float]) -> None:
+        """Start one copy from given states (others at their declared initial).
+        [state units]"""
+        x = self.initial
+        for i, st in enumerate(self.model.states):
+            if st.name in values:
+                x[i] = float(values[st.name])
+        self._x[:, slot] = x
+
     def states(self, slots: Sequence[int] | IntArray) -> FloatArray:
         """The states of copies, shape (n_states, len(slots)). [state units]"""
         return self._x[:, np.asarray(slots, dtype=np.intp)].copy()

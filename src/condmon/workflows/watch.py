@@ -34,7 +34,7 @@ import pandas as pd
 
 from condmon.diagnose.isolation import IsolationResult, IsolationSettings, isolate
 from condmon.diagnose.online import OnlineDetection
-from condmon.diagnose.tracking import ChunkOutcome, ModelTracker
+from condmon.diagnose.tracking import ChunkOutcome, ModelTracker, measured_start, started_at
 from condmon.errors import CondmonError, DataError
 from condmon.io.stream import Chunk
 from condmon.models.machine import Machine
@@ -271,8 +271,11 @@ class Watcher:
         if (plant.detection is not None and not plant.isolated and plant.pending is None
                 and out.end >= plant.detection.time + self.isolate_after):
             record = self._record(plant)
+            # the model starts where the kept record starts, as the online one did
+            first = {c: record[c].to_numpy()[:1] for c in record.columns}
+            model = started_at(machine.plant, measured_start(machine.plant, first))
             plant.pending = self._pool.submit(
-                isolate, record, machine.plant, settings=self.settings, workers=1,
+                isolate, record, model, settings=self.settings, workers=1,
                 source=f"{chunk.unit} stream")
         return events
 

@@ -260,26 +260,59 @@ class ModelTracker:
 
 
 def measured_start(model: PlantModel, chunk: Mapping[str, FloatArray]) -> dict[str, float]:
-    """Initial states of a stream joined at any moment: each state a sensor reads
-    directly, from the stream's first reading (a plant at rest gives its
-    declared initial state within the sensor's noise; a running one its
-    operating point; one sample, as a plant starting up moves fast). The
-    others stay at their declared initial values and settle during the
-    start-up, which is not judged. [state units]
+    """Initial states of a stream joined at any moment.
+
+    Each state a sensor reads directly starts at the stream's first reading (a
+    plant at rest gives its declared initial state within the sensor's noise; a
+    running one its operating point; one sample, as a plant starting up moves
+    fast). Each other state starts where its own derivative is zero with those
+    readings and the first known inputs (the quasi-steady value: the motor
+    plenum's pressure that passes the flow the motor takes), solved by least
+    squares from its declared initial value; where that fails, it stays at the
+    declared value and settles in the start-up, which is not judged.
+    [state units]
 
     Example
     -------
     >>> from condmon.models.declared import load_plant_model
-    >>> measured_start(load_plant_model("hst"), {"t": np.arange(3.0), "Ps": np.full(3, 4e6),
-    ...                                          "omega_m": np.full(3, 14.0)})
-    {'Ps': 4000000.0, 'omega_m': 14.0}
+    >>> x = measured_start(load_plant_model("hst"), {"t": np.arange(3.0),
+    ...     "Ps": np.full(3, 4.0e6), "omega_m": np.full(3, 14.4), "omega_p": np.full(3, 152.0)})
+    >>> {k: round(v / 1e5, 2) if k != "omega_m" else v for k, v in x.items()}   # [bar]
+    {'Ps': 40.0, 'omega_m': 14.4, 'Pm': 36.94}
     """
-    out = {}
-    states = set(model.state_names)
+    from scipy.optimize import least_squares
+
+    out: dict[str, float] = {}
+    states = model.state_names
     for s in model.sensors:
         name = s.measures.strip()
         if name in states and s.name in chunk and len(chunk[s.name]):
             out[name] = float(np.asarray(chunk[s.name], dtype=np.float64)[0])
+    free = [i for i, n in enumerate(states) if n not in out]
+    if not out or not free:
+        return out
+    compiled = model.compile()
+    p = compiled.parameter_vector()
+    u = np.array([float(np.asarray(chunk[i.name])[0]) if i.name in chunk and len(chunk[i.name])
+                  else model.input_nominal(i.name) for i in model.inputs], dtype=np.float64)
+    x = np.array([out.get(n, st.initial) for n, st in zip(states, model.states)])
+    scale = np.maximum(np.abs(x[free]), max(1.0, float(np.max(np.abs(x)))))
+
+    def residual(z: FloatArray) -> FloatArray:
+        xx = x.copy()
+        xx[free] = z * scale
+        with np.errstate(all="ignore"):
+            d = compiled.rhs(xx, u, p)[free]
+        return np.where(np.isfinite(d), d, 1e30)
+
+    try:
+        sol = least_squares(residual, x[free] / scale, method="trf")
+    except (ValueError, ArithmeticError):
+        return out
+    start = residual(x[free] / scale)
+    if sol.success and np.all(np.isfinite(sol.x)) and np.linalg.norm(sol.fun) < np.linalg.norm(start):
+        for i, z in zip(free, sol.x):
+            out[states[i]] = float(z * scale[free.index(i)])
     return out
 
 

@@ -420,3 +420,70 @@ def test_events_are_posted_with_retries_and_a_slow_hook_never_holds_the_stream(
     assert len(hook.posts) == 4  # the first was answered 500 and posted again
     assert {p["unit"] for p in hook.posts} == set(records)
     assert all(p["status"] == "go" and p["kind"] == "watching" for p in hook.posts)
+
+
+def test_the_fleet_page_shows_a_status_change_live(broker: Broker, tmp_path: Path) -> None:
+    """`serve --mqtt`: a status published by the watcher reaches the open page
+    without a reload (server-sent events), and a silent unit turns stale."""
+    import re
+    import tempfile
+
+    exe = os.environ.get("CONDMON_CHROMIUM") or shutil.which("chromium")
+    try:
+        from playwright.sync_api import expect, sync_playwright
+    except ImportError:
+        exe = None
+    if exe is None:
+        why = "no browser: needs Debian's chromium and playwright (.ci/browser.sh)"
+        if os.environ.get("CONDMON_REQUIRE_BROWSER") == "1":
+            pytest.fail(why)
+        pytest.skip(why)
+    db = tmp_path / "page.db"
+    with open_store(str(db)) as store:
+        store.unit_id("HST-L", create=True, model="hst")
+    proc = subprocess.Popen([sys.executable, "-m", "condmon.cli.main", "serve", "--db", str(db),
+                             "--port", "0", "--refresh", "0", "--mqtt", broker.address,
+                             "--stale-after", "2"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert proc.stdout is not None
+    url = re.search(r"(http://127\.0\.0\.1:\d+/)", proc.stdout.readline()).group(1)  # type: ignore[union-attr]
+    pub = _client("page-pub")
+    pub.connect("127.0.0.1", broker.port)
+    pub.loop_start()
+    profile = tempfile.mkdtemp(prefix="condmon-chromium-")
+    try:
+        with sync_playwright() as pw:
+            ctx = pw.chromium.launch_persistent_context(
+                profile, executable_path=exe, headless=True,
+                args=["--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                      "--no-first-run", "--disable-component-update", "--disable-sync"])
+            page = ctx.new_page()
+            page.set_default_timeout(15_000)
+            page.goto(url)
+            row = page.locator('tr[data-unit="HST-L"]')
+            expect(row).to_have_attribute("data-status", "none")
+            page.evaluate("window.__same_page = true")
+            pub.publish("condmon/HST-L/samples", b'{"t": [0, 0.01], "Ps": [0, 0], '
+                        b'"omega_m": [0, 0]}', qos=1).wait_for_publish(5)
+            pub.publish("condmon/HST-L/status", json.dumps(
+                {"unit": "HST-L", "status": "no-go", "time": "2026-11-24T12:00:00+00:00",
+                 "reason": "fault detected at t = 8.53 s", "isolated": [], "kind": "detected",
+                 "t": 8.53}), qos=1, retain=True).wait_for_publish(5)
+            expect(row).to_have_attribute("data-status", "no-go")
+            expect(row).to_contain_text("fault detected at t = 8.53 s")
+            expect(page.locator('[data-count="no-go"]')).to_have_text("1")  # the tally too
+            expect(page.locator('[data-count="none"]')).to_have_count(0)
+            assert page.evaluate("window.__same_page === true")  # no reload
+            expect(row).to_have_attribute("data-status", "stale", timeout=10_000)
+            expect(row).to_contain_text("no samples for")
+            pub.publish("condmon/HST-L/samples", b'{"t": [1, 1.01], "Ps": [0, 0], '
+                        b'"omega_m": [0, 0]}', qos=1).wait_for_publish(5)
+            expect(row).to_have_attribute("data-status", "no-go")
+            assert page.evaluate("window.__same_page === true")
+            page.screenshot(path=str(tmp_path / "live.png"))
+            ctx.close()
+    finally:
+        pub.loop_stop()
+        proc.send_signal(signal.SIGINT)
+        proc.communicate(timeout=20)
+        shutil.rmtree(profile, ignore_errors=True)

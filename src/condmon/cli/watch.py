@@ -43,6 +43,7 @@ def register(app: typer.Typer) -> None:
         from condmon.workflows.live import (parse_broker, restore_signals, stop_on_signals,
                                             watch_mqtt)
         from condmon.workflows.notify import Notifier
+        from condmon.io.stream import StreamLimits
         from condmon.workflows.watch import Watcher, WatchEvent
         from condmon.workflows.watch_folder import FolderSummary, watch_folder
 
@@ -60,7 +61,8 @@ def register(app: typer.Typer) -> None:
 
         halt = threading.Event()
         folder_result: dict[str, FolderSummary] = {}
-        notifier = Notifier(notify, log=log) if notify is not None else None
+        notifier = (Notifier(notify, maxsize=StreamLimits.shipped().events, log=log)
+                    if notify is not None else None)
 
         def post(event: WatchEvent) -> None:
             if notifier is not None:

@@ -18,11 +18,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from condmon.errors import DataError
+from condmon.errors import ConfigError, DataError
 from condmon.io.config import shipped_limits
 
 __all__ = ["Chunk", "StreamLimits", "SAMPLES_TOPIC", "STATUS_TOPIC", "unit_of_topic",
-           "parse_chunk"]
+           "parse_chunk", "parse_broker"]
 
 FloatArray = NDArray[np.float64]
 
@@ -46,12 +46,15 @@ class StreamLimits:
         Messages waiting to be handled.
     events : int
         Events waiting to be published or posted.
+    stale_after : float
+        A unit silent this long is shown stale on the live page. [s]
     """
 
     max_message_bytes: int = 8_000_000
     max_chunk_samples: int = 100_000
     queue: int = 10_000
     events: int = 1_000
+    stale_after: float = 30.0
 
     @classmethod
     def shipped(cls) -> StreamLimits:
@@ -164,3 +167,21 @@ def parse_chunk(topic: str, payload: bytes | str, limits: StreamLimits | None = 
     if len(t) and not math.isfinite(float(t[-1])):
         raise DataError(f"{where}: 't' is not finite")
     return Chunk(unit, cols, bool(end))
+
+
+def parse_broker(text: str) -> tuple[str, int]:
+    """``HOST:PORT`` (port 1883 when left out).
+
+    Example
+    -------
+    >>> parse_broker("127.0.0.1:18830"), parse_broker("broker.local")
+    (('127.0.0.1', 18830), ('broker.local', 1883))
+    """
+    host, _, port = text.rpartition(":") if ":" in text else (text, "", "1883")
+    try:
+        number = int(port)
+    except ValueError:
+        number = -1
+    if not host or not 0 < number < 65536:
+        raise ConfigError(f"--mqtt {text!r}: give HOST:PORT (e.g. localhost:1883)")
+    return host, number

@@ -39,7 +39,8 @@ __all__ = ["plot_trends", "plot_fits", "plot_symptoms", "plot_isolation_trends",
 #: Colour of each status in every figure and page.
 STATUS_COLOURS = {"go": "#2e7d32", "advisory": "#ef6c00", "no-go": "#c62828",
                   "retest": "#546e7a", "baseline": "#7f8c8d", "rejected": "#c0392b",
-                  "excluded": "#bdbdbd", "unchecked": "#9e9e9e", "building": "#90a4ae"}
+                  "excluded": "#bdbdbd", "unchecked": "#9e9e9e", "building": "#90a4ae",
+                  "stale": "#6d4c41"}
 
 Target = TypeVar("Target", str, Path, IO[bytes])
 

@@ -54,6 +54,7 @@ from werkzeug.routing import BaseConverter
 
 from condmon.errors import CondmonError
 from condmon.report.figures import STATUS_COLOURS
+from condmon.report.live import LiveFeed, with_live
 from condmon.report.tables import unit_of
 from condmon.report.trends import error_bar
 from condmon.report.web_data import (
@@ -99,7 +100,7 @@ def _json(doc: Any, status: int = 200) -> Response:
                     mimetype="application/json")
 
 
-def create_app(db: str | Path, *, refresh: float = 30.0) -> Flask:
+def create_app(db: str | Path, *, refresh: float = 30.0, live: LiveFeed | None = None) -> Flask:
     """The fleet page's web application (a Flask app) over the history ``db``.
 
     Parameters
@@ -109,6 +110,11 @@ def create_app(db: str | Path, *, refresh: float = 30.0) -> Flask:
         read-only at every request; never created, written or upgraded.
     refresh : float
         The index page reloads its table this often [s] (0: never).
+    live : LiveFeed, optional
+        Units' live statuses from the broker (``condmon serve --mqtt``): they
+        override the history's latest status on the index and ``/api/units``,
+        and ``/api/events`` streams their changes (server-sent events) so the
+        index redraws its table at once.
 
     Returns
     -------
@@ -171,15 +177,42 @@ def create_app(db: str | Path, *, refresh: float = 30.0) -> Flask:
     def _http_error(err: HTTPException) -> Response | tuple[str, int]:
         return problem(err.code or 500, f"{err.name}: {request.path}")
 
-    def fleet() -> dict[str, Any]:
+    def summaries() -> list[dict[str, Any]]:
         with history.open() as store:
-            return fleet_document(store, request.args.getlist("status"), request.args.get("q"))
+            units = store.unit_summaries()
+        return with_live(units, live)
+
+    def fleet() -> dict[str, Any]:
+        return {"units": _filtered(summaries(), _statuses(request.args.getlist("status")),
+                                   request.args.get("q"))}
+
+    @app.get("/api/events")
+    def events() -> Response:
+        if live is None:
+            return _json({"error": "no live feed: start the page with condmon serve --mqtt "
+                                   "HOST:PORT"}, 404)
+        feed = live
+        after = int(request.headers.get("Last-Event-ID") or request.args.get("after") or
+                    feed.version)
+
+        def stream() -> Any:
+            last = after
+            yield "retry: 2000\n\n"
+            while True:
+                changes = feed.changes(last, 15.0)
+                if not changes:
+                    yield ": still here\n\n"
+                for version, doc in changes:
+                    last = version
+                    yield f"id: {version}\ndata: {json.dumps(doc)}\n\n"
+
+        return Response(stream(), mimetype="text/event-stream",
+                        headers={"X-Accel-Buffering": "no"})
 
     @app.get("/")
     def index() -> str:
         chosen = _statuses(request.args.getlist("status"))
-        with history.open() as store:
-            everyone = store.unit_summaries()
+        everyone = summaries()
         tally: dict[str, int] = {}
         for u in everyone:
             tally[u["status"] or "none"] = tally.get(u["status"] or "none", 0) + 1
@@ -188,6 +221,7 @@ def create_app(db: str | Path, *, refresh: float = 30.0) -> Flask:
                                tally=[(s, tally[s]) for s in STATUSES if s in tally],
                                statuses=STATUSES, chosen=chosen,
                                q=request.args.get("q", ""), refresh=refresh,
+                               events=url_for("events") if live is not None else "",
                                now=datetime.now(timezone.utc).strftime("%H:%M:%S"))
 
     def page(unit: str) -> str:

@@ -33,7 +33,7 @@ __all__ = ["readonly_url", "fleet_document", "unit_document", "read_unit", "Unit
 
 #: Statuses a unit can show (``building``: its baseline is not saved yet; ``none``:
 #: nothing stored yet), in the filter's order.
-STATUSES = ("no-go", "advisory", "retest", "go", "unchecked", "building", "baseline",
+STATUSES = ("no-go", "advisory", "retest", "stale", "go", "unchecked", "building", "baseline",
             "rejected", "excluded", "none")
 
 

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from condmon.errors import ConfigError, CondmonError
-from condmon.io.stream import STATUS_TOPIC, StreamLimits, parse_chunk
+from condmon.io.stream import STATUS_TOPIC, StreamLimits, parse_broker, parse_chunk
 from condmon.store.db import HistoryStore
 from condmon.store.engine import StoreError
 from condmon.workflows.watch import WatchCounters, WatchEvent, Watcher
@@ -35,24 +35,6 @@ __all__ = ["parse_broker", "LiveSummary", "watch_mqtt", "stop_on_signals", "rest
 
 SUBSCRIPTION = "condmon/+/samples"
 BATCH = 2000  # messages handled together at most (one integration of many units)
-
-
-def parse_broker(text: str) -> tuple[str, int]:
-    """``HOST:PORT`` (port 1883 when left out).
-
-    Example
-    -------
-    >>> parse_broker("127.0.0.1:18830"), parse_broker("broker.local")
-    (('127.0.0.1', 18830), ('broker.local', 1883))
-    """
-    host, _, port = text.rpartition(":") if ":" in text else (text, "", "1883")
-    try:
-        number = int(port)
-    except ValueError:
-        number = -1
-    if not host or not 0 < number < 65536:
-        raise ConfigError(f"--mqtt {text!r}: give HOST:PORT (e.g. localhost:1883)")
-    return host, number
 
 
 @dataclass(frozen=True)

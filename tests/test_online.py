@@ -97,3 +97,37 @@ def test_a_stream_joined_while_the_plant_runs_raises_nothing_and_still_detects()
     found = _stream(ModelTracker(HST, settings), {"ok": healthy, "rv": faulty}, 100)
     assert "ok" not in found
     assert 12.0 < found["rv"].time <= 13.0
+
+
+def test_any_message_is_a_chunk_or_one_refusal() -> None:
+    """Over arbitrary payloads (JSON or not), parsing gives a valid chunk or a
+    DataError naming the unit and topic: never another exception."""
+    import json as _json
+
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    from condmon.errors import DataError
+    from condmon.io.stream import parse_chunk
+
+    numbers = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(),
+                        st.booleans(), st.none(), st.text(max_size=3))
+    columns = st.dictionaries(st.sampled_from(["t", "Ps", "omega_m", "end", "x"]),
+                              st.one_of(st.lists(numbers, max_size=6), numbers), max_size=4)
+    payloads = st.one_of(columns.map(lambda d: _json.dumps(d).encode()),
+                         st.binary(max_size=40), st.text(max_size=40).map(str.encode))
+
+    @settings(max_examples=400, deadline=None)
+    @given(payloads)
+    def check(payload: bytes) -> None:
+        try:
+            chunk = parse_chunk("condmon/U-1/samples", payload)
+        except DataError as exc:
+            assert "unit 'U-1' (topic condmon/U-1/samples)" in str(exc)
+            assert "\n" not in str(exc)
+            return
+        lengths = {len(v) for v in chunk.columns.values()}
+        assert len(lengths) <= 1 and (chunk.end or "t" in chunk.columns)
+        assert all(np.all(np.isfinite(v)) for v in chunk.columns.values())
+
+    check()

@@ -22,7 +22,8 @@ def register(app: typer.Typer) -> None:
         db: Annotated[str, typer.Option("--db", help="History database: a SQLite file or a postgresql:// URL.")] = "condmon.db",
         model: Annotated[Optional[str], typer.Option(help="Model of units new to the history (MQTT): a shipped name (hst, dc-motor) or a declaration file (.toml); known units keep their own.")] = None,
         duration: Annotated[Optional[float], typer.Option(help="Stop after this long [s] (default: until Ctrl-C or SIGTERM).", min=0)] = None,
-        isolate_after: Annotated[float, typer.Option(help="Data after a detection before its isolation starts [s].", min=0)] = 6.0,
+        isolate_after: Annotated[Optional[float], typer.Option(help="Data after a detection before its isolation starts [s] (default: what the isolation's settings need).", min=0)] = None,
+        settings: Annotated[Optional[Path], typer.Option(help="Detection/estimation/isolation settings TOML, as for isolate (default: the shipped isolation.toml).")] = None,
         settle: Annotated[float, typer.Option(help="A dropped file is complete once unchanged this long [s].", min=0)] = 2.0,
         client_id: Annotated[str, typer.Option(help="MQTT client id: the broker keeps this session's messages while the watcher is away.")] = "condmon-watch",
         notify: Annotated[Optional[str], typer.Option(help="Webhook URL: every event is POSTed to it as JSON, with retries, never holding the stream back.")] = None,
@@ -36,6 +37,7 @@ def register(app: typer.Typer) -> None:
         or SIGTERM stops."""
         import threading
 
+        from condmon.diagnose.isolation import IsolationSettings
         from condmon.errors import ConfigError
         from condmon.models.registry import get_model
         from condmon.store.db import open_store
@@ -85,7 +87,8 @@ def register(app: typer.Typer) -> None:
                 thread = threading.Thread(target=run_folder, name="watch-folder", daemon=True)
                 thread.start()
             with open_store(db) as store:
-                watcher = Watcher(store, model=model, isolate_after=isolate_after)
+                watcher = Watcher(store, model=model, isolate_after=isolate_after,
+                                  settings=IsolationSettings.load(settings))
                 summary = watch_mqtt(store, mqtt, watcher=watcher, duration=duration, log=log,
                                      client_id=client_id, stop=halt,
                                      notify=notifier.send if notifier else None)

@@ -126,8 +126,10 @@ class Watcher:
         Called with every event (default: nothing).
     log : callable, optional
         Called with every line worth logging (default: nothing).
-    isolate_after : float
-        Seconds of data after a detection before the isolation starts. [s]
+    isolate_after : float, optional
+        Seconds of data after a detection before the isolation starts (default:
+        what the isolation needs, the longer of the estimation's settle plus
+        its shortest window and the comparison's settle, plus 1 s). [s]
     keep : float
         Seconds of a plant unit's stream kept for its isolation. [s]
     """
@@ -137,7 +139,7 @@ class Watcher:
     settings: IsolationSettings = field(default_factory=IsolationSettings.load)
     publish: Callable[[WatchEvent], None] = lambda event: None
     log: Callable[[str], None] = lambda line: None
-    isolate_after: float = 6.0
+    isolate_after: float | None = None
     keep: float = 600.0
     counters: WatchCounters = field(default_factory=WatchCounters)
     _trackers: dict[str, ModelTracker] = field(default_factory=dict, repr=False)
@@ -268,8 +270,11 @@ class Watcher:
                 chunk.unit, "no-go", f"fault detected at t = {d.time:g} s: "
                 f"{', '.join(d.fired)} outside the band since t = {d.onset:g} s",
                 "detected", stream_time=d.time))
+        s = self.settings
+        after = self.isolate_after if self.isolate_after is not None else 1.0 + max(
+            s.estimation_settle + s.min_window, s.compare_settle)
         if (plant.detection is not None and not plant.isolated and plant.pending is None
-                and out.end >= plant.detection.time + self.isolate_after):
+                and out.end >= plant.detection.time + after):
             record = self._record(plant)
             # the model starts where the kept record starts, as the online one did
             first = {c: record[c].to_numpy()[:1] for c in record.columns}
@@ -294,12 +299,18 @@ class Watcher:
                              for c in cols})
 
     def _isolated(self, unit: str, res: IsolationResult, plant: _Plant) -> list[WatchEvent]:
-        from condmon.workflows.isolation import store_isolation
+        from condmon.workflows.isolation import StoredIsolation, store_isolation
 
         plant.isolated = True
         record = self._record(plant)
+        record.attrs["source"] = f"{unit} stream"
         name, _ = self.machine_of(unit)
-        kept = store_isolation(self.store, unit, res, record, None, name)
+        earlier = self._stored_detection(unit, res)
+        if earlier is not None:  # a restart re-sent the stream: the same detection, kept once
+            self.log(f"{unit}: this detection is isolation i{earlier} already; not stored again")
+            kept = StoredIsolation(unit, earlier, True, None)
+        else:
+            kept = store_isolation(self.store, unit, res, record, None, name)
         self.counters.isolations += 0 if kept.duplicate else 1
         what = ("isolated: " + ", ".join(res.isolated) if res.isolated else
                 res.statement or "not isolated")
@@ -307,6 +318,19 @@ class Watcher:
                             + (", already stored" if kept.duplicate else "") + ")",
                             "isolated", tuple(res.isolated),
                             plant.detection.time if plant.detection else None)]
+
+    def _stored_detection(self, unit: str, res: IsolationResult) -> int | None:
+        """The stored isolation of the same stream detection (within twice the
+        persistence and a second of stream time), if any."""
+        if res.detection_time is None:
+            return None
+        iso = self.store.isolations(unit)
+        if not len(iso):
+            return None
+        tol = 2.0 * self.settings.detection.persistence + 1.0
+        same = iso[(iso["source"] == f"{unit} stream")
+                   & ((iso["detection_time"] - res.detection_time).abs() <= tol)]
+        return int(same.index[0]) if len(same) else None
 
     # -- estimation-model units: whole tests ---------------------------------------
 

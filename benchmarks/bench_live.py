@@ -68,6 +68,27 @@ def tracking(units: int, seconds: int) -> dict[str, float]:
             "wall_s": wall, "kB_per_unit": held / units / 1024.0}
 
 
+def watcher_memory(units: int) -> dict[str, float]:
+    """Memory a watcher holds per plant unit once its kept window is full."""
+    from condmon.io.stream import Chunk
+    from condmon.workflows.watch import Watcher
+
+    rec = simulate_plant(HST, seed=3, duration=70.0)
+    cols = {c: rec[c].to_numpy() for c in rec.columns}
+    db = tempfile.mktemp(suffix=".db")
+    with open_store(db) as store:
+        w = Watcher(store, model="hst")
+        tracemalloc.start()
+        base = tracemalloc.get_traced_memory()[0]
+        for k in range(0, len(rec) - 1, 100):
+            w.handle_many([Chunk(f"M{i}", {c: v[k:k + 100].copy() for c, v in cols.items()})
+                           for i in range(units)])
+        held = tracemalloc.get_traced_memory()[0] - base
+        tracemalloc.stop()
+        w.close()
+    return {"units": units, "kept_s": w.keep, "kB_per_unit": held / units / 1024.0}
+
+
 class _Events:
     def __init__(self, port: int) -> None:
         import paho.mqtt.client as mqtt
@@ -181,6 +202,8 @@ def main() -> None:
     args = ap.parse_args()
     rows = [tracking(n, args.seconds) for n in args.units]
     print(table(rows, "Online residual tracking of the HST (100 Hz, 1 s chunks, one core)"))
+    mem = watcher_memory(100)
+    print(table([mem], "A watcher's memory per plant unit (its model, detector and kept window)"))
     from test_watch import Broker
 
     folder = Path(tempfile.mkdtemp())
@@ -189,7 +212,7 @@ def main() -> None:
         Broker.__init__(broker, folder)
     except BaseException as exc:  # pytest.skip when mosquitto is missing
         print(f"no broker: {exc}")
-        write_json("live", {"tracking": rows})
+        write_json("live", {"tracking": rows, "watcher_memory": mem})
         return
     try:
         lat = latency(broker, args.repeats)
@@ -198,7 +221,8 @@ def main() -> None:
         print(table([tp], "Throughput through mosquitto (50 units, 1 s chunks)"))
     finally:
         broker.kill()
-    path = write_json("live", {"tracking": rows, "latency": lat, "throughput": tp})
+    path = write_json("live", {"tracking": rows, "watcher_memory": mem, "latency": lat,
+                               "throughput": tp})
     print(f"wrote {path}")
 
 

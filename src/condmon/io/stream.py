@@ -48,6 +48,8 @@ class StreamLimits:
         Events waiting to be published or posted.
     stale_after : float
         A unit silent this long is shown stale on the live page. [s]
+    keep : float
+        Seconds of a plant unit's stream kept before a detection. [s]
     """
 
     max_message_bytes: int = 8_000_000
@@ -55,6 +57,7 @@ class StreamLimits:
     queue: int = 10_000
     events: int = 1_000
     stale_after: float = 30.0
+    keep: float = 60.0
 
     @classmethod
     def shipped(cls) -> StreamLimits:

@@ -36,7 +36,7 @@ from condmon.diagnose.isolation import IsolationResult, IsolationSettings, isola
 from condmon.diagnose.online import OnlineDetection
 from condmon.diagnose.tracking import ChunkOutcome, ModelTracker, measured_start, started_at
 from condmon.errors import CondmonError, DataError
-from condmon.io.stream import Chunk
+from condmon.io.stream import Chunk, StreamLimits
 from condmon.models.machine import Machine
 from condmon.models.registry import get_model
 from condmon.store.db import HistoryStore
@@ -130,8 +130,12 @@ class Watcher:
         Seconds of data after a detection before the isolation starts (default:
         what the isolation needs, the longer of the estimation's settle plus
         its shortest window and the comparison's settle, plus 1 s). [s]
-    keep : float
-        Seconds of a plant unit's stream kept for its isolation. [s]
+    keep : float, optional
+        Seconds of a plant unit's stream kept before a detection, for its
+        isolation (which starts its model from the kept record's first
+        readings); after a detection everything is kept until the isolation
+        (default: ``[stream] keep`` of ``limits.toml``, 60 s: 190 kB a unit at
+        100 Hz with four columns). [s]
     """
 
     store: HistoryStore
@@ -140,7 +144,7 @@ class Watcher:
     publish: Callable[[WatchEvent], None] = lambda event: None
     log: Callable[[str], None] = lambda line: None
     isolate_after: float | None = None
-    keep: float = 600.0
+    keep: float = field(default_factory=lambda: StreamLimits.shipped().keep)
     counters: WatchCounters = field(default_factory=WatchCounters)
     _trackers: dict[str, ModelTracker] = field(default_factory=dict, repr=False)
     _plants: dict[str, _Plant] = field(default_factory=dict, repr=False)

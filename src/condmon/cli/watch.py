@@ -25,7 +25,7 @@ def register(app: typer.Typer) -> None:
         isolate_after: Annotated[Optional[float], typer.Option(help="Data after a detection before its isolation starts [s] (default: what the isolation's settings need).", min=0)] = None,
         settings: Annotated[Optional[Path], typer.Option(help="Detection/estimation/isolation settings TOML, as for isolate (default: the shipped isolation.toml).")] = None,
         settle: Annotated[float, typer.Option(help="A dropped file is complete once unchanged this long [s].", min=0)] = 2.0,
-        client_id: Annotated[str, typer.Option(help="MQTT client id: the broker keeps this session's messages while the watcher is away.")] = "condmon-watch",
+        client_id: Annotated[Optional[str], typer.Option(help="MQTT client id: the broker keeps this session's messages while the watcher is away; two watchers with one id push each other off (default: one per history).")] = None,
         notify: Annotated[Optional[str], typer.Option(help="Webhook URL: every event is POSTed to it as JSON, with retries, never holding the stream back.")] = None,
     ) -> None:
         """Watch units live: MQTT streams and record files dropped in a folder.

@@ -50,6 +50,8 @@ class StreamLimits:
         A unit silent this long is shown stale on the live page. [s]
     keep : float
         Seconds of a plant unit's stream kept before a detection. [s]
+    max_test_samples : int
+        Samples of one estimation-model unit's test before its ``end``.
     """
 
     max_message_bytes: int = 8_000_000
@@ -58,6 +60,7 @@ class StreamLimits:
     events: int = 1_000
     stale_after: float = 30.0
     keep: float = 60.0
+    max_test_samples: int = 2_000_000
 
     @classmethod
     def shipped(cls) -> StreamLimits:
@@ -133,6 +136,8 @@ def parse_chunk(topic: str, payload: bytes | str, limits: StreamLimits | None = 
         doc = json.loads(payload)
     except (ValueError, UnicodeDecodeError) as exc:
         raise DataError(f"{where}: not JSON ({str(exc).splitlines()[0][:80]})") from None
+    except RecursionError:
+        raise DataError(f"{where}: not a message of columns (JSON nested too deep)") from None
     if not isinstance(doc, dict):
         raise DataError(f"{where}: a message is a JSON object of columns, not a "
                         f"{type(doc).__name__}")

@@ -61,7 +61,7 @@ class LiveSummary:
 def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
                watcher: Watcher | None = None, duration: float | None = None,
                stop: threading.Event | None = None, log: Callable[[str], None] = print,
-               client_id: str = "condmon-watch", limits: StreamLimits | None = None,
+               client_id: str | None = None, limits: StreamLimits | None = None,
                notify: Callable[[dict[str, Any]], object] | None = None) -> LiveSummary:
     """Watch the units streaming to ``broker`` until stopped.
 
@@ -80,8 +80,10 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
         Set it to stop (from another thread).
     log : callable
         Takes each log line.
-    client_id : str
-        The MQTT client id (a persistent session is kept under it).
+    client_id : str, optional
+        The MQTT client id: the broker keeps a persistent session under it, and
+        two clients with one id push each other off. Default: ``condmon-watch-``
+        and a digest of the history's address, so one history has one session.
     limits : StreamLimits, optional
         Message and queue bounds (default: shipped).
     notify : callable, optional
@@ -96,6 +98,13 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
     from paho.mqtt.enums import CallbackAPIVersion
 
     host, port = parse_broker(broker)
+    if client_id is None:
+        import hashlib
+
+        client_id = "condmon-watch-" + hashlib.sha256(str(store.url).encode()).hexdigest()[:12]
+    if not client_id.strip() or len(client_id) > 128:
+        raise ConfigError(f"--client-id {client_id!r}: give a name of 1 to 128 characters "
+                          "(the broker keeps this watcher's session under it)")
     lim = limits or StreamLimits.shipped()
     inbox: queue.Queue[tuple[str, bytes]] = queue.Queue(maxsize=lim.queue)
     state = {"overflow": 0, "connections": 0}
@@ -141,7 +150,8 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
     try:
         client.connect(host, port, keepalive=30)
     except OSError as exc:
-        raise ConfigError(f"--mqtt {broker}: cannot reach the broker ({exc})") from None
+        raise ConfigError(f"--mqtt {broker}: cannot reach the broker at {host}:{port} "
+                          f"({exc})") from None
     client.loop_start()
     previous = stop_on_signals(halt)
     started = time.monotonic()
@@ -161,9 +171,10 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
             _handle(w, messages, lim, log)
         w.close()
     finally:
+        halt.set()  # a stop, not a lost broker
         restore_signals(previous)
-        client.loop_stop()
         client.disconnect()
+        client.loop_stop()
     counters = w.counters
     counters.dropped += state["overflow"]
     return LiveSummary(counters, time.monotonic() - started, state["overflow"],

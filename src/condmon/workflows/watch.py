@@ -109,6 +109,7 @@ class _Plant:
     detection: OnlineDetection | None = None
     pending: cf.Future[IsolationResult] | None = None
     isolated: bool = False
+    said: set[str] = field(default_factory=set)
 
 
 @dataclass
@@ -145,6 +146,8 @@ class Watcher:
     log: Callable[[str], None] = lambda line: None
     isolate_after: float | None = None
     keep: float = field(default_factory=lambda: StreamLimits.shipped().keep)
+    max_test_samples: int = field(
+        default_factory=lambda: StreamLimits.shipped().max_test_samples)
     counters: WatchCounters = field(default_factory=WatchCounters)
     _trackers: dict[str, ModelTracker] = field(default_factory=dict, repr=False)
     _plants: dict[str, _Plant] = field(default_factory=dict, repr=False)
@@ -152,7 +155,8 @@ class Watcher:
     _status: dict[str, str] = field(default_factory=dict, repr=False)
     _machines: dict[str, tuple[str, Machine]] = field(default_factory=dict, repr=False)
     _pool: cf.ThreadPoolExecutor = field(
-        default_factory=lambda: cf.ThreadPoolExecutor(2, thread_name_prefix="isolate"),
+        # one isolation at a time: scipy's LSODA (before 1.15) keeps state per process
+        default_factory=lambda: cf.ThreadPoolExecutor(1, thread_name_prefix="isolate"),
         repr=False)
 
     def machine_of(self, unit: str) -> tuple[str, Machine]:
@@ -238,8 +242,20 @@ class Watcher:
         return events
 
     def close(self) -> list[WatchEvent]:
-        """Finish pending isolations (stored) and stop the workers."""
+        """Finish pending isolations (stored), isolate a detection whose data
+        has not all arrived on what there is (so it is kept), say what tests
+        were left unfinished, and stop the workers."""
+        for unit, plant in self._plants.items():
+            if plant.detection is not None and not plant.isolated and plant.pending is None:
+                name, machine = self.machine_of(unit)
+                self.log(f"{unit}: stopping before the isolation's data arrived: isolating "
+                         "on what there is, so the detection is kept")
+                plant.pending = self._submit(unit, plant, machine)
         events = self.poll(wait=True)
+        for unit, parts in self._tests.items():
+            if parts:
+                self.log(f"{unit}: an unfinished test ({sum(len(p['t']) for p in parts)} "
+                         "samples, no {\"end\": true}) was not checked")
         self._pool.shutdown(wait=True)
         return events
 
@@ -255,7 +271,10 @@ class Watcher:
             self.log(f"{chunk.unit}: chunk dropped, {out.dropped}")
             return events
         for note in out.notes:
-            self.log(f"{chunk.unit}: {note}")
+            if note not in plant.said:
+                self.log(f"{chunk.unit}: {note}")
+            if note.startswith("input "):
+                plant.said.add(note)  # said once per unit, not at every chunk
         if any("started again" in n for n in out.notes):
             plant.chunks, plant.detection, plant.isolated = [], None, False
         plant.chunks.append(chunk.columns)
@@ -279,14 +298,17 @@ class Watcher:
             s.estimation_settle + s.min_window, s.compare_settle)
         if (plant.detection is not None and not plant.isolated and plant.pending is None
                 and out.end >= plant.detection.time + after):
-            record = self._record(plant)
-            # the model starts where the kept record starts, as the online one did
-            first = {c: record[c].to_numpy()[:1] for c in record.columns}
-            model = started_at(machine.plant, measured_start(machine.plant, first))
-            plant.pending = self._pool.submit(
-                isolate, record, model, settings=self.settings, workers=1,
-                source=f"{chunk.unit} stream")
+            plant.pending = self._submit(chunk.unit, plant, machine)
         return events
+
+    def _submit(self, unit: str, plant: _Plant, machine: Machine) -> cf.Future[IsolationResult]:
+        """Start the isolation of the kept record, the model started where it starts
+        (as the online one did)."""
+        record = self._record(plant)
+        first = {c: record[c].to_numpy()[:1] for c in record.columns}
+        model = started_at(machine.plant, measured_start(machine.plant, first))
+        return self._pool.submit(isolate, record, model, settings=self.settings, workers=1,
+                                 source=f"{unit} stream")
 
     def _trim(self, plant: _Plant) -> None:
         """Keep the last ``keep`` seconds, and whatever follows a detection."""
@@ -316,7 +338,8 @@ class Watcher:
         else:
             kept = store_isolation(self.store, unit, res, record, None, name)
         self.counters.isolations += 0 if kept.duplicate else 1
-        what = ("isolated: " + ", ".join(res.isolated) if res.isolated else
+        what = (res.statement if len(res.isolated) > 1 and res.statement else
+                "isolated: " + ", ".join(res.isolated) if res.isolated else
                 res.statement or "not isolated")
         return [self._event(unit, "no-go", f"{what} (isolation i{kept.isolation_id}"
                             + (", already stored" if kept.duplicate else "") + ")",
@@ -341,6 +364,16 @@ class Watcher:
     def _test_chunk(self, chunk: Chunk, name: str) -> list[WatchEvent]:
         parts = self._tests.setdefault(chunk.unit, [])
         if chunk.columns:
+            held = sum(len(p["t"]) for p in parts)
+            if parts and set(chunk.columns) != set(parts[0]):
+                raise DataError(f"unit {chunk.unit!r}: the chunk's columns "
+                                f"{sorted(chunk.columns)} are not the test's "
+                                f"{sorted(parts[0])}; chunk refused")
+            if held + chunk.samples > self.max_test_samples:
+                self._tests.pop(chunk.unit, None)
+                raise DataError(f"unit {chunk.unit!r}: the test passes {self.max_test_samples} "
+                                "samples with no {\"end\": true} ([stream] max_test_samples); "
+                                f"its {held} samples are dropped")
             if parts and chunk.columns["t"][0] <= parts[-1]["t"][-1]:
                 self.counters.dropped += 1
                 self.log(f"{chunk.unit}: chunk dropped, it does not follow the last one "
@@ -366,9 +399,13 @@ class Watcher:
         if not self.store.unit_model(unit) or len(baseline_members(self.store, unit)[0]) < 3:
             added = add_baseline_tests(self.store, unit, [frame], options=opts)
             self.counters.checks += 1
-            state = ("baseline ready" if added.baseline is not None else
-                     added.message or "healthy test kept for the baseline")
-            return self._event(unit, "go", f"test kept for the baseline: {state}", "baseline")
+            n = len(baseline_members(self.store, unit)[0])
+            accepted = any(t.accepted for t in added.tests)
+            state = ("baseline ready: the next tests are checked against it"
+                     if added.baseline is not None else
+                     f"{n} of 3 healthy tests for its baseline so far")
+            what = "test kept for the baseline" if accepted else "test rejected"
+            return self._event(unit, "baseline", f"{what}: {state}", "baseline")
         res = check_test(self.store, unit, frame, options=opts)
         self.counters.checks += 1
         summary = res.diagnosis.summary if res.diagnosis is not None else str(

@@ -16,6 +16,7 @@ from typing import Any
 import pandas as pd
 import pytest
 
+from _tables import flat, row, unfold
 from condmon.cli.main import main
 from condmon.errors import ConfigError
 from condmon.store import open_store
@@ -120,6 +121,31 @@ def test_running_again_stores_nothing(inbox: Path,
     assert again.skipped == 22
     with open_store(db, create=False) as store:
         assert sum(s["tests"] + s["isolations"] for s in store.unit_summaries()) == 21
+
+
+@pytest.mark.tables
+def test_the_printed_summary_is_the_json_one(inbox: Path,
+                                              first_run: tuple[Path, dict[str, Any], float],
+                                              tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    """The same inbox into a new history, printed: the units under each status, the
+    counts of the run."""
+    _, doc, _ = first_run
+    monkeypatch.setenv("COLUMNS", "80")
+    capsys.readouterr()
+    assert main(["fleet", "run", str(inbox), "--db", str(tmp_path / "f.db"),
+                 "--workers", "1"]) == 0
+    out = capsys.readouterr().out
+    row(out, "status", "units", "which")
+    statuses: dict[str, list[str]] = {}
+    for u in doc["units"]:
+        statuses.setdefault(u["status"], []).append(u["unit"])
+    assert statuses == {"no-go": ["EMA-3", "HST-1"], "go": ["EMA-1", "EMA-2", "EMA-4"]}
+    shown = [row(out, status, str(len(statuses[status])), ", ".join(statuses[status]))
+             for status in ("no-go", "go")]
+    assert unfold(out).index(shown[0]) < unfold(out).index(shown[1])  # no-go first
+    assert (f"23 records: {doc['stored']} stored, {doc['skipped']} skipped, {doc['rejected']} "
+            f"rejected, {doc['refused']} refused — 5 units, 1 worker(s)") in flat(out)
 
 
 def test_the_fleet_answers_as_baseline_add_and_check(

@@ -270,3 +270,24 @@ def test_dates_groups_and_regimes_get_their_columns(tmp_path: Path) -> None:
     row(out, "unit", "model", "group", "tests", "latest", "regime", "date", "status")
     row(out, "A1", Path(u["model"]).name, "stand-2", "7", "worn.txt", "forward", "2026-03-09",
         "no-go")
+
+
+def test_the_oldest_versions_ci_installs_are_the_floors() -> None:
+    """.ci/lowest.txt pins each dependency at the floor pyproject.toml declares."""
+    import tomllib
+
+    root = Path(__file__).resolve().parents[1]
+    project = tomllib.loads((root / "pyproject.toml").read_text())["project"]
+    floors = {}
+    for spec in [*project["dependencies"], *project["optional-dependencies"]["postgres"]]:
+        found = re.fullmatch(r"([\w-]+)(?:\[\w+\])?>=([\d.]+)", spec)
+        assert found is not None, f"{spec}: a floor (>=) and nothing else"
+        floors[found[1].lower()] = found[2]
+    floors["psycopg-binary"] = floors["psycopg"]  # psycopg[binary]
+    pins = dict(line.lower().split("==") for line in (root / ".ci" / "lowest.txt").read_text()
+                .splitlines() if line.strip() and not line.startswith("#"))
+
+    def numbers(v: str) -> tuple[int, ...]:
+        return tuple(int(x) for x in (v.split(".") + ["0", "0"])[:3])
+
+    assert {k: numbers(v) for k, v in pins.items()} == {k: numbers(v) for k, v in floors.items()}

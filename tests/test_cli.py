@@ -87,8 +87,15 @@ def test_check_without_baseline_is_explained(tmp_path: Path, capsys: pytest.Capt
     assert "no history database there" in capsys.readouterr().err
     open_store(str(tmp_path / "x.db")).close()  # an existing, empty history
     assert main(["check", f, "--unit", "new", "--db", str(tmp_path / "x.db")]) == 2
-    err = capsys.readouterr().err
-    assert "has 0 accepted healthy test(s); a baseline needs at least 3" in err.replace("\n", " ")
+    err = capsys.readouterr().err.replace("\n", " ")
+    assert "unknown unit 'new'" in err and "units: none yet" in err
+    assert "a new unit starts with its healthy tests: condmon baseline add REC... --unit new" in err
+    # a unit with too few healthy tests is told how many it has
+    assert main(["baseline", "add", f, "--unit", "new", "--db", str(tmp_path / "x.db")]) == 0
+    capsys.readouterr()
+    assert main(["check", f, "--unit", "new", "--db", str(tmp_path / "x.db")]) == 2
+    err = capsys.readouterr().err.replace("\n", " ")
+    assert "has 1 accepted healthy test(s); a baseline needs at least 3" in err
 
 
 def test_simulate_then_estimate_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

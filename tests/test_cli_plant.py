@@ -126,3 +126,46 @@ def test_isolations_are_kept_in_the_units_history(tmp_path: Path,
     simulate_actuator(seed=1).to_csv(act, index=False)
     assert main(["baseline", "add", str(act), "--unit", "HST-1", "--db", db]) == 2
     assert "is monitored with plant model 'hst': its records are isolated" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("order", [
+    ["{rec}", "--healthy", "{h1}", "{h2}"],
+    ["--healthy", "{h1}", "{h2}", "{rec}"],
+    ["--healthy={h1}", "{h2}", "{rec}"],
+    ["--healthy", "{h1}", "--healthy", "{h2}", "{rec}"],
+])
+def test_several_healthy_records_after_one_flag(
+        order: list[str], tmp_path_factory: pytest.TempPathFactory,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """`--healthy a b` (a shell glob) reads both, wherever the record is."""
+    root = tmp_path_factory.getbasetemp() / "several-healthy"
+    files = {"rec": root / "rv.csv", "h1": root / "h1.csv", "h2": root / "h2.csv"}
+    if not files["rec"].exists():
+        root.mkdir(exist_ok=True)
+        assert main(["simulate", "hst", "--out", str(files["rec"]), "--fault", "Rv=+40%@5s",
+                     "--seed", "3", "--duration", "15"]) == 0
+        for s in (1, 2):
+            assert main(["simulate", "hst", "--out", str(files[f"h{s}"]), "--seed", str(s),
+                         "--duration", "15"]) == 0
+    capsys.readouterr()
+    args = [a.format(**{k: str(v) for k, v in files.items()}) for a in order]
+    assert main(["isolate", "hst", *args, "--json", "--workers", "1"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["normalisation"]["source"] == "healthy records (2)"
+    assert doc["detected"] and "Rv" in doc["isolated"]  # the faulty record is the one read
+
+
+def test_spreading_leaves_the_commands_own_words() -> None:
+    from condmon.cli._options import spread_values
+
+    greedy, flags = {"--healthy"}, {"--json"}
+    assert spread_values(["hst", "r.csv"], greedy, flags, 2) == ["hst", "r.csv"]
+    # one healthy record and the record after it: the record stays an argument
+    assert spread_values(["hst", "--healthy", "a", "r.csv"], greedy, flags, 2) == [
+        "hst", "--healthy", "a", "r.csv"]
+    # a flag ends the values; an option's value is never taken
+    assert spread_values(["hst", "--healthy", "a", "--json", "b", "r.csv"], greedy, flags,
+                         2) == ["hst", "--healthy", "a", "--json", "b", "r.csv"]
+    assert spread_values(["--workers", "2", "hst", "r.csv", "--healthy", "a", "b", "c"],
+                         greedy, flags, 2) == ["--workers", "2", "hst", "r.csv", "--healthy",
+                                               "a", "--healthy", "b", "--healthy", "c"]

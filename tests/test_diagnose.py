@@ -103,9 +103,12 @@ no_go = [0.5, 0.75, 1.0, 1.0]
 ''')
     rb = load_rules(p)
     d = diagnose(sym(R=(0.8, 0.0), Ke=(0.0, 0.6)), rb)
-    assert d.faults[0].name == "overheating" and d.faults[0].degree == pytest.approx(0.6)
     assert d.status == "go"  # a minor fault raises an advisory only once well established
-    assert diagnose(sym(R=(0.9, 0.0), Ke=(0.0, 0.8)), rb).status == "advisory"
+    assert d.no_fault and d.summary == "go: no fault; to watch: overheating (0.60)"
+    assert d.watch[0].name == "overheating" and d.watch[0].degree == pytest.approx(0.6)
+    d = diagnose(sym(R=(0.9, 0.0), Ke=(0.0, 0.8)), rb)
+    assert d.status == "advisory" and [f.name for f in d.faults] == ["overheating"]
+    assert d.faults[0].severity == "minor" and not d.watch
 
 
 @pytest.mark.parametrize("body,message", [
@@ -127,3 +130,23 @@ def test_rules_about_unknown_parameters_are_refused(tmp_path: Path) -> None:
                  '[status]\ngo=[0,0,0.25,0.5]\nadvisory=[0.25,0.5,0.75]\nno_go=[0.5,0.75,1,1]\n')
     with pytest.raises(ConfigError, match=r"unknown parameter\(s\) \['Q'\]"):
         diagnose(sym(), load_rules(p))
+
+
+@pytest.mark.parametrize("degree", [0.0, 0.001, 0.004, 0.1, 0.2, 0.3, 0.45, 0.6, 0.75, 0.8, 0.9,
+                                    1.0])
+@pytest.mark.parametrize("second", [0.0, 0.5, 0.9])
+def test_listed_faults_agree_with_the_status(degree: float, second: float) -> None:
+    """A go test lists no fault, an advisory test no major one, a no-go test a
+    major one, and no listed fault or tendency reads 0.00."""
+    d = diagnose(sym(R=(degree, 0.0), J=(second, 0.0)))
+    if d.status == "go":
+        assert d.faults == ()
+    if d.status in ("go", "advisory"):
+        assert all(f.severity == "minor" for f in d.faults)
+    else:
+        assert any(f.severity == "major" for f in d.faults)
+    for f in (*d.faults, *d.watch):
+        assert f"{f.degree:.2f}" != "0.00"
+    assert not {f.name for f in d.faults} & {f.name for f in d.watch}
+    # the rule's own severity is kept
+    assert all(f.rule_severity in ("major", "minor") for f in (*d.faults, *d.watch))

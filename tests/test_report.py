@@ -192,7 +192,8 @@ def test_flags_and_baseline_are_shown(fleet: tuple[str, dict[str, int]],
     box = re.search(r"<div class='warn' id='flags'>.*?</div>", html)
     assert box is not None and "may not be trustworthy (2 warnings)" in box.group(0)
     assert f"<a href='#t{ids['worn']}'>#{ids['worn']}</a>" in box.group(0)
-    assert "<h2 id='baseline'>Baseline default v1</h2>" in html and "N = 5" in html
+    assert "<h2 id='baseline'>Baseline in use: default v1</h2>" in html
+    assert "from tests #1-#5 (5 tests)" in html
     assert re.search(r"<td class='l'>D</td><td>[0-9.e-]+ ± [0-9.e-]+</td>"
                      r"<td class='l'>N m s/rad</td>", html)
 
@@ -207,7 +208,7 @@ def test_excluding_the_worn_test_changes_the_report(fleet: tuple[str, dict[str, 
         page = write_report(store, ODD, tmp_path / "r")
     html = page.html.read_text()
     assert "excluded: worn unit fitted" in _row(html, ids["worn"])
-    assert "may not be trustworthy" not in html and "Baseline default v2" in html
+    assert "may not be trustworthy" not in html and "Baseline in use: default v2" in html
     d = next(t for t in page.trends if t.parameter == "D")
     i = d.test_ids.index(ids["bad"])
     assert d.status[i] == "no-go" and d.reaches_r1[i] and d.symptom[i] == 1.0
@@ -230,8 +231,9 @@ def test_isolation_unit_page(report: FleetReport) -> None:
     page = _page(report, HST)
     html = page.html.read_text()
     assert "<h2>Isolations</h2>" in html and "fault isolated: Rv" in html
-    assert "<td class='l'>Rv</td>" in html and "<b>+25.0</b>" in html
-    assert "title='estimate +1e+30 %, left out of the comparison'>rejected</td>" in html
+    assert "<td class='l'>Rv</td>" in html and "<b>+25.0 %</b>" in html
+    assert ("title='estimate 1e+28 N m, nominal 1 N m, model error 1 noise σ, left out of "
+            "the comparison'>rejected</td>") in html
     iso = page.isolations
     assert iso is not None and iso.isolation_ids == (2, 1)  # by date
     assert iso.xlabel == "test date (UTC)"
@@ -287,3 +289,53 @@ def test_page_name_is_short_safe_and_keeps_plain_names(name: str) -> None:
     plain = re.fullmatch(r"[A-Za-z0-9_-][A-Za-z0-9._-]{0,79}", name) is not None
     assert (got == name) == (plain and name.lower() not in ("index", "con"))
     assert page_name(name) == got  # stable
+
+
+def test_the_baseline_in_use_its_version_and_what_it_holds(tmp_path: Path) -> None:
+    """After an exclusion and a rebuild, the report's and the fleet page's unit
+    pages say which baseline version is in use, when it was built, from which
+    tests, and how many it holds per regime."""
+    from _strokes import DECLARATION, write_stroke
+
+    from condmon.report.web import create_app
+    from condmon.workflows.manage import rebuild_baseline
+
+    db = str(tmp_path / "h.db")
+    speeds = [1.0, -1.0, 1.1, -1.1, 0.9, -0.9, 1.05]  # forward: #1 #3 #5 #7
+    files = [str(write_stroke(tmp_path / f"r{i}.txt", v, seed=i))
+             for i, v in enumerate(speeds)]
+    assert main(["baseline", "add", *files, "--unit", "A", "--db", db,
+                 "--model", str(DECLARATION)]) == 0
+
+    def pages() -> tuple[str, str]:
+        with open_store(db, create=False) as store:
+            html = write_report(store, "A", tmp_path / "r").html.read_text()
+            stored = store.latest_baseline("A")
+        live = create_app(db).test_client().get("/units/A").get_data(as_text=True)
+        assert stored is not None
+        return html.replace("&#x27;", "'"), live.replace("&#39;", "'")
+
+    def head(page: str) -> str:
+        found = re.search(r"id=.in-use.>(.*?)</p>", page, re.S)
+        assert found is not None
+        return re.sub(r"<[^>]+>", "", found.group(1))
+
+    with open_store(db, create=False) as store:
+        exclude_test(store, 2, "a leaking fitting")  # a reverse stroke: 2 of them left
+        built = store.latest_baseline("A")
+    assert built is not None and built.version == 2
+    want = (f"In use: baseline default v2, built {built.created_at:%Y-%m-%d %H:%M} UTC from "
+            "tests #1,#3-#7 (6 tests: forward 4, reverse 2; too few to compare reverse).")
+    for page in pages():
+        assert head(page) == want
+        assert "Baseline in use: default v2</h2>" in page
+    with open_store(db, create=False) as store:
+        rebuild_baseline(store, "A", reason="after overhaul", name="spring",
+                         test_ids=[1, 3, 4, 5, 6])
+        built = store.latest_baseline("A")
+    assert built is not None and (built.name, built.version) == ("spring", 1)
+    want = (f"In use: baseline spring v1, built {built.created_at:%Y-%m-%d %H:%M} UTC from "
+            "tests #1,#3-#6 (5 tests: forward 3, reverse 2; too few to compare reverse).")
+    for page in pages():
+        assert head(page) == want
+        assert "Baseline in use: spring v1</h2>" in page and "after overhaul" in page

@@ -184,6 +184,128 @@ def test_unit_page_shows_trends_advice_tests_and_isolations(fleet: dict[str, Any
     assert '<svg class="trend"' not in hst
 
 
+def _bar(panel: str, test_id: int) -> tuple[float, float, float]:
+    """The drawn error bar of test ``test_id`` in an SVG panel: its centre and
+    half-length in the panel's percent, read from the y ticks' positions."""
+    ticks = [(float(y), float(v)) for y, v in
+             re.findall(r'<text class="ytick" x="[^"]*" y="([-0-9.]+)">([-+0-9.e]+)</text>',
+                        panel)]
+    (y0, v0), (y1, v1) = ticks[0], ticks[-1]
+    per_px = (v1 - v0) / (y1 - y0)  # percent per pixel (negative: y grows down)
+    point = re.search(rf'<a href="#t{test_id}"><g .*?</g></a>', panel, re.S)
+    assert point is not None, test_id
+    line = re.search(r'<line [^>]*y1="([-0-9.]+)" y2="([-0-9.]+)"', point.group(0))
+    cy = re.search(r'cy="([-0-9.]+)"', point.group(0))
+    assert line is not None and cy is not None, point.group(0)
+    lo, hi = float(line.group(1)), float(line.group(2))
+    centre = v0 + (float(cy.group(1)) + 3 - y0) * per_px  # tick labels sit 3 px low
+    return centre, abs(hi - lo) / 2 * abs(per_px), (lo + hi) / 2
+
+
+def test_one_error_bar_the_symptom_width(fleet: dict[str, Any], client: Any) -> None:
+    """The page, its JSON and the report draw ±k·max(σ, SE) of the evaluation
+    the status rests on, and say so; never a bare standard error."""
+    from condmon.monitor.fuzzy import load_monitor_config
+
+    ids, k = fleet["ids"], load_monitor_config().k
+    with open_store(fleet["db"], create=False) as store:
+        hist = store.history(ODD)
+        used = store.baseline_by_id(ODD, int(hist.loc[ids["bad"], "baseline_id"])).baseline
+    j = used.parameters.index("D")
+    want = k * 100 * max(used.std[j], hist.loc[ids["bad"], "D_se"]) / abs(used.mean[j])
+    one_se = 100 * hist.loc[ids["bad"], "D_se"] / used.mean[j]
+    assert abs(want - one_se) > 5  # the two definitions differ visibly here
+    page = client.get("/units/" + quote(ODD, safe="/")).get_data(as_text=True)
+    d_panel = next(p for p in re.findall(r'<svg class="trend".*?</svg>', page, re.S)
+                   if "D change [%]" in p)
+    centre, half, middle = _bar(d_panel, ids["bad"])
+    assert half == pytest.approx(want, rel=0.02, abs=0.6)  # pixels rounded to 0.1
+    assert centre == pytest.approx(hist.loc[ids["bad"], "D_change"], abs=1.0)
+    assert "±1 standard error" not in page and "(SE)" not in page
+    from condmon.report.trends import error_bar
+
+    assert error_bar(k, words=True) in html_unescape(page)
+    doc = _api(client, "/api/units/" + quote(ODD, safe="/"))
+    assert doc["error_bars"] == {"definition": error_bar(k, words=True), "k": k, "unit": "%"}
+    d = next(t for t in doc["trends"] if t["parameter"] == "D")
+    assert d["half_width"][d["test_ids"].index(ids["bad"])] == pytest.approx(want)
+
+
+def _images(client: Any, url: str) -> dict[str, bytes]:
+    """The figures of a unit page: name to the PNG it shows."""
+    import base64
+
+    page = client.get(url).get_data(as_text=True)
+    return {name: base64.b64decode(data) for name, data in re.findall(
+        r'<figure class="report" id="fig-([a-z]+)"><img src="data:image/png;base64,([^"]+)"',
+        page)}
+
+
+def test_unit_page_shows_the_report_s_figures(fleet: dict[str, Any], client: Any,
+                                              tmp_path: Path) -> None:
+    """The fit, symptom and isolation figures are the report's own, pixel for pixel."""
+    from condmon.report import page_name, write_report
+
+    with open_store(fleet["db"], create=False) as store:
+        write_report(store, ODD, tmp_path)
+        write_report(store, "HST-1", tmp_path)
+    ema = _images(client, "/units/" + quote(ODD, safe="/"))
+    assert sorted(ema) == ["fits", "symptoms"]
+    for name, png in ema.items():
+        assert png.startswith(b"\x89PNG") and png == (
+            tmp_path / f"{page_name(ODD)}-{name}.png").read_bytes(), name
+    assert _images(client, "/units/HST-1") == {
+        "isolations": (tmp_path / "HST-1-isolations.png").read_bytes()}
+
+
+def _suspect_cells(page: str, n: int) -> list[str]:
+    """The last ``n`` cells (the suspects') of every isolation row (either page)."""
+    rows = re.findall(r"<tr id=[\"']i\d+[\"'].*?</tr>", page, re.S)
+    cells = [c for r in rows for c in re.findall(r"<td[^>]*>(.*?)</td>", r, re.S)[-n:]]
+    return [html_unescape(re.sub(r"</?b>", "", c)) for c in cells]
+
+
+def _suspects_table(page: str) -> dict[str, list[str]]:
+    """The latest isolation's suspects table: suspect to its cells."""
+    table = re.search(r"<table class=[\"']suspects[\"']>(.*?)</table>", page, re.S)
+    assert table is not None
+    rows = [[html_unescape(c) for c in re.findall(r"<t[dh][^>]*>(.*?)</t[dh]>", r, re.S)]
+            for r in re.findall(r"<tr>(.*?)</tr>", table.group(1), re.S)]
+    assert rows[0] == ["suspect", "estimate", "nominal", "unit", "change [%]",
+                       "model error [noise σ]", ""]
+    return {r[0]: r[1:] for r in rows[1:]}
+
+
+def test_hst_numbers_carry_their_units(fleet: dict[str, Any], client: Any,
+                                       tmp_path: Path) -> None:
+    """Every estimate and nominal of an HST unit, on the report's page and the
+    fleet page, is written with the unit its model declares."""
+    from condmon.models.declared import load_plant_model
+    from condmon.report import write_report
+
+    units = load_plant_model("hst").parameter_units()
+    assert units["Rv"] == "N m s/rad"
+    with open_store(fleet["db"], create=False) as store:
+        iso = store.isolations("HST-1").iloc[0]
+        report = write_report(store, "HST-1", tmp_path).html.read_text()
+    live = client.get("/units/HST-1").get_data(as_text=True)
+    for page in (report, live):
+        cells = _suspect_cells(page, 6)  # Dp, Rlkgp, Dm, Rlkgm, Rv, Tld
+        assert all(re.fullmatch(r"rejected|[-+][0-9.]+ %|= [-+]?[0-9.e+-]+ (.+)", c)
+                   for c in cells), cells
+        assert f"= {iso['Tld']:.4g} N m" in cells  # a nominal of 0: the estimate, in N m
+        table = _suspects_table(page)
+        assert table["Rv"] == [f"{iso['Rv']:.4g}", "11.27", "N m s/rad",
+                               f"{iso['Rv_change']:+.1f}", f"{iso['Rv_error']:.2g}", "isolated"]
+        assert table["Dm"][1:3] == ["4.45e-05", "m^3/rad"]
+        assert all(row[2] == units[p] for p, row in table.items())
+        assert f"estimate {iso['Rv']:.4g} N m s/rad, nominal 11.27 N m s/rad" in (
+            html_unescape(page))  # on hover in the table of every isolation
+    assert re.search(r"<td class=\"l\">D</td><td>[^<]+</td><td>[^<]+</td>"
+                     r"<td class=\"l\">N m s/rad</td>",
+                     client.get("/units/" + quote(ODD, safe="/")).get_data(as_text=True))
+
+
 # -- read-only ---------------------------------------------------------------------------
 def test_never_writes_or_creates(fleet: dict[str, Any], client: Any, tmp_path: Path,
                                  capsys: pytest.CaptureFixture[str]) -> None:
@@ -504,3 +626,25 @@ def test_in_a_browser(fleet: dict[str, Any], browser_page: tuple[Any, str],
     page.goto(url + "units/HST-1")
     assert "fault isolated: Rv" in page.locator("#isolations").inner_text()
     assert time.monotonic() - started < 20
+
+
+def test_figures_in_a_browser(fleet: dict[str, Any], browser_page: tuple[Any, str],
+                              tmp_path: Path) -> None:
+    """The report's figures load in the page at their size; screenshots of both
+    unit pages are kept (in ``CONDMON_SCREENSHOTS`` when set) to be looked at."""
+    page, url = browser_page
+    shots = Path(os.environ.get("CONDMON_SCREENSHOTS") or tmp_path)
+    shots.mkdir(parents=True, exist_ok=True)
+    page.set_viewport_size({"width": 1200, "height": 900})
+    for path, name, figures in ((quote(ODD, safe="/"), "ema", ("fits", "symptoms")),
+                                ("HST-1", "hst", ("isolations",))):
+        page.goto(url + "units/" + path)
+        for fig in figures:
+            img = page.locator(f"#fig-{fig} img")
+            img.scroll_into_view_if_needed()
+            size = img.evaluate("i => [i.complete, i.naturalWidth, i.naturalHeight]")
+            assert size[0] and size[1] == 1100 and size[2] > 300, (fig, size)
+            box = img.bounding_box()
+            assert box is not None and box["width"] > 600, (fig, box)
+        page.screenshot(path=str(shots / f"live-{name}.png"), full_page=True)
+        assert (shots / f"live-{name}.png").stat().st_size > 10_000

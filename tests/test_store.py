@@ -125,7 +125,7 @@ def test_schema_version_and_migration(store_url: str, monkeypatch: pytest.Monkey
 def test_unknown_unit_is_named(store_url: str) -> None:
     store = open_store(store_url)
     store.unit_id("EMA-1", create=True)
-    with pytest.raises(CondmonError, match=r"unknown unit 'EMA-9'.*units: \['EMA-1'\]"):
+    with pytest.raises(CondmonError, match=r"unknown unit 'EMA-9'.*did you mean 'EMA-1'\? \(units: EMA-1;"):
         store.history("EMA-9")
 
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 __all__ = [
     "CondmonError",
     "DataError",
+    "MissingColumnsError",
     "ConfigError",
     "ModelError",
     "ConversionError",
@@ -33,6 +34,24 @@ class DataError(CondmonError, ValueError):
 
     The message names the file (when known) and the column.
     """
+
+
+class MissingColumnsError(DataError):
+    """A record lacks columns a model or a column mapping needs.
+
+    Attributes
+    ----------
+    missing : tuple of str
+        The columns looked for and not found.
+    columns : tuple of str
+        The columns the record has (under the names looked up).
+    """
+
+    def __init__(self, message: str, missing: tuple[str, ...] = (),
+                 columns: tuple[str, ...] = ()) -> None:
+        super().__init__(message)
+        self.missing = missing
+        self.columns = columns
 
 
 class ConfigError(CondmonError, ValueError):

@@ -23,14 +23,11 @@ def fmt(value: float) -> str:
 
 
 def id_runs(ids: Any) -> str:
-    """Test ids as runs: ``#1-#5,#8`` for 1, 2, 3, 4, 5, 8."""
-    runs: list[list[int]] = []
-    for i in sorted(int(x) for x in ids):
-        if runs and i == runs[-1][1] + 1:
-            runs[-1][1] = i
-        else:
-            runs.append([i, i])
-    return ",".join(f"#{a}" if a == b else f"#{a}-#{b}" for a, b in runs)
+    """Test ids as runs: ``#1-#5,#8`` for 1, 2, 3, 4, 5, 8 (the store's
+    :func:`~condmon.store.baselines.id_runs`, imported when first used)."""
+    from condmon.store.baselines import id_runs as runs
+
+    return runs(ids)
 
 
 def write_json(doc: Any) -> None:

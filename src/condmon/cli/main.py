@@ -23,6 +23,7 @@ from condmon.cli.history import register as register_history_commands
 from condmon.cli.plant import register as register_plant_commands
 from condmon.cli.serve import register as register_serve_command
 from condmon.cli.views import register as register_view_commands
+from condmon.cli.watch import register as register_watch_command
 from condmon.errors import CondmonError
 from condmon.identify.defaults import DEFAULT_FIT_THRESHOLD, list_estimators
 
@@ -39,6 +40,7 @@ register_plant_commands(app, simulate_app)
 register_history_commands(app, baseline_app)
 register_serve_command(app)
 register_fleet_commands(app)
+register_watch_command(app)
 
 
 
@@ -452,8 +454,15 @@ def check_cmd(
     if res.diagnosis.no_fault:
         out.print("no fault")
     for f in res.diagnosis.faults:
-        out.print(f"[bold]{escape(f.name)}[/] — degree {f.degree:.2f} ({escape(f.severity)}): "
+        level = ("major: at no-go level" if f.severity == "major" else
+                 "minor: at advisory level" + (", a major fault if it grows"
+                                               if f.rule_severity == "major" else ""))
+        out.print(f"[bold]{escape(f.name)}[/] — degree {f.degree:.2f} ({level}): "
                   f"{escape(f.advice)}")
+    if res.diagnosis.watch:
+        out.print("to watch (below advisory level, not faults): " + ", ".join(
+            f"{f.name} ({f.degree:.2f})" for f in res.diagnosis.watch), highlight=False,
+            markup=False, soft_wrap=True)
 
 
 register_view_commands(app)  # after the commands above: their order in --help

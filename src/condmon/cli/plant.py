@@ -12,6 +12,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from condmon.cli._console import err, fmt, out, progress, write_json
+from condmon.cli._options import greedy_command
 
 if TYPE_CHECKING:
     from condmon.diagnose.isolation import IsolationResult
@@ -38,17 +39,21 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
     @simulate_app.command("plant")
     def simulate_plant_cmd(model: ModelArg, out_path: OutOpt, fault: FaultOpt = None,
                            params: ParamsOpt = None, seed: SeedOpt = 0,
-                           duration: DurationOpt = None) -> None:
-        """Simulate the built-in test of any declared plant model (a .toml file)."""
-        _simulate(model, out_path, fault, params, seed, duration)
+                           duration: DurationOpt = None,
+                           si: Annotated[bool, typer.Option("--si", help="Write the model's columns in SI units, not as the rig writes its files (the declaration's [record]).")] = False) -> None:
+        """Simulate the built-in test of any declared plant model (a .toml file).
 
-    @app.command("isolate")
+        A declaration with a [record] table gets a file as its rig writes it
+        (file column names, raw units), which its own estimate reads back."""
+        _simulate(model, out_path, fault, params, seed, duration, si)
+
+    @app.command("isolate", cls=greedy_command("--healthy"))
     def isolate_cmd(
         model: ModelArg,
         record: Annotated[Path, typer.Argument(help="Record (CSV, Parquet, .mat, TDMS) with t and the sensor columns.")],
         params: ParamsOpt = None,
         columns: Annotated[Optional[str], typer.Option(help="Column mapping CANONICAL=FILE_COLUMN,... e.g. Ps=p_sys,omega_m=speed.")] = None,
-        healthy: Annotated[Optional[list[Path]], typer.Option(help="Healthy record to learn the residuals' normalisation from (repeatable; default: the sensors' declared noise).")] = None,
+        healthy: Annotated[Optional[list[Path]], typer.Option(help="Healthy records to learn the residuals' normalisation from (--healthy h1.csv h2.csv, or h*.csv; default: the sensors' declared noise).")] = None,
         residuals: Annotated[str, typer.Option(help="Residual set: simulation (one per sensor, the model from its inputs) or structured (every MSO computable by integration).")] = "simulation",
         settings: Annotated[Optional[Path], typer.Option(help="Detection/estimation/isolation settings TOML (default: the shipped isolation.toml).")] = None,
         workers: Annotated[Optional[int], typer.Option(help="Processes for the suspects' models (1: one after the other).")] = None,
@@ -65,6 +70,7 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
         from condmon.errors import ConfigError
         from condmon.io.records import parse_column_map, read_record
         from condmon.models.declared import load_plant_model
+        from condmon.models.registry import recognised_records
 
         mapping = parse_column_map(columns) or None
         if residuals not in RESIDUAL_KINDS:
@@ -92,8 +98,9 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
             def tick(done: int, total: int, label: str) -> None:
                 prog.update(task, completed=done, total=total, description=label)
 
-            res = isolate(rec, plant, normalisation=norm, kind=residuals,  # type: ignore[arg-type]
-                          settings=cfg, workers=workers, progress=tick, source=str(record))
+            with recognised_records(model):
+                res = isolate(rec, plant, normalisation=norm, kind=residuals,  # type: ignore[arg-type]
+                              settings=cfg, workers=workers, progress=tick, source=str(record))
         if plots is not None:
             from condmon.report.isolation_figures import write_isolation_figures
 
@@ -123,20 +130,28 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
 
 
 def _simulate(model: str, out_path: Path, fault: list[str] | None, params: Path | None,
-              seed: int, duration: float | None) -> None:
+              seed: int, duration: float | None, si: bool = False) -> None:
     from condmon.io.records import write_record
+    from condmon.io.rig import rig_layout
     from condmon.models.declared import load_plant_model
+    from condmon.models.registry import get_model
     from condmon.simulate.plant import parameter_steps, simulate_plant
 
     plant = load_plant_model(model, params)
     steps = parameter_steps(plant, fault or ())
     rec = simulate_plant(plant, fault or (), seed=seed, duration=duration)
+    rig = None if si else get_model(model).record
+    if rig is not None and not rig.empty:
+        rec = rig_layout(rec, rig)
     write_record(rec, out_path)
     units = {p.name: p.unit for p in plant.parameters}
     faults = ", ".join(f"{s.name}={fmt(s.value)} {units.get(s.name, '')} at {s.at:g} s"
                        .replace("  at", " at") for s in steps) or "none"
-    err.print(f"wrote {len(rec)} samples to {out_path} (model {plant.name}, faults: {faults})",
-              highlight=False)
+    layout = (f"; written as the rig writes it ({', '.join(map(str, rec.columns))}, its "
+              "[record] settings; --si for model columns in SI units)"
+              if rig is not None and not rig.empty else "")
+    err.print(f"wrote {len(rec)} samples to {out_path} (model {plant.name}, faults: {faults})"
+              + layout, highlight=False, markup=False)
 
 
 def _print_isolation(res: IsolationResult) -> None:

@@ -31,7 +31,7 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from condmon.io.records import check_time_base
-from condmon.errors import ConfigError, DataError, DataWarning
+from condmon.errors import ConfigError, DataError, DataWarning, MissingColumnsError
 from condmon.io.config import load_default
 from condmon.models.declared import PlantModel
 
@@ -113,8 +113,9 @@ def validate_plant_record(model: PlantModel, record: pd.DataFrame, source: str =
     cfg = settings or RecordSettings.from_config()
     missing = [c for c in ("t", *model.sensor_names) if c not in record.columns]
     if missing:
-        raise DataError(f"{source}: missing column {missing[0]!r}; model {model.name!r} needs "
-                        f"t, {', '.join(model.sensor_names)}")
+        raise MissingColumnsError(f"{source}: missing column {missing[0]!r}; model "
+                                  f"{model.name!r} needs t, {', '.join(model.sensor_names)}",
+                                  tuple(missing), tuple(map(str, record.columns)))
     inputs = [u for u in model.inputs if u.name in record.columns]
     values: dict[str, FloatArray] = {}
     for c in ["t", *model.sensor_names, *(u.name for u in inputs)]:

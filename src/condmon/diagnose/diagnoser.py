@@ -7,6 +7,7 @@ centroid defuzzification -> go / advisory / no-go, and each fault's degree.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -17,10 +18,17 @@ from numpy.typing import NDArray
 from condmon.diagnose.rules import RuleBase, evaluate, load_rules
 from condmon.models.regimes import split_key
 
-__all__ = ["FaultDegree", "Diagnosis", "diagnose", "STATUSES"]
+__all__ = ["FaultDegree", "Diagnosis", "diagnose", "STATUSES", "WATCH_DEGREE", "LEVEL_NOTE"]
 
 FloatArray = NDArray[np.float64]
 STATUSES = ("go", "advisory", "no-go")
+#: Smallest degree kept as a tendency to watch (below it, printed as 0.00: nothing).
+WATCH_DEGREE = 0.005
+#: What a listed fault's severity means, for reports.
+LEVEL_NOTE = ("A fault is listed when, on its own, it would raise an advisory at least; "
+              "major: at no-go level in this test, minor: at advisory level (a rule that can "
+              "ground the unit but has not yet is listed minor). Weaker degrees are tendencies "
+              "to watch, not faults.")
 _UNIVERSE = np.linspace(0.0, 1.0, 1001)
 
 
@@ -34,19 +42,26 @@ class FaultDegree:
     degree : float
         Degree of the rule's condition, in [0, 1].
     severity : str
-        "major" or "minor".
+        What the fault amounts to in this test: "major" when it is at no-go
+        level (the test is no-go and this fault alone would ground the unit),
+        "minor" when at advisory level. A rule marked major whose degree has
+        not reached no-go is listed minor, so a go or advisory test never
+        lists a major fault. (Under ``Diagnosis.watch``: the rule's own.)
     advice : str
+    rule_severity : str
+        The rule's severity, as declared: the most the fault can amount to.
     """
 
     name: str
     degree: float
     severity: str
     advice: str
+    rule_severity: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form."""
         return {"name": self.name, "degree": self.degree, "severity": self.severity,
-                "advice": self.advice}
+                "advice": self.advice, "rule_severity": self.rule_severity or self.severity}
 
 
 @dataclass(frozen=True)
@@ -60,11 +75,17 @@ class Diagnosis:
     condition : float
         Defuzzified condition index in [0, 1] (0 healthy, 1 failed).
     faults : tuple of FaultDegree
-        Faults with a non-zero degree, largest first; empty means "no fault".
+        The faults behind an advisory or no-go status, largest first: each at
+        advisory level at least on its own (see :data:`LEVEL_NOTE`). Empty for
+        a go test: "no fault".
     symptoms : dict
         ``{param: {"high": .., "low": ..}}`` after preprocessing.
     applied : tuple of str
         Preprocessing rules that fired.
+    watch : tuple of FaultDegree
+        Rules whose condition holds to a degree of at least
+        :data:`WATCH_DEGREE` but below advisory level: not faults, tendencies
+        to watch.
     """
 
     status: str
@@ -72,6 +93,7 @@ class Diagnosis:
     faults: tuple[FaultDegree, ...]
     symptoms: dict[str, dict[str, float]] = field(default_factory=dict)
     applied: tuple[str, ...] = ()
+    watch: tuple[FaultDegree, ...] = ()
 
     @property
     def no_fault(self) -> bool:
@@ -81,15 +103,18 @@ class Diagnosis:
     @property
     def summary(self) -> str:
         """One line for the operator."""
+        watch = ("; to watch: " + ", ".join(f"{f.name} ({f.degree:.2f})" for f in self.watch)
+                 if self.watch else "")
         if self.no_fault:
-            return f"{self.status}: no fault"
+            return f"{self.status}: no fault{watch}"
         top = ", ".join(f"{f.name} ({f.degree:.2f})" for f in self.faults)
-        return f"{self.status}: {top}"
+        return f"{self.status}: {top}{watch}"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form."""
         return {"status": self.status, "condition": self.condition,
                 "faults": [f.to_dict() for f in self.faults],
+                "watch": [f.to_dict() for f in self.watch],
                 "no_fault": self.no_fault, "summary": self.summary,
                 "preprocessing_applied": list(self.applied)}
 
@@ -169,20 +194,41 @@ def diagnose(symptoms: Mapping[str, Mapping[str, float]], rules: RuleBase | None
         d = float(evaluate(rule.condition, high, low))
         degrees[rule.name] = max(degrees.get(rule.name, 0.0), d)
         meta[rule.name] = (rule.severity, rule.advice)
-    faults = tuple(sorted((FaultDegree(n, round(d, 12), *meta[n])
-                           for n, d in degrees.items() if d > 0.0),
-                          key=lambda f: -f.degree))
-    go_mf, adv_mf, nogo_mf = (_mf(rb.status.go), _mf(rb.status.advisory),
-                              _mf(rb.status.no_go))
-    worst = max((f.degree for f in faults), default=0.0)
-    major = max((f.degree for f in faults if f.severity == "major"), default=0.0)
-    minor = max((f.degree for f in faults if f.severity == "minor"), default=0.0)
-    agg = np.maximum.reduce([np.minimum(go_mf, 1.0 - worst), np.minimum(adv_mf, minor),
-                             np.minimum(nogo_mf, major)])
+    held = sorted((FaultDegree(n, round(d, 12), meta[n][0], meta[n][1], meta[n][0])
+                   for n, d in degrees.items() if d > 0.0), key=lambda f: -f.degree)
+    sets = tuple(_mf(p) for p in (rb.status.go, rb.status.advisory, rb.status.no_go))
+    worst = max((f.degree for f in held), default=0.0)
+    major = max((f.degree for f in held if f.severity == "major"), default=0.0)
+    minor = max((f.degree for f in held if f.severity == "minor"), default=0.0)
+    condition, status = _infer(sets, worst, major, minor)
+    # Each fault's level is what it would give on its own, capped by the test's
+    # status: the list then agrees with the status it explains.
+    rank = {s: i for i, s in enumerate(STATUSES)}
+    faults, watch = [], []
+    for f in held:
+        alone = _infer(sets, f.degree, f.degree if f.severity == "major" else 0.0,
+                       f.degree if f.severity == "minor" else 0.0)[1]
+        level = STATUSES[min(rank[alone], rank[status])]
+        if level != "go":
+            faults.append(dataclasses.replace(f, severity="major" if level == "no-go" else "minor"))
+        elif f.degree >= WATCH_DEGREE:
+            watch.append(f)
+    if status != "go" and not faults:
+        # several faults below advisory level each, together above it
+        faults = [dataclasses.replace(f, severity="minor") for f in watch]
+        watch = []
+    sym = {p: {"high": high[p], "low": low[p]} for p in high}
+    return Diagnosis(status, condition, tuple(faults), sym, tuple(applied), tuple(watch))
+
+
+def _infer(sets: tuple[FloatArray, ...], worst: float, major: float, minor: float
+           ) -> tuple[float, str]:
+    """Mamdani inference over "condition": (centroid, status)."""
     import skfuzzy as fuzz
 
+    go_mf, adv_mf, nogo_mf = sets
+    agg = np.maximum.reduce([np.minimum(go_mf, 1.0 - worst), np.minimum(adv_mf, minor),
+                             np.minimum(nogo_mf, major)])
     condition = float(fuzz.defuzz(_UNIVERSE, agg, "centroid"))
-    memberships = [float(np.interp(condition, _UNIVERSE, m)) for m in (go_mf, adv_mf, nogo_mf)]
-    status = STATUSES[int(np.argmax(memberships))]
-    sym = {p: {"high": high[p], "low": low[p]} for p in high}
-    return Diagnosis(status, condition, faults, sym, tuple(applied))
+    memberships = [float(np.interp(condition, _UNIVERSE, m)) for m in sets]
+    return condition, STATUSES[int(np.argmax(memberships))]

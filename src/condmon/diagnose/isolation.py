@@ -353,7 +353,7 @@ def isolate(record: pd.DataFrame, model: PlantModel, *,
     quiet = IsolationResult(model.name, False, None, None, (), fsm, (), {}, {}, (),
                             "no fault detected", res, norm, det, {}, None, noise,
                             notes=(*norm.notes, *_input_notes(model, res)),
-                            units={p.name: p.unit for p in model.parameters})
+                            units=model.parameter_units())
     if not det.detected or det.time is None or det.onset is None:
         if det.undecidable is not None:
             return dataclasses.replace(quiet, statement=f"undecided: {det.undecidable}",

@@ -29,7 +29,7 @@ from condmon.identify.result import EstimateResult
 from condmon.io.records import Record, validate_record
 from condmon.io.rig import RecordSettings, apply_record_settings
 from condmon.models.machine import Machine
-from condmon.models.registry import get_model
+from condmon.models.registry import get_model, recognised_records
 
 __all__ = ["EstimateResult", "estimate", "estimate_record", "estimate_joint", "list_estimators",
            "DEFAULT_EXCITATION"]
@@ -195,13 +195,14 @@ def estimate(record: pd.DataFrame, model: str | Machine = "dc-motor", *,
     given, fixed = _split_constants(machine, dict(constants or {}))
     machine = machine.with_fixed(fixed)
     chosen = choose_route(machine, route)
-    df = _record_frame(record, machine, columns, settings, source)
-    exc = _excitation_columns(df, machine, excitation) if chosen == "linear" else ()
-    n_unknowns = len(machine.spec.unknowns)
-    rec = validate_record(df, (*_required_columns(machine, chosen), *exc),
-                          input_name=machine.linear().input if chosen == "linear" else None,
-                          min_samples=10 * (n_unknowns + 1), source=source,
-                          optional=_condition_columns(machine))
+    with recognised_records(machine):
+        df = _record_frame(record, machine, columns, settings, source)
+        exc = _excitation_columns(df, machine, excitation) if chosen == "linear" else ()
+        rec = validate_record(df, (*_required_columns(machine, chosen), *exc),
+                              input_name=machine.linear().input if chosen == "linear" else None,
+                              inputs=machine.plant.input_names,
+                              min_samples=10 * (len(machine.spec.unknowns) + 1), source=source,
+                              optional=_condition_columns(machine))
     consts = dict(df.attrs.get("constants", {}) or {})
     _check_constants(machine, given, strict=tuple(given))
     consts.update(given)
@@ -273,11 +274,13 @@ def estimate_joint(records: Sequence[pd.DataFrame], model: str | Machine = "dc-m
     consts: dict[str, float] = {}
     recs = []
     for df, name in zip(records, names):
-        frame = _record_frame(df, machine, columns, settings, name)
+        with recognised_records(machine):
+            frame = _record_frame(df, machine, columns, settings, name)
+            recs.append(validate_record(frame, _required_columns(machine, chosen),
+                                        inputs=machine.plant.input_names,
+                                        min_samples=10 * (len(machine.spec.unknowns) + 1),
+                                        source=name, optional=_condition_columns(machine)))
         consts.update(dict(frame.attrs.get("constants", {}) or {}))
-        recs.append(validate_record(frame, _required_columns(machine, chosen),
-                                    min_samples=10 * (len(machine.spec.unknowns) + 1),
-                                    source=name, optional=_condition_columns(machine)))
     consts.update(given)
     consts.update(fixed)
     return estimate_record(recs, machine, fit_threshold=fit_threshold, route=chosen,

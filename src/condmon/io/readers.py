@@ -29,7 +29,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from condmon.errors import DataError
+from condmon.errors import DataError, MissingColumnsError
 from condmon.io.raw import RawRecord, one_line, time_to_seconds
 from condmon.io.size import check_record_size
 
@@ -152,8 +152,10 @@ def _finish(raw: RawRecord, p: Path, mapping: dict[str, str]) -> pd.DataFrame:
         if missing:
             why = "; ".join(f"{m!r} was left out: {raw.ignored[m]}"
                             for m in missing if m in raw.ignored)
-            raise DataError(f"{p}: column mapping names {missing} not in the file; "
-                            f"columns are {list(df.columns)}" + (f" ({why})" if why else ""))
+            raise MissingColumnsError(
+                f"{p}: column mapping names {missing} not in the file; columns are "
+                f"{list(df.columns)}" + (f" ({why})" if why else ""), tuple(missing),
+                tuple(df.columns))
         # a mapped column replaces a file column that already has the canonical name
         shadowed = [k for k in mapping if k in df.columns and k not in mapping.values()]
         df = df.drop(columns=shadowed).rename(columns={v: k for k, v in mapping.items()})

@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 
-from condmon.errors import DataError, DataWarning
+from condmon.errors import DataError, DataWarning, MissingColumnsError
 from condmon.io.readers import read_record
 
 __all__ = ["Record", "read_record", "validate_record", "check_time_base", "parse_column_map",
@@ -165,7 +165,8 @@ beyond the tolerance, first at row 3 (resample first)
 
 def validate_record(df: pd.DataFrame, required: Sequence[str],
                     optional: Sequence[str] = (), *, input_name: str | None = None,
-                    min_samples: int = 20, source: str | None = None) -> Record:
+                    inputs: Sequence[str] = (), min_samples: int = 20,
+                    source: str | None = None) -> Record:
     """Check a record and return its columns as float64 arrays.
 
     Parameters
@@ -178,6 +179,9 @@ def validate_record(df: pd.DataFrame, required: Sequence[str],
         Columns validated and kept when present.
     input_name : str, optional
         The excitation input: refused if constant, warned if saturated.
+    inputs : sequence of str
+        The model's known inputs: the record is refused when every one of them
+        it holds is constant (nothing excites the machine).
     min_samples : int
         Fewest samples accepted.
     source : str, optional
@@ -196,9 +200,11 @@ def validate_record(df: pd.DataFrame, required: Sequence[str],
     names = ["t", *required]
     missing = [c for c in names if c not in df.columns]
     if missing:
-        raise DataError(f"{src}: missing column(s) {', '.join(repr(m) for m in missing)}; "
-                        f"the record has {list(map(str, df.columns))} "
-                        "(map names with --columns V=your_name,...)")
+        raise MissingColumnsError(
+            f"{src}: missing column(s) {', '.join(repr(m) for m in missing)}; the record has "
+            f"{list(map(str, df.columns))} (map names with the record settings: "
+            f"{missing[0]}=FILE_COLUMN in --columns or [record.columns])", tuple(missing),
+            tuple(map(str, df.columns)))
     names += [c for c in optional if c in df.columns and c not in names]
     n_rows = len(df)
     cols: dict[str, FloatArray] = {}
@@ -232,11 +238,16 @@ def validate_record(df: pd.DataFrame, required: Sequence[str],
     if n_rows < min_samples:
         raise DataError(f"{src}: {n_rows} samples are too few; need at least {min_samples}")
     dt = check_time_base(cols["t"], src)
+    excited = [c for c in dict.fromkeys((*([input_name] if input_name else []), *inputs))
+               if c in cols]
+    if excited and all(_constant(cols[c]) for c in excited):
+        which = (f"column {excited[0]!r} is" if len(excited) == 1 else
+                 f"columns {', '.join(map(repr, excited))} are")
+        raise DataError(f"{src}: {which} constant: no excitation, nothing can be estimated"
+                        + (f" ({excited[0]} = {cols[excited[0]][0]:g} throughout)"
+                           if len(excited) == 1 else ""))
     if input_name is not None:
         u = cols[input_name]
-        if float(np.std(u)) <= 1e-12 * max(1.0, float(np.max(np.abs(u)))):
-            raise DataError(f"{src}: column {input_name!r} is constant: no excitation, "
-                            "nothing can be estimated")
         lo, hi = float(np.min(u)), float(np.max(u))
         span = hi - lo
         at_limit = np.mean((u >= hi - 1e-9 * span) | (u <= lo + 1e-9 * span))
@@ -248,6 +259,11 @@ def validate_record(df: pd.DataFrame, required: Sequence[str],
                           f"its extreme values ({lo:.4g}, {hi:.4g}): the drive saturates "
                           "and the linear model may be biased", DataWarning, stacklevel=2)
     return Record(cols, dt, src)
+
+
+def _constant(u: FloatArray) -> bool:
+    """Whether a signal does not move (relative to its size)."""
+    return float(np.std(u)) <= 1e-12 * max(1.0, float(np.max(np.abs(u))))
 
 
 def write_record(df: pd.DataFrame, path: str | Path) -> Path:

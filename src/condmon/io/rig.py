@@ -37,7 +37,7 @@ import pandas as pd
 
 from condmon.errors import ConfigError, DataError, DataWarning
 
-__all__ = ["RecordSettings", "parse_record_settings", "apply_record_settings",
+__all__ = ["RecordSettings", "parse_record_settings", "apply_record_settings", "rig_layout",
            "parse_assignments", "settings_from_options", "RECORD_KEYS"]
 
 #: Keys a ``[record]`` table may hold.
@@ -342,6 +342,40 @@ def apply_record_settings(df: pd.DataFrame, settings: RecordSettings | None,
     out.attrs.update(attrs)
     out.attrs["record_settings"] = settings.describe(len(dropped))
     out.attrs["record_ignored"] = dropped
+    return out
+
+
+def rig_layout(df: pd.DataFrame, settings: RecordSettings | None) -> pd.DataFrame:
+    """A record in model columns and SI units, written back as the rig writes it.
+
+    The inverse of :func:`apply_record_settings` (ignored columns are not made
+    up): each column scaled back (``raw = (value - offset) / scale``), renamed
+    to the file's name, and with a sample rate ``t`` turned into a sample
+    counter from 1. A simulated record so written reads back through the same
+    settings as a file from the rig.
+
+    Example
+    -------
+    >>> s = RecordSettings(columns={"t": "Time", "p": "PG"}, scale={"p": 2.0},
+    ...                    offset={"p": -1.0}, sample_rate=4.0)
+    >>> raw = rig_layout(pd.DataFrame({"t": [0.0, 0.25], "p": [1.0, 3.0]}), s)
+    >>> raw.columns.tolist(), raw["PG"].tolist(), raw["Time"].tolist()
+    (['Time', 'PG'], [1.0, 2.0], [1, 2])
+    >>> apply_record_settings(raw, s)["p"].tolist()
+    [1.0, 3.0]
+    """
+    if settings is None or settings.empty:
+        return df
+    out = df.copy()
+    for name in sorted(set(settings.scale) | set(settings.offset)):
+        if name in out.columns:
+            out[name] = ((out[name].to_numpy(dtype=np.float64) - settings.offset.get(name, 0.0))
+                         / settings.scale.get(name, 1.0))
+    if settings.sample_rate is not None and "t" in out.columns:
+        out["t"] = np.rint(out["t"].to_numpy(dtype=np.float64) * settings.sample_rate
+                           ).astype(np.int64) + 1
+    out = out.rename(columns={k: v for k, v in settings.columns.items() if k in out.columns})
+    out.attrs = dict(df.attrs)
     return out
 
 

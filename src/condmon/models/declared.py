@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 from condmon.errors import ConfigError, ModelError
 from condmon.io.config import load_default, load_toml
 from condmon.models import derived_cache
+from condmon.models.excitation import Excitation, parse_excitation
 
 if TYPE_CHECKING:
     import sympy as sp
@@ -127,11 +128,13 @@ class InputStep:
 
 @dataclass(frozen=True)
 class BuiltInTest:
-    """The built-in test: ``duration`` [s] at ``sample_rate`` [Hz], known input steps."""
+    """The built-in test: ``duration`` [s] at ``sample_rate`` [Hz], known input steps
+    and the excitation added to the inputs (:mod:`condmon.models.excitation`)."""
 
     duration: float
     sample_rate: float
     schedule: tuple[InputStep, ...] = ()
+    excitation: tuple[Excitation, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -182,6 +185,10 @@ class PlantModel:
     def parameter_values(self) -> dict[str, float]:
         """Nominal value of every parameter [SI]."""
         return {p.name: p.value for p in self.parameters}
+
+    def parameter_units(self) -> dict[str, str]:
+        """Unit of every parameter, as declared (``"-"``: dimensionless)."""
+        return {p.name: p.unit for p in self.parameters}
 
     def parameter(self, name: str) -> Parameter:
         """The parameter ``name``; :class:`ConfigError` naming the allowed ones."""
@@ -235,6 +242,19 @@ class CompiledModel:
                                                           default=lambda x, u, p: [])
     _variables_raw: Callable[..., Any] = dataclasses.field(repr=False, compare=False,
                                                             default=lambda x, u, p: [])
+    _rhs_raw: Callable[..., Any] = dataclasses.field(repr=False, compare=False,
+                                                      default=lambda x, u, p: [])
+
+    def rhs_batch(self, x: FloatArray, u: FloatArray, p: FloatArray) -> FloatArray:
+        """Derivatives of many copies at once: ``x`` (n_states, N), ``u``
+        (n_inputs, N), ``p`` (n_params,) shared; returns (n_states, N)."""
+        return np.array([np.broadcast_to(np.asarray(v, dtype=np.float64), x.shape[1:])
+                         for v in self._rhs_raw(x, u, p)], dtype=np.float64)
+
+    def outputs_batch(self, x: FloatArray, u: FloatArray, p: FloatArray) -> FloatArray:
+        """Sensor readings of many copies: shapes as :meth:`rhs_batch`, (n_sensors, N)."""
+        return np.array([np.broadcast_to(np.asarray(v, dtype=np.float64), x.shape[1:])
+                         for v in self._outputs_raw(x, u, p)], dtype=np.float64)
 
     def outputs_on(self, x: FloatArray, u: FloatArray, p: FloatArray) -> FloatArray:
         """Sensor readings for many samples: ``x`` (n, n_states), ``u`` (n, n_inputs)."""
@@ -319,7 +339,8 @@ def _compile(model: PlantModel) -> CompiledModel:
             return np.array(fn(x, u, p), dtype=np.float64)
         return call
 
-    return CompiledModel(model, make(rhs), make(outputs), make(variables), outputs, variables)
+    return CompiledModel(model, make(rhs), make(outputs), make(variables), outputs, variables,
+                         rhs)
 
 
 def _lambdified(model: PlantModel, eps: float) -> tuple[Callable[..., Any], ...]:
@@ -486,7 +507,8 @@ def _from_doc(doc: Mapping[str, Any], src: str) -> PlantModel:
                               _range(f, f"{src}[sensors.{k}].range", finite=False)
                               if "range" in f else (-math.inf, math.inf),
                               f.get("description", "")))
-    t = _fields(_table(doc, "test", src), f"{src}[test]", ("duration", "sample_rate"), ("schedule",))
+    t = _fields(_table(doc, "test", src), f"{src}[test]", ("duration", "sample_rate"),
+                ("schedule", "excitation"))
     steps = []
     for i, s in enumerate(t.get("schedule", [])):
         where = f"{src}[test].schedule[{i}]"
@@ -496,9 +518,11 @@ def _from_doc(doc: Mapping[str, Any], src: str) -> PlantModel:
         steps.append(InputStep(str(f["input"]), _number(f["at"], f"{where}.at"),
                                _number(f["factor"], where) if "factor" in f else None,
                                _number(f["value"], where) if "value" in f else None))
-    test = BuiltInTest(_number(t["duration"], f"{src}[test].duration"),
-                       _number(t["sample_rate"], f"{src}[test].sample_rate"),
-                       tuple(sorted(steps, key=lambda s: s.at)))
+    fs = _number(t["sample_rate"], f"{src}[test].sample_rate")
+    test = BuiltInTest(_number(t["duration"], f"{src}[test].duration"), fs,
+                       tuple(sorted(steps, key=lambda s: s.at)),
+                       parse_excitation(t.get("excitation", []), f"{src}[test]",
+                                        [u.name for u in inputs], fs))
     smooth = _fields(_table(doc, "smoothing", src), f"{src}[smoothing]", (), ("eps",))
     eps = _number(smooth["eps"], f"{src}[smoothing].eps") if "eps" in smooth else None
     if eps is not None and eps < 0:

@@ -162,7 +162,7 @@ class Machine:
     @property
     def units(self) -> dict[str, str]:
         """Unit of every reported quantity."""
-        units = {p.name: p.unit for p in self.plant.parameters}
+        units = self.plant.parameter_units()
         units.update({k: u for k, (_, u) in self.spec.derived.items()})
         return {k: units.get(k, "") for k in self.spec.report}
 
@@ -182,8 +182,13 @@ class Machine:
     def require_estimation(self) -> None:
         """Raise :class:`ModelError` when the declaration says nothing to estimate."""
         if not self.spec.unknowns:
+            faults = [p.name for p in self.plant.parameters if p.fault]
+            isolate = (f"; its fault candidates ({', '.join(faults)}) are found by running "
+                       f"the model beside the record: condmon isolate {self.origin or self.name} "
+                       "RECORD" if faults else "")
             raise ModelError(f"model {self.name!r} ({self.plant.source}) declares no "
-                             "[estimation] table: add one naming the parameters to estimate")
+                             "[estimation] table: add one naming the parameters to "
+                             f"estimate{isolate}")
 
     def linear(self) -> LinearStructure:
         """The linear structure; :class:`ModelError` (with the reason) if the model is not linear."""

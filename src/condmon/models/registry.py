@@ -11,19 +11,20 @@ from __future__ import annotations
 
 import signal
 import threading
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from condmon.errors import ConfigError, ModelError
+from condmon.errors import CondmonError, ConfigError, MissingColumnsError, ModelError
 from condmon.io.config import load_default, load_toml
 from condmon.models.declared import plant_from_doc
 from condmon.models.limits import equation_limits
 from condmon.models.machine import Machine
 from condmon.models.machine_doc import machine_from_doc
 
-__all__ = ["get_model", "list_models", "register_model"]
+__all__ = ["get_model", "list_models", "register_model", "recognise_record",
+           "recognised_records"]
 
 #: Shipped declarations: name -> file in condmon/data.
 _SHIPPED = {"dc-motor": "dc-motor.toml", "dc-motor-coulomb": "dc-motor-coulomb.toml",
@@ -134,3 +135,73 @@ def _time_limit(seconds: float, source: str) -> Iterator[None]:
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
+
+
+def _record_columns(machine: Machine) -> list[set[str]]:
+    """The column sets a record of ``machine`` is known by: its sensors under
+    the model's names, and under its rig's file names when it has a ``[record]``."""
+    own = set(machine.plant.sensor_names)
+    raw = {machine.record.columns.get(n, n) for n in own}
+    return [own, raw] if raw != own else [own]
+
+
+def recognise_record(columns: Iterable[str], model: str | Machine) -> list[str]:
+    """The other models (shipped and registered) whose records have these columns.
+
+    A model is recognised when the columns hold every one of its sensors (under
+    the model's names or its rig's) and ``model``'s own sensors are not all there.
+
+    Example
+    -------
+    >>> recognise_record(["t", "Ps", "omega_m", "omega_p"], "dc-motor")
+    ['hst']
+    >>> recognise_record(["t", "V", "I", "omega"], "dc-motor")
+    []
+    """
+    current = model if isinstance(model, Machine) else get_model(model)
+    have = set(columns)
+    if any(cols <= have for cols in _record_columns(current)):
+        return []
+    found = []
+    for name in list_models():
+        try:
+            other = get_model(name)
+        except CondmonError:
+            continue  # a registered file since broken: not a candidate
+        if other.name != current.name and any(cols <= have for cols in _record_columns(other)):
+            found.append(name)
+    return found
+
+
+@contextmanager
+def recognised_records(model: str | Machine | None) -> Iterator[None]:
+    """Turn a record's missing columns into "this looks like a ... record" when
+    the record is one of another model (a file in the wrong unit, a unit with
+    the wrong model); other errors pass as they are.
+
+    Example
+    -------
+    >>> with recognised_records("dc-motor"):
+    ...     raise MissingColumnsError("r.csv: missing column(s) 'V'", ("V",),
+    ...                               ("t", "Ps", "omega_m", "omega_p"))
+    Traceback (most recent call last):
+    ...
+    condmon.errors.MissingColumnsError: r.csv: this looks like a record of model 'hst' (its columns t, Ps, omega_m, omega_p), not of model 'dc-motor' (missing V): is the model, or the unit, the right one?
+    """
+    try:
+        yield
+    except MissingColumnsError as err:
+        if model is None:
+            raise
+        current = model if isinstance(model, Machine) else get_model(model)
+        others = recognise_record(err.columns, current)
+        if not others:
+            raise
+        text = str(err)
+        source = text.split(": ", 1)[0] if ": " in text else "record"
+        kind = " or ".join(repr(o) for o in others)
+        raise MissingColumnsError(
+            f"{source}: this looks like a record of model {kind} (its columns "
+            f"{', '.join(err.columns)}), not of model {current.name!r} (missing "
+            f"{', '.join(err.missing)}): is the model, or the unit, the right one?",
+            err.missing, err.columns) from None

@@ -71,6 +71,26 @@ class Baseline:
         """``std / |mean| * 100`` per parameter. [%]"""
         return 100.0 * self.std_array / np.abs(self.mean_array)
 
+    def regime_counts(self) -> dict[str, int]:
+        """Tests the baseline holds per operating regime (``{}`` without regimes).
+
+        A regime's count is that of its best-covered parameter.
+
+        Example
+        -------
+        >>> Baseline(("Tc@forward", "Tc@reverse"), (39.5, 39.5), (0.2, 0.4), 10,
+        ...          (5, 4)).regime_counts()
+        {'forward': 5, 'reverse': 4}
+        """
+        from condmon.models.regimes import split_key
+
+        counts: dict[str, int] = {}
+        for key, n in zip(self.parameters, self.count_array):
+            regime = split_key(key)[1]
+            if regime:
+                counts[regime] = max(counts.get(regime, 0), int(n))
+        return counts
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (``counts`` per parameter when they differ from ``n``)."""
         doc: dict[str, Any] = {"n": self.n, "mean": dict(zip(self.parameters, self.mean)),

@@ -38,8 +38,8 @@ from condmon.io.config import load_default, load_toml
 from condmon.models.regimes import split_key
 from condmon.monitor.baseline import Baseline, BaselineChecks, percent_change
 
-__all__ = ["MonitorConfig", "load_monitor_config", "symptom_degree", "Symptoms",
-           "compute_symptoms"]
+__all__ = ["MonitorConfig", "load_monitor_config", "symptom_degree", "symptom_width",
+           "Symptoms", "compute_symptoms"]
 
 FloatArray = NDArray[np.float64]
 
@@ -173,6 +173,46 @@ def symptom_degree(r: ArrayLike, width: ArrayLike, r1: ArrayLike, r2: ArrayLike
     return np.nan_to_num(high, nan=0.0), np.nan_to_num(low, nan=0.0)
 
 
+def symptom_width(mean: ArrayLike, std: ArrayLike, std_error: ArrayLike | None,
+                  k: float) -> FloatArray:
+    """Half-width of the symptom set, ``k·max(σ, SE)/|θ̄|·100``.
+
+    The one definition of the band around a measured change: the monitor
+    blurs the change by it, and every error bar of the reports and the fleet
+    page is drawn with it, so a parameter's symptom is above 0 exactly when
+    its bar reaches ``±r1``.
+
+    Parameters
+    ----------
+    mean : array_like
+        Baseline mean θ̄ (0: no width, NaN). [parameter units]
+    std : array_like
+        Baseline sample standard deviation σ. [parameter units]
+    std_error : array_like or None
+        The estimate's standard error SE (NaN or None: σ alone). [parameter units]
+    k : float
+        Width in standard deviations. [-]
+
+    Returns
+    -------
+    ndarray
+        Half-width, broadcast shape of the inputs. [%]
+
+    Example
+    -------
+    >>> symptom_width(2.0, 0.01, [0.005, 0.04, float("nan")], 2.0)
+    array([1., 4., 1.])
+    """
+    m = np.abs(np.asarray(mean, dtype=np.float64))
+    sigma = np.asarray(std, dtype=np.float64)
+    if std_error is not None:
+        se = np.asarray(std_error, dtype=np.float64)
+        sigma = np.maximum(sigma, np.where(np.isfinite(se), se, 0.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        width = np.where(m > 0, k * 100.0 * sigma / m, np.nan)
+    return np.asarray(width, dtype=np.float64)
+
+
 @dataclass(frozen=True, eq=False)
 class Symptoms:
     """Percent changes and fuzzy symptoms of one or more tests.
@@ -184,7 +224,7 @@ class Symptoms:
     percent_change : ndarray, shape (n_tests, n_params)
         Change against the baseline mean. [%]
     width : ndarray, shape (n_params,) or (n_tests, n_params)
-        Symptom-set half-width ``k σ/θ̄ × 100``. [%]
+        Symptom-set half-width ``k·max(σ, SE)/|θ̄|·100`` (:func:`symptom_width`). [%]
     high, low : ndarray, shape (n_tests, n_params)
         SymH and SymL in [0, 1].
     """
@@ -237,10 +277,7 @@ def compute_symptoms(values: ArrayLike, baseline: Baseline,
     v = np.atleast_2d(np.asarray(values, dtype=np.float64))
     r = percent_change(v, baseline)
     r1, r2 = cfg.arrays(baseline.parameters)
-    sigma = baseline.std_array
-    if std_errors is not None:
-        se = np.atleast_2d(np.asarray(std_errors, dtype=np.float64))
-        sigma = np.maximum(sigma, np.where(np.isfinite(se), se, 0.0))
-    width = cfg.k * 100.0 * sigma / np.abs(baseline.mean_array)
+    se = None if std_errors is None else np.atleast_2d(np.asarray(std_errors, dtype=np.float64))
+    width = symptom_width(baseline.mean_array, baseline.std_array, se, cfg.k)
     high, low = symptom_degree(r, width, r1, r2)
     return Symptoms(baseline.parameters, r, width, high, low)

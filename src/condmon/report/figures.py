@@ -5,12 +5,20 @@ content can be checked without pixels. Tests are numbered by their id in the
 history (``#12``) everywhere and, when the tests carry dates, placed on a time
 axis. The trend figure draws what a check's status depends on: the r1/r2
 bands, the active baseline's spread (±k·σ) around 0, and for each check the
-symptom half-width ±k·max(σ, SE) of its evaluation as an error bar; each point
+symptom half-width ±k·max(σ, SE) of its evaluation as its error bar (the one
+error bar of every figure and page, :func:`condmon.report.trends.error_bar`); each point
 is coloured by the status stored for it and filled when this parameter's
 symptom is above 0, so the picture agrees with the table. Excluded tests are
 never drawn; rejected ones only in the fit figure.
 
-matplotlib is imported when a figure is drawn (Agg back-end, files only).
+Every legend sits outside the axes (below them), so it never covers a point;
+every axis includes every value it draws; a symptom figure has a panel per
+parameter with each test's bar on its tick.
+
+matplotlib is imported when a figure is drawn. Figures are built as
+:class:`matplotlib.figure.Figure` objects with their own Agg canvas, never
+through pyplot's global state, so pages may draw them in several threads at
+once (the fleet page does).
 """
 
 from __future__ import annotations
@@ -25,23 +33,70 @@ if TYPE_CHECKING:
     from condmon.report.trends import FitData, IsolationTrend, TrendData
 
 __all__ = ["plot_trends", "plot_fits", "plot_symptoms", "plot_isolation_trends",
-           "STATUS_COLOURS"]
+           "trend_figure", "fit_figure", "symptom_figure", "isolation_figure", "new_figure",
+           "legend_below", "save_figure", "STATUS_COLOURS"]
 
 #: Colour of each status in every figure and page.
 STATUS_COLOURS = {"go": "#2e7d32", "advisory": "#ef6c00", "no-go": "#c62828",
                   "retest": "#546e7a", "baseline": "#7f8c8d", "rejected": "#c0392b",
-                  "excluded": "#bdbdbd", "unchecked": "#9e9e9e", "building": "#90a4ae"}
+                  "excluded": "#bdbdbd", "unchecked": "#9e9e9e", "building": "#90a4ae",
+                  "stale": "#6d4c41"}
 
 Target = TypeVar("Target", str, Path, IO[bytes])
 
+#: Resolution of every PNG figure. [dots per inch]
+DPI = 110
 
-def _pyplot() -> Any:
-    import matplotlib
+#: Space kept between the outermost value and the axis limit. [fraction of the axis]
+_MARGIN = 0.08
 
-    matplotlib.use("Agg")  # files only; never needs a display
-    import matplotlib.pyplot as plt
 
-    return plt
+def new_figure(width: float, height: float) -> Any:
+    """An empty figure with its own Agg canvas and constrained layout.
+
+    Parameters
+    ----------
+    width, height : float
+        Size. [in]
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, height), layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def legend_below(fig: Any, entries: tuple[Sequence[Any], Sequence[str]], ncol: int,
+                 fontsize: float = 7) -> Any:
+    """The figure's legend below every axes (the layout makes room for it),
+    where it cannot cover any value; None without entries.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+    entries : (handles, labels)
+        As ``Axes.get_legend_handles_labels`` returns them.
+    ncol : int
+        Most entries in a row.
+    fontsize : float
+        [pt]
+    """
+    handles, labels = entries
+    if not handles:
+        return None
+    return fig.legend(list(handles), list(labels), loc="outside lower center",
+                      ncol=max(1, min(ncol, len(handles))), fontsize=fontsize, frameon=False)
+
+
+def save_figure(fig: Any, path: Target) -> Target:
+    """Write ``fig`` as PNG to ``path`` (a file name or a binary file); returns ``path``."""
+    fig.savefig(path, dpi=DPI, format="png")
+    return path
 
 
 def _dated(x: np.ndarray[Any, Any]) -> bool:
@@ -79,34 +134,34 @@ def _bands(ax: Any, r1: float, r2: float, top: float, steps: int = 6) -> None:
     ax.axhspan(-top, -r2, color="#f28b82", alpha=0.55, lw=0)
 
 
-def _finish(plt: Any, fig: Any, path: Target) -> Target:
-    fig.tight_layout()
-    fig.savefig(path, dpi=110, format="png")
-    plt.close(fig)
-    return path
+def _grid(n: int, row_height: float, title_height: float = 0.9) -> tuple[Any, Any]:
+    """A figure of ``n`` panels in two columns sharing x; the unused one is
+    switched off and the panel above it shows the x tick labels."""
+    rows = (max(n, 1) + 1) // 2
+    fig = new_figure(10, row_height * rows + title_height)
+    axes = fig.subplots(rows, 2, sharex=True, squeeze=False)
+    for ax in axes.ravel()[n:]:
+        ax.axis("off")
+    if n % 2 and rows > 1:
+        axes[-2, 1].tick_params(labelbottom=True)
+    return fig, axes
 
 
-def plot_trends(trends: Sequence[TrendData], path: Target) -> Target:
-    """Percent change of each parameter over the trended checks.
+def _bottom_axes(axes: Any, n: int) -> list[Any]:
+    """The lowest used panel of each column (where the x label goes)."""
+    flat = list(axes.ravel()[:n])
+    return [flat[j] for j in sorted({max(i for i in range(len(flat)) if i % 2 == c)
+                                     for c in range(min(2, len(flat)))})]
 
-    Parameters
-    ----------
-    trends : sequence of TrendData
-        One per parameter (:func:`condmon.report.trends.trend_data`), same tests.
-    path : str, Path or binary file
-        Where the PNG goes.
 
-    Returns
-    -------
-    The ``path`` given.
-    """
+def trend_figure(trends: Sequence[TrendData]) -> Any:
+    """The trend figure of :func:`plot_trends` (a matplotlib ``Figure``)."""
     from matplotlib.lines import Line2D
 
-    plt = _pyplot()
-    n = max(len(trends), 1)
-    rows = (n + 1) // 2
-    fig, axes = plt.subplots(rows, 2, figsize=(10, 2.6 * rows + 0.4), sharex=True,
-                             squeeze=False)
+    from condmon.report.trends import error_bar
+
+    n = len(trends)
+    fig, axes = _grid(n, 2.4, 1.4)
     statuses: dict[str, None] = {}
     for ax, d in zip(axes.ravel(), trends):
         reach = np.abs(d.change) + np.nan_to_num(d.width)
@@ -132,12 +187,11 @@ def plot_trends(trends: Sequence[TrendData], path: Target) -> Target:
         ax.set_ylim(-top, top)
         ax.set_ylabel(f"{d.parameter} change [%]")
         ax.grid(alpha=0.3)
-    for ax in axes.ravel()[len(trends):]:
-        ax.axis("off")
+    k = trends[0].k if trends else float("nan")
     if trends:
-        _label_tests(axes.ravel()[:len(trends)], trends[0].x, trends[0].test_ids,
+        _label_tests(axes.ravel()[:n], trends[0].x, trends[0].test_ids,
                      [d.change for d in trends])
-        for ax in axes[-1]:
+        for ax in _bottom_axes(axes, n):
             ax.set_xlabel(trends[0].xlabel)
         if _dated(trends[0].x):
             fig.autofmt_xdate()
@@ -145,14 +199,57 @@ def plot_trends(trends: Sequence[TrendData], path: Target) -> Target:
         seen = dict(zip(labels, handles))
         for status in statuses:
             seen[status] = Line2D([], [], ls="", marker="o", color=STATUS_COLOURS.get(status, "k"))
+        seen[f"error bar {error_bar(k)}"] = Line2D([], [], ls="-", color="0.3", lw=0.8)
         seen["filled: this symptom > 0"] = Line2D([], [], ls="", marker="o", color="0.3")
         seen["open: this symptom = 0"] = Line2D([], [], ls="", marker="o", mec="0.3", mfc="white")
-        axes[0, 0].legend(seen.values(), seen.keys(), loc="upper left", fontsize=6, ncol=2)
-    k = trends[0].k if trends else float("nan")
-    fig.suptitle("Change against the healthy baseline; bars: symptom width "
-                 f"±{k:g}·max(σ baseline, SE); excluded and rejected tests not drawn",
-                 fontsize=9)
-    return _finish(plt, fig, path)
+        legend_below(fig, (list(seen.values()), list(seen)), ncol=5)
+    fig.suptitle("Change against the healthy baseline (excluded and rejected tests not "
+                 f"drawn)\nerror bars: {error_bar(k)}, the symptom half-width (σ: baseline "
+                 "std, SE: the estimate's standard error)", fontsize=9)
+    return fig
+
+
+def plot_trends(trends: Sequence[TrendData], path: Target) -> Target:
+    """Percent change of each parameter over the trended checks.
+
+    Parameters
+    ----------
+    trends : sequence of TrendData
+        One per parameter (:func:`condmon.report.trends.trend_data`), same tests.
+    path : str, Path or binary file
+        Where the PNG goes.
+
+    Returns
+    -------
+    The ``path`` given.
+    """
+    return save_figure(trend_figure(trends), path)
+
+
+def fit_figure(data: FitData, threshold: float) -> Any:
+    """The fit figure of :func:`plot_fits` (a matplotlib ``Figure``)."""
+    fig = new_figure(10, 3.2)
+    ax = fig.subplots()
+    ax.axhline(threshold, color="#c0392b", ls="--", lw=1, label=f"threshold {threshold:g} %")
+    status = np.asarray(data.status, dtype=object)
+    for st in dict.fromkeys(data.status):
+        sel = status == st
+        ax.plot(data.x[sel], data.fit[sel], "x" if st in ("rejected", "retest") else "o",
+                ms=5, color=STATUS_COLOURS.get(st, "k"), label=st)
+    _label_tests([ax], data.x, data.test_ids, [data.fit])
+    ax.set_xlabel(data.xlabel)
+    if _dated(data.x):
+        fig.autofmt_xdate()
+    ax.set_ylabel("fit [%]")
+    finite = data.fit[np.isfinite(data.fit)]
+    lo = min(80.0, threshold, float(finite.min()) if finite.size else 80.0)
+    hi = max(100.0, float(finite.max()) if finite.size else 100.0)
+    ax.set_ylim(lo - _MARGIN * (hi - lo), hi + _MARGIN * (hi - lo))
+    ax.grid(alpha=0.3)
+    legend_below(fig, ax.get_legend_handles_labels(), ncol=8)
+    ax.set_title("Model fit per test (R_T², mean over outputs; excluded tests not drawn)",
+                 fontsize=10)
+    return fig
 
 
 def plot_fits(data: FitData, threshold: float, path: Target) -> Target:
@@ -169,30 +266,43 @@ def plot_fits(data: FitData, threshold: float, path: Target) -> Target:
     -------
     The ``path`` given.
     """
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(10, 2.8))
-    ax.axhline(threshold, color="#c0392b", ls="--", lw=1, label=f"threshold {threshold:g} %")
-    status = np.asarray(data.status, dtype=object)
-    for st in dict.fromkeys(data.status):
-        sel = status == st
-        ax.plot(data.x[sel], data.fit[sel], "x" if st in ("rejected", "retest") else "o",
-                ms=5, color=STATUS_COLOURS.get(st, "k"), label=st)
-    _label_tests([ax], data.x, data.test_ids, [data.fit])
-    ax.set_xlabel(data.xlabel)
-    if _dated(data.x):
-        fig.autofmt_xdate()
-    ax.set_ylabel("fit [%]")
-    lo = float(np.nanmin(data.fit)) - 2 if np.isfinite(data.fit).any() else 80.0
-    ax.set_ylim(min(80.0, lo), 100.5)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, loc="lower left", ncol=4)
-    ax.set_title("Model fit per test (R_T², mean over outputs; excluded tests not drawn)",
+    return save_figure(fit_figure(data, threshold), path)
+
+
+def symptom_figure(trends: Sequence[TrendData]) -> Any:
+    """The symptom figure of :func:`plot_symptoms` (a matplotlib ``Figure``)."""
+    from matplotlib.patches import Patch
+
+    n = len(trends)
+    fig, axes = _grid(n, 1.7)
+    ids = trends[0].test_ids if trends else ()
+    at = np.arange(len(ids), dtype=np.float64)
+    every = max(1, int(np.ceil(len(ids) / 30)))  # a readable number of labels
+    labels = [f"#{i}" if j % every == 0 else "" for j, i in enumerate(ids)]
+    for ax, d in zip(axes.ravel(), trends):
+        ax.bar(at, np.nan_to_num(d.high), 0.6, color="#ef6c00", align="center")
+        ax.bar(at, -np.nan_to_num(d.low), 0.6, color="#1565c0", align="center")
+        ax.axhline(0, color="0.3", lw=0.8)
+        ax.set_ylim(-1.05, 1.05)
+        ax.set_yticks([-1.0, 0.0, 1.0])
+        ax.set_ylabel(f"{d.parameter} symptom [-]")
+        ax.set_xticks(at)
+        ax.set_xticklabels(labels, fontsize=7)
+        ax.set_xlim(-0.6, len(ids) - 0.4)
+        ax.grid(alpha=0.3, axis="y")
+    for ax in _bottom_axes(axes, n):
+        ax.set_xlabel("test # (in the order of the trend figure)")
+    legend_below(fig, ([Patch(color="#ef6c00"), Patch(color="#1565c0")],
+                       ["SymH (up): degree of HIGH", "SymL (down): degree of LOW"]), ncol=2)
+    fig.suptitle("Fuzzy symptoms per check and parameter (each bar on its test's tick)",
                  fontsize=10)
-    return _finish(plt, fig, path)
+    return fig
 
 
 def plot_symptoms(trends: Sequence[TrendData], path: Target) -> Target:
     """SymH (up) and SymL (down) of each parameter for every trended check.
+
+    One panel per parameter; each test's bars sit on its tick.
 
     Parameters
     ----------
@@ -203,27 +313,73 @@ def plot_symptoms(trends: Sequence[TrendData], path: Target) -> Target:
     -------
     The ``path`` given.
     """
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(10, 3.2))
-    ids = trends[0].test_ids if trends else ()
-    n, m = len(ids), len(trends)
-    width = 0.8 / max(m, 1)
-    colors = plt.get_cmap("tab10")
-    for j, d in enumerate(trends):
-        xs = np.arange(n) + (j - (m - 1) / 2) * width
-        ax.bar(xs, np.nan_to_num(d.high), width, color=colors(j % 10), label=d.parameter)
-        ax.bar(xs, -np.nan_to_num(d.low), width, color=colors(j % 10), alpha=0.5)
+    return save_figure(symptom_figure(trends), path)
+
+
+def _include(ax: Any, values: np.ndarray[Any, Any], margin: float = _MARGIN) -> None:
+    """Set the y limits so that every finite value (and 0) lies inside, with
+    ``margin`` of the axis to spare, in the axis's own scale (linear or symlog)."""
+    v = np.append(values[np.isfinite(values)], 0.0)
+    scale = ax.yaxis.get_transform()
+    lo, hi = (float(t) for t in scale.transform(np.array([v.min(), v.max()])))
+    pad = margin * (hi - lo) if hi > lo else 1.0
+    low, high = (float(t) for t in scale.inverted().transform(np.array([lo - pad, hi + pad])))
+    ax.set_ylim(low, high)
+
+
+def isolation_figure(data: IsolationTrend) -> Any:
+    """The isolation figure of :func:`plot_isolation_trends` (a matplotlib ``Figure``)."""
+    from matplotlib import colormaps
+    from matplotlib.ticker import FuncFormatter
+
+    fig = new_figure(10, 3.8)
+    ax = fig.subplots()
+    colors = colormaps["tab10"]
+    named = False
+    drawn = [y[np.isfinite(y)] for y in data.change.values()]
+    values = np.concatenate(drawn) if drawn else np.zeros(0)
+    symlog = bool(values.size) and float(np.max(np.abs(values))) > 200
+    if symlog:  # linear within ±100 %, logarithmic beyond
+        ax.set_yscale("symlog", linthresh=100)
+    for j, (p, y) in enumerate(data.change.items()):
+        colour = colors(j % 10)
+        why = data.unshown.get(p)
+        ax.plot(data.x, y, "-o", ms=4, lw=1.0, color=colour,
+                label=p if why is None else f"{p} ({why})")
+        hit = data.isolated[p] & np.isfinite(y)
+        if hit.any():
+            named = True
+            ax.plot(data.x[hit], y[hit], "o", ms=10, mfc=colour, mec="black", mew=1.8, zorder=4)
+            last = data.x[-1]
+            for xi, yi in zip(data.x[hit], y[hit]):  # the isolated estimate's number
+                left = bool(xi == last) and len(data.x) > 1  # inwards at the right edge
+                ax.annotate(f"{p} {yi:+.1f} %", (xi, yi), xytext=(-9 if left else 9, -3),
+                            textcoords="offset points", ha="right" if left else "left",
+                            fontsize=7, color="0.15")
     ax.axhline(0, color="0.3", lw=0.8)
-    ax.set_ylim(-1.05, 1.05)
-    ax.set_xlabel("test # (in the order of the trend figure)")
-    ax.set_ylabel("SymL (down) / SymH (up)")
-    ax.set_xticks(np.arange(n))
-    ax.set_xticklabels([f"#{i}" for i in ids], fontsize=7)
-    if m:
-        ax.legend(ncol=m, fontsize=7, loc="lower left")
-    ax.grid(alpha=0.3, axis="y")
-    ax.set_title("Fuzzy symptoms per check", fontsize=10)
-    return _finish(plt, fig, path)
+    status = np.asarray(data.status, dtype=object)
+    for st in dict.fromkeys(data.status):  # every isolation on the zero line, by status
+        sel = status == st
+        ax.plot(data.x[sel], np.zeros(int(sel.sum())), "s", ms=6, mec="0.2",
+                color=STATUS_COLOURS.get(st, "k"), label=f"isolation: {st}", zorder=3)
+    _include(ax, values)
+    if symlog:
+        low, high = ax.get_ylim()
+        decades = np.log10(max(abs(low), abs(high), 100.0) / 100.0)
+        steps = [m * 10.0 ** e for e in range(2, 40) for m in ((1, 2, 5) if decades < 2 else (1,))]
+        ticks = sorted({t for v in (0, 50, *steps) for t in (v, -v) if low <= t <= high})
+        ax.set_yticks(ticks)
+        ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:+g}" if v else "0"))
+    _label_tests([ax], data.x, data.isolation_ids, [np.zeros(len(data.x))], prefix="i")
+    if _dated(data.x):
+        fig.autofmt_xdate()
+    ax.set_xlabel(data.xlabel)
+    ax.set_ylabel("estimate change [%]")
+    ax.grid(alpha=0.3)
+    legend_below(fig, ax.get_legend_handles_labels(), ncol=6)
+    ax.set_title("Suspects' steady-state estimates against nominal"
+                 + (" (large, black edge: isolated)" if named else ""), fontsize=10)
+    return fig
 
 
 def plot_isolation_trends(data: IsolationTrend, path: Target) -> Target:
@@ -232,7 +388,9 @@ def plot_isolation_trends(data: IsolationTrend, path: Target) -> Target:
     Points of one suspect are joined; the suspect an isolation named is drawn
     large with a black edge. Every isolation is marked on the zero line in
     the colour of its status (also one that estimated nothing). Estimates
-    rejected from the comparison and excluded isolations are not drawn.
+    rejected from the comparison and excluded isolations are not drawn; a
+    suspect without a drawn point says why in the legend. The axis holds
+    every estimate (symmetric-log beyond ±200 %).
 
     Parameters
     ----------
@@ -243,36 +401,4 @@ def plot_isolation_trends(data: IsolationTrend, path: Target) -> Target:
     -------
     The ``path`` given.
     """
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(10, 3.4))
-    colors = plt.get_cmap("tab10")
-    biggest, named = 0.0, False
-    for j, (p, y) in enumerate(data.change.items()):
-        colour = colors(j % 10)
-        shown = bool(np.isfinite(y).any())
-        ax.plot(data.x, y, "-o", ms=4, lw=1.0, color=colour,
-                label=p if shown else f"{p} (rejected or not estimated)")
-        hit = data.isolated[p] & np.isfinite(y)
-        if hit.any():
-            named = True
-            ax.plot(data.x[hit], y[hit], "o", ms=10, mfc=colour, mec="black", mew=1.8, zorder=4)
-        if shown:
-            biggest = max(biggest, float(np.nanmax(np.abs(y))))
-    if biggest > 200:
-        ax.set_yscale("symlog", linthresh=50)
-    ax.axhline(0, color="0.3", lw=0.8)
-    status = np.asarray(data.status, dtype=object)
-    for st in dict.fromkeys(data.status):  # every isolation on the zero line, by status
-        sel = status == st
-        ax.plot(data.x[sel], np.zeros(int(sel.sum())), "s", ms=6, mec="0.2",
-                color=STATUS_COLOURS.get(st, "k"), label=f"isolation: {st}", zorder=3)
-    _label_tests([ax], data.x, data.isolation_ids, [np.zeros(len(data.x))], prefix="i")
-    if _dated(data.x):
-        fig.autofmt_xdate()
-    ax.set_xlabel(data.xlabel)
-    ax.set_ylabel("estimate change [%]")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, ncol=8, loc="upper left")
-    ax.set_title("Suspects' steady-state estimates against nominal"
-                 + (" (large, black edge: isolated)" if named else ""), fontsize=10)
-    return _finish(plt, fig, path)
+    return save_figure(isolation_figure(data), path)

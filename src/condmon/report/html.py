@@ -3,11 +3,13 @@
 Every name is escaped (text and attributes) and every unit gets its own file
 (:func:`~condmon.report.names.page_name`); tests are numbered by their id in
 the history everywhere. A unit page shows what its latest status rests on: the
-baseline (name, version, tests, mean ± std, warnings), the trend figure with
-the bands and symptom widths the status was computed with, the tests
-(excluded ones greyed with their reason, never trended; rejected ones in the
-fit figure and the table only) and, for plant-model units, the isolations
-with each suspect's estimate over time. The index lists every unit with its
+baseline in use (name, version, when built, its tests and how many per
+regime, in the header too; mean ± std with units, warnings), the trend figure
+with the bands and symptom widths the status was computed with (the one error
+bar, :func:`condmon.report.trends.error_bar`), the fit and symptom figures,
+the tests (excluded ones greyed with their reason, never trended; rejected
+ones in the fit figure and the table only) and, for plant-model units, the
+isolations with each suspect's estimate over time, in its unit. The index lists every unit with its
 latest status and links to each page; each page links back.
 
 Nothing here writes to the history.
@@ -97,16 +99,21 @@ def _latest_check(hist: Any) -> Any:
     return checks.sort_index().sort_values("date", kind="stable").iloc[-1]
 
 
-def _head(unit: str, model: str, hist: Any, isos: Any, summary: Mapping[str, Any]) -> list[str]:
+def _head(unit: str, model: str, hist: Any, isos: Any, summary: Mapping[str, Any],
+          stored: Any) -> list[str]:
     n = len(hist)
     counts = (f"{n} tests ({int((hist['role'] == 'baseline').sum())} baseline, "
               f"{int((hist['role'] == 'check').sum())} checks, "
               f"{int((hist['status'] == 'excluded').sum())} excluded)" if n else "no tests")
     latest = summary.get("latest_source")
+    in_use = ("" if not n else "<p class='sub' id='in-use'>No baseline in use yet.</p>"
+              if stored is None else
+              f"<p class='sub' id='in-use'>In use: <a href='#baseline'>"
+              f"{esc(stored.describe(hist))}</a>.</p>")
     return ["<p><a href='index.html'>← all units</a></p>", f"<h1>{esc(unit)}</h1>",
             f"<p class='sub'>model {esc(Path(model).name)} — {counts}, {len(isos)} "
             f"isolation{'s' if len(isos) != 1 else ''}; page written "
-            f"{when(datetime.now(timezone.utc))} UTC</p>",
+            f"{when(datetime.now(timezone.utc))} UTC</p>", in_use,
             f"<h2>Latest: {badge(summary.get('status'))}</h2>",
             "" if latest is None else
             f"<p>{esc(latest)} — {when(summary.get('latest_date'))} UTC"
@@ -119,7 +126,7 @@ def _tests_part(store: HistoryStore, unit: str, hist: Any, cfg: MonitorConfig, s
     """The checks, baseline, figures and tests table of an actuator unit."""
     from condmon.report import figures as F
     from condmon.report.reading import check_faults
-    from condmon.report.trends import fit_data, trend_data, unexplained
+    from condmon.report.trends import error_bar, fit_data, trend_data, unexplained
 
     every = store.baselines(unit)
     by_id = {b.id: b.baseline for b in every}
@@ -135,7 +142,7 @@ def _tests_part(store: HistoryStore, unit: str, hist: Any, cfg: MonitorConfig, s
         body.append(f"<p>Latest check <a href='#t{tid}'>#{tid}</a> ({when(last['date'])} UTC): "
                     f"{badge(last['status'])} {esc(what)}</p>")
         body.append(faults_table(check_faults(store, tid, last["baseline_id"])))
-    body.append(baseline_section(stored, cfg, units))
+    body.append(baseline_section(stored, cfg, units, hist))
     trends = tuple(trend_data(hist, p, by_id, cfg.r1[p], cfg.r2[p], cfg.k, active)
                    for p in params)
     fits = fit_data(hist)
@@ -147,10 +154,8 @@ def _tests_part(store: HistoryStore, unit: str, hist: Any, cfg: MonitorConfig, s
                 F.plot_symptoms(trends, out / f"{name}-symptoms.png")]
         body.append(
             "<p class='sub'>Each check's change against its baseline, coloured by its "
-            "status; the bar is the symptom width ±k·max(baseline std, the estimate's "
-            "standard error) the status was computed with, so a parameter's symptom is "
-            "above 0 exactly when its bar reaches the shaded r1..r2 band (filled marker). "
-            "Blue: the active baseline's ±k·std. Excluded and rejected tests are not "
+            f"status; {esc(error_bar(cfg.k, words=True))} (filled marker: above 0). Blue: "
+            f"the active baseline's ±{cfg.k:g}·σ. Excluded and rejected tests are not "
             "drawn.</p>")
     else:
         body.append("<p class='sub'>No accepted check to trend yet.</p>")
@@ -207,26 +212,31 @@ def write_report(store: HistoryStore, unit: str, out_dir: str | Path,
     info = _summary(store, unit) if summary is None else summary
     stored = store.latest_baseline(unit)
     name = page_name(unit)
-    body = _head(unit, str(info.get("model") or model), hist, isos, info)
+    body = _head(unit, str(info.get("model") or model), hist, isos, info, stored)
     body.append(flags_box(stored))
     figs: list[Path] = []
     trends: tuple[TrendData, ...] = ()
     fits: FitData | None = None
     notes: dict[int, str] = {}
-    if len(hist):
+    units: dict[str, str] = {}
+    if len(hist) or len(isos):
         from condmon.models.registry import get_model
-        from condmon.monitor.generic import machine_monitor
+        from condmon.report.reading import model_units
 
         machine = get_model(model)
+        units = model_units(machine)
+    if len(hist):
+        from condmon.monitor.generic import machine_monitor
+
         cfg = monitor or machine_monitor(machine, stored.baseline if stored is not None else None)
         cfg = cfg.keyed([c for c in hist.columns if f"{c}_se" in hist.columns])
         part, figs, trends, fits, notes = _tests_part(store, unit, hist, cfg, stored, out, name,
-                                                      fit_threshold, machine.units)
+                                                      fit_threshold, units)
         body += part
     iso_data = None
     if len(isos):
         iso_data = isolation_trend(isos)
-        body += ["<h2>Isolations</h2>", isolations_table(isos)]
+        body += ["<h2>Isolations</h2>", isolations_table(isos, units)]
         if iso_data.isolation_ids:
             fig = plot_isolation_trends(iso_data, out / f"{name}-isolations.png")
             figs.append(fig)

@@ -1,22 +1,20 @@
 """Figures of one isolation (like the reference paper's Figs. 19–25): the
 normalised residuals with their ±1 thresholds, and each suspect model's output
-error against the measurements."""
+error against the measurements. Legends sit below the axes, never on a curve
+(:func:`condmon.report.figures.legend_below`)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib import colormaps
+from matplotlib.axes import Axes
 
-matplotlib.use("Agg")  # files only; never needs a display
-
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.axes import Axes  # noqa: E402
-
-from condmon.diagnose.isolation import IsolationResult  # noqa: E402
-from condmon.diagnose.residuals import moving_average  # noqa: E402
-from condmon.models.declared import PlantModel  # noqa: E402
+from condmon.diagnose.isolation import IsolationResult
+from condmon.diagnose.residuals import moving_average
+from condmon.models.declared import PlantModel
+from condmon.report.figures import legend_below, new_figure, save_figure
 
 __all__ = ["plot_residuals", "plot_model_errors", "write_isolation_figures"]
 
@@ -32,7 +30,8 @@ def plot_residuals(res: IsolationResult, path: Path) -> Path:
     """Normalised residuals with the ±1 thresholds and the detection time."""
     r, d = res.residuals, res.detection
     n = len(r.names)
-    fig, axes = plt.subplots(n, 1, figsize=(9, 2.3 * n + 0.6), sharex=True, squeeze=False)
+    fig = new_figure(9, 2.3 * n + 1.0)
+    axes = fig.subplots(n, 1, sharex=True, squeeze=False)
     for j, ax in enumerate(axes[:, 0]):
         ax.axhspan(-1, 1, color="#d5f5e3", lw=0, label="normal band")
         ax.plot(r.t, d.normalised[:, j], color="#1f4e79", lw=0.8)
@@ -42,13 +41,10 @@ def plot_residuals(res: IsolationResult, path: Path) -> Path:
         fired = " (fired)" if r.names[j] in d.fired else ""
         ax.set_ylabel(f"{r.names[j]}{fired}\n[z·σ]")
         ax.grid(alpha=0.3)
-    axes[0, 0].legend(loc="upper left", fontsize=7)
+    legend_below(fig, axes[0, 0].get_legend_handles_labels(), ncol=3)
     axes[-1, 0].set_xlabel("time [s]")
     fig.suptitle(f"{res.model}: normalised residuals ({res.normalisation.source})")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def plot_model_errors(res: IsolationResult, model: PlantModel, measured: np.ndarray,
@@ -56,11 +52,11 @@ def plot_model_errors(res: IsolationResult, model: PlantModel, measured: np.ndar
     """Each suspect model's output error, in units of the sensor's noise."""
     t = res.residuals.t
     sensors = model.sensors
-    fig, axes = plt.subplots(len(sensors), 1, figsize=(9, 2.6 * len(sensors) + 0.6),
-                             sharex=True, squeeze=False)
+    fig = new_figure(9, 2.6 * len(sensors) + 1.2)
+    axes = fig.subplots(len(sensors), 1, sharex=True, squeeze=False)
     noise = res.sensor_noise
     n_avg = max(1, int(round(res.normalisation.window / float(t[1] - t[0]))))
-    colors = plt.get_cmap("tab10")
+    colors = colormaps["tab10"]
     order = sorted(res.outputs, key=lambda p: p in res.isolated)  # isolated drawn on top
     for k, (ax, s) in enumerate(zip(axes[:, 0], sensors)):
         for p in order:
@@ -75,14 +71,11 @@ def plot_model_errors(res: IsolationResult, model: PlantModel, measured: np.ndar
         ax.grid(alpha=0.3)
         lim = 10 * max(1.0, min((res.errors[p] for p in res.isolated), default=1.0))
         ax.set_ylim(-lim, lim)
-    axes[0, 0].legend(loc="upper left", fontsize=7, ncol=3)
+    legend_below(fig, axes[0, 0].get_legend_handles_labels(), ncol=4)
     axes[-1, 0].set_xlabel("time [s]")
     fig.suptitle(f"{res.model}: output error of each suspect's model — {res.statement}",
                  fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def write_isolation_figures(res: IsolationResult, model: PlantModel, measured: np.ndarray,

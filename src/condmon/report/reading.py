@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["CheckFault", "check_faults"]
+__all__ = ["CheckFault", "check_faults", "model_units"]
 
 
 @dataclass(frozen=True)
@@ -60,3 +60,13 @@ def check_faults(store: Any, test_id: int, baseline_id: Any) -> tuple[CheckFault
     with store.engine.connect() as conn:
         rows = conn.execute(q).all()
     return tuple(CheckFault(str(r[0]), float(r[1]), str(r[2]), str(r[3])) for r in rows)
+
+
+def model_units(machine: Any) -> dict[str, str]:
+    """Unit of every parameter of ``machine`` (a :class:`~condmon.models.machine.Machine`):
+    the declared parameters' and the reported (derived) quantities'.
+
+    A regime's parameter (``Tc@forward``) takes its parameter's unit
+    (:func:`condmon.models.regimes.split_key`).
+    """
+    return {**machine.plant.parameter_units(), **machine.units}

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import html
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
@@ -16,7 +17,9 @@ if TYPE_CHECKING:
     from condmon.report.reading import CheckFault
 
 __all__ = ["CSS", "STATUSES", "esc", "badge", "when", "page", "flags_box", "test_note",
-           "baseline_section", "faults_table", "tests_table", "isolations_table"]
+           "baseline_section", "faults_table", "tests_table", "isolations_table", "with_unit",
+           "SuspectCell", "SUSPECT_HEADS", "isolation_suspects", "suspect_cells",
+           "latest_isolation", "suspects_table", "unit_of"]
 
 #: Every status a page may show.
 STATUSES = ("go", "advisory", "no-go", "retest", "building", "baseline", "rejected",
@@ -32,6 +35,7 @@ table{border-collapse:collapse;font-size:.85em;margin:.5em 0 1.5em}
 td,th{border:1px solid #ddd;padding:.25em .6em;text-align:right}th{background:#f3f3f3}
 td.l,th.l{text-align:left}img{max-width:100%;border:1px solid #eee;margin:.5em 0}
 tr.excluded td{color:#999}tr.excluded td.v{text-decoration:line-through}
+td.s.left-out{color:#999}td.s{white-space:nowrap}
 .warn{background:#fff3e0;border-left:4px solid #ef6c00;padding:.5em 1em;margin:1em 0}
 .note{background:#eef4fb;border-left:4px solid #1f4e79;padding:.5em 1em;margin:1em 0;font-size:.9em}
 """
@@ -92,13 +96,25 @@ def flags_box(stored: Any) -> str:
             "rebuilt and the checks re-evaluated.</div>")
 
 
-def baseline_section(stored: Any, cfg: MonitorConfig,
-                     units: Mapping[str, str] | None = None) -> str:
-    """The active baseline: name, version, tests, reason, and per parameter
-    mean ± std in its unit (``units``: by parameter, a regime's ``Tc@forward``
-    under ``Tc``) with the band it draws (±k·std) and the breakpoints."""
+def unit_of(units: Mapping[str, str], key: str) -> str:
+    """The unit of a parameter, a regime's (``Tc@forward``) under its parameter's name.
+
+    Example
+    -------
+    >>> unit_of({"Tc": "N m"}, "Tc@forward")
+    'N m'
+    """
     from condmon.models.regimes import split_key
 
+    return units.get(key) or units.get(split_key(key)[0], "")
+
+
+def baseline_section(stored: Any, cfg: MonitorConfig,
+                     units: Mapping[str, str] | None = None, history: Any = None) -> str:
+    """The baseline in use: name, version, when it was built, the tests it
+    holds (per regime too, counted in ``history`` when given), reason, and per parameter
+    mean ± std in its unit (``units``: by parameter, a regime's ``Tc@forward``
+    under ``Tc``) with the band it draws (±k·std) and the breakpoints."""
     if stored is None:
         return ("<h2 id='baseline'>Baseline</h2><p class='sub'>No baseline yet (fewer than 3 "
                 "accepted healthy tests): checks are not evaluated.</p>")
@@ -107,15 +123,15 @@ def baseline_section(stored: Any, cfg: MonitorConfig,
     for p, m, s in zip(b.parameters, b.mean, b.std):
         rel = 100.0 * s / abs(m) if m else float("nan")
         r1, r2 = cfg.r1.get(p), cfg.r2.get(p)
-        unit = (units or {}).get(split_key(p)[0], "")
+        unit = unit_of(units or {}, p)
         rows.append(f"<tr><td class='l'>{esc(p)}</td><td>{m:.5g} ± {s:.3g}</td>"
                     f"<td class='l'>{esc(unit)}</td>"
                     f"<td>{rel:.2f}</td><td>±{cfg.k * rel:.2f}</td>"
                     f"<td>{'—' if r1 is None else f'{r1:g}'}</td>"
                     f"<td>{'—' if r2 is None else f'{r2:g}'}</td></tr>")
     reason = f" — {esc(stored.reason)}" if stored.reason else ""
-    return (f"<h2 id='baseline'>Baseline {esc(stored.name)} v{stored.version}</h2>"
-            f"<p class='sub'>N = {b.n}, made {when(stored.created_at)} UTC{reason}; tests "
+    return (f"<h2 id='baseline'>Baseline in use: {esc(stored.name)} v{stored.version}</h2>"
+            f"<p class='sub'>{esc(stored.describe(history))}{reason}; tests "
             f"{_test_links(stored.test_ids)}</p>"
             "<table><tr><th class='l'>parameter</th><th>mean ± std</th><th class='l'>unit</th>"
             "<th>std [%]</th>"
@@ -201,39 +217,177 @@ def tests_table(hist: Any, params: Sequence[str], stored: Any,
     return head + "".join(rows) + "</table>" + legend
 
 
-def isolations_table(isos: Any) -> str:
-    """Every isolation: id, date, source, status, detection, isolated suspects,
-    the conclusion and each suspect's estimated change (isolated ones bold)."""
+def with_unit(value: Any, unit: str | None, fmt: str = ".4g") -> str:
+    """A number with its unit (``""`` for a missing value; no unit text for a
+    dimensionless ``-``).
+
+    Examples
+    --------
+    >>> with_unit(1.7524e11, "N s/m^5"), with_unit(0.93, "-"), with_unit(float("nan"), "m")
+    ('1.752e+11 N s/m^5', '0.93', '')
+    """
+    import math
+
+    if value is None or not isinstance(value, (int, float)) or not math.isfinite(value):
+        return ""
+    return f"{value:{fmt}}" + (f" {unit}" if unit and unit != "-" else "")
+
+
+def _percent(value: float) -> str:
+    """A change in percent, signed: one decimal, or 3 significant digits when huge."""
+    return f"{value:+.1f}" if abs(value) < 1e4 else f"{value:+.3g}"
+
+
+@dataclass(frozen=True)
+class SuspectCell:
+    """One suspect's result in one isolation, as the report and the fleet page show it.
+
+    Attributes
+    ----------
+    name : str
+    estimate, nominal : float or None
+        Its steady-state estimate and the value it was compared with. [unit]
+    unit : str
+        Of the estimate and the nominal, as the model declares it.
+    change : float or None
+        Estimate against nominal (None without a nominal to compare with). [%]
+    error : float or None
+        Its model's output error. [sensor-noise standard deviations]
+    isolated, rejected : bool
+        Named by the isolation; left out of the comparison.
+    """
+
+    name: str
+    estimate: float | None
+    nominal: float | None
+    unit: str
+    change: float | None
+    error: float | None
+    isolated: bool
+    rejected: bool
+
+    @property
+    def text(self) -> str:
+        """The isolations table's cell: ``+75.2 %``, ``rejected``, or the estimate
+        in its unit when there is no change to give (a nominal of 0)."""
+        if self.rejected:
+            return "rejected"
+        if self.change is not None:
+            return f"{_percent(self.change)} %"
+        return f"= {with_unit(self.estimate, self.unit)}" if self.estimate is not None else ""
+
+    @property
+    def title(self) -> str:
+        """Hover text: estimate and nominal in their unit, the model's output error."""
+        parts = (f"estimate {with_unit(self.estimate, self.unit)}"
+                 if self.estimate is not None else "",
+                 f"nominal {with_unit(self.nominal, self.unit)}"
+                 if self.nominal is not None else "",
+                 f"model error {self.error:.2g} noise σ" if self.error is not None else "",
+                 "left out of the comparison" if self.rejected else "")
+        return ", ".join(p for p in parts if p)
+
+    @property
+    def row(self) -> tuple[str, ...]:
+        """The suspects table's row (:data:`SUSPECT_HEADS`): name, estimate,
+        nominal, unit, change [%], model error [noise σ], ``isolated`` or ``rejected``."""
+        def g(v: float | None, fmt: str) -> str:
+            return "—" if v is None else f"{v:{fmt}}"
+
+        return (self.name, g(self.estimate, ".4g"), g(self.nominal, ".4g"), self.unit,
+                "—" if self.change is None else _percent(self.change), g(self.error, ".2g"),
+                "rejected" if self.rejected else "isolated" if self.isolated else "")
+
+
+#: Heads of the suspects table (:attr:`SuspectCell.row`).
+SUSPECT_HEADS = ("suspect", "estimate", "nominal", "unit", "change [%]",
+                 "model error [noise σ]", "")
+
+
+def isolation_suspects(isos: Any) -> list[str]:
+    """Every suspect of any of the isolations, sorted."""
+    return sorted({s for v in isos["suspects"] for s in v}) if len(isos) else []
+
+
+def suspect_cells(row: Any, suspects: Sequence[str],
+                  units: Mapping[str, str]) -> list[SuspectCell]:
+    """Each suspect's result in an isolation ``row`` (of :meth:`HistoryStore.isolations`),
+    with its unit (``units``: by parameter)."""
     import pandas as pd
 
-    params = sorted(c[: -len("_change")] for c in isos.columns if c.endswith("_change"))
+    def num(key: str) -> float | None:
+        v = row.get(key)
+        return None if v is None or pd.isna(v) else float(v)
+
+    cells = []
+    for p in suspects:
+        flag = row.get(f"{p}_rejected")
+        cells.append(SuspectCell(p, num(p), num(f"{p}_nominal"), units.get(p, ""),
+                                 num(f"{p}_change"), num(f"{p}_error"),
+                                 p in list(row["isolated"]),
+                                 bool(flag is not None and pd.notna(flag) and flag)))
+    return cells
+
+
+def latest_isolation(isos: Any) -> Any:
+    """The newest isolation that is not excluded (by date, then id), or None."""
+    kept = isos[~isos["excluded"].astype(bool)] if len(isos) else isos
+    if not len(kept):
+        return None
+    return kept.sort_index().sort_values("date", kind="stable").iloc[-1]
+
+
+def suspects_table(isos: Any, units: Mapping[str, str]) -> str:
+    """The latest isolation's suspects: estimate and nominal in their unit,
+    change, model error, isolated or rejected ("" without an isolation)."""
+    row = latest_isolation(isos)
+    if row is None:
+        return ""
+
+    def cls(j: int) -> str:
+        return " class='l'" if j in (0, 3, 6) else ""
+
+    body = "".join("<tr>" + "".join(f"<td{cls(j)}>{esc(v)}</td>" for j, v in enumerate(c.row))
+                   + "</tr>" for c in suspect_cells(row, isolation_suspects(isos), units))
+    heads = "".join(f"<th{cls(j)}>{esc(h)}</th>" for j, h in enumerate(SUSPECT_HEADS))
+    return (f"<h3>Suspects of the latest isolation, i{int(row.name)}</h3>"
+            f"<table class='suspects'><tr>{heads}</tr>{body}</table>"
+            "<p class='sub'>Model error: the suspect's model's output error in sensor-noise "
+            "standard deviations (about 1 explains the record).</p>")
+
+
+def isolations_table(isos: Any, units: Mapping[str, str] | None = None) -> str:
+    """Every isolation: id, date, source, status, detection, isolated suspects,
+    the conclusion and each suspect's estimate against nominal [%] (isolated
+    ones bold; hover: estimate and nominal in their unit, ``units`` by
+    parameter, and the model's output error), then the latest isolation's
+    suspects (:func:`suspects_table`)."""
+    import pandas as pd
+
+    units = units or {}
+    params = isolation_suspects(isos)
     rows = []
     for iid, r in isos.iterrows():
         det = f"{r['detection_time']:.2f} s" if pd.notna(r["detection_time"]) else "—"
         excluded = bool(r["excluded"])
         status = "excluded" if excluded else str(r["status"])
-        cells = []
-        for p in params:
-            v = r.get(f"{p}_change")
-            if v is None or pd.isna(v):
-                cells.append("<td></td>")
-                continue
-            flag = r.get(f"{p}_rejected")
-            if flag is not None and pd.notna(flag) and bool(flag):
-                cells.append(f"<td title='estimate {v:+.4g} %, left out of the comparison'>"
-                             "rejected</td>")
-                continue
-            text = f"{v:+.1f}"
-            cells.append(f"<td><b>{text}</b></td>" if p in list(r["isolated"])
-                         else f"<td>{text}</td>")
+        cells = "".join(
+            f"<td class='s{' named' if c.isolated else ''}{' left-out' if c.rejected else ''}' "
+            f"title='{esc(c.title)}'>"
+            + (f"<b>{esc(c.text)}</b>" if c.isolated and not c.rejected else esc(c.text))
+            + "</td>" for c in suspect_cells(r, params, units))
         rows.append(f"<tr id='i{int(iid)}' class='{'excluded' if excluded else ''}'>"
                     f"<td>i{int(iid)}</td><td class='l'>{when(r['date'])}"
                     f"{'' if pd.notna(r['test_date']) else ' (stored)'}</td>"
                     f"<td class='l v'>{esc(r['source'])}</td><td class='l'>{badge(status)}</td>"
                     f"<td>{det}</td><td class='l'>{esc(', '.join(r['isolated']) or '—')}</td>"
-                    f"<td class='l'>{esc(r['statement'])}</td>{''.join(cells)}</tr>")
+                    f"<td class='l'>{esc(r['statement'])}</td>{cells}</tr>")
     return ("<table><tr><th>#</th><th class='l'>date (UTC)</th><th class='l'>source</th>"
             "<th class='l'>status</th><th>detected</th><th class='l'>isolated</th>"
             "<th class='l'>conclusion</th>"
-            + "".join(f"<th>{esc(p)} Δ [%]</th>" for p in params)
-            + f"</tr>{''.join(rows)}</table>")
+            + "".join(f"<th>{esc(p)} Δ</th>" for p in params)
+            + f"</tr>{''.join(rows)}</table>"
+            "<p class='sub'>Δ: each suspect's steady-state estimate against nominal [%] (with "
+            "a nominal of 0, the estimate in its unit); bold: isolated; hover for the "
+            "estimate, the nominal and the model's output error.</p>"
+            + suspects_table(isos, units))

@@ -5,8 +5,10 @@ a figure shows can be checked without looking at pixels:
 
 * :func:`trend_data`: per parameter, each trended check's change against the
   baseline it was evaluated with, the symptom half-width that evaluation used
-  (``k·max(σ_baseline, SE)``), the stored symptoms and status, on a common
-  x axis (test dates when any test has one, else test ids);
+  (``k·max(σ_baseline, SE)``, :func:`condmon.monitor.fuzzy.symptom_width`: the
+  one error bar of every figure, page and JSON, :func:`error_bar` in words),
+  the stored symptoms and status, on a common x axis (test dates when any
+  test has one, else test ids);
 * :func:`fit_data`: every test that is not excluded, with its fit and status;
 * :func:`isolation_trend`: each suspect's estimated change in every isolation.
 
@@ -18,21 +20,54 @@ only.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from condmon.monitor.baseline import Baseline
+from condmon.monitor.fuzzy import symptom_width
 
 __all__ = ["TrendData", "FitData", "IsolationTrend", "trend_data", "fit_data",
-           "isolation_trend", "unexplained", "axis_label"]
+           "isolation_trend", "unexplained", "axis_label", "error_bar"]
 
 FloatArray = np.ndarray[Any, np.dtype[np.float64]]
 
 #: Statuses that ground a unit or call for attention.
 _ALARM = ("advisory", "no-go")
+
+
+def error_bar(k: float, words: bool = False) -> str:
+    """What every error bar of the reports, the fleet page and their JSON is.
+
+    One definition: the symptom half-width ``±k·max(σ, SE)`` the check's
+    status was computed with (:func:`condmon.monitor.fuzzy.symptom_width`).
+    Unlike the estimate's standard error alone, it is the band the detector
+    decides with: a parameter's symptom is above 0 exactly when its bar
+    reaches ``±r1``.
+
+    Parameters
+    ----------
+    k : float
+        Symptom width in standard deviations. [-]
+    words : bool
+        The whole sentence a caption states, not the formula alone.
+
+    Examples
+    --------
+    >>> error_bar(2.0)
+    '±2·max(σ, SE)'
+    >>> error_bar(2.0, words=True)[:60]
+    'error bars: ±2·max(σ, SE), the symptom half-width the status'
+    """
+    short = f"±{k:g}·max(σ, SE)"
+    if not words:
+        return short
+    return (f"error bars: {short}, the symptom half-width the status was computed with: "
+            f"{k:g} times the larger of the baseline's standard deviation σ and the "
+            "estimate's standard error SE, in % of the baseline mean; a parameter's symptom "
+            "is above 0 exactly when its bar reaches the r1 band")
 
 
 def _dated(frame: pd.DataFrame) -> bool:
@@ -97,7 +132,8 @@ class TrendData:
     change : ndarray
         Change against the baseline the check was evaluated with. [%]
     width : ndarray
-        Symptom half-width of that evaluation, ``k·max(σ_baseline, SE)/|mean|·100``. [%]
+        Symptom half-width of that evaluation, ``k·max(σ_baseline, SE)/|mean|·100``
+        (:func:`condmon.monitor.fuzzy.symptom_width`): the error bar. [%]
     se : ndarray
         Each estimate's standard error. [%]
     high, low : ndarray
@@ -191,8 +227,9 @@ def trend_data(history: pd.DataFrame, parameter: str, baselines: Mapping[int, Ba
 
     ms = np.array([stats(b) for b in rows["baseline_id"]], dtype=np.float64).reshape(-1, 2)
     scale = np.where(ms[:, 0] > 0, 100.0 / ms[:, 0], np.nan)
-    se = _column(rows, f"{parameter}_se") * scale
-    width = k * np.fmax(ms[:, 1] * scale, np.nan_to_num(se, nan=0.0))
+    se = _column(rows, f"{parameter}_se")
+    width = symptom_width(ms[:, 0], ms[:, 1], se, k)
+    se = se * scale
     spread = np.nan
     if baselines:
         m, s = stats(max(baselines) if active is None else active)
@@ -298,6 +335,10 @@ class IsolationTrend:
         estimated or rejected from the comparison). [%]
     isolated : dict of str to ndarray of bool
         Per suspect, whether that isolation named it.
+    unshown : dict of str to str
+        Suspects with no change to draw, and why: ``rejected from the
+        comparison``, ``nominal 0: no change in %`` (the estimate is in the
+        table) or ``not estimated``.
     """
 
     isolation_ids: tuple[int, ...]
@@ -306,6 +347,7 @@ class IsolationTrend:
     status: tuple[str, ...]
     change: dict[str, FloatArray]
     isolated: dict[str, np.ndarray[Any, np.dtype[np.bool_]]]
+    unshown: dict[str, str] = field(default_factory=dict)
 
 
 def isolation_trend(isolations: pd.DataFrame) -> IsolationTrend:
@@ -324,12 +366,17 @@ def isolation_trend(isolations: pd.DataFrame) -> IsolationTrend:
     rows, x = _ordered(kept, _dated(isolations))
     label = axis_label(isolations).replace("test #", "isolation #")
     params = sorted(c[: -len("_change")] for c in rows.columns if c.endswith("_change"))
-    change, isolated = {}, {}
+    change, isolated, unshown = {}, {}, {}
     for p in params:
         y = _column(rows, f"{p}_change")
-        if f"{p}_rejected" in rows:
-            y = np.where(rows[f"{p}_rejected"].fillna(False).astype(bool), np.nan, y)
+        rejected = (rows[f"{p}_rejected"].fillna(False).astype(bool).to_numpy()
+                    if f"{p}_rejected" in rows else np.zeros(len(rows), dtype=bool))
+        y = np.where(rejected, np.nan, y)
         change[p] = y
         isolated[p] = np.array([p in list(v) for v in rows["isolated"]], dtype=bool)
+        if not np.isfinite(y).any():
+            valued = np.isfinite(_column(rows, p)) & ~rejected
+            unshown[p] = ("nominal 0: no change in %" if valued.any() else
+                          "rejected from the comparison" if rejected.any() else "not estimated")
     return IsolationTrend(tuple(int(i) for i in rows.index), x, label,
-                          tuple(str(s) for s in rows["status"]), change, isolated)
+                          tuple(str(s) for s in rows["status"]), change, isolated, unshown)

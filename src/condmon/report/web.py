@@ -16,8 +16,10 @@ Routes
 ``/units/<unit>``
     One unit: latest status and fault advice, trend figure (inline SVG: change
     against the baseline over the test dates, or the test ids when none is
-    recorded; r1/r2 bands, the baseline spread, each estimate's standard
-    error), baseline, tests, isolations.
+    recorded; r1/r2 bands, the baseline spread, each test's symptom
+    half-width ±k·max(σ, SE) as its error bar), the report's fit, symptom and
+    isolation figures (drawn by :mod:`condmon.report.figures` at each request,
+    as ``data:`` images), baseline, tests, isolations.
 ``/api/units``
     ``{"units": [...]}`` as ``condmon units --json`` (same filters as ``/``).
 ``/api/units/<unit>``
@@ -52,11 +54,16 @@ from werkzeug.routing import BaseConverter
 
 from condmon.errors import CondmonError
 from condmon.report.figures import STATUS_COLOURS
+from condmon.report.live import LiveFeed, with_live
+from condmon.report.tables import unit_of
+from condmon.report.trends import error_bar
 from condmon.report.web_data import (
     STATUSES, FilterError, UnitData, UnknownUnitError, _filtered, _History, _statuses,
     fleet_document, read_unit, readonly_url, unit_document,
 )
-from condmon.report.web_render import _fmt_date, _isolation_rows, _test_rows, _trends
+from condmon.report.web_render import (
+    _figures, _fmt_date, _isolation_rows, _test_rows, _trends,
+)
 
 __all__ = ["create_app", "serve", "readonly_url", "fleet_document", "unit_document",
            "read_unit", "UnitData", "UnknownUnitError", "STATUSES"]
@@ -93,7 +100,7 @@ def _json(doc: Any, status: int = 200) -> Response:
                     mimetype="application/json")
 
 
-def create_app(db: str | Path, *, refresh: float = 30.0) -> Flask:
+def create_app(db: str | Path, *, refresh: float = 30.0, live: LiveFeed | None = None) -> Flask:
     """The fleet page's web application (a Flask app) over the history ``db``.
 
     Parameters
@@ -103,6 +110,11 @@ def create_app(db: str | Path, *, refresh: float = 30.0) -> Flask:
         read-only at every request; never created, written or upgraded.
     refresh : float
         The index page reloads its table this often [s] (0: never).
+    live : LiveFeed, optional
+        Units' live statuses from the broker (``condmon serve --mqtt``): they
+        override the history's latest status on the index and ``/api/units``,
+        and ``/api/events`` streams their changes (server-sent events) so the
+        index redraws its table at once.
 
     Returns
     -------
@@ -129,7 +141,8 @@ def create_app(db: str | Path, *, refresh: float = 30.0) -> Flask:
     app.url_map.strict_slashes = False
     app.url_map.converters["unit"] = _UnitConverter
     app.config["CONDMON_DB"] = history.db
-    app.jinja_env.globals.update(unit_href=unit_href, colours=STATUS_COLOURS,
+    app.jinja_env.globals.update(unit_href=unit_href, colours=STATUS_COLOURS, error_bar=error_bar,
+                                 unit_of=unit_of,
                                  db_name=Path(history.db).name if "://" not in history.db
                                  else history.db.split("@")[-1])
     app.jinja_env.filters["model_name"] = lambda m: Path(str(m)).name
@@ -164,15 +177,42 @@ def create_app(db: str | Path, *, refresh: float = 30.0) -> Flask:
     def _http_error(err: HTTPException) -> Response | tuple[str, int]:
         return problem(err.code or 500, f"{err.name}: {request.path}")
 
-    def fleet() -> dict[str, Any]:
+    def summaries() -> list[dict[str, Any]]:
         with history.open() as store:
-            return fleet_document(store, request.args.getlist("status"), request.args.get("q"))
+            units = store.unit_summaries()
+        return with_live(units, live)
+
+    def fleet() -> dict[str, Any]:
+        return {"units": _filtered(summaries(), _statuses(request.args.getlist("status")),
+                                   request.args.get("q"))}
+
+    @app.get("/api/events")
+    def events() -> Response:
+        if live is None:
+            return _json({"error": "no live feed: start the page with condmon serve --mqtt "
+                                   "HOST:PORT"}, 404)
+        feed = live
+        after = int(request.headers.get("Last-Event-ID") or request.args.get("after") or
+                    feed.version)
+
+        def stream() -> Any:
+            last = after
+            yield "retry: 2000\n\n"
+            while True:
+                changes = feed.changes(last, 15.0)
+                if not changes:
+                    yield ": still here\n\n"
+                for version, doc in changes:
+                    last = version
+                    yield f"id: {version}\ndata: {json.dumps(doc)}\n\n"
+
+        return Response(stream(), mimetype="text/event-stream",
+                        headers={"X-Accel-Buffering": "no"})
 
     @app.get("/")
     def index() -> str:
         chosen = _statuses(request.args.getlist("status"))
-        with history.open() as store:
-            everyone = store.unit_summaries()
+        everyone = summaries()
         tally: dict[str, int] = {}
         for u in everyone:
             tally[u["status"] or "none"] = tally.get(u["status"] or "none", 0) + 1
@@ -181,6 +221,7 @@ def create_app(db: str | Path, *, refresh: float = 30.0) -> Flask:
                                tally=[(s, tally[s]) for s in STATUSES if s in tally],
                                statuses=STATUSES, chosen=chosen,
                                q=request.args.get("q", ""), refresh=refresh,
+                               events=url_for("events") if live is not None else "",
                                now=datetime.now(timezone.utc).strftime("%H:%M:%S"))
 
     def page(unit: str) -> str:
@@ -189,8 +230,8 @@ def create_app(db: str | Path, *, refresh: float = 30.0) -> Flask:
         trends = _trends(data)
         params = [p.parameter for p in trends.panels] or sorted(
             c[:-len("_change")] for c in data.history.columns if c.endswith("_change"))
-        suspects, iso_rows = (_isolation_rows(data.isolations) if len(data.isolations)
-                              else ([], []))
+        suspects, iso_rows, latest = (_isolation_rows(data.isolations, data.units)
+                                      if len(data.isolations) else ([], [], None))
         advice = None
         if data.advice_test is not None:
             r = data.history.loc[data.advice_test]
@@ -199,8 +240,10 @@ def create_app(db: str | Path, *, refresh: float = 30.0) -> Flask:
                       isinstance(r["summary"], str) else f"retest: {r['reason']}",
                       "date": _fmt_date(r["date"])}
         return render_template("unit.html", d=data, o=data.overview, trends=trends,
+                               figures=_figures(data, trends),
                                tests=_test_rows(data.history, params), params=params,
-                               suspects=suspects, isolations=iso_rows, advice=advice,
+                               suspects=suspects, isolations=iso_rows, latest=latest,
+                               advice=advice,
                                api=unit_href(unit, api=True))
 
     @app.get("/units/<unit:unit>")

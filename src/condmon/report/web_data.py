@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 from urllib.parse import quote
@@ -33,7 +33,7 @@ __all__ = ["readonly_url", "fleet_document", "unit_document", "read_unit", "Unit
 
 #: Statuses a unit can show (``building``: its baseline is not saved yet; ``none``:
 #: nothing stored yet), in the filter's order.
-STATUSES = ("no-go", "advisory", "retest", "go", "unchecked", "building", "baseline",
+STATUSES = ("no-go", "advisory", "retest", "stale", "go", "unchecked", "building", "baseline",
             "rejected", "excluded", "none")
 
 
@@ -174,6 +174,11 @@ class UnitData:
         against the baseline it was evaluated with.
     monitor : MonitorConfig or None
         The model's breakpoints (None when the model cannot be loaded).
+    baselines : tuple of StoredBaseline
+        Every version of the unit's baselines, oldest first (a check's error
+        bar comes from the one it was evaluated with).
+    units : dict of str to str
+        Unit of every parameter of the model (empty when it cannot be loaded).
     """
 
     unit: str
@@ -185,6 +190,8 @@ class UnitData:
     advice_test: int | None
     faults: list[dict[str, Any]]
     monitor: MonitorConfig | None
+    baselines: tuple[StoredBaseline, ...] = ()
+    units: dict[str, str] = field(default_factory=dict)
 
 
 def _faults(store: HistoryStore, test_id: int, baseline_id: Any) -> list[dict[str, Any]]:
@@ -212,6 +219,7 @@ def read_unit(store: HistoryStore, unit: str) -> UnitData:
     """
     from condmon.models.registry import get_model
     from condmon.monitor.generic import machine_monitor
+    from condmon.report.reading import model_units
 
     model = store.unit_model(unit)
     if model is None:
@@ -219,14 +227,15 @@ def read_unit(store: HistoryStore, unit: str) -> UnitData:
     hist = store.history(unit)
     isos = store.isolations(unit)
     baseline = store.latest_baseline(unit)
-    monitor = None
-    if len(hist):
-        try:
-            monitor = machine_monitor(get_model(model),
-                                      None if baseline is None else baseline.baseline)
+    monitor, units = None, {}
+    try:
+        machine = get_model(model)
+        units = model_units(machine)
+        if len(hist):
+            monitor = machine_monitor(machine, None if baseline is None else baseline.baseline)
             monitor = monitor.keyed([c for c in hist.columns if f"{c}_se" in hist.columns])
-        except CondmonError:  # a declaration file moved away: trends without bands
-            monitor = None
+    except CondmonError:  # a declaration file moved away: trends without bands or units
+        monitor = None
     checks = hist[(hist["role"] == "check") & ~hist["excluded"]] if len(hist) else hist
     advice_test, faults = None, []
     if len(checks):
@@ -237,7 +246,8 @@ def read_unit(store: HistoryStore, unit: str) -> UnitData:
     group = store.unit_group(unit)
     unlike = store.group_flags().get(unit, []) if group else []
     return UnitData(unit, model, _overview(unit, model, hist, isos, baseline, group, unlike),
-                    hist, isos, baseline, advice_test, faults, monitor)
+                    hist, isos, baseline, advice_test, faults, monitor,
+                    tuple(store.baselines(unit)) if len(hist) else (), units)
 
 
 def _overview(unit: str, model: str, hist: pd.DataFrame, isos: pd.DataFrame,
@@ -283,15 +293,35 @@ def unit_document(data: UnitData) -> dict[str, Any]:
 
     Keys: ``unit``, ``overview`` (as in ``/api/units``), ``tests`` (as
     ``condmon history --json``), ``isolations``, ``baseline`` (the active
-    baseline's latest version, or None) and ``advice`` (``test_id`` of the
-    latest check and its ``faults``, or None).
+    baseline's latest version, the one in use, with its ``description``:
+    name, version, when built, its tests, per regime; or None), ``advice`` (``test_id`` of the
+    latest check and its ``faults``, or None), ``error_bars`` (what every
+    error bar is, :func:`condmon.report.trends.error_bar`: ``definition``,
+    ``k``, ``unit``) and ``trends`` (per parameter, the trended checks'
+    ``test_ids``, ``change`` [%] and ``half_width`` [%], the error bar, as the
+    report's trend figure draws them).
     """
+    from condmon.report.trends import error_bar, trend_data
+
+    cfg = data.monitor
+    trends = []
+    if cfg is not None and len(data.history):
+        by_id = {b.id: b.baseline for b in data.baselines}
+        active = None if data.baseline is None else data.baseline.id
+        for p in (p for p in cfg.r1 if p in data.history.columns):
+            d = trend_data(data.history, p, by_id, cfg.r1[p], cfg.r2[p], cfg.k, active)
+            trends.append({"parameter": p, "test_ids": list(d.test_ids),
+                           "change": d.change.tolist(), "half_width": d.width.tolist()})
+    k = 2.0 if cfg is None else cfg.k
     advice = (None if data.advice_test is None else
               {"test_id": data.advice_test, "faults": data.faults})
     doc: dict[str, Any] = json_safe({
         "unit": data.unit, "overview": data.overview,
         "tests": frame_records(data.history) if len(data.history) else [],
         "isolations": frame_records(data.isolations) if len(data.isolations) else [],
-        "baseline": None if data.baseline is None else data.baseline.to_dict(),
-        "advice": advice})
+        "baseline": None if data.baseline is None else {
+            **data.baseline.to_dict(), "description": data.baseline.describe(data.history)},
+        "advice": advice,
+        "error_bars": {"definition": error_bar(k, words=True), "k": k, "unit": "%"},
+        "trends": trends})
     return doc

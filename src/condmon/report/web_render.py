@@ -1,27 +1,35 @@
-"""What the live fleet page draws: a unit's trend figure (inline SVG) and the rows of its tables.
+"""What the live fleet page draws: a unit's trend figure (inline SVG), the
+report's figures and the rows of its tables.
 
 This module holds the rendering side of :mod:`condmon.report.web`, free of
 the web framework: the trend panels a unit's page draws as SVG (each
 parameter's change against the baseline over the test dates, or the test ids
 when none is recorded, with the r1/r2 bands, the baseline spread and each
-estimate's standard error), the rows of its tests and isolations tables, and
-the dates as the page writes them. The templates turn these into HTML.
+test's symptom half-width ±k·max(σ, SE) as its error bar), the report's fit,
+symptom and isolation figures as ``data:`` images (drawn by
+:mod:`condmon.report.figures`), the rows of its tests and isolations tables
+(each suspect's numbers with their units, as the report's), and the dates as
+the page writes them. The templates turn these into HTML.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from typing import TYPE_CHECKING, Any, cast
 
 from condmon.report.figures import STATUS_COLOURS
-from condmon.report.tables import test_note
+from condmon.report.tables import (
+    SUSPECT_HEADS, isolation_suspects, latest_isolation, suspect_cells, test_note,
+)
+from condmon.report.trends import error_bar
 
 if TYPE_CHECKING:
     import pandas as pd
 
+    from condmon.report.trends import TrendData
     from condmon.report.web_data import UnitData
 
 __all__: list[str] = []
@@ -73,6 +81,7 @@ class _Trends:
     banded: bool = False
     spread: bool = False
     untrended: list[str] = field(default_factory=list)
+    checks: tuple[TrendData, ...] = ()  # what the report's trend and symptom figures draw
 
 
 def _nice(span: float, count: int = 5) -> float:
@@ -91,8 +100,13 @@ def _time_ticks(lo: float, hi: float) -> list[tuple[float, str]]:
 
 def _trends(data: UnitData) -> _Trends:
     """The trend panels: accepted checks that are not excluded, at their change
-    against the baseline they were evaluated with, and the active baseline's
-    tests at their deviation from its mean; error bars ±1 SE."""
+    against the baseline they were evaluated with (:func:`trend_data`, as the
+    report's trend figure), and the active baseline's tests at their deviation
+    from its mean; every error bar is the symptom half-width ±k·max(σ, SE)
+    (:func:`condmon.monitor.fuzzy.symptom_width`)."""
+    from condmon.monitor.fuzzy import symptom_width
+    from condmon.report.trends import trend_data
+
     hist, cfg, stored = data.history, data.monitor, data.baseline
     if not len(hist):
         return _Trends()
@@ -131,18 +145,23 @@ def _trends(data: UnitData) -> _Trends:
         v: Any = hist.loc[i, column] if column in hist.columns else None
         return float(v) if isinstance(v, (int, float)) and v == v else math.nan
 
-    panels, seen = [], []
+    by_id = {b.id: b.baseline for b in data.baselines}
+    active = None if stored is None else stored.id
+    panels, seen, drawn = [], [], []
     for p in params:
         mean, std = stats.get(p, (math.nan, math.nan))
         scale = 100.0 / abs(mean)  # nan without a baseline
-        pts = [(i, (value(i, p) - mean) * scale, value(i, f"{p}_se") * scale, "baseline", True)
+        pts = [(i, (value(i, p) - mean) * scale,
+                float(symptom_width(mean, std, value(i, f"{p}_se"), k)), "baseline", True)
                for i in members]
-        pts += [(i, value(i, f"{p}_change"), value(i, f"{p}_se") * scale,
-                 str(hist.loc[i, "status"]), False) for i in checks]
-        pts = [t for t in pts if math.isfinite(t[1])]
-        spread = k * std * scale if math.isfinite(std * scale) else 0.0
         r1 = cfg.r1.get(p, math.nan) if cfg is not None else math.nan
         r2 = cfg.r2.get(p, math.nan) if cfg is not None else math.nan
+        d = trend_data(hist, p, by_id, r1, r2, k, active)
+        drawn.append(d)
+        pts += [(i, float(c), float(w), s, False)
+                for i, c, w, s in zip(d.test_ids, d.change, d.width, d.status)]
+        pts = [t for t in pts if math.isfinite(t[1])]
+        spread = k * std * scale if math.isfinite(std * scale) else 0.0
         reach = [abs(c) + (e if math.isfinite(e) else 0.0) for _, c, e, _, _ in pts]
         top = max([r2 * 1.15 if math.isfinite(r2) else 0.0, spread * 1.3, *reach, 1.0]) * 1.08
         step = _nice(2 * top)
@@ -159,14 +178,14 @@ def _trends(data: UnitData) -> _Trends:
             bands.append((py(min(spread, top)), py(-min(spread, top)), "spread"))
         ticks = [v * step for v in range(-int(top // step), int(top // step) + 1)]
         points = []
-        for i, c, e, s, member in pts:
+        for i, c, e, s, member in sorted(pts, key=lambda t: (where[t[0]], t[0])):
             when = datetime.fromtimestamp(stamps[i], timezone.utc).strftime("%Y-%m-%d %H:%M")
-            sd = f" ± {e:.2g} % (SE)" if math.isfinite(e) else ""
+            bar = f" ± {e:.2g} % ({error_bar(k)})" if math.isfinite(e) else ""
             role = "baseline test" if member else s
             points.append(_Point(px(where[i]), py(c), py(c - e) if math.isfinite(e) else py(c),
                                  py(c + e) if math.isfinite(e) else py(c),
                                  STATUS_COLOURS.get(s, "#444"), i,
-                                 f"#{i} {when} {role}: {p} {c:+.1f} %{sd}", member))
+                                 f"#{i} {when} {role}: {p} {c:+.1f} %{bar}", member))
             seen.append(s)
         line = " ".join(f"{q.x:.1f},{q.y:.1f}" for q in points if not q.member)
         panels.append(_Panel(p, bands, py(0.0), [(py(v), f"{v:+g}") for v in ticks],
@@ -178,7 +197,54 @@ def _trends(data: UnitData) -> _Trends:
               "test # (no test dates recorded)")
     order: list[str] = [s for s in ("baseline", "go", "advisory", "no-go", "unchecked")
                         if s in seen]
-    return _Trends(panels, xlabel, order, k, cfg is not None, bool(stats), _untrended(hist))
+    return _Trends(panels, xlabel, order, k, cfg is not None, bool(stats), _untrended(hist),
+                   tuple(drawn))
+
+
+# -- the report's figures, as images in the page ------------------------------------------
+@dataclass(frozen=True)
+class _Figure:
+    name: str
+    caption: str
+    uri: str
+
+
+def _png_uri(fig: Any) -> str:
+    """A figure as a ``data:`` URI of its PNG (the page never writes a file)."""
+    import base64
+    import io
+
+    from condmon.report.figures import save_figure
+
+    png = io.BytesIO()
+    save_figure(fig, png)
+    return "data:image/png;base64," + base64.b64encode(png.getvalue()).decode("ascii")
+
+
+def _figures(data: UnitData, trends: _Trends) -> dict[str, _Figure]:
+    """The report's fit, symptom and isolation figures of the unit, drawn by
+    the report's own code (:mod:`condmon.report.figures`) from what the page
+    read: ``fits``, ``symptoms`` (with trended checks) and ``isolations``."""
+    from condmon.identify.defaults import DEFAULT_FIT_THRESHOLD
+    from condmon.report.figures import fit_figure, isolation_figure, symptom_figure
+    from condmon.report.trends import fit_data, isolation_trend
+
+    out = {}
+    if len(data.history):
+        out["fits"] = _Figure("fits", "Model fit of every test that is not excluded, with the "
+                              f"{DEFAULT_FIT_THRESHOLD:g} % threshold [%]",
+                              _png_uri(fit_figure(fit_data(data.history),
+                                                  DEFAULT_FIT_THRESHOLD)))
+    if trends.checks and trends.checks[0].test_ids:
+        out["symptoms"] = _Figure("symptoms", "Fuzzy symptoms of each trended check, SymH up "
+                                  "and SymL down, per parameter [-]",
+                                  _png_uri(symptom_figure(trends.checks)))
+    iso = isolation_trend(data.isolations) if len(data.isolations) else None
+    if iso is not None and iso.isolation_ids:
+        out["isolations"] = _Figure("isolations", "Each suspect's steady-state estimate "
+                                    "against nominal, per isolation [%]",
+                                    _png_uri(isolation_figure(iso)))
+    return out
 
 
 def _untrended(hist: pd.DataFrame) -> list[str]:
@@ -221,23 +287,18 @@ def _test_rows(hist: pd.DataFrame, params: Sequence[str]) -> list[dict[str, Any]
     return rows
 
 
-def _isolation_rows(isos: pd.DataFrame) -> tuple[list[str], list[dict[str, Any]]]:
+def _isolation_rows(isos: pd.DataFrame, units: Mapping[str, str]
+                    ) -> tuple[list[str], list[dict[str, Any]], dict[str, Any] | None]:
+    """The isolations table's suspects and rows (each suspect's cell as the
+    report's, :func:`~condmon.report.tables.suspect_cells`), and the latest
+    isolation's suspects table (``id``, ``heads``, ``cells``: every estimate
+    and nominal with its unit), as the report's."""
     import pandas as pd
 
-    suspects = sorted({s for v in isos["suspects"] for s in v})
+    suspects = isolation_suspects(isos)
     rows = []
     for iid, r in isos.iterrows():
-        cells = []
-        for p in suspects:
-            change, err, est = r.get(f"{p}_change"), r.get(f"{p}_error"), r.get(p)
-            flag = r.get(f"{p}_rejected")
-            rejected = bool(flag is not None and flag == flag and flag)  # NaN: not estimated
-            text = ("" if est is None or pd.isna(est) else f"= {est:.4g}"
-                    ) if change is None or pd.isna(change) else f"{change:+.1f} %"
-            if err is not None and pd.notna(err):
-                text += f" ({err:.2g} σ)"
-            cells.append({"text": "rejected" if rejected else text,
-                          "isolated": p in r["isolated"], "rejected": rejected})
+        cells = suspect_cells(r, suspects, units)
         det = r["detection_time"]
         rows.append({"id": int(cast(int, iid)),
                      "date": _fmt_date(r["date"], pd.isna(r["test_date"])),
@@ -248,4 +309,8 @@ def _isolation_rows(isos: pd.DataFrame) -> tuple[list[str], list[dict[str, Any]]
                      "statement": str(r["statement"] or ""),
                      "reason": str(r["reason"]) if isinstance(r["reason"], str) else "",
                      "cells": cells})
-    return suspects, rows
+    latest = latest_isolation(isos)
+    table = None if latest is None else {
+        "id": int(latest.name), "heads": SUSPECT_HEADS,
+        "cells": suspect_cells(latest, suspects, units)}
+    return suspects, rows, table

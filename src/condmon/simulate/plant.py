@@ -32,6 +32,7 @@ from scipy.integrate import solve_ivp
 from condmon.errors import CondmonError, ConfigError, DataError, EstimationError
 from condmon.io.config import load_default
 from condmon.models.declared import CompiledModel, PlantModel
+from condmon.models.excitation import excitation_signal
 from condmon.simulate.faults import Fault, apply_fault, parse_fault
 
 __all__ = ["ParameterStep", "SimulationLimits", "SimulationTimeout", "parameter_steps",
@@ -40,6 +41,7 @@ __all__ = ["ParameterStep", "SimulationLimits", "SimulationTimeout", "parameter_
 
 FloatArray = NDArray[np.float64]
 _MAX_RESTARTS = 100  # more input changes than this: the inputs are measured, not stepped
+_HELD_SAMPLES = 16   # ... unless an input is held this many samples per change on average
 
 
 class SimulationTimeout(EstimationError):
@@ -133,7 +135,8 @@ def input_signals(model: PlantModel, t: FloatArray, record: pd.DataFrame | None 
     """Known inputs on the grid ``t``, shape (len(t), n_inputs).
 
     A column of the record named like the input is used as it is; otherwise the
-    input is its nominal value with the test's schedule of known steps.
+    input is its nominal value with the test's schedule of known steps and its
+    excitation (:mod:`condmon.models.excitation`) added.
 
     Example
     -------
@@ -154,6 +157,9 @@ def input_signals(model: PlantModel, t: FloatArray, record: pd.DataFrame | None 
             if step.input == name:
                 level = nominal * step.factor if step.factor is not None else step.value
                 u[t >= step.at - 1e-12, j] = level
+        for exc in model.test.excitation:
+            if exc.input == name:
+                u[:, j] += excitation_signal(exc, t)
     return u
 
 
@@ -248,8 +254,10 @@ def integrate(compiled: CompiledModel, t: FloatArray, u: FloatArray,
     # breakpoints: input changes and parameter steps, each a restart of the solver.
     # A measured input that moves at every sample is interpolated instead (a
     # restart per sample would be exact for a held input, and very slow).
+    # An input held over many samples (a test's steps and binary excitation) keeps
+    # its restarts however many there are.
     changes = np.flatnonzero(np.any(np.diff(u, axis=0) != 0, axis=1)) + 1
-    smooth_inputs = len(changes) > _MAX_RESTARTS
+    smooth_inputs = len(changes) > max(_MAX_RESTARTS, len(t) // _HELD_SAMPLES)
     if smooth_inputs:
         changes = operating_segments(u)[1:]
     bps = sorted({float(t[0]), float(t[-1]), *(float(t[i]) for i in changes),

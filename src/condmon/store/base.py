@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from datetime import datetime, timezone
 from typing import Any, TypeVar
@@ -18,7 +18,7 @@ from condmon.models.regimes import split_key
 from condmon.store import schema as S
 from condmon.store.engine import SCHEMA_LOCK, actor, redact, run_read, run_write, store_error
 
-__all__ = ["StoreBase", "now", "num", "check_name", "as_utc", "utc_column"]
+__all__ = ["StoreBase", "now", "num", "check_name", "as_utc", "utc_column", "unknown_unit_message"]
 
 T = TypeVar("T")
 
@@ -173,8 +173,7 @@ class StoreBase:
 
     def _unknown_unit(self, conn: sa.Connection, name: str) -> ConfigError:
         known = [r[0] for r in conn.execute(sa.select(S.units.c.name).order_by(S.units.c.name))]
-        shown = known if len(known) <= 20 else known[:20] + [f"... {len(known) - 20} more"]
-        return ConfigError(f"unknown unit {name!r} in {self.url}; units: {shown or 'none yet'}")
+        return ConfigError(unknown_unit_message(name, known, self.url))
 
     def unit_id(self, name: str, *, create: bool = False, model: str = "dc-motor",
                 conn: sa.Connection | None = None, model_source: str | None = None) -> int:
@@ -271,3 +270,33 @@ class StoreBase:
         for col in ("test_id", "isolation_id", "baseline_id"):
             frame[col] = frame[col].astype("Int64")  # ids stay integers beside gaps
         return frame.set_index("id")
+
+
+def unknown_unit_message(name: str, known: Sequence[str], where: str) -> str:
+    """What to say of a unit name the history does not hold: the close names
+    first (a mistyped serial number), then the units, then how a new unit starts.
+
+    Example
+    -------
+    >>> unknown_unit_message("EMA-l", ["EMA-1", "EMA-2", "HST-7"], "h.db")
+    "unknown unit 'EMA-l' in h.db; did you mean 'EMA-1' or 'EMA-2'? (units: EMA-1, EMA-2, HST-7; a new unit starts with its healthy tests: condmon baseline add REC... --unit EMA-l)"
+    """
+    # the names a few keystrokes away (case aside): a mistyped serial number
+    target = name.lower()
+    near = sorted((_edits(target, k.lower()), k) for k in known)
+    close = [k for d, k in near if d <= max(1, len(target) // 4)][:3]
+    shown = ", ".join(known[:20]) + (f", ... {len(known) - 20} more" if len(known) > 20 else "")
+    units = f"units: {shown or 'none yet'}; a new unit starts with its healthy tests: " \
+            f"condmon baseline add REC... --unit {name}"
+    guess = f"did you mean {' or '.join(map(repr, close))}? ({units})" if close else units
+    return f"unknown unit {name!r} in {where}; {guess}"
+
+
+def _edits(a: str, b: str) -> int:
+    """Levenshtein distance: insertions, deletions and substitutions from a to b."""
+    row = list(range(len(b) + 1))
+    for i, ca in enumerate(a, 1):
+        prev, row[0] = row[0], i
+        for j, cb in enumerate(b, 1):
+            prev, row[j] = row[j], min(row[j] + 1, row[j - 1] + 1, prev + (ca != cb))
+    return row[-1]

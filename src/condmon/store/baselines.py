@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from collections.abc import Sequence
 from dataclasses import dataclass
-from datetime import datetime
+from datetime import datetime, timezone
 from typing import Any
 
 import sqlalchemy as sa
@@ -15,10 +15,27 @@ from condmon.store import schema as S
 from condmon.store.base import StoreBase, as_utc, check_name, now
 from condmon.store.engine import StoreError
 
-__all__ = ["BaselinesMixin", "StoredBaseline", "DEFAULT_BASELINE"]
+__all__ = ["BaselinesMixin", "StoredBaseline", "DEFAULT_BASELINE", "id_runs"]
 
 #: Name of a unit's baseline until another is chosen.
 DEFAULT_BASELINE = "default"
+
+
+def id_runs(ids: Any) -> str:
+    """Test ids as runs: ``#1-#5,#8`` for 1, 2, 3, 4, 5, 8.
+
+    Example
+    -------
+    >>> id_runs([8, 3, 1, 2, 4, 5])
+    '#1-#5,#8'
+    """
+    runs: list[list[int]] = []
+    for i in sorted(int(x) for x in ids):
+        if runs and i == runs[-1][1] + 1:
+            runs[-1][1] = i
+        else:
+            runs.append([i, i])
+    return ",".join(f"#{a}" if a == b else f"#{a}-#{b}" for a, b in runs)
 
 
 @dataclass(frozen=True)
@@ -53,6 +70,69 @@ class StoredBaseline:
     baseline: Baseline
     reason: str | None
     flags: tuple[dict[str, Any], ...]
+
+    def regime_counts(self, history: Any = None) -> dict[str, int]:
+        """The tests it holds per operating regime (``{}`` without regimes).
+
+        Parameters
+        ----------
+        history : DataFrame, optional
+            The unit's :meth:`HistoryStore.history`: then its tests are counted
+            in every regime they were estimated in, also one with too few of
+            them for a baseline (which its statistics leave out).
+
+        Returns
+        -------
+        dict of str to int
+            Regime to number of tests, in the order they first appear.
+        """
+        from condmon.models.regimes import split_key
+
+        counts = self.baseline.regime_counts()
+        if history is None or not len(history):
+            return counts
+        members = history[history.index.isin(self.test_ids)]
+        keys = [c for c in members.columns if f"{c}_se" in members.columns and split_key(c)[1]]
+        for regime in dict.fromkeys(split_key(c)[1] for c in keys):
+            cols = [c for c in keys if split_key(c)[1] == regime]
+            counts[regime] = max(counts.get(regime, 0), int(members[cols].notna().any(
+                axis=1).sum()))
+        return counts
+
+    def describe(self, history: Any = None) -> str:
+        """Which baseline this is and what it holds, in one line.
+
+        Parameters
+        ----------
+        history : DataFrame, optional
+            The unit's history, to count a regime with too few tests for a
+            baseline too (:meth:`regime_counts`); such a regime is named as
+            one with too few tests to compare.
+
+        Example
+        -------
+        >>> from datetime import timezone
+        >>> b = StoredBaseline(3, "A1", "default", 2, datetime(2026, 5, 1, 8, 0,
+        ...                    tzinfo=timezone.utc), tuple(range(1, 11)),
+        ...                    Baseline(("Tc@forward", "Tc@reverse"), (39.5, 39.5),
+        ...                             (0.2, 0.4), 10, (5, 5)), None, ())
+        >>> b.describe()
+        'baseline default v2, built 2026-05-01 08:00 UTC from tests #1-#10 (10 tests: forward 5, reverse 5)'
+        """
+        from condmon.models.regimes import split_key
+
+        n = len(self.test_ids)
+        held = f"{n} test{'s' if n != 1 else ''}"
+        kept = {split_key(k)[1] for k in self.baseline.parameters}
+        counts = self.regime_counts(history)
+        if counts:
+            held += ": " + ", ".join(f"{r} {c}" for r, c in counts.items())
+        few = [r for r in counts if r not in kept]
+        if few:
+            held += f"; too few to compare {' and '.join(few)}"
+        return (f"baseline {self.name} v{self.version}, built "
+                f"{self.created_at.astimezone(timezone.utc):%Y-%m-%d %H:%M} UTC from tests "
+                f"{id_runs(self.test_ids)} ({held})")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form."""

@@ -147,9 +147,11 @@ class IsolationsMixin(StoreBase):
         Columns: ``isolation_id`` (index), ``created_at, test_date, date`` (the
         test date, else when stored), ``source, detected, detection_time,
         decided, status, reason, statement, suspects, isolated, excluded``, then
-        for each suspect ever estimated ``<p>`` (estimate), ``<p>_change`` [%],
-        ``<p>_error`` (model output error [noise sd]) and ``<p>_rejected``
-        (left out of the comparison: implausible, not converged, ...).
+        for each suspect ever estimated ``<p>`` (estimate), ``<p>_nominal``
+        (the value it was compared with), ``<p>_change`` [%], ``<p>_error``
+        (model output error [noise sd]) and ``<p>_rejected`` (left out of the
+        comparison: implausible, not converged, ...). Estimates and nominals
+        are in the unit the model declares for the parameter.
         """
         def run(c: sa.Connection) -> tuple[list[Any], list[Any]]:
             urow = self._unit_row(c, unit)
@@ -164,6 +166,7 @@ class IsolationsMixin(StoreBase):
             est = c.execute(sa.select(S.isolation_estimates.c.isolation_id,
                                       S.isolation_estimates.c.parameter,
                                       S.isolation_estimates.c.value,
+                                      S.isolation_estimates.c.nominal,
                                       S.isolation_estimates.c.change_percent,
                                       S.isolation_estimates.c.error_sigma,
                                       S.isolation_estimates.c.rejected.isnot(None))
@@ -184,10 +187,10 @@ class IsolationsMixin(StoreBase):
         for col in ("suspects", "isolated"):
             df[col] = [json.loads(v) for v in df[col]]
         if est:
-            e = pd.DataFrame(est, columns=["isolation_id", "parameter", "value", "change",
-                                           "error", "rejected"])
-            for col, suffix in (("value", ""), ("change", "_change"), ("error", "_error"),
-                                ("rejected", "_rejected")):
+            e = pd.DataFrame(est, columns=["isolation_id", "parameter", "value", "nominal",
+                                           "change", "error", "rejected"])
+            for col, suffix in (("value", ""), ("nominal", "_nominal"), ("change", "_change"),
+                                ("error", "_error"), ("rejected", "_rejected")):
                 w = e.pivot(index="isolation_id", columns="parameter", values=col)
                 w.columns = [f"{c}{suffix}" for c in w.columns]
                 df = df.join(w)

@@ -271,6 +271,7 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
     machine = get_model(opts.model or "dc-motor")
     ref = reference_for(store, unit, machine, against, group)
     if ref is None:
+        store.unit_id(unit)  # a unit not in the history: the close names, not "no tests yet"
         baseline, ids = current_baseline(store, unit)
         cfg, rb = monitoring_of(machine, baseline, monitor, rules)
         latest = store.latest_baseline(unit) if store.unit_model(unit) else None

@@ -65,9 +65,11 @@ class DemoCheck:
 
     @property
     def top_fault(self) -> str:
-        """Name of the highest-degree fault, or "no fault"."""
+        """Name of the highest-degree fault, else of the strongest tendency to
+        watch (a developing fault below advisory level), else "no fault"."""
         d = self.result.diagnosis
-        return d.faults[0].name if d is not None and d.faults else "no fault"
+        listed = (*d.faults, *d.watch) if d is not None else ()
+        return listed[0].name if listed else "no fault"
 
     @property
     def cross_coupling_ratio(self) -> float:

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -249,7 +249,8 @@ def run_fleet(source: str | Path, db: str | Path, *, manifest: bool | None = Non
               workers: int | None = None, scheduler: str | None = None,
               baseline_count: int = 3, options: EstimateOptions | None = None,
               progress: Progress | None = None, batch_size: int = 20,
-              batch_seconds: float = 2.0) -> FleetResult:
+              batch_seconds: float = 2.0,
+              files: Collection[str | Path] | None = None) -> FleetResult:
     """Estimate (or isolate) every new record of a fleet and keep the results.
 
     Parameters
@@ -280,6 +281,9 @@ def run_fleet(source: str | Path, db: str | Path, *, manifest: bool | None = Non
         written together).
     batch_seconds : float
         Longest wait before results ready to write are written. [s]
+    files : collection of paths, optional
+        Only these files of the inbox or manifest (``condmon watch FOLDER``
+        hands over each file once it is complete); default: every one.
 
     Returns
     -------
@@ -322,6 +326,9 @@ def run_fleet(source: str | Path, db: str | Path, *, manifest: bool | None = Non
     path = Path(source)
     as_manifest = path.is_file() if manifest is None else manifest
     records = read_manifest(path) if as_manifest else inbox_records(path)
+    if files is not None:
+        wanted = {Path(f).resolve() for f in files}
+        records = [r for r in records if Path(r.path).resolve() in wanted]
     run = _Run(records, options or EstimateOptions(),
                progress or (lambda done, total, label: None), baseline_count, batch_size,
                batch_seconds)

@@ -398,12 +398,7 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
 
 def _regime_counts(baseline: Baseline) -> str:
     """``forward 5 tests, reverse 5 tests`` ("" without regimes)."""
-    counts: dict[str, int] = {}
-    for key, n in zip(baseline.parameters, baseline.count_array):
-        regime = split_key(key)[1]
-        if regime:
-            counts[regime] = max(counts.get(regime, 0), int(n))
-    return ", ".join(f"{r} {n} tests" for r, n in counts.items())
+    return ", ".join(f"{r} {n} tests" for r, n in baseline.regime_counts().items())
 
 
 def filed_elsewhere(store: HistoryStore, unit: str, key: RecordKey) -> str | None:

@@ -99,8 +99,11 @@ class EstimateOptions:
 
     def read(self, record: str | Path) -> pd.DataFrame:
         """Read a record file and apply the record settings (model columns, SI units)."""
+        from condmon.models.registry import recognised_records
+
         settings = self.settings()
-        df = read_record(record, settings.columns)
+        with recognised_records(self.model or "dc-motor"):
+            df = read_record(record, settings.columns)
         out = apply_record_settings(df, dataclasses.replace(settings, columns={}), str(record))
         out.attrs["record_settings"] = settings.describe(len(out.attrs.get("record_ignored", ())))
         return out

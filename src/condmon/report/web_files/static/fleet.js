@@ -27,10 +27,23 @@
       var old = document.getElementById(id);
       if (fresh && old) { old.replaceWith(fresh); }
     });
-    doc.querySelectorAll("[data-count]").forEach(function (fresh) {
-      var old = document.querySelector('[data-count="' + fresh.getAttribute("data-count") + '"]');
-      if (old) { old.textContent = fresh.textContent; }
-    });
+    // the status chips: the same set, new counts; another set (a status came or
+    // went), the fresh chips (rendered for the same query, so ticked alike)
+    var chips = document.querySelector("fieldset.statuses");
+    var freshChips = doc.querySelector("fieldset.statuses");
+    var same = chips && freshChips && Array.prototype.every.call(
+      freshChips.querySelectorAll("[data-count]"), function (fresh) {
+        return document.querySelector('[data-count="' + fresh.getAttribute("data-count") + '"]');
+      }) && chips.querySelectorAll("[data-count]").length ===
+        freshChips.querySelectorAll("[data-count]").length;
+    if (chips && freshChips && !same) {
+      chips.replaceWith(freshChips);
+    } else {
+      doc.querySelectorAll("[data-count]").forEach(function (fresh) {
+        var old = document.querySelector('[data-count="' + fresh.getAttribute("data-count") + '"]');
+        if (old) { old.textContent = fresh.textContent; }
+      });
+    }
   }
 
   function reload(remember) {
@@ -60,5 +73,15 @@
   });
   if (every > 0) {
     setInterval(function () { if (!document.hidden) { reload(false); } }, every * 1000);
+  }
+  // a live feed (condmon serve --mqtt): each status change redraws the table at once
+  var events = form.getAttribute("data-events");
+  if (events && window.EventSource) {
+    var soon = null;
+    var source = new EventSource(events);
+    source.onmessage = function () {
+      clearTimeout(soon);
+      soon = setTimeout(function () { reload(false); }, 100);
+    };
   }
 }());

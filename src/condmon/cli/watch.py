@@ -1,0 +1,111 @@
+"""``condmon watch``: live monitoring of streaming units (:mod:`condmon.workflows.live`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from condmon.cli._console import err, out
+
+__all__ = ["register"]
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``watch`` to the ``condmon`` application."""
+
+    @app.command("watch")
+    def watch_cmd(
+        folder: Annotated[Optional[Path], typer.Argument(help="A fleet inbox (FOLDER/UNIT/record files) whose new files are handled as each completes, as by fleet run.")] = None,
+        mqtt: Annotated[Optional[str], typer.Option("--mqtt", help="MQTT broker HOST:PORT; units publish chunks on condmon/UNIT/samples.")] = None,
+        db: Annotated[str, typer.Option("--db", help="History database: a SQLite file or a postgresql:// URL.")] = "condmon.db",
+        model: Annotated[Optional[str], typer.Option(help="Model of units new to the history (MQTT): a shipped name (hst, dc-motor) or a declaration file (.toml); known units keep their own.")] = None,
+        duration: Annotated[Optional[float], typer.Option(help="Stop after this long [s] (default: until Ctrl-C or SIGTERM).", min=0)] = None,
+        isolate_after: Annotated[float, typer.Option(help="Data after a detection before its isolation starts [s].", min=0)] = 6.0,
+        settle: Annotated[float, typer.Option(help="A dropped file is complete once unchanged this long [s].", min=0)] = 2.0,
+        client_id: Annotated[str, typer.Option(help="MQTT client id: the broker keeps this session's messages while the watcher is away.")] = "condmon-watch",
+        notify: Annotated[Optional[str], typer.Option(help="Webhook URL: every event is POSTed to it as JSON, with retries, never holding the stream back.")] = None,
+    ) -> None:
+        """Watch units live: MQTT streams and record files dropped in a folder.
+
+        The model runs beside each plant-model unit's stream (residuals, detection,
+        isolation); an estimation-model unit's test is checked when its last chunk
+        arrives; a dropped file is handled as by fleet run. Every status change is
+        published, retained, on condmon/UNIT/status and kept in the history. Ctrl-C
+        or SIGTERM stops."""
+        import threading
+
+        from condmon.errors import ConfigError
+        from condmon.models.registry import get_model
+        from condmon.store.db import open_store
+        from condmon.store.engine import redact
+        from condmon.workflows.live import (parse_broker, restore_signals, stop_on_signals,
+                                            watch_mqtt)
+        from condmon.workflows.notify import Notifier
+        from condmon.io.stream import StreamLimits
+        from condmon.workflows.watch import Watcher, WatchEvent
+        from condmon.workflows.watch_folder import FolderSummary, watch_folder
+
+        if folder is None and mqtt is None:
+            raise ConfigError("give a FOLDER to watch, --mqtt HOST:PORT, or both")
+        if mqtt is not None:
+            parse_broker(mqtt)
+        if model is not None:
+            get_model(model)  # an unknown model is refused before connecting
+        if folder is not None and not folder.is_dir():
+            raise ConfigError(f"{folder}: not a folder (watch a fleet inbox: FOLDER/UNIT/records)")
+
+        def log(line: str) -> None:
+            err.print(line, markup=False, highlight=False, soft_wrap=True)
+
+        halt = threading.Event()
+        folder_result: dict[str, FolderSummary] = {}
+        notifier = (Notifier(notify, maxsize=StreamLimits.shipped().events, log=log)
+                    if notify is not None else None)
+
+        def post(event: WatchEvent) -> None:
+            if notifier is not None:
+                notifier.send(event.to_dict())
+
+        def run_folder() -> None:
+            assert folder is not None
+            folder_result["summary"] = watch_folder(folder, db, settle=settle, stop=halt,
+                                                    duration=duration, log=log, publish=post)
+
+        if mqtt is None:
+            previous = stop_on_signals(halt)
+            try:
+                run_folder()
+            finally:
+                restore_signals(previous)
+        else:
+            thread = None
+            if folder is not None:
+                thread = threading.Thread(target=run_folder, name="watch-folder", daemon=True)
+                thread.start()
+            with open_store(db) as store:
+                watcher = Watcher(store, model=model, isolate_after=isolate_after)
+                summary = watch_mqtt(store, mqtt, watcher=watcher, duration=duration, log=log,
+                                     client_id=client_id, stop=halt,
+                                     notify=notifier.send if notifier else None)
+            halt.set()
+            if thread is not None:
+                thread.join()
+            c = summary.counters
+            out.print(f"watched {mqtt} for {summary.seconds:.1f} s: {c.received} messages "
+                      f"({c.samples} samples), {c.refused} refused, {c.dropped} dropped "
+                      f"({summary.overflow} for a full queue), {c.detections} detections, "
+                      f"{c.isolations} isolations stored, {c.checks} tests checked, "
+                      f"{c.events} events; history {redact(db)}", markup=False,
+                      highlight=False, soft_wrap=True)
+        if notifier is not None:
+            notifier.close()
+            out.print(f"webhook {notify}: {notifier.sent} events posted, {notifier.failed} "
+                      f"given up, {notifier.dropped} dropped for a full queue", markup=False,
+                      highlight=False, soft_wrap=True)
+        fs = folder_result.get("summary")
+        if fs is not None:
+            out.print(f"watched {folder} for {fs.seconds:.1f} s: {fs.files} files handled, "
+                      f"{fs.stored} stored, in {fs.runs} fleet runs", markup=False,
+                      highlight=False, soft_wrap=True)

@@ -1,0 +1,191 @@
+"""The fleet page's live feed: unit statuses from the broker, pushed to browsers.
+
+``condmon serve --mqtt HOST:PORT`` keeps a :class:`LiveFeed`: an MQTT client
+(paho-mqtt) subscribed to ``condmon/+/status`` (each unit's last status,
+retained by the broker, arrives at once; every change after it) and to
+``condmon/+/samples`` (only the arrival time is noted, the payload is not
+read). A unit silent for longer than ``stale_after`` seconds is ``stale``
+until its samples arrive again. Every change is numbered; the page's
+``/api/events`` streams them to the browser as server-sent events, and the
+page redraws its table at once, without a reload.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from condmon.errors import ConfigError
+
+__all__ = ["LiveFeed", "with_live"]
+
+STATUS = "condmon/+/status"
+SAMPLES = "condmon/+/samples"
+
+
+@dataclass
+class LiveFeed:
+    """Each unit's live status, from the broker.
+
+    Parameters
+    ----------
+    broker : str
+        ``HOST:PORT`` of the MQTT broker.
+    stale_after : float
+        A unit silent this long is stale. [s]
+    log : callable
+        Takes log lines (connection lost, back).
+
+    Example
+    -------
+    >>> feed = LiveFeed.offline(stale_after=30.0)   # no broker: fed by hand
+    >>> feed.take("condmon/U1/status", b'{"unit": "U1", "status": "no-go", "reason": "x"}')
+    >>> feed.status("U1")["status"], feed.version
+    ('no-go', 1)
+    """
+
+    broker: str
+    stale_after: float = 30.0
+    log: Callable[[str], None] = lambda line: None
+    version: int = 0
+    _state: dict[str, dict[str, Any]] = field(default_factory=dict, repr=False)
+    _seen: dict[str, float] = field(default_factory=dict, repr=False)
+    _changes: list[tuple[int, dict[str, Any]]] = field(default_factory=list, repr=False)
+    _cond: threading.Condition = field(default_factory=threading.Condition, repr=False)
+    _client: Any = field(default=None, repr=False)
+    _halt: threading.Event = field(default_factory=threading.Event, repr=False)
+
+    @classmethod
+    def offline(cls, stale_after: float = 30.0) -> LiveFeed:
+        """A feed with no broker (tests, or a page fed by :meth:`take`)."""
+        return cls("", stale_after)
+
+    def start(self) -> LiveFeed:
+        """Connect (reconnecting with backoff when the broker is lost) and watch staleness."""
+        import paho.mqtt.client as mqtt
+        from paho.mqtt.enums import CallbackAPIVersion
+
+        from condmon.io.stream import parse_broker
+
+        host, port = parse_broker(self.broker)
+        client = mqtt.Client(CallbackAPIVersion.VERSION2)
+        client.reconnect_delay_set(1, 30)
+
+        def on_connect(c: Any, userdata: Any, flags: Any, reason: Any, props: Any) -> None:
+            c.subscribe([(STATUS, 1), (SAMPLES, 0)])
+            self.log(f"live feed: connected to {host}:{port}")
+
+        def on_disconnect(c: Any, userdata: Any, flags: Any, reason: Any, props: Any) -> None:
+            if not self._halt.is_set():
+                self.log(f"live feed: lost the broker {host}:{port} ({reason}); reconnecting")
+
+        client.on_connect = on_connect
+        client.on_disconnect = on_disconnect
+        client.on_message = lambda c, userdata, msg: self.take(msg.topic, bytes(msg.payload))
+        try:
+            client.connect(host, port, keepalive=30)
+        except OSError as exc:
+            raise ConfigError(f"--mqtt {self.broker}: cannot reach the broker ({exc})") from None
+        client.loop_start()
+        self._client = client
+        threading.Thread(target=self._watch_staleness, name="stale", daemon=True).start()
+        return self
+
+    def stop(self) -> None:
+        """Disconnect."""
+        self._halt.set()
+        if self._client is not None:
+            self._client.loop_stop()
+            self._client.disconnect()
+
+    def take(self, topic: str, payload: bytes) -> None:
+        """One message from the broker (a status, or a chunk's arrival)."""
+        parts = topic.split("/")
+        if len(parts) != 3:
+            return
+        unit, kind = parts[1], parts[2]
+        if kind == "samples":
+            self._seen[unit] = time.monotonic()
+            last = self._state.get(unit)
+            if last is not None and last.get("status") == "stale":
+                self._change(unit, dict(last.get("was") or {"unit": unit, "status": "go"}))
+            return
+        try:
+            doc = json.loads(payload)
+        except ValueError:
+            return
+        if not isinstance(doc, dict) or doc.get("unit") != unit:
+            return
+        self._seen.setdefault(unit, time.monotonic())
+        self._change(unit, {k: doc.get(k) for k in ("unit", "status", "time", "reason",
+                                                    "isolated", "kind", "t")})
+
+    def status(self, unit: str) -> dict[str, Any] | None:
+        """The unit's live status (None: never heard of)."""
+        with self._cond:
+            return dict(self._state[unit]) if unit in self._state else None
+
+    def statuses(self) -> dict[str, dict[str, Any]]:
+        """Every unit's live status."""
+        with self._cond:
+            return {u: dict(s) for u, s in self._state.items()}
+
+    def changes(self, after: int, timeout: float) -> list[tuple[int, dict[str, Any]]]:
+        """The changes numbered after ``after``, waiting up to ``timeout`` s for one."""
+        with self._cond:
+            if self.version <= after:
+                self._cond.wait(timeout)
+            return [(v, dict(d)) for v, d in self._changes if v > after]
+
+    def _change(self, unit: str, doc: dict[str, Any]) -> None:
+        with self._cond:
+            self.version += 1
+            self._state[unit] = doc
+            self._changes.append((self.version, doc))
+            del self._changes[:-1000]   # a browser further behind redraws the whole table
+            self._cond.notify_all()
+
+    def _watch_staleness(self) -> None:
+        while not self._halt.wait(min(1.0, self.stale_after / 4)):
+            self.mark_stale(time.monotonic())
+
+    def mark_stale(self, now: float) -> None:
+        """Mark units silent since before ``now - stale_after`` as stale."""
+        for unit, seen in list(self._seen.items()):
+            last = self._state.get(unit)
+            if now - seen > self.stale_after and last is not None \
+                    and last.get("status") != "stale":
+                self._change(unit, {"unit": unit, "status": "stale", "was": last,
+                                    "reason": f"no samples for {now - seen:.0f} s "
+                                              f"(stale after {self.stale_after:g} s); last: "
+                                              f"{last.get('status')}",
+                                    "time": None, "isolated": last.get("isolated"),
+                                    "kind": "stale", "t": None})
+
+
+def with_live(units: list[dict[str, Any]], live: LiveFeed | None) -> list[dict[str, Any]]:
+    """Unit summaries (:meth:`HistoryStore.unit_summaries`) with each unit's live
+    status, when the feed has one, over the history's latest.
+
+    Example
+    -------
+    >>> feed = LiveFeed.offline()
+    >>> feed.take("condmon/U1/status", b'{"unit": "U1", "status": "no-go", "reason": "r"}')
+    >>> with_live([{"unit": "U1", "status": "go", "summary": "ok"}], feed)[0]["status"]
+    'no-go'
+    """
+    if live is None:
+        return units
+    states = live.statuses()
+    out = []
+    for u in units:
+        s = states.get(str(u["unit"]))
+        if s is not None and s.get("status"):
+            u = {**u, "status": s["status"], "summary": s.get("reason") or u.get("summary"),
+                 "live": True}
+        out.append(u)
+    return out

@@ -1,0 +1,358 @@
+"""Live monitoring: each unit's stream handled as it arrives, events out.
+
+:class:`Watcher` is the transport-free heart of ``condmon watch``: it takes
+validated chunks (:class:`~condmon.io.stream.Chunk`, from MQTT or any source),
+and for each unit:
+
+- a **plant-model unit** (a declaration with no ``[estimation]``, e.g. ``hst``)
+  is tracked online (:class:`~condmon.diagnose.tracking.ModelTracker`: the model
+  beside the stream, residuals, debounced detection). A detection is an event
+  at once; the isolation starts (in a worker thread, the stream going on) once
+  ``isolate_after`` seconds of data have followed it, on the samples kept since
+  the unit's stream (re)started, and is stored as ``isolate --unit`` stores it;
+- an **estimation-model unit** (``dc-motor``, a declaration with
+  ``[estimation]``) collects its test's chunks until ``{"end": true}``; the
+  record is then checked as by ``condmon check`` (or, while the unit has no
+  baseline, added to it as by ``condmon baseline add``).
+
+Every status change is an event (:class:`WatchEvent`), handed to ``publish``
+(the MQTT transport publishes it retained on ``condmon/<unit>/status``).
+Counters say what was received, refused, dropped and stored.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from condmon.diagnose.isolation import IsolationResult, IsolationSettings, isolate
+from condmon.diagnose.online import OnlineDetection
+from condmon.diagnose.tracking import ChunkOutcome, ModelTracker, measured_start, started_at
+from condmon.errors import CondmonError, DataError
+from condmon.io.stream import Chunk
+from condmon.models.machine import Machine
+from condmon.models.registry import get_model
+from condmon.store.db import HistoryStore
+
+__all__ = ["WatchEvent", "WatchCounters", "Watcher"]
+
+
+@dataclass(frozen=True)
+class WatchEvent:
+    """A unit's status change or detection, as published.
+
+    Attributes
+    ----------
+    unit : str
+    status : str
+        ``go``, ``advisory``, ``no-go`` or ``retest``.
+    time : str
+        When the event was made, ISO 8601 UTC (wall clock).
+    reason : str
+        What happened, in one line.
+    isolated : tuple of str
+        The parameters isolated (plant-model units), else empty.
+    kind : str
+        ``watching``, ``detected``, ``isolated``, ``checked`` or ``baseline``.
+    stream_time : float or None
+        The stream's time of the event (a detection's sample). [s]
+    """
+
+    unit: str
+    status: str
+    time: str
+    reason: str
+    isolated: tuple[str, ...] = ()
+    kind: str = "watching"
+    stream_time: float | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The published JSON object."""
+        return {"unit": self.unit, "status": self.status, "time": self.time,
+                "reason": self.reason, "isolated": list(self.isolated), "kind": self.kind,
+                "t": self.stream_time}
+
+
+@dataclass
+class WatchCounters:
+    """What a watcher has seen (each a count)."""
+
+    received: int = 0
+    samples: int = 0
+    refused: int = 0
+    dropped: int = 0
+    detections: int = 0
+    isolations: int = 0
+    checks: int = 0
+    events: int = 0
+
+    def to_dict(self) -> dict[str, int]:
+        return dict(self.__dict__)
+
+
+def _now() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="milliseconds")
+
+
+@dataclass
+class _Plant:
+    """A plant-model unit's stream since it (re)started."""
+
+    chunks: list[dict[str, np.ndarray]] = field(default_factory=list)
+    detection: OnlineDetection | None = None
+    pending: cf.Future[IsolationResult] | None = None
+    isolated: bool = False
+
+
+@dataclass
+class Watcher:
+    """Handle every unit's chunks; see the module's description.
+
+    Parameters
+    ----------
+    store : HistoryStore
+    model : str, optional
+        The model of units new to the history (known units keep their own).
+    settings : IsolationSettings, optional
+        Detection, estimation and isolation settings (default: shipped).
+    publish : callable, optional
+        Called with every event (default: nothing).
+    log : callable, optional
+        Called with every line worth logging (default: nothing).
+    isolate_after : float
+        Seconds of data after a detection before the isolation starts. [s]
+    keep : float
+        Seconds of a plant unit's stream kept for its isolation. [s]
+    """
+
+    store: HistoryStore
+    model: str | None = None
+    settings: IsolationSettings = field(default_factory=IsolationSettings.load)
+    publish: Callable[[WatchEvent], None] = lambda event: None
+    log: Callable[[str], None] = lambda line: None
+    isolate_after: float = 6.0
+    keep: float = 600.0
+    counters: WatchCounters = field(default_factory=WatchCounters)
+    _trackers: dict[str, ModelTracker] = field(default_factory=dict, repr=False)
+    _plants: dict[str, _Plant] = field(default_factory=dict, repr=False)
+    _tests: dict[str, list[dict[str, np.ndarray]]] = field(default_factory=dict, repr=False)
+    _status: dict[str, str] = field(default_factory=dict, repr=False)
+    _machines: dict[str, tuple[str, Machine]] = field(default_factory=dict, repr=False)
+    _pool: cf.ThreadPoolExecutor = field(
+        default_factory=lambda: cf.ThreadPoolExecutor(2, thread_name_prefix="isolate"),
+        repr=False)
+
+    def machine_of(self, unit: str) -> tuple[str, Machine]:
+        """The unit's model (its own if the history knows it, else ``model``)."""
+        if unit not in self._machines:
+            name = self.store.unit_model(unit) or self.model
+            if name is None:
+                raise DataError(f"unit {unit!r} is new to the history and no model was given "
+                                "(watch --model NAME|FILE)")
+            self._machines[unit] = (name, get_model(name))
+        return self._machines[unit]
+
+    def handle(self, chunk: Chunk) -> list[WatchEvent]:
+        """Take one validated chunk; the events it causes."""
+        return self.handle_many([chunk])
+
+    def handle_many(self, chunks: Sequence[Chunk]) -> list[WatchEvent]:
+        """Take validated chunks in arrival order; the events they cause.
+
+        The chunks of plant-model units are fed to their model's tracker
+        together (one chunk per unit per round), so many units cost one
+        vectorised integration.
+        """
+        events: list[WatchEvent] = []
+        rounds: dict[str, list[dict[str, Chunk]]] = {}
+        for chunk in chunks:
+            self.counters.received += 1
+            self.counters.samples += chunk.samples
+            try:
+                name, machine = self.machine_of(chunk.unit)
+                if machine.spec.unknowns:
+                    events += self._test_chunk(chunk, name)
+                    continue
+                if not chunk.columns:
+                    continue
+                missing = [s for s in machine.plant.sensor_names if s not in chunk.columns]
+                if missing:
+                    raise DataError(
+                        f"unit {chunk.unit!r}: the chunk has no column "
+                        f"{', '.join(map(repr, missing))}; model {machine.name!r} needs t, "
+                        f"{', '.join(machine.plant.sensor_names)}")
+            except CondmonError as exc:
+                self.counters.refused += 1
+                self.log(f"refused: {exc}")
+                continue
+            queue = rounds.setdefault(name, [])
+            slot = next((r for r in queue if chunk.unit not in r), None)
+            if slot is None:
+                slot = {}
+                queue.append(slot)
+            slot[chunk.unit] = chunk
+        for name, queue in rounds.items():
+            machine = get_model(name)
+            tracker = self._trackers.get(name)
+            if tracker is None:
+                tracker = self._trackers[name] = ModelTracker(machine.plant,
+                                                              self.settings.detection)
+            for batch in queue:
+                try:
+                    outs = tracker.feed({u: c.columns for u, c in batch.items()})
+                except CondmonError as exc:
+                    self.counters.refused += len(batch)
+                    self.log(f"refused: {exc}")
+                    continue
+                for chunk, out in zip(batch.values(), outs):
+                    events += self._tracked(chunk, out, machine)
+        return events
+
+    def poll(self, wait: bool = False) -> list[WatchEvent]:
+        """Isolations finished since the last call, stored; their events."""
+        events = []
+        for unit, plant in self._plants.items():
+            fut = plant.pending
+            if fut is None or not (wait or fut.done()):
+                continue
+            plant.pending = None
+            try:
+                res = fut.result()
+            except CondmonError as exc:
+                self.log(f"{unit}: isolation failed: {exc}")
+                continue
+            events += self._isolated(unit, res, plant)
+        return events
+
+    def close(self) -> list[WatchEvent]:
+        """Finish pending isolations (stored) and stop the workers."""
+        events = self.poll(wait=True)
+        self._pool.shutdown(wait=True)
+        return events
+
+    # -- plant-model units --------------------------------------------------------
+
+    def _tracked(self, chunk: Chunk, out: ChunkOutcome, machine: Machine) -> list[WatchEvent]:
+        """What one tracked chunk means: notes, the first status, a detection, and
+        the isolation started once enough data has followed the detection."""
+        plant = self._plants.setdefault(chunk.unit, _Plant())
+        events: list[WatchEvent] = []
+        if out.dropped is not None:
+            self.counters.dropped += 1
+            self.log(f"{chunk.unit}: chunk dropped, {out.dropped}")
+            return events
+        for note in out.notes:
+            self.log(f"{chunk.unit}: {note}")
+        if any("started again" in n for n in out.notes):
+            plant.chunks, plant.detection, plant.isolated = [], None, False
+        plant.chunks.append(chunk.columns)
+        self._trim(plant)
+        if self._status.get(chunk.unit) is None:
+            # the unit is in the history from its first chunk (the fleet page lists it)
+            self.store.unit_id(chunk.unit, create=True, model=machine.name,
+                               model_source=machine.origin)
+            events.append(self._event(chunk.unit, "go", "watching: the model runs beside the "
+                                      "stream", "watching"))
+        if out.detection is not None:
+            d = out.detection
+            plant.detection = d
+            self.counters.detections += 1
+            events.append(self._event(
+                chunk.unit, "no-go", f"fault detected at t = {d.time:g} s: "
+                f"{', '.join(d.fired)} outside the band since t = {d.onset:g} s",
+                "detected", stream_time=d.time))
+        if (plant.detection is not None and not plant.isolated and plant.pending is None
+                and out.end >= plant.detection.time + self.isolate_after):
+            record = self._record(plant)
+            # the model starts where the kept record starts, as the online one did
+            first = {c: record[c].to_numpy()[:1] for c in record.columns}
+            model = started_at(machine.plant, measured_start(machine.plant, first))
+            plant.pending = self._pool.submit(
+                isolate, record, model, settings=self.settings, workers=1,
+                source=f"{chunk.unit} stream")
+        return events
+
+    def _trim(self, plant: _Plant) -> None:
+        """Keep the last ``keep`` seconds, and whatever follows a detection."""
+        while len(plant.chunks) > 1 and plant.detection is None:
+            span = plant.chunks[-1]["t"][-1] - plant.chunks[1]["t"][0]
+            if span < self.keep:
+                break
+            plant.chunks.pop(0)
+
+    @staticmethod
+    def _record(plant: _Plant) -> pd.DataFrame:
+        cols = plant.chunks[0].keys()
+        return pd.DataFrame({c: np.concatenate([ch[c] for ch in plant.chunks if c in ch])
+                             for c in cols})
+
+    def _isolated(self, unit: str, res: IsolationResult, plant: _Plant) -> list[WatchEvent]:
+        from condmon.workflows.isolation import store_isolation
+
+        plant.isolated = True
+        record = self._record(plant)
+        name, _ = self.machine_of(unit)
+        kept = store_isolation(self.store, unit, res, record, None, name)
+        self.counters.isolations += 0 if kept.duplicate else 1
+        what = ("isolated: " + ", ".join(res.isolated) if res.isolated else
+                res.statement or "not isolated")
+        return [self._event(unit, "no-go", f"{what} (isolation i{kept.isolation_id}"
+                            + (", already stored" if kept.duplicate else "") + ")",
+                            "isolated", tuple(res.isolated),
+                            plant.detection.time if plant.detection else None)]
+
+    # -- estimation-model units: whole tests ---------------------------------------
+
+    def _test_chunk(self, chunk: Chunk, name: str) -> list[WatchEvent]:
+        parts = self._tests.setdefault(chunk.unit, [])
+        if chunk.columns:
+            if parts and chunk.columns["t"][0] <= parts[-1]["t"][-1]:
+                self.counters.dropped += 1
+                self.log(f"{chunk.unit}: chunk dropped, it does not follow the last one "
+                         f"(t = {chunk.columns['t'][0]:g} s after {parts[-1]['t'][-1]:g} s)")
+            else:
+                parts.append(chunk.columns)
+        if not chunk.end:
+            return []
+        self._tests.pop(chunk.unit, None)
+        if not parts:
+            raise DataError(f"unit {chunk.unit!r}: 'end' with no samples before it")
+        frame = pd.DataFrame({c: np.concatenate([p[c] for p in parts if c in p])
+                              for c in parts[0]})
+        frame.attrs["source"] = f"{chunk.unit} stream"
+        return [self._check(chunk.unit, name, frame)]
+
+    def _check(self, unit: str, name: str, frame: pd.DataFrame) -> WatchEvent:
+        from condmon.workflows.checks import check_test
+        from condmon.workflows.monitoring import add_baseline_tests, baseline_members
+        from condmon.workflows.records import EstimateOptions
+
+        opts = EstimateOptions(model=name)
+        if not self.store.unit_model(unit) or len(baseline_members(self.store, unit)[0]) < 3:
+            added = add_baseline_tests(self.store, unit, [frame], options=opts)
+            self.counters.checks += 1
+            state = ("baseline ready" if added.baseline is not None else
+                     added.message or "healthy test kept for the baseline")
+            return self._event(unit, "go", f"test kept for the baseline: {state}", "baseline")
+        res = check_test(self.store, unit, frame, options=opts)
+        self.counters.checks += 1
+        summary = res.diagnosis.summary if res.diagnosis is not None else str(
+            res.estimate.reason)
+        return self._event(unit, res.status, f"test #{res.test_id}: {summary}", "checked")
+
+    def _event(self, unit: str, status: str, reason: str, kind: str,
+               isolated: tuple[str, ...] = (), stream_time: float | None = None) -> WatchEvent:
+        self._status[unit] = status
+        self.counters.events += 1
+        event = WatchEvent(unit, status, _now(), reason, isolated, kind,
+                           None if stream_time is None or not math.isfinite(stream_time)
+                           else stream_time)
+        self.publish(event)
+        return event

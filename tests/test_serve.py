@@ -276,6 +276,7 @@ def _suspects_table(page: str) -> dict[str, list[str]]:
     return {r[0]: r[1:] for r in rows[1:]}
 
 
+@pytest.mark.tables
 def test_hst_numbers_carry_their_units(fleet: dict[str, Any], client: Any,
                                        tmp_path: Path) -> None:
     """Every estimate and nominal of an HST unit, on the report's page and the

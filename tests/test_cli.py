@@ -4,18 +4,36 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import re
 from pathlib import Path
 
 import pytest
 
+from _tables import row
 from condmon.cli.main import main
 from condmon.simulate import ActuatorRig, load_actuator_rig, simulate_actuator
 
 
-def test_demo_writes_history_and_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+@pytest.mark.tables
+def test_demo_writes_history_and_report(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("COLUMNS", "80")
     assert main(["demo", "--out", str(tmp_path / "demo")]) == 0
     out = capsys.readouterr().out
     assert "friction increase" in out and "winding fault" in out and "Rlkgm=-50%@10s" in out
+    # each experiment's row: its status and the changes [%] of R, L and D
+    for label, status, changed, percent in (("friction x7", "no-go", 2, 600),
+                                            ("R +40 %", "no-go", 0, 40),
+                                            ("L +50 %, R +20 %", "no-go", 1, 50)):
+        changes = [int(c) for c in row(out, label, status).split("  ")[-3:]]
+        assert changes[changed] == pytest.approx(percent, rel=0.25), label
+    for fault, name, truth in (("Rv=+25%@10s", "Rv", 14.089), ("Tld=+20@10s", "Tld", 20.0)):
+        detected = row(out, fault).split("  ", 1)[1]
+        found = re.fullmatch(r"\d+\.\d\d s  (\w+)  (\S+) \((\S+)\)", detected)
+        assert found is not None and found[1] == name, fault
+        assert float(found[2]) == pytest.approx(float(found[3]), rel=0.02)
+        assert float(found[3]) == pytest.approx(truth, rel=1e-3)
+    row(out, "Rlkgp=+50%@10s", "no", "—", "—")  # too small to see
     assert (tmp_path / "demo" / "index.html").exists()
     assert (tmp_path / "demo" / "EMA-friction-trends.png").stat().st_size > 10_000
     assert main(["history", "--unit", "EMA-resistance", "--db", str(tmp_path / "demo" / "condmon.db")]) == 0
@@ -31,6 +49,7 @@ def _healthy_files(tmp_path: Path, n: int, seed0: int = 0) -> list[str]:
     return files
 
 
+@pytest.mark.tables
 def test_baseline_check_history_report(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     db = str(tmp_path / "h.db")
     files = _healthy_files(tmp_path, 5)

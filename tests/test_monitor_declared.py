@@ -32,6 +32,7 @@ def axis_files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
     return files
 
 
+@pytest.mark.tables
 def test_monitoring_flow_on_a_declared_axis(axis_files: dict[str, str], tmp_path: Path,
                                             capsys: pytest.CaptureFixture[str]) -> None:
     db = str(tmp_path / "axis.db")

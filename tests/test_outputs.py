@@ -1,5 +1,5 @@
-"""Output an engineer need not second-guess: every table prints, boundaries are
-not refused by rounding, a baseline add that adds nothing says so."""
+"""Output an engineer need not second-guess: boundaries are not refused by rounding,
+a baseline add that adds nothing says so (every table: tests/test_tables.py)."""
 
 from __future__ import annotations
 
@@ -13,41 +13,6 @@ import pytest
 
 from condmon.cli.main import main
 from condmon.simulate import load_actuator_rig, simulate_actuator
-
-
-@pytest.fixture(scope="module")
-def history(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, Path]:
-    """A history with baseline tests, checks, an excluded test, a rejected one and
-    an isolation."""
-    folder = tmp_path_factory.mktemp("outputs")
-    files = []
-    for k, fault in enumerate([None, None, None, None, "R=+40%"]):
-        path = folder / f"r{k}.csv"
-        args = ["simulate", "actuator", "--out", str(path), "--seed", str(k + 1)]
-        assert main(args + (["--fault", fault] if fault else [])) == 0
-        files.append(str(path))
-    db = str(folder / "h.db")
-    assert main(["baseline", "add", *files[:3], "--unit", "E1", "--db", db]) == 0
-    assert main(["check", files[3], "--unit", "E1", "--db", db]) == 0
-    assert main(["check", files[4], "--unit", "E1", "--db", db]) == 0
-    assert main(["exclude", "2", "--reason", "a wrong record", "--db", db]) == 0
-    hst = folder / "hst.csv"
-    assert main(["simulate", "hst", "--out", str(hst), "--fault", "Rv=+40%@10s"]) == 0
-    assert main(["isolate", "hst", str(hst), "--unit", "H1", "--db", db]) == 0
-    return db, folder
-
-
-@pytest.mark.parametrize("args", [["units"], ["history", "--unit", "E1"],
-                                  ["history", "--unit", "H1"], ["audit"],
-                                  ["audit", "--unit", "E1"], ["audit", "--unit", "H1"],
-                                  ["baseline", "list", "--unit", "E1"]])
-def test_every_table_prints(history: tuple[str, Path], args: list[str],
-                            capsys: pytest.CaptureFixture[str]) -> None:
-    db, _ = history
-    capsys.readouterr()
-    assert main([*args, "--db", db]) == 0
-    captured = capsys.readouterr()
-    assert "Traceback" not in captured.err and captured.out.strip()
 
 
 def test_a_sample_interval_on_the_model_s_bound_is_accepted(tmp_path: Path) -> None:
@@ -99,6 +64,7 @@ def test_a_truncated_tdms_file_is_said_to_be_truncated(tmp_path: Path) -> None:
         read_record(cut)
 
 
+@pytest.mark.tables
 def test_a_row_that_cannot_be_read_does_not_take_the_history_down(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     import json
@@ -133,34 +99,16 @@ def test_a_row_that_cannot_be_read_does_not_take_the_history_down(
     assert doc["tests"][3]["fit_percent"] is None
 
 
-def test_the_numbers_a_user_reads_carry_their_units(history: tuple[str, Path], tmp_path: Path,
+def test_the_numbers_a_user_reads_carry_their_units(tmp_path: Path,
                                                     capsys: pytest.CaptureFixture[str]) -> None:
-    _, folder = history
-    db = str(tmp_path / "u.db")
-    assert main(["baseline", "add", *(str(folder / f"r{k}.csv") for k in range(3)),
-                 "--unit", "E1", "--db", db]) == 0
-    rows = {line.split("│")[1].strip(): line for line in capsys.readouterr().out.splitlines()
-            if line.count("│") > 3}
-    assert "ohm" in rows["R"] and "H" in rows["L"]  # the baseline's table
-    assert main(["check", str(folder / "r4.csv"), "--unit", "E1", "--db", db, "--dry-run"]) == 0
-    rows = {line.split("│")[1].strip(): line for line in capsys.readouterr().out.splitlines()
-            if line.count("│") > 3}
-    assert "ohm" in rows["R"] and "N m s/rad" in rows["D"] and "kg m^2" in rows["J"]
-    assert main(["baseline", "list", "--unit", "E1", "--db", db]) == 0
-    listed = capsys.readouterr().out
-    assert "#1-#3" in listed and re.search(r"\n  R: [0-9.e-]+ ± [0-9.e-]+ ohm\n", listed)
-    assert main(["history", "--unit", "E1", "--db", db]) == 0
-    assert "(N = 3): #1-#3" in capsys.readouterr().out
+    """What simulate says it wrote, and the bracketed units of --help (the tables'
+    units: tests/test_tables.py)."""
     assert main(["simulate", "actuator", "--out", str(tmp_path / "a.csv"),
                  "--fault", "R=+40%"]) == 0
     assert "R=1.4 ohm" in capsys.readouterr().err.replace("\n", " ")
     assert main(["simulate", "hst", "--out", str(tmp_path / "h.csv"),
                  "--fault", "Tld=+20@10s"]) == 0
     assert "Tld=20 N m at 10 s" in capsys.readouterr().err.replace("\n", " ")
-    assert main(["isolate", "hst", str(folder / "hst.csv")]) == 0
-    rows = {line.split("│")[1].strip(): line for line in capsys.readouterr().out.splitlines()
-            if line.count("│") > 3}
-    assert "N m s/rad" in rows["Rv"] and "m^3/rad" in rows["Dm"]
     # a unit in brackets in an option's help is shown, not taken for markup
     assert main(["serve", "--help"]) == 0
     assert "often [s]" in " ".join(capsys.readouterr().out.split())

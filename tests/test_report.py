@@ -26,6 +26,8 @@ from condmon.workflows.manage import exclude_test
 from condmon.workflows.checks import check_test
 from condmon.workflows.monitoring import EstimateOptions, add_baseline_tests
 
+pytestmark = pytest.mark.tables  # the pages' tables, on every pandas allowed
+
 ODD = "<b>EMA[/]7</b>"
 HST = "HST <1> & 'x'"
 LONG = "É" * 200  # 400 bytes in UTF-8

@@ -152,6 +152,7 @@ def test_names_are_encoded_and_escaped(client: Any) -> None:
     assert _api(client, "/api/units/nope", 404) == {"error": "unknown unit 'nope'"}
 
 
+@pytest.mark.tables
 def test_index_filters_by_query(client: Any) -> None:
     page = client.get("/?status=no-go&q=HST").get_data(as_text=True)
     rows = re.findall(r'<tr data-unit="([^"]*)" data-status="([^"]*)">', page)
@@ -161,6 +162,7 @@ def test_index_filters_by_query(client: Any) -> None:
     assert bad.status_code == 400 and "<x>" not in bad.get_data(as_text=True)
 
 
+@pytest.mark.tables
 def test_unit_page_shows_trends_advice_tests_and_isolations(fleet: dict[str, Any],
                                                             client: Any) -> None:
     ids = fleet["ids"]
@@ -274,6 +276,7 @@ def _suspects_table(page: str) -> dict[str, list[str]]:
     return {r[0]: r[1:] for r in rows[1:]}
 
 
+@pytest.mark.tables
 def test_hst_numbers_carry_their_units(fleet: dict[str, Any], client: Any,
                                        tmp_path: Path) -> None:
     """Every estimate and nominal of an HST unit, on the report's page and the

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Optional
 
 import typer
+from rich import box
 from rich.markup import escape
 from rich.table import Table
 
@@ -167,10 +168,13 @@ def _print_isolation(res: IsolationResult) -> None:
     out.print(f"detected at {res.detection_time:.2f} s (onset {res.onset_time:.2f} s); "
               f"fired: {', '.join(res.fired_residuals)}; suspects: {', '.join(res.suspects)}",
               highlight=False)
-    table = Table(title="Suspects: steady-state estimate and model output error")
+    # 80 columns hold it whole; a narrower terminal folds a cell rather than cut it
+    table = Table(title="Suspects: steady-state estimate and model output error",
+                  box=box.SIMPLE_HEAD, pad_edge=False, collapse_padding=True)
     for col in ("suspect", "estimate", "nominal", "unit", "change %", "consistency",
                 "error [σ]"):
-        table.add_column(col, justify="left" if col in ("suspect", "unit") else "right")
+        table.add_column(col, justify="left" if col in ("suspect", "unit") else "right",
+                         overflow="fold")
     for p in sorted(res.suspects, key=lambda p: res.errors.get(p, float("inf"))):
         e = res.estimates[p]
         change = "" if e.change_percent is None or not math.isfinite(e.change_percent) else (

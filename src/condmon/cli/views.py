@@ -46,9 +46,9 @@ def register(app: typer.Typer) -> None:
         table = Table(title=escape(f"Units in {redact(db)}"), box=box.SIMPLE_HEAD)
         cols = ("unit", "model", *(("group",) if grouped else ()), "tests", "latest",
                 *(("regime",) if regimes else ()), "date", "status")
-        for col in cols:
+        for col in cols:  # names are folded, never cut: EMA-1… could be EMA-10 or EMA-11
             table.add_column(col, justify="right" if col == "tests" else "left",
-                             no_wrap=col in ("date", "status"))
+                             no_wrap=col in ("date", "status"), overflow="fold")
         flagged = []
         for r in rows:
             model = Path(str(r["model"])).name

@@ -178,7 +178,10 @@ def _parse_datetimes(values: pd.Series, source: str) -> pd.Series | None:
         text = text.str.replace(_FRACTION_COMMA, r"\1.\2", regex=True)
     text = text.where(values.notna())
     sample = str(text.dropna().iloc[0])
-    from pandas.tseries.api import guess_datetime_format
+    try:
+        from pandas.tseries.api import guess_datetime_format
+    except ImportError:  # pandas 2.1: not public yet, only in its parser module
+        from pandas._libs.tslibs.parsing import guess_datetime_format
 
     results: dict[bool, pd.Series] = {}
     with warnings.catch_warnings():

@@ -71,6 +71,19 @@ def new_figure(width: float, height: float) -> Any:
     return fig
 
 
+def _slant_dates(fig: Any) -> None:
+    """Date labels of the x axis slanted (matplotlib's ``autofmt_xdate``). The
+    constrained layout makes their room; matplotlib 3.8 would warn that it cannot
+    also move the axes, as it then leaves them where they are (later versions
+    skip the move without a word)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", "This figure was using a layout engine",
+                                UserWarning)
+        fig.autofmt_xdate()
+
+
 def legend_below(fig: Any, entries: tuple[Sequence[Any], Sequence[str]], ncol: int,
                  fontsize: float = 7) -> Any:
     """The figure's legend below every axes (the layout makes room for it),
@@ -194,7 +207,7 @@ def trend_figure(trends: Sequence[TrendData]) -> Any:
         for ax in _bottom_axes(axes, n):
             ax.set_xlabel(trends[0].xlabel)
         if _dated(trends[0].x):
-            fig.autofmt_xdate()
+            _slant_dates(fig)
         handles, labels = axes[0, 0].get_legend_handles_labels()
         seen = dict(zip(labels, handles))
         for status in statuses:
@@ -239,7 +252,7 @@ def fit_figure(data: FitData, threshold: float) -> Any:
     _label_tests([ax], data.x, data.test_ids, [data.fit])
     ax.set_xlabel(data.xlabel)
     if _dated(data.x):
-        fig.autofmt_xdate()
+        _slant_dates(fig)
     ax.set_ylabel("fit [%]")
     finite = data.fit[np.isfinite(data.fit)]
     lo = min(80.0, threshold, float(finite.min()) if finite.size else 80.0)
@@ -372,7 +385,7 @@ def isolation_figure(data: IsolationTrend) -> Any:
         ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:+g}" if v else "0"))
     _label_tests([ax], data.x, data.isolation_ids, [np.zeros(len(data.x))], prefix="i")
     if _dated(data.x):
-        fig.autofmt_xdate()
+        _slant_dates(fig)
     ax.set_xlabel(data.xlabel)
     ax.set_ylabel("estimate change [%]")
     ax.grid(alpha=0.3)

@@ -52,8 +52,10 @@ def readonly_url(db: str | Path) -> str:
 
     Example
     -------
-    >>> readonly_url("/data/fleet 1.db")
-    'sqlite:///file%3A///data/fleet%25201.db?mode=ro&uri=true'
+    >>> from sqlalchemy import make_url
+    >>> url = make_url(readonly_url("/data/fleet 1.db"))
+    >>> url.database, dict(url.query)
+    ('file:///data/fleet%201.db', {'mode': 'ro', 'uri': 'true'})
     >>> readonly_url("postgresql://u@h/db")
     'postgresql://u@h/db?options=-c%20default_transaction_read_only%3Don'
     """

@@ -491,7 +491,7 @@ def test_the_fleet_page_shows_a_status_change_live(broker: Broker, tmp_path: Pat
             expect(page.locator('[data-count="none"]')).to_have_count(0)
             assert page.evaluate("window.__same_page === true")  # no reload
             expect(row).to_have_attribute("data-status", "stale", timeout=10_000)
-            expect(row).to_contain_text("no samples for")
+            expect(row).to_contain_text("no samples since")
             pub.publish("condmon/HST-L/samples", b'{"t": [1, 1.01], "Ps": [0, 0], '
                         b'"omega_m": [0, 0]}', qos=1).wait_for_publish(5)
             expect(row).to_have_attribute("data-status", "no-go")

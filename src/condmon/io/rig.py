@@ -314,7 +314,7 @@ def apply_record_settings(df: pd.DataFrame, settings: RecordSettings | None,
     absent = [c for c in settings.ignore if c not in df.columns]
     if absent:
         warnings.warn(f"{src}: the record settings ignore column(s) {', '.join(map(repr, absent))}"
-                      f", which the file does not have (its columns: "
+                      f", which the file does not have (its columns, as mapped: "
                       f"{', '.join(map(str, df.columns))})", DataWarning, stacklevel=2)
     out = df.drop(columns=dropped)
     missing = [f for f in settings.columns.values() if f not in out.columns]

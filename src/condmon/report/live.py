@@ -159,9 +159,11 @@ class LiveFeed:
             last = self._state.get(unit)
             if now - seen > self.stale_after and last is not None \
                     and last.get("status") != "stale":
+                since = time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime(
+                    time.time() - (now - seen)))
                 self._change(unit, {"unit": unit, "status": "stale", "was": last,
-                                    "reason": f"no samples for {now - seen:.0f} s "
-                                              f"(stale after {self.stale_after:g} s); last: "
+                                    "reason": f"no samples since {since} (stale after "
+                                              f"{self.stale_after:g} s); last: "
                                               f"{last.get('status')}",
                                     "time": None, "isolated": last.get("isolated"),
                                     "kind": "stale", "t": None})

@@ -34,7 +34,8 @@ import pandas as pd
 
 from condmon.diagnose.isolation import IsolationResult, IsolationSettings, isolate
 from condmon.diagnose.online import OnlineDetection
-from condmon.diagnose.tracking import ChunkOutcome, ModelTracker, measured_start, started_at
+from condmon.diagnose.tracking import (ChunkOutcome, ModelTracker, check_chunk, measured_start,
+                                       started_at)
 from condmon.errors import CondmonError, DataError
 from condmon.io.stream import Chunk, StreamLimits
 from condmon.models.machine import Machine
@@ -198,6 +199,8 @@ class Watcher:
                         f"unit {chunk.unit!r}: the chunk has no column "
                         f"{', '.join(map(repr, missing))}; model {machine.name!r} needs t, "
                         f"{', '.join(machine.plant.sensor_names)}")
+                check_chunk(machine.plant, chunk.columns, f"unit {chunk.unit!r}",
+                            self.settings.record)
             except CondmonError as exc:
                 self.counters.refused += 1
                 self.log(f"refused: {exc}")

@@ -90,7 +90,8 @@ def watch_folder(folder: str | Path, db: str, *, settle: float = 2.0, poll: floa
         raise ConfigError(f"{root}: not a folder (watch a fleet inbox: FOLDER/UNIT/records)")
     halt = stop or threading.Event()
     seen: dict[Path, tuple[int, int, float]] = {}   # size, mtime, since when unchanged
-    handed: set[Path] = set()
+    handed: dict[Path, tuple[int, int]] = {}        # size, mtime when handed over
+    log(f"watching {root} (a file is complete once unchanged for {settle:g} s)")
     summary = FolderSummary()
     started = time.monotonic()
     with ExitStack() as stack:
@@ -104,10 +105,14 @@ def watch_folder(folder: str | Path, db: str, *, settle: float = 2.0, poll: floa
                     client = stack.enter_context(local_cluster(workers))
                     scheduler = str(client.scheduler.address)  # type: ignore[union-attr]
                 res = run_fleet(root, db, scheduler=scheduler, files=ready)
-                handed.update(ready)
+                handed.update({p: seen[p][:2] for p in ready})
                 summary.files += len(ready)
                 summary.runs += 1
                 summary.stored += res.stored
+                for r in res.records:  # every file is accounted for, stored or not
+                    if r.outcome not in ("stored", "rejected"):
+                        log(f"{r.unit or Path(r.file).parent.name}: {Path(r.file).name}: "
+                            f"{r.outcome}" + (f", {r.reason}" if r.reason else ""))
                 for event in _events(res):
                     summary.events.append(event)
                     publish(event)
@@ -117,20 +122,22 @@ def watch_folder(folder: str | Path, db: str, *, settle: float = 2.0, poll: floa
     return summary
 
 
-def _complete(root: Path, seen: dict[Path, tuple[int, int, float]], handed: set[Path],
-              settle: float) -> list[Path]:
-    """New record files whose size and time have been still for ``settle`` s."""
+def _complete(root: Path, seen: dict[Path, tuple[int, int, float]],
+              handed: dict[Path, tuple[int, int]], settle: float) -> list[Path]:
+    """New record files whose size and time have been still for ``settle`` s (a
+    file handed over that changes afterwards, written on after a long pause, is
+    handed over again once still: the fleet run skips it if it was stored)."""
     now = time.monotonic()
     ready = []
     for rec in inbox_records(root):
         path = Path(rec.path).resolve()
-        if path in handed:
-            continue
         try:
             st = path.stat()
         except OSError:
             continue  # gone between the listing and now
         key = (st.st_size, st.st_mtime_ns)
+        if handed.get(path) == key:
+            continue
         before = seen.get(path)
         if before is None or before[:2] != key:
             seen[path] = (*key, now)

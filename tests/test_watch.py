@@ -538,3 +538,29 @@ def test_after_a_sigkill_a_restart_stores_no_event_twice(broker: Broker, tmp_pat
     assert "already; not stored again" in err
     with open_store(str(db)) as store:
         assert len(store.isolations("HST-K")) == 1
+
+
+def test_events_made_beside_the_stream_are_published_too(broker: Broker, tmp_path: Path) -> None:
+    """`watch FOLDER --mqtt`: a dropped file's event goes out on condmon/<unit>/status."""
+    import queue as _queue
+
+    from condmon.workflows.watch import WatchEvent
+
+    outbox: _queue.Queue[WatchEvent] = _queue.Queue()
+    listen = Listener(broker)
+    stop, lines, result = threading.Event(), [], {}
+
+    def run() -> None:
+        with open_store(str(tmp_path / "o.db")) as store:
+            result["s"] = watch_mqtt(store, broker.address, stop=stop, log=lines.append,
+                                     outbox=outbox)
+
+    th = threading.Thread(target=run, daemon=True)
+    th.start()
+    outbox.put(WatchEvent("EMA-3", "no-go", "2026-11-24T00:00:00+00:00",
+                          "test-4.csv: stored", (), "checked"))
+    assert listen.wait(lambda ev: any(e["unit"] == "EMA-3" for e in ev), timeout=30), lines
+    stop.set()
+    th.join(30)
+    listen.close()
+    assert next(e for e in listen.events if e["unit"] == "EMA-3")["status"] == "no-go"

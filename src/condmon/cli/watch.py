@@ -35,6 +35,7 @@ def register(app: typer.Typer) -> None:
         arrives; a dropped file is handled as by fleet run. Every status change is
         published, retained, on condmon/UNIT/status and kept in the history. Ctrl-C
         or SIGTERM stops."""
+        import queue
         import threading
 
         from condmon.diagnose.isolation import IsolationSettings
@@ -66,8 +67,15 @@ def register(app: typer.Typer) -> None:
         notifier = (Notifier(notify, maxsize=StreamLimits.shipped().events, log=log)
                     if notify is not None else None)
 
+        outbox: queue.Queue[WatchEvent] = queue.Queue(maxsize=StreamLimits.shipped().events)
+
         def post(event: WatchEvent) -> None:
-            if notifier is not None:
+            if mqtt is not None:  # published by the MQTT client, which posts it too
+                try:
+                    outbox.put_nowait(event)
+                except queue.Full:
+                    log(f"{event.unit}: event not published, the queue is full")
+            elif notifier is not None:
                 notifier.send(event.to_dict())
 
         def run_folder() -> None:
@@ -91,7 +99,8 @@ def register(app: typer.Typer) -> None:
                                   settings=IsolationSettings.load(settings))
                 summary = watch_mqtt(store, mqtt, watcher=watcher, duration=duration, log=log,
                                      client_id=client_id, stop=halt,
-                                     notify=notifier.send if notifier else None)
+                                     notify=notifier.send if notifier else None,
+                                     outbox=outbox)
             halt.set()
             if thread is not None:
                 thread.join()

@@ -62,7 +62,8 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
                watcher: Watcher | None = None, duration: float | None = None,
                stop: threading.Event | None = None, log: Callable[[str], None] = print,
                client_id: str | None = None, limits: StreamLimits | None = None,
-               notify: Callable[[dict[str, Any]], object] | None = None) -> LiveSummary:
+               notify: Callable[[dict[str, Any]], object] | None = None,
+               outbox: queue.Queue[WatchEvent] | None = None) -> LiveSummary:
     """Watch the units streaming to ``broker`` until stopped.
 
     Parameters
@@ -89,6 +90,8 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
     notify : callable, optional
         Also takes every event's JSON object (a :class:`~condmon.workflows.notify.
         Notifier`'s ``send``: it must not block).
+    outbox : queue.Queue, optional
+        Events made elsewhere (``watch FOLDER`` beside the stream) to publish too.
 
     Returns
     -------
@@ -159,6 +162,8 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
         while not halt.is_set():
             if duration is not None and time.monotonic() - started >= duration:
                 break
+            while outbox is not None and not outbox.empty():
+                publish(outbox.get_nowait())
             try:
                 first = inbox.get(timeout=0.1)
             except queue.Empty:

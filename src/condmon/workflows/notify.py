@@ -66,8 +66,12 @@ class Notifier:
     _thread: threading.Thread = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        if not self.url.startswith(("http://", "https://")):
-            raise ConfigError(f"--notify {self.url!r}: give an http:// or https:// URL")
+        from urllib.parse import urlsplit
+
+        parts = urlsplit(self.url)
+        if parts.scheme not in ("http", "https") or not parts.hostname:
+            raise ConfigError(f"--notify {self.url!r}: give an http:// or https:// URL with "
+                              "a host (http://host:port/path)")
         self._queue = queue.Queue(maxsize=self.maxsize)
         self._thread = threading.Thread(target=self._run, name="notify", daemon=True)
         self._thread.start()

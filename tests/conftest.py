@@ -13,7 +13,14 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from hypothesis import settings as hypothesis_settings
+
 from condmon.simulate import ActuatorRig, load_actuator_rig, simulate_actuator
+
+# Property tests draw the same examples at every run (a failure is reproducible,
+# a pass is not luck), and keep no example database between runs.
+hypothesis_settings.register_profile("condmon", derandomize=True, database=None)
+hypothesis_settings.load_profile("condmon")
 
 # The derived-structure cache of this run: a fresh folder (the structures are
 # derived once, then restored, as on a user's machine), never the user's own.

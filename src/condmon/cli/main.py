@@ -18,6 +18,7 @@ from rich.table import Table
 
 from condmon.cli._console import err, fmt, out, progress, status_text, write_json
 from condmon.cli.fleet import register as register_fleet_commands
+from condmon.cli.forecast import register as register_forecast_command
 from condmon.cli.history import print_flags
 from condmon.cli.history import register as register_history_commands
 from condmon.cli.plant import register as register_plant_commands
@@ -41,6 +42,7 @@ register_history_commands(app, baseline_app)
 register_serve_command(app)
 register_fleet_commands(app)
 register_watch_command(app)
+register_forecast_command(app)
 
 
 

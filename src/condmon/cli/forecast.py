@@ -1,0 +1,72 @@
+"""``condmon forecast``: when each parameter of a unit turns no-go (:mod:`condmon.workflows.forecasting`)."""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Optional
+
+import typer
+
+from condmon.cli._console import out, write_json
+
+__all__ = ["register"]
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``forecast`` to the ``condmon`` application."""
+
+    @app.command("forecast")
+    def forecast_cmd(
+        unit: Annotated[str, typer.Option("--unit", help="The unit to forecast.")],
+        db: Annotated[str, typer.Option("--db", help="History database: a SQLite file or a postgresql:// URL.")] = "condmon.db",
+        horizon: Annotated[Optional[float], typer.Option(help="Also give the probability of turning no-go within this many tests (days, when the checks carry dates).")] = None,
+        as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
+    ) -> None:
+        """Forecast when each parameter of a unit turns no-go, from its checks since the baseline.
+
+        Each parameter's change series is fitted (linear or exponential, chosen by
+        evidence, each test weighted by its standard error and the baseline's spread)
+        and its crossing of the no-go change (r2) forecast: the tests (or days) left
+        as a median and a 90 % interval; "no trend" when the slope's interval holds 0."""
+        from rich.table import Table
+
+        from condmon.store.db import open_store
+        from condmon.workflows.forecasting import forecast_unit
+
+        with open_store(db) as store:
+            res = forecast_unit(store, unit, horizon)
+        if as_json:
+            write_json(res.to_dict())
+            return
+        left = "tests left" if res.by == "tests" else "days left"
+        per = "%/test" if res.by == "tests" else "%/day"
+        table = Table(title=f"{unit}: forecast to no-go from {res.checks} checks since the "
+                      "baseline", title_justify="left")
+        cols = ["parameter", f"slope [{per}]", f"{left} (90 %)", "date",
+                *([f"P(≤{horizon:g})"] if horizon is not None else []), "no-go at (rule)"]
+        for col in cols:
+            table.add_column(col, justify="left" if col in ("parameter", "no-go at (rule)")
+                             else "right", no_wrap=col in ("date", "parameter"))
+
+        def n(v: float) -> str:
+            return f"{v:.3g}" if math.isfinite(v) else "beyond"
+
+        for p in res.parameters:
+            f = p.forecast
+            rem = ("no trend" if f.remaining is None else
+                   f"{n(f.remaining[0])} ({n(f.remaining[1])}–{n(f.remaining[2])})"
+                   + (" exp." if f.model == "exponential" else ""))
+            table.add_row(p.parameter, f"{f.slope:+.2g}", rem, (p.date or "—")[:10],
+                          *([f"{f.p_within:.2f}" if f.p_within is not None else "—"]
+                            if horizon is not None else []),
+                          f"{f.threshold:+g} %" + (f" ({p.rule})" if p.rule else ""))
+        out.print(table)
+        out.print(f"slope: the trend at the last check, {per} of the baseline mean; "
+                  f"{left}: median and 90 % interval (exp.: an exponential trend); no trend: "
+                  "the slope's 90 % interval holds 0 (see --json)", markup=False,
+                  highlight=False, soft_wrap=True)
+        e = res.earliest
+        out.print("no parameter trends towards no-go" if e is None else
+                  f"earliest: {e.parameter} in {n(e.forecast.remaining[0])} {left.split()[0]} "  # type: ignore[index]
+                  f"(90 %: {n(e.forecast.remaining[1])}–{n(e.forecast.remaining[2])})",  # type: ignore[index]
+                  markup=False, highlight=False)

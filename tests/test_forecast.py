@@ -1,0 +1,142 @@
+"""Forecasts to no-go against known truth: a linear rise, an exponential one,
+a stable unit ("no trend"), and the refusals."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from condmon.cli.main import main
+from condmon.errors import DataError
+from condmon.monitor.forecast import forecast_series
+from condmon.simulate import simulate_actuator
+from condmon.store import open_store
+from condmon.workflows.checks import check_test
+from condmon.workflows.monitoring import add_baseline_tests
+
+
+def test_a_linear_rise_is_forecast_within_its_interval() -> None:
+    rng = np.random.default_rng(7)
+    inside, errors = 0, []
+    for _ in range(100):
+        x = np.arange(1.0, 16.0)
+        y = 4.0 * x + rng.normal(0.0, np.sqrt(3.0 ** 2 + 2.0 ** 2), 15)
+        f = forecast_series(x, y, np.full(15, 3.0), 2.0, threshold=100.0, horizon=10.0)
+        assert f.model in ("linear", "exponential")
+        inside += f.remaining[1] <= 10.0 <= f.remaining[2]
+        errors.append(abs(f.remaining[0] / 10.0 - 1.0))
+    assert 80 <= inside <= 99        # the 90 % interval covers the truth about 90 % of the time
+    assert np.median(errors) < 0.1
+
+
+def test_an_exponential_rise_is_chosen_and_forecast() -> None:
+    x = np.arange(1.0, 16.0)
+    y = 2.0 * np.exp(0.2 * x) + np.random.default_rng(3).normal(0.0, 0.5, 15)
+    f = forecast_series(x, y, np.full(15, 0.5), 0.5, threshold=100.0, horizon=6.0)
+    truth = np.log(50.0) / 0.2 - 15.0
+    assert f.model == "exponential" and f.remaining[1] <= truth <= f.remaining[2]
+    assert f.p_within is not None and f.p_within > 0.9
+
+
+def test_a_stable_series_is_no_trend() -> None:
+    x = np.arange(1.0, 16.0)
+    f = forecast_series(x, np.random.default_rng(5).normal(0.0, 3.0, 15), np.full(15, 3.0),
+                        2.0, threshold=40.0, horizon=10.0)
+    assert f.model == "no trend" and f.remaining is None and f.p_within == 0.0
+    assert f.slope_interval[0] < 0.0 < f.slope_interval[1]
+
+
+@pytest.mark.parametrize("args,message", [
+    (dict(x=[1.0, 2.0], change=[1.0, 2.0], se=[1.0, 1.0]), "not enough tests to forecast"),
+    (dict(x=[1.0, 1.0, 2.0], change=[1.0, 2.0, 3.0], se=[1.0] * 3), "do not increase"),
+    (dict(x=[1.0, 2.0, 3.0], change=[1.0, np.nan, 3.0], se=[1.0] * 3), "non-finite"),
+])
+def test_bad_series_are_refused(args: dict, message: str) -> None:
+    with pytest.raises(DataError, match=message):
+        forecast_series(spread=1.0, threshold=50.0, **args)
+    with pytest.raises(DataError, match="horizon must be > 0"):
+        forecast_series([1.0, 2.0, 3.0], [1.0, 2.0, 3.0], [1.0] * 3, 1.0, 50.0, horizon=0.0)
+
+
+@pytest.fixture(scope="module")
+def wearing(tmp_path_factory: pytest.TempPathFactory, demo_rig) -> tuple[Path, float]:  # type: ignore[no-untyped-def]
+    """A unit whose friction (viscous and Coulomb alike, as a brake) rises
+    linearly by 20 % of its healthy value a day: +600 % (no-go, r2) about day
+    30; 15 dated checks stored; and a stable unit."""
+    db = tmp_path_factory.mktemp("forecast") / "h.db"
+    with open_store(str(db)) as store:
+        add_baseline_tests(store, "WEAR", [simulate_actuator(demo_rig, seed=s) for s in (1, 2, 3)],
+                           test_date="2026-01-01")
+        add_baseline_tests(store, "STABLE", [simulate_actuator(demo_rig, seed=s)
+                                             for s in (4, 5, 6)], test_date="2026-01-01")
+        for k in range(1, 16):
+            f = 1.0 + 0.2 * k
+            rig = demo_rig.with_faults([f"D=*{f}", f"coulomb_friction=*{f}"])
+            check_test(store, "WEAR", simulate_actuator(rig, seed=100 + k),
+                       test_date=f"2026-01-{1 + k:02d}")
+            check_test(store, "STABLE", simulate_actuator(demo_rig, seed=200 + k),
+                       test_date=f"2026-01-{1 + k:02d}")
+        # the truth: the day the unit's check measures +600 % (dry runs, nothing stored)
+        for k in range(16, 46):
+            f = 1.0 + 0.2 * k
+            rig = demo_rig.with_faults([f"D=*{f}", f"coulomb_friction=*{f}"])
+            later = check_test(store, "WEAR", simulate_actuator(rig, seed=100 + k),
+                               dry_run=True)
+            if later.percent_change["D"] >= 600.0:
+                return db, float(k - 15)
+    raise AssertionError("friction never reached +600 %")
+
+
+def test_a_unit_whose_friction_rises_is_forecast_by_date(
+        wearing: tuple[Path, float], capsys: pytest.CaptureFixture[str]) -> None:
+    db, truth = wearing
+    capsys.readouterr()
+    assert main(["forecast", "--unit", "WEAR", "--db", str(db), "--json",
+                 "--horizon", "20"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["by"] == "days" and doc["earliest"] == "D" and doc["checks"] == 15
+    d = next(p for p in doc["parameters"] if p["parameter"] == "D")
+    assert d["model"] in ("linear", "exponential") and d["rule"] == "friction increase"
+    assert d["threshold_percent"] == 600.0
+    assert d["remaining"]["median"] == pytest.approx(truth, rel=0.2)
+    assert d["remaining"]["low"] <= truth <= d["remaining"]["high"]
+    assert d["date"].startswith("2026-01-") and d["p_within_horizon"] > 0.9
+    assert main(["forecast", "--unit", "WEAR", "--db", str(db)]) == 0
+    text = capsys.readouterr().out
+    assert "earliest: D in" in text and "days left" in " ".join(text.split())
+    assert "(friction increase)" in " ".join(text.replace("│", " ").split())
+
+
+def test_a_stable_unit_has_no_trend(wearing: tuple[Path, float],
+                                    capsys: pytest.CaptureFixture[str]) -> None:
+    capsys.readouterr()
+    assert main(["forecast", "--unit", "STABLE", "--db", str(wearing[0]), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["earliest"] is None
+    assert all(p["model"] == "no trend" and p["remaining"] is None for p in doc["parameters"])
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--unit", "WEAR", "--horizon", "0"], "horizon must be > 0"),
+    (["--unit", "WEARR"], "did you mean 'WEAR'?"),
+])
+def test_forecast_refusals_are_one_line(wearing: tuple[Path, float], args: list[str],
+                                        message: str,
+                                        capsys: pytest.CaptureFixture[str]) -> None:
+    capsys.readouterr()
+    assert main(["forecast", *args, "--db", str(wearing[0])]) == 2
+    err = capsys.readouterr().err
+    assert message in " ".join(err.split()) and len(err.strip().splitlines()) <= 2
+
+
+def test_too_few_checks_is_said(tmp_path: Path, demo_rig, capsys) -> None:  # type: ignore[no-untyped-def]
+    db = tmp_path / "few.db"
+    with open_store(str(db)) as store:
+        add_baseline_tests(store, "U", [simulate_actuator(demo_rig, seed=s) for s in (1, 2, 3)])
+        check_test(store, "U", simulate_actuator(demo_rig, seed=9))
+    capsys.readouterr()
+    assert main(["forecast", "--unit", "U", "--db", str(db)]) == 2
+    assert "not enough tests to forecast: unit 'U' has 1 check(s)" in capsys.readouterr().err

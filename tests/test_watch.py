@@ -564,3 +564,15 @@ def test_events_made_beside_the_stream_are_published_too(broker: Broker, tmp_pat
     th.join(30)
     listen.close()
     assert next(e for e in listen.events if e["unit"] == "EMA-3")["status"] == "no-go"
+
+
+def test_an_unreachable_broker_is_one_line_and_makes_no_history(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from condmon.cli.main import main
+
+    db = tmp_path / "none.db"
+    capsys.readouterr()
+    assert main(["watch", "--mqtt", f"127.0.0.1:{_free_port()}", "--db", str(db)]) == 2
+    err = capsys.readouterr().err
+    assert "cannot reach the broker at 127.0.0.1:" in err and len(err.strip().splitlines()) == 1
+    assert not db.exists()

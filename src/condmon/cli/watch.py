@@ -94,6 +94,7 @@ def register(app: typer.Typer) -> None:
             if folder is not None:
                 thread = threading.Thread(target=run_folder, name="watch-folder", daemon=True)
                 thread.start()
+            _reachable(mqtt)  # an unreachable broker makes no history file
             with open_store(db) as store:
                 watcher = Watcher(store, model=model, isolate_after=isolate_after,
                                   settings=IsolationSettings.load(settings))
@@ -121,3 +122,18 @@ def register(app: typer.Typer) -> None:
             out.print(f"watched {folder} for {fs.seconds:.1f} s: {fs.files} files handled, "
                       f"{fs.stored} stored, in {fs.runs} fleet runs", markup=False,
                       highlight=False, soft_wrap=True)
+
+
+def _reachable(broker: str, timeout: float = 10.0) -> None:
+    """Refuse a broker nobody answers at, before anything is created."""
+    import socket
+
+    from condmon.errors import ConfigError
+    from condmon.io.stream import parse_broker
+
+    host, port = parse_broker(broker)
+    try:
+        socket.create_connection((host, port), timeout=timeout).close()
+    except OSError as exc:
+        raise ConfigError(f"--mqtt {broker}: cannot reach the broker at {host}:{port} "
+                          f"({exc})") from None

@@ -140,18 +140,3 @@ def test_too_few_checks_is_said(tmp_path: Path, demo_rig, capsys) -> None:  # ty
     capsys.readouterr()
     assert main(["forecast", "--unit", "U", "--db", str(db)]) == 2
     assert "not enough tests to forecast: unit 'U' has 1 check(s)" in capsys.readouterr().err
-
-
-def test_units_carry_their_forecast_and_sort_by_urgency(
-        wearing: tuple[Path, float], capsys: pytest.CaptureFixture[str]) -> None:
-    db = str(wearing[0])
-    capsys.readouterr()
-    assert main(["units", "--db", db, "--json"]) == 0
-    units = {u["unit"]: u["forecast"] for u in json.loads(capsys.readouterr().out)["units"]}
-    assert units["WEAR"]["parameter"] == "D" and units["WEAR"]["by"] == "days"
-    assert units["WEAR"]["low"] <= units["WEAR"]["median"] <= units["WEAR"]["high"]
-    assert units["STABLE"] == {"parameter": None, "why": "no trend towards no-go"}
-    assert main(["units", "--db", db, "--sort", "forecast"]) == 0
-    text = capsys.readouterr().out
-    assert text.index("WEAR") < text.index("STABLE") and "D: 12" in text
-    assert "no trend" in text

@@ -25,8 +25,7 @@ def register(app: typer.Typer) -> None:
     @app.command("units")
     def units_cmd(
         db: DbOpt = "condmon.db",
-        as_json: Annotated[bool, typer.Option("--json", help="Print the units as JSON records (with each unit's earliest forecast to no-go).")] = False,
-        sort: Annotated[str, typer.Option(help="Order: name, or forecast (the unit forecast to turn no-go soonest first, with its forecast).")] = "name",
+        as_json: Annotated[bool, typer.Option("--json", help="Print the units as JSON records.")] = False,
     ) -> None:
         """List the units of a history: model, tests and latest status."""
         from condmon.store.db import open_store
@@ -35,26 +34,9 @@ def register(app: typer.Typer) -> None:
         from condmon.monitor.generic import load_generic_settings
 
         least = load_generic_settings().group_min_units
-        if sort not in ("name", "forecast"):
-            from condmon.errors import ConfigError
-
-            raise ConfigError(f"--sort {sort!r}: allowed: name, forecast")
         with open_store(db, create=False) as store:
             rows = store.unit_summaries()
             small = {g: len(store.group_baselines(g)) for g in store.groups()}
-            if as_json or sort == "forecast":
-                from condmon.workflows.forecasting import unit_forecast_summary
-
-                for r in rows:
-                    r["forecast"] = unit_forecast_summary(store, str(r["unit"]))
-        if sort == "forecast":
-            def urgency(r: dict[str, Any]) -> tuple[int, float]:
-                f = r["forecast"]
-                # days and tests are not one scale: units dated by days first, each by its median
-                if f["parameter"] is None or f["median"] is None:
-                    return (2, 0.0)
-                return (0 if f["by"] == "days" else 1, float(f["median"]))
-            rows = sorted(rows, key=urgency)
         small = {g: n for g, n in small.items() if n < least}
         if as_json:
             write_json({"units": rows})
@@ -62,10 +44,8 @@ def register(app: typer.Typer) -> None:
         grouped = any(r["group"] for r in rows)
         regimes = any(r["latest_regime"] for r in rows)
         table = Table(title=escape(f"Units in {redact(db)}"), box=box.SIMPLE_HEAD)
-        forecast = sort == "forecast"
         cols = ("unit", "model", *(("group",) if grouped else ()), "tests", "latest",
-                *(("regime",) if regimes else ()), "date", "status",
-                *(("no-go in (90 %)",) if forecast else ()))
+                *(("regime",) if regimes else ()), "date", "status")
         for col in cols:  # names are folded, never cut: EMA-1… could be EMA-10 or EMA-11
             table.add_column(col, justify="right" if col == "tests" else "left",
                              no_wrap=col in ("date", "status"), overflow="fold")
@@ -82,8 +62,7 @@ def register(app: typer.Typer) -> None:
                           *((escape(str(r["group"] or "—")),) if grouped else ()), count,
                           escape(Path(str(r["latest_source"] or "—")).name),
                           *((escape(str(r["latest_regime"] or "—")),) if regimes else ()),
-                          str(r["latest_date"] or "—")[:10], status,
-                          *((_no_go_in(r["forecast"]),) if forecast else ()))
+                          str(r["latest_date"] or "—")[:10], status)
             if r["baseline_flags"]:
                 flagged.append(str(r["unit"]))
         out.print(table)
@@ -226,20 +205,6 @@ def register(app: typer.Typer) -> None:
                       markup=False, highlight=False, soft_wrap=True)
         out.print(f"wrote {len(rep.pages)} unit page{'s' if len(rep.pages) != 1 else ''} and the "
                   f"fleet index {rep.index}", markup=False, highlight=False, soft_wrap=True)
-
-
-def _no_go_in(f: dict[str, Any]) -> str:
-    """``D: 12.1 days (11.1-13.2)``, or why there is no forecast."""
-    if f["parameter"] is None or f["median"] is None:
-        why = str(f.get("why") or "no trend")
-        return "no trend" if why.startswith("no trend") else (
-            "too few checks" if "not enough tests" in why else "—")
-
-    def n(v: float | None) -> str:
-        return "beyond" if v is None else f"{v:.3g}"
-
-    return (f"{escape(str(f['parameter']))}: {n(f['median'])} {f['by']} "
-            f"({n(f['low'])}–{n(f['high'])})")
 
 
 def _print_isolations(unit: str, model: str, isos: Any) -> None:

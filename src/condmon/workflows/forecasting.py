@@ -23,7 +23,7 @@ from condmon.monitor.forecast import MIN_TESTS, Forecast, forecast_series
 from condmon.store.db import HistoryStore
 from condmon.workflows.monitoring import current_baseline, monitoring_of
 
-__all__ = ["ParameterForecast", "UnitForecast", "forecast_unit", "unit_forecast_summary"]
+__all__ = ["ParameterForecast", "UnitForecast", "forecast_unit"]
 
 
 @dataclass(frozen=True)
@@ -144,33 +144,3 @@ def forecast_unit(store: HistoryStore, unit: str, horizon: float | None = None,
     out.sort(key=lambda p: (p.forecast.remaining is None,
                             p.forecast.remaining[0] if p.forecast.remaining else 0.0))
     return UnitForecast(unit, by, len(checks), tuple(out))
-
-
-def unit_forecast_summary(store: HistoryStore, unit: str) -> dict[str, Any]:
-    """A unit's earliest forecast to no-go, for a fleet listing (``units --json``).
-
-    ``{"parameter", "by", "median", "low", "high", "date"}`` for the parameter
-    forecast to turn no-go first; ``{"parameter": None, "why": ...}`` when no
-    parameter trends towards no-go or the unit cannot be forecast (too few
-    checks, no baseline).
-
-    Example
-    -------
-    >>> from condmon.store import open_store
-    >>> with open_store("sqlite://") as s:
-    ...     _ = s.unit_id("U1", create=True)
-    ...     unit_forecast_summary(s, "U1")["why"][:36]
-    "unit 'U1' has 0 accepted healthy tes"
-    """
-    from condmon.errors import CondmonError
-
-    try:
-        res = forecast_unit(store, unit)
-    except CondmonError as exc:
-        return {"parameter": None, "why": str(exc)}
-    e = res.earliest
-    if e is None or e.forecast.remaining is None:
-        return {"parameter": None, "why": "no trend towards no-go"}
-    med, lo, hi = (float(v) if np.isfinite(v) else None for v in e.forecast.remaining)
-    return {"parameter": e.parameter, "by": res.by, "median": med, "low": lo, "high": hi,
-            "date": e.date}

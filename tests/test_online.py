@@ -134,17 +134,19 @@ def test_any_message_is_a_chunk_or_one_refusal() -> None:
 
 
 @pytest.mark.parametrize("t,ps,message", [
-    ([0.0, 1e-9, 2e-9], [0.0, 0.0, 0.0], "seconds given as milliseconds?"),
-    ([0.0, 1000.0], [0.0, 0.0], "milliseconds given as seconds?"),
+    ([0.0, 1e-9, 2e-9], [0.0, 0.0, 0.0], "1e+07 times shorter than the test's 0.01 s"),
+    ([0.0, 1000.0], [0.0, 0.0], "1e+05 times longer than the test's 0.01 s: column 't' must be"
+                                " in seconds (milliseconds given as seconds"),
     ([100.1, 100.1000001, 100.5], [0.0, 0.0, 0.0], "not uniformly sampled"),
-    ([0.0, 0.01], [1e300, 1e300], "column 'Ps' = 1e+300 Pa at sample 0, more than 10 spans"),
+    ([0.0, 0.01], [1e300, 1e300], "column 'Ps' reaches 1e+300 Pa at row 0, more than 10 spans"),
 ])
 def test_a_stream_chunk_gets_the_record_checks(t: list[float], ps: list[float],
                                               message: str) -> None:
-    from condmon.diagnose.tracking import check_chunk
+    """The same checks and messages as a record file's (diagnose.checks)."""
+    from condmon.diagnose.checks import check_stream_chunk
     from condmon.errors import DataError
 
     cols = {"t": np.array(t), "Ps": np.array(ps), "omega_m": np.zeros(len(t))}
     with pytest.raises(DataError, match="unit 'U'") as err:
-        check_chunk(HST, cols, "unit 'U'")
+        check_stream_chunk(HST, cols, "unit 'U'")
     assert message in str(err.value)

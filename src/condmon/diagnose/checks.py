@@ -35,7 +35,7 @@ from condmon.errors import ConfigError, DataError, DataWarning, MissingColumnsEr
 from condmon.io.config import load_default
 from condmon.models.declared import PlantModel
 
-__all__ = ["RecordSettings", "validate_plant_record"]
+__all__ = ["RecordSettings", "validate_plant_record", "check_stream_chunk"]
 
 FloatArray = NDArray[np.float64]
 
@@ -157,7 +157,15 @@ def validate_plant_record(model: PlantModel, record: pd.DataFrame, source: str =
 
 
 def _check_time_base(model: PlantModel, t: FloatArray, source: str, cfg: RecordSettings) -> None:
-    dt = float(np.mean(np.diff(t)))
+    _check_interval(model, float(np.mean(np.diff(t))), source, cfg)
+    duration = float(t[-1] - t[0])
+    if duration < cfg.short_fraction * model.test.duration:
+        warnings.warn(f"{source}: the record lasts {duration:.3g} s, far less than the test's "
+                      f"{model.test.duration:g} s", DataWarning, stacklevel=4)
+
+
+def _check_interval(model: PlantModel, dt: float, source: str, cfg: RecordSettings) -> None:
+    """A sample interval [s] within ``time_base_factor`` of the test's."""
     test_dt = 1.0 / model.test.sample_rate
     ratio = dt / test_dt
     if ratio >= cfg.time_base_factor or ratio <= 1.0 / cfg.time_base_factor:
@@ -165,10 +173,42 @@ def _check_time_base(model: PlantModel, t: FloatArray, source: str, cfg: RecordS
         raise DataError(f"{source}: the sample interval {dt:.3g} s is {how} than the test's "
                         f"{test_dt:.3g} s: column 't' must be in seconds (milliseconds given "
                         "as seconds, or the reverse?)")
-    duration = float(t[-1] - t[0])
-    if duration < cfg.short_fraction * model.test.duration:
-        warnings.warn(f"{source}: the record lasts {duration:.3g} s, far less than the test's "
-                      f"{model.test.duration:g} s", DataWarning, stacklevel=4)
+
+
+def check_stream_chunk(model: PlantModel, cols: Mapping[str, FloatArray], source: str,
+                       settings: RecordSettings | None = None) -> None:
+    """The checks of :func:`validate_plant_record` that hold for a piece of a
+    stream, with the same messages: uniform sampling, the sample interval
+    against the test's, sensors and inputs far outside their declared ranges.
+    (A stream at rest is not a dead sensor, and a chunk is always short: those
+    checks need a whole record.)
+
+    Raises
+    ------
+    DataError
+        Naming ``source`` (the unit and topic) and the column.
+
+    Example
+    -------
+    >>> from condmon.models.declared import load_plant_model
+    >>> check_stream_chunk(load_plant_model("hst"), {"t": np.array([0.0, 1000.0]),
+    ...                    "Ps": np.zeros(2), "omega_m": np.zeros(2)}, "unit 'U'")
+    Traceback (most recent call last):
+    ...
+    condmon.errors.DataError: unit 'U': the sample interval 1e+03 s is 1e+05 times longer than the test's 0.01 s: column 't' must be in seconds (milliseconds given as seconds, or the reverse?)
+    """
+    cfg = settings or RecordSettings()
+    t = np.asarray(cols["t"], dtype=np.float64)
+    if len(t) > 1:
+        _check_interval(model, check_time_base(t, source), source, cfg)
+    for u in model.inputs:
+        if u.name in cols and u.range is not None:
+            _far_outside(np.asarray(cols[u.name], dtype=np.float64), u.name, "input", u.range,
+                         u.unit, source, cfg)
+    for sn in model.sensors:
+        if sn.name in cols:
+            _far_outside(np.asarray(cols[sn.name], dtype=np.float64), sn.name, "sensor",
+                         sn.range, sn.unit, source, cfg)
 
 
 def _unit_or_sign(y: FloatArray, name: str, rng: tuple[float, float], noise: float, unit: str,

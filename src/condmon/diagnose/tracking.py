@@ -27,13 +27,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from condmon.diagnose.online import OnlineDetection, OnlineDetector, noise_figures
-from condmon.diagnose.checks import RecordSettings
 from condmon.diagnose.residuals import DetectionSettings, Normalisation
 from condmon.errors import DataError
 from condmon.models.declared import PlantModel
 from condmon.simulate.stepper import BatchStepper
 
-__all__ = ["ChunkOutcome", "ModelTracker", "measured_start", "started_at", "check_chunk"]
+__all__ = ["ChunkOutcome", "ModelTracker", "measured_start", "started_at"]
 
 FloatArray = NDArray[np.float64]
 
@@ -333,52 +332,3 @@ def started_at(model: PlantModel, initial: Mapping[str, float]) -> PlantModel:
         dataclasses.replace(s, initial=float(initial[s.name])) if s.name in initial else s
         for s in model.states))
 
-
-def check_chunk(model: PlantModel, cols: Mapping[str, FloatArray], where: str,
-                settings: RecordSettings | None = None) -> None:
-    """The record checks of :func:`~condmon.diagnose.checks.validate_plant_record`
-    that hold for a piece of a stream: uniform sampling, a sample interval within
-    ``time_base_factor`` of the test's, sensors and inputs within
-    ``refuse_outside_spans`` spans of their declared ranges. (A stream at rest
-    is not a dead sensor: that check needs a whole record.)
-
-    Raises
-    ------
-    DataError
-        Naming ``where`` (the unit and topic) and the column.
-
-    Example
-    -------
-    >>> from condmon.models.declared import load_plant_model
-    >>> check_chunk(load_plant_model("hst"), {"t": np.array([0.0, 1000.0]),
-    ...             "Ps": np.zeros(2), "omega_m": np.zeros(2)}, "unit 'U'")
-    Traceback (most recent call last):
-    ...
-    condmon.errors.DataError: unit 'U': sample interval 1000 s, 1e+05 times the test's 0.01 s (beyond 300x): milliseconds given as seconds?
-    """
-    from condmon.io.records import check_time_base
-
-    cfg = settings or RecordSettings()
-    t = np.asarray(cols["t"], dtype=np.float64)
-    if len(t) > 1:
-        dt = check_time_base(t, where)
-        test = 1.0 / model.test.sample_rate
-        ratio = dt / test
-        if not 1.0 / cfg.time_base_factor <= ratio <= cfg.time_base_factor:
-            raise DataError(f"{where}: sample interval {dt:g} s, {ratio:.3g} times the test's "
-                            f"{test:g} s (beyond {cfg.time_base_factor:g}x): "
-                            + ("milliseconds given as seconds?" if ratio > 1 else
-                               "seconds given as milliseconds?"))
-    spans = [(s.name, s.range, s.unit) for s in model.sensors] + [
-        (u.name, u.range, u.unit) for u in model.inputs if u.range is not None]
-    for name, rng, unit in spans:
-        if name not in cols or rng is None or not all(np.isfinite(rng)):
-            continue
-        lo, hi = float(rng[0]), float(rng[1])
-        far = cfg.refuse_outside_spans * (hi - lo)
-        v = np.asarray(cols[name], dtype=np.float64)
-        bad = np.flatnonzero((v < lo - far) | (v > hi + far))
-        if bad.size:
-            raise DataError(f"{where}: column {name!r} = {v[bad[0]]:g} {unit} at sample "
-                            f"{bad[0]}, more than {cfg.refuse_outside_spans:g} spans outside "
-                            f"its range [{lo:g}, {hi:g}] {unit} (a unit error?)")

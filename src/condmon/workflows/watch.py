@@ -34,8 +34,8 @@ import pandas as pd
 
 from condmon.diagnose.isolation import IsolationResult, IsolationSettings, isolate
 from condmon.diagnose.online import OnlineDetection
-from condmon.diagnose.tracking import (ChunkOutcome, ModelTracker, check_chunk, measured_start,
-                                       started_at)
+from condmon.diagnose.checks import check_stream_chunk
+from condmon.diagnose.tracking import ChunkOutcome, ModelTracker, measured_start, started_at
 from condmon.errors import CondmonError, DataError
 from condmon.io.stream import Chunk, StreamLimits
 from condmon.models.machine import Machine
@@ -183,6 +183,7 @@ class Watcher:
         """
         events: list[WatchEvent] = []
         rounds: dict[str, list[dict[str, Chunk]]] = {}
+        models: dict[str, Machine] = {}
         for chunk in chunks:
             self.counters.received += 1
             self.counters.samples += chunk.samples
@@ -199,12 +200,13 @@ class Watcher:
                         f"unit {chunk.unit!r}: the chunk has no column "
                         f"{', '.join(map(repr, missing))}; model {machine.name!r} needs t, "
                         f"{', '.join(machine.plant.sensor_names)}")
-                check_chunk(machine.plant, chunk.columns, f"unit {chunk.unit!r}",
-                            self.settings.record)
+                check_stream_chunk(machine.plant, chunk.columns, f"unit {chunk.unit!r}",
+                                   self.settings.record)
             except CondmonError as exc:
                 self.counters.refused += 1
                 self.log(f"refused: {exc}")
                 continue
+            models[name] = machine
             queue = rounds.setdefault(name, [])
             slot = next((r for r in queue if chunk.unit not in r), None)
             if slot is None:
@@ -212,7 +214,7 @@ class Watcher:
                 queue.append(slot)
             slot[chunk.unit] = chunk
         for name, queue in rounds.items():
-            machine = get_model(name)
+            machine = models[name]  # the unit's, as machine_of found it (no file read again)
             tracker = self._trackers.get(name)
             if tracker is None:
                 tracker = self._trackers[name] = ModelTracker(machine.plant,

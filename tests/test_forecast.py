@@ -140,3 +140,31 @@ def test_too_few_checks_is_said(tmp_path: Path, demo_rig, capsys) -> None:  # ty
     capsys.readouterr()
     assert main(["forecast", "--unit", "U", "--db", str(db)]) == 2
     assert "not enough tests to forecast: unit 'U' has 1 check(s)" in capsys.readouterr().err
+
+
+def test_a_unit_with_regimes_is_forecast_per_regime(tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """Each regime's parameter (Tc@forward, Tc@reverse) has its own series."""
+    import warnings
+
+    from condmon.errors import DataWarning
+
+    model = str(Path(__file__).resolve().parents[1] / "examples" / "hydraulic-actuator"
+                / "rotary-actuator.toml")
+    files = []
+    for s in range(6):
+        f = tmp_path / f"r{s}.csv"
+        assert main(["simulate", "plant", model, "--out", str(f), "--seed", str(s)]) == 0
+        files.append(str(f))
+    db = str(tmp_path / "r.db")
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", ".*the record settings ignore column", DataWarning)
+        assert main(["baseline", "add", *files[:3], "--unit", "RA", "--model", model,
+                     "--db", db]) == 0
+        for f in files[3:]:
+            assert main(["check", f, "--unit", "RA", "--db", db]) == 0
+    capsys.readouterr()
+    assert main(["forecast", "--unit", "RA", "--db", db, "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert {p["parameter"] for p in doc["parameters"]} == {"Tc@forward", "Tc@reverse"}
+    assert all(p["tests"] == 3 for p in doc["parameters"])

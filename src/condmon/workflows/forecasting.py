@@ -122,16 +122,18 @@ def forecast_unit(store: HistoryStore, unit: str, horizon: float | None = None,
     units = machine.units
     out = []
     for key, mean, std in zip(baseline.parameters, baseline.mean, baseline.std):
-        name, regime = (key.split("@", 1) + [None])[:2]
-        rows = checks if regime is None else checks[checks["regime"] == regime]
-        col = f"{name}_change"
-        if col not in rows or len(rows) < MIN_TESTS or name not in cfg.r2:
+        name = key.split("@", 1)[0]
+        col = f"{key}_change"   # a regime's parameter has columns of its own (Tc@forward)
+        if col not in checks or name not in cfg.r2:
+            continue
+        rows = checks[checks[col].notna()]
+        if len(rows) < MIN_TESTS:
             continue
         x = (np.arange(1.0, len(rows) + 1.0) if by == "tests" else
              ((dates[rows.index] - dates.iloc[0]).dt.total_seconds() / 86400.0).to_numpy())
         change = rows[col].to_numpy(dtype=np.float64)
-        se = 100.0 * rows[f"{name}_se"].to_numpy(dtype=np.float64) / abs(mean) \
-            if f"{name}_se" in rows and mean else np.zeros(len(rows))
+        se = 100.0 * rows[f"{key}_se"].to_numpy(dtype=np.float64) / abs(mean) \
+            if f"{key}_se" in rows and mean else np.zeros(len(rows))
         rising = float(np.nanmean(change[-MIN_TESTS:])) >= 0.0
         threshold = cfg.r2[name] if rising else -cfg.r2[name]
         rule = _rule_for(rules, name, "high" if rising else "low")

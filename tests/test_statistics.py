@@ -177,3 +177,37 @@ def test_a_bad_alpha_is_one_line(checked: tuple[Path, Path], args: list[str], me
                  *args]) == 2
     err = capsys.readouterr().err
     assert message in " ".join(err.split()) and len(err.strip().splitlines()) == 1
+
+
+def test_serially_correlated_checks_are_not_taken_for_a_drift() -> None:
+    """Healthy checks that wander (AR(1), ρ = 0.8: a machine's warm-up from
+    test to test) against a baseline spread over sessions: without allowing for
+    the correlation, 24 % of checks raise a drift alarm at alpha 0.01."""
+    rng = np.random.default_rng(11)
+    alarms = total = 0
+    for _ in range(100):
+        x = np.zeros(30)
+        x[0] = rng.standard_normal()
+        for i in range(1, 30):
+            x[i] = 0.8 * x[i - 1] + 0.6 * rng.standard_normal()
+        base = rng.standard_normal((10, 1))
+        checks = x[:, None] - base.mean()
+        for k in range(3, 30):
+            s = check_statistics(("Tc",), checks[k], [1.0], base - base.mean(), np.ones((10, 1)),
+                                 checks[:k + 1])
+            alarms += bool(s.drift_alarm)
+            total += 1
+    assert alarms / total < 0.11
+
+
+def test_a_baseline_narrower_than_the_checks_is_said() -> None:
+    rng = np.random.default_rng(4)
+    base = rng.normal(0.0, 1.0, (10, 2))
+    mean = base.mean(axis=0)
+    wide = rng.normal(0.0, 4.0, (12, 2)) - mean
+    s = check_statistics(("R", "D"), wide[-1], [1.0, 1.0], base - mean, np.ones((10, 2)), wide)
+    assert not s.calibrated and s.scatter_ratio["R"] > 4.0
+    assert "NOT at the stated rates" in s.describe("go")
+    same = rng.normal(0.0, 1.0, (12, 2)) - mean
+    assert check_statistics(("R", "D"), same[-1], [1.0, 1.0], base - mean, np.ones((10, 2)),
+                            same).calibrated

@@ -56,7 +56,7 @@ parameter vector against a baseline of its own scatter.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -71,6 +71,11 @@ FloatArray = NDArray[np.float64]
 #: Fewest checks since the baseline the drift test needs.
 MIN_DRIFT_CHECKS = 3
 _RANK_TOL = 1e-8
+#: Earlier checks needed, and the level, to say the baseline's scatter is too narrow.
+_SCATTER_CHECKS = 5
+_SCATTER_LEVEL = 0.01
+#: Checks needed before their serial correlation is estimated.
+_SERIAL_CHECKS = 6
 
 
 def checked_alpha(value: Any, what: str = "alpha") -> float:
@@ -138,6 +143,15 @@ class CheckStatistics:
         The fitted slope of each parameter's change. [% per check]
     checks : int
         Checks since the baseline, this one included. [-]
+    scatter_ratio : dict of str to float
+        The checks' own test-to-test variance (half the mean squared
+        difference of successive checks before this one: blind to a slow
+        drift or a step) over the baseline's, per parameter; empty with fewer
+        than 5 earlier checks. [-]
+    calibrated : bool
+        False when that ratio is too large to be chance (1 % over all the
+        parameters): the baseline's tests do not span this unit's healthy
+        scatter, so the alarms are not at the stated rates.
     """
 
     statistic: float
@@ -154,6 +168,8 @@ class CheckStatistics:
     drift_alarm: bool | None
     drift_slope: dict[str, float]
     checks: int
+    scatter_ratio: dict[str, float] = field(default_factory=dict)
+    calibrated: bool = True
 
     @property
     def any_alarm(self) -> bool:
@@ -174,6 +190,12 @@ class CheckStatistics:
         if alarms and status == "go":
             line += ("; statistical alarm under go: a change beyond the healthy scatter, "
                      "below the fault breakpoints")
+        if not self.calibrated:
+            wide = sorted(self.scatter_ratio, key=lambda k: -self.scatter_ratio[k])[:2]
+            line += ("; NOT at the stated rates: this unit's checks scatter "
+                     + ", ".join(f"{self.scatter_ratio[k]:.2g}x" + f" ({k})" for k in wide)
+                     + " the variance of its baseline's tests: rebuild the baseline from tests "
+                     "that span its operating conditions (sessions, temperatures)")
         return line
 
     def to_dict(self) -> dict[str, Any]:
@@ -183,7 +205,8 @@ class CheckStatistics:
                 "rank": self.rank, "baseline_tests": self.tests,
                 "drift_statistic": self.drift_statistic, "drift_p_value": self.drift_p_value,
                 "drift_alpha": self.drift_alpha, "drift_alarm": self.drift_alarm,
-                "drift_slope_percent_per_check": self.drift_slope, "checks": self.checks}
+                "drift_slope_percent_per_check": self.drift_slope, "checks": self.checks,
+                "scatter_ratio": self.scatter_ratio, "calibrated": self.calibrated}
 
 
 def _distinct(S: FloatArray) -> int:
@@ -199,7 +222,7 @@ def _distinct(S: FloatArray) -> int:
     return groups
 
 
-def _test(z: FloatArray, scatter: FloatArray, factor: float, extra: FloatArray, dof: int,
+def _test(z: FloatArray, scatter: FloatArray, factor: float, extra: FloatArray, dof: float,
           distinct: int) -> tuple[float, float, str, int]:
     """Statistic, p, method and rank of ``z`` against ``scatter`` (estimated on
     ``dof`` degrees of freedom) times ``factor``, plus ``extra``.
@@ -296,10 +319,50 @@ def check_statistics(parameters: tuple[str, ...], change: ArrayLike, se: ArrayLi
         resid = Y - Y.mean(axis=0) - np.outer(x, slope)
         nu = n + m - 3
         pooled = (S * (n - 1) + resid.T @ resid) / nu
-        dstat, dp, _, _ = _test(slope * math.sqrt(sxx), pooled, 1.0, np.zeros((p, p)), nu,
-                                distinct)
+        rho = _serial(resid)
+        # a serially correlated series (a warm-up within each session) holds
+        # fewer independent checks: the slope's variance grows by (1+ρ)/(1-ρ)
+        dstat, dp, _, _ = _test(slope * math.sqrt(sxx), pooled, (1.0 + rho) / (1.0 - rho),
+                                np.zeros((p, p)), nu, distinct)
+    ratio, calibrated = _scatter_check(Y[:-1], S, n, distinct)
     return CheckStatistics(stat, pv, config.alpha, pv < config.alpha, method, tuple(parameters),
                            r, n, dstat, dp, config.drift_alpha,
                            None if dp is None else dp < config.drift_alpha,
                            {k: float(v) for k, v in zip(parameters, slope)
-                            if math.isfinite(v)}, m)
+                            if math.isfinite(v)}, m,
+                           {k: float(v) for k, v in zip(parameters, ratio)}, calibrated)
+
+
+def _serial(resid: FloatArray) -> float:
+    """Lag-one autocorrelation of the checks' residuals about their line, over
+    the parameters, with the short-series bias of its estimate added back
+    (Kendall's ``(1 + 3ρ)/m``), clipped to [0, 0.95] (0 with fewer than 6 checks)."""
+    m = resid.shape[0]
+    den = float(np.sum(resid ** 2))
+    if m < _SERIAL_CHECKS or den <= 0:
+        return 0.0
+    rho = float(np.sum(resid[1:] * resid[:-1])) / den
+    return float(np.clip(rho + (1.0 + 3.0 * rho) / m, 0.0, 0.95))
+
+
+def _scatter_check(earlier: FloatArray, S: FloatArray, n: int, distinct: int
+                   ) -> tuple[FloatArray, bool]:
+    """The earlier checks' variance over the baseline's, per parameter, and
+    whether it can be chance.
+
+    The checks' variance is half their mean squared successive difference (von
+    Neumann's): a slow drift or one step barely moves it. Its ratio to the
+    baseline's variance is read as ``F(ν, n - 1)`` with ``ν = 2(k - 1)/3`` (the
+    successive differences' efficiency), at 1 % over the ``distinct``
+    parameters (Bonferroni).
+    """
+    from scipy.stats import f as f_dist
+
+    k = earlier.shape[0]
+    if k < _SCATTER_CHECKS:
+        return np.zeros(0), True
+    q = np.mean(np.diff(earlier, axis=0) ** 2, axis=0) / 2.0
+    ratio = q / np.clip(np.diag(S), 1e-300, None)
+    nu = 2.0 * (k - 1) / 3.0
+    p = f_dist.sf(ratio, nu, n - 1)
+    return ratio, bool(np.min(p) >= _SCATTER_LEVEL / max(distinct, 1))

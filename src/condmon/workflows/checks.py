@@ -28,6 +28,7 @@ from condmon.monitor.fuzzy import MonitorConfig
 from condmon.monitor.generic import load_generic_settings, peer_monitor
 from condmon.monitor.group import GroupBaseline, group_baseline
 from condmon.store.db import HistoryStore
+from condmon.store.forecasts import forecast_fields, try_forecast
 from condmon.workflows.monitoring import (
     _existing_baseline, _held, _unit_error, _unit_options, current_baseline, evaluate,
     filed_elsewhere, monitoring_of, no_baseline_yet, save_current_baseline,
@@ -67,6 +68,11 @@ class CheckResult:
     against : str
         What the test was compared with: ``unit`` (its own baseline),
         ``group NAME`` or ``unit NAME`` (another's).
+    forecast : dict
+        The unit's earliest forecast to no-go after this check, with the
+        check counted: ``{"forecast", "forecast_reason"}``
+        (:func:`condmon.store.forecasts.forecast_fields`; ``forecast`` None
+        with fewer than 3 checks since the baseline, no trend, a dry run).
     """
 
     unit: str
@@ -82,6 +88,7 @@ class CheckResult:
     warning: str | None = None
     note: str | None = None
     against: str = "unit"
+    forecast: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready result (the ``condmon check --json`` document)."""
@@ -111,6 +118,8 @@ class CheckResult:
                                 for o in self.estimate.others for k in o.parameters}},
             "held": est["held"],
             "against": self.against,
+            "forecast": self.forecast.get("forecast"),
+            "forecast_reason": self.forecast.get("forecast_reason", "not stored: a dry run"),
             "note": self.note,
             "condition": None if self.diagnosis is None else self.diagnosis.condition,
             "preprocessing_applied": ([] if self.diagnosis is None
@@ -238,6 +247,11 @@ def reference_for(store: HistoryStore, unit: str, machine: Machine, against: str
     return group_reference(store, peers, machine.origin or machine.name, exclude=unit)
 
 
+def _forecast(store: HistoryStore, unit: str, dry_run: bool) -> dict[str, Any]:
+    """The unit's earliest forecast to no-go, read after the check is stored."""
+    return {} if dry_run else forecast_fields(*try_forecast(store, unit))
+
+
 def check_test(store: HistoryStore, unit: str, record: RecordLike,
                options: EstimateOptions | None = None, monitor: MonitorConfig | None = None,
                rules: RuleBase | None = None, dry_run: bool = False,
@@ -295,7 +309,7 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
                                                 test_date=key.test_date)
         return CheckResult(unit, tid, res, "retest", baseline, baseline_flags=flags,
                            test_date=key.test_date, warning=filed_elsewhere(store, unit, key),
-                           against=against_label)
+                           against=against_label, forecast=_forecast(store, unit, dry_run))
     row, diag = evaluate(res, baseline, cfg, rb, machine.spec.report)
     missing = missing_regimes(list(res.stored_values()), baseline)
     note = no_baseline_yet(missing, baseline) if missing else None
@@ -318,4 +332,4 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
                        {p: v["percent_change"] for p, v in row.items()},
                        {p: {"high": v["high"], "low": v["low"]} for p, v in row.items()},
                        diag, flags, key.test_date, filed_elsewhere(store, unit, key), note,
-                       against_label)
+                       against_label, _forecast(store, unit, dry_run))

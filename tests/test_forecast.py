@@ -230,7 +230,7 @@ def test_units_sort_by_urgency(wearing: tuple[Path, float],
     for u in units:
         f = u["forecast"]
         shown = "no trend" if f is None else (
-            f"{f['median']:.0f} days ({f['low']:.0f}–{f['high']:.0f})")
+            f"{f['median']:.0f} d ({f['low']:.0f}–{f['high']:.0f})")
         row(text, u["unit"], "dc-motor", str(u["tests"]), "record", u["latest_date"][:10],
             u["status"], shown)
     assert main(["units", "--db", db, "--sort", "urgency"]) == 2
@@ -259,5 +259,5 @@ def test_check_says_the_forecast(wearing: tuple[Path, float], demo_rig, tmp_path
     assert main(["check", str(rec2), "--unit", "WEAR", "--db", str(db), "--date",
                  "2026-01-18"]) == 0
     text = " ".join(capsys.readouterr().out.split())
-    assert "forecast: D no-go in" in text and "days (" in text
+    assert "forecast: D no-go in" in text and " d (" in text
     assert "(friction increase)" in text

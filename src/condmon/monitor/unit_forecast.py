@@ -224,13 +224,14 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
 
 
 def remaining_text(f: dict[str, Any] | None, reason: str | None = None) -> str:
-    """A unit's earliest forecast (:meth:`UnitForecast.summary`) in a few words: ``12 days (11–13)``,
-    ``8.5 tests (6.1–∞)``; ``—`` without one (``no trend`` when ``reason`` says so).
+    """A unit's earliest forecast (:meth:`UnitForecast.summary`) in a few
+    words, as tables print it: ``12 d (11–13)`` (days), ``8.5 tests (6.1–∞)``;
+    ``—`` without one (``no trend`` when ``reason`` says so).
 
     Example
     -------
     >>> remaining_text({"median": 12.1, "low": 11.1, "high": None, "by": "days"})
-    '12 days (11–∞)'
+    '12 d (11–∞)'
     """
     if not f:
         return "no trend" if reason == NO_TREND else "—"
@@ -240,4 +241,5 @@ def remaining_text(f: dict[str, Any] | None, reason: str | None = None) -> str:
             return "∞"
         return f"{v:.0f}" if abs(v) >= 10 else f"{v:.2g}"
 
-    return f"{n(f['median'])} {f['by']} ({n(f['low'])}–{n(f['high'])})"
+    per = "d" if f["by"] == "days" else "tests"
+    return f"{n(f['median'])} {per} ({n(f['low'])}–{n(f['high'])})"

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 from condmon.errors import CondmonError
-from condmon.monitor.forecast import MIN_TESTS
+from condmon.monitor.baseline import MIN_BASELINE_TESTS
 from condmon.monitor.unit_forecast import NO_TREND, UnitForecast, forecast_checks
 from condmon.store.baselines import baseline_members, current_baseline
 
@@ -71,10 +71,13 @@ def read_forecast(store: HistoryStore, unit: str, horizon: float | None = None,
 
 def try_forecast(store: HistoryStore, unit: str) -> tuple[UnitForecast | None, str | None]:
     """:func:`read_forecast`, or why there is none: ``(forecast, None)`` or
-    ``(None, reason)`` (no baseline yet, not enough tests to forecast, the
-    model cannot be loaded); never raises a :class:`~condmon.errors.CondmonError`."""
-    if store.unit_model(unit) is None or len(baseline_members(store, unit)[0]) < MIN_TESTS:
-        return None, NO_BASELINE
+    ``(None, reason)`` (no baseline yet, too few usable healthy tests for
+    one, not enough tests to forecast, the model cannot be loaded); never raises a :class:`~condmon.errors.CondmonError`."""
+    usable = 0 if store.unit_model(unit) is None else len(baseline_members(store, unit)[0])
+    if usable < MIN_BASELINE_TESTS:
+        return None, NO_BASELINE if not usable else (
+            f"no baseline: {usable} usable healthy test(s), a baseline needs "
+            f"{MIN_BASELINE_TESTS}")
     try:
         return read_forecast(store, unit), None
     except CondmonError as err:

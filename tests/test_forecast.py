@@ -65,17 +65,24 @@ def test_bad_series_are_refused(args: dict, message: str) -> None:
 def wearing(tmp_path_factory: pytest.TempPathFactory, demo_rig) -> tuple[Path, float]:  # type: ignore[no-untyped-def]
     """A unit whose friction (viscous and Coulomb alike, as a brake) rises
     linearly by 20 % of its healthy value a day: +600 % (no-go, r2) about day
-    30; 15 dated checks stored; and a stable unit."""
+    30; 15 dated checks stored; a unit wearing at half that pace (SLOW) and a
+    stable unit."""
     db = tmp_path_factory.mktemp("forecast") / "h.db"
     with open_store(str(db)) as store:
         add_baseline_tests(store, "WEAR", [simulate_actuator(demo_rig, seed=s) for s in (1, 2, 3)],
                            test_date="2026-01-01")
         add_baseline_tests(store, "STABLE", [simulate_actuator(demo_rig, seed=s)
                                              for s in (4, 5, 6)], test_date="2026-01-01")
+        add_baseline_tests(store, "SLOW", [simulate_actuator(demo_rig, seed=s)
+                                           for s in (7, 8, 9)], test_date="2026-01-01")
         for k in range(1, 16):
             f = 1.0 + 0.2 * k
             rig = demo_rig.with_faults([f"D=*{f}", f"coulomb_friction=*{f}"])
             check_test(store, "WEAR", simulate_actuator(rig, seed=100 + k),
+                       test_date=f"2026-01-{1 + k:02d}")
+            f = 1.0 + 0.1 * k
+            rig = demo_rig.with_faults([f"D=*{f}", f"coulomb_friction=*{f}"])
+            check_test(store, "SLOW", simulate_actuator(rig, seed=300 + k),
                        test_date=f"2026-01-{1 + k:02d}")
             check_test(store, "STABLE", simulate_actuator(demo_rig, seed=200 + k),
                        test_date=f"2026-01-{1 + k:02d}")
@@ -140,6 +147,12 @@ def test_too_few_checks_is_said(tmp_path: Path, demo_rig, capsys) -> None:  # ty
     capsys.readouterr()
     assert main(["forecast", "--unit", "U", "--db", str(db)]) == 2
     assert "not enough tests to forecast: unit 'U' has 1 check(s)" in capsys.readouterr().err
+    rec = tmp_path / "c.csv"
+    simulate_actuator(demo_rig, seed=10).to_csv(rec, index=False)
+    assert main(["check", str(rec), "--unit", "U", "--db", str(db), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["forecast"] is None
+    assert doc["forecast_reason"].startswith("not enough tests to forecast: unit 'U' has 2")
 
 
 def test_a_unit_with_regimes_is_forecast_per_regime(tmp_path: Path,
@@ -168,3 +181,83 @@ def test_a_unit_with_regimes_is_forecast_per_regime(tmp_path: Path,
     doc = json.loads(capsys.readouterr().out)
     assert {p["parameter"] for p in doc["parameters"]} == {"Tc@forward", "Tc@reverse"}
     assert all(p["tests"] == 3 for p in doc["parameters"])
+
+
+def test_units_carry_the_earliest_forecast(wearing: tuple[Path, float],
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    """``units --json``: the wearing unit's forecast is its friction's, its median
+    within 20 % of the true days to no-go; the stable one has none, and says why."""
+    db, truth = wearing
+    capsys.readouterr()
+    assert main(["units", "--db", str(db), "--json"]) == 0
+    units = {u["unit"]: u for u in json.loads(capsys.readouterr().out)["units"]}
+    f = units["WEAR"]["forecast"]
+    assert set(f) == {"parameter", "unit", "by", "median", "low", "high", "date", "rule"}
+    assert (f["parameter"], f["by"], f["rule"]) == ("D", "days", "friction increase")
+    assert f["median"] == pytest.approx(truth, rel=0.2) and f["low"] <= truth <= f["high"]
+    assert f["unit"] == "N m s/rad" and f["date"].startswith("2026-")
+    assert units["WEAR"]["forecast_reason"] is None
+    assert units["STABLE"]["forecast"] is None
+    assert units["STABLE"]["forecast_reason"] == "no trend towards no-go"
+    # the same as `condmon forecast` says
+    assert main(["forecast", "--unit", "WEAR", "--db", str(db), "--json"]) == 0
+    d = next(p for p in json.loads(capsys.readouterr().out)["parameters"]
+             if p["parameter"] == "D")
+    assert d["remaining"] == {k: f[k] for k in ("median", "low", "high")}
+
+
+def test_units_sort_by_urgency(wearing: tuple[Path, float],
+                               capsys: pytest.CaptureFixture[str],
+                               monkeypatch: pytest.MonkeyPatch) -> None:
+    """Fast wear first, slow wear next, the stable unit last; the table says when."""
+    from _tables import row
+
+    db = str(wearing[0])
+    capsys.readouterr()
+    assert main(["units", "--db", db, "--json", "--sort", "forecast"]) == 0
+    units = json.loads(capsys.readouterr().out)["units"]
+    assert [u["unit"] for u in units] == ["WEAR", "SLOW", "STABLE"]
+    fast, slow = units[0]["forecast"], units[1]["forecast"]
+    assert fast["median"] < slow["median"] and fast["date"] < slow["date"]
+    assert main(["units", "--db", db, "--json"]) == 0  # by name without --sort
+    assert [u["unit"] for u in json.loads(capsys.readouterr().out)["units"]] == [
+        "SLOW", "STABLE", "WEAR"]
+    monkeypatch.setenv("COLUMNS", "80")
+    assert main(["units", "--db", db, "--sort", "forecast"]) == 0
+    text = capsys.readouterr().out
+    assert text.index("WEAR") < text.index("SLOW") < text.index("STABLE")
+    row(text, "unit", "model", "tests", "latest", "date", "status", "no-go in")
+    for u in units:
+        f = u["forecast"]
+        shown = "no trend" if f is None else (
+            f"{f['median']:.0f} d ({f['low']:.0f}–{f['high']:.0f})")
+        row(text, u["unit"], "dc-motor", str(u["tests"]), "record", u["latest_date"][:10],
+            u["status"], shown)
+    assert main(["units", "--db", db, "--sort", "urgency"]) == 2
+    assert "--sort 'urgency': allowed: name, forecast" in capsys.readouterr().err
+
+
+def test_check_says_the_forecast(wearing: tuple[Path, float], demo_rig, tmp_path: Path,  # type: ignore[no-untyped-def]
+                                 capsys: pytest.CaptureFixture[str]) -> None:
+    import shutil
+
+    db = tmp_path / "h.db"
+    shutil.copy(wearing[0], db)
+    rig = demo_rig.with_faults(["D=*4.2", "coulomb_friction=*4.2"])  # day 16
+    rec = tmp_path / "day16.csv"
+    simulate_actuator(rig, seed=116).to_csv(rec, index=False)
+    capsys.readouterr()
+    assert main(["check", str(rec), "--unit", "WEAR", "--db", str(db), "--date",
+                 "2026-01-17", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    f = doc["forecast"]
+    assert f["parameter"] == "D" and f["by"] == "days" and doc["forecast_reason"] is None
+    assert f["median"] == pytest.approx(wearing[1] - 1.0, rel=0.25)
+    rec2 = tmp_path / "day17.csv"
+    simulate_actuator(demo_rig.with_faults(["D=*4.4", "coulomb_friction=*4.4"]),
+                      seed=117).to_csv(rec2, index=False)
+    assert main(["check", str(rec2), "--unit", "WEAR", "--db", str(db), "--date",
+                 "2026-01-18"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "forecast: D no-go in" in text and " d (" in text
+    assert "(friction increase)" in text

@@ -221,3 +221,41 @@ def test_figures_and_pages_state_one_error_bar(history: str, tmp_path: Path,
         want = k * 100 * max(b.std[j], hist.loc[tid, "D_se"]) / abs(b.mean[j])
         assert d.width[i] == pytest.approx(want)
     assert isinstance(hist.loc[d.test_ids[0], "date"], pd.Timestamp)
+
+
+def test_the_forecast_band_is_drawn_and_named(tmp_path: Path, demo_rig: ActuatorRig,
+                                              drawn: list[Any]) -> None:
+    """A unit whose friction rises over dated checks: its trend figure draws the
+    forecast band on the friction panel only, and the legend (below the axes,
+    covering nothing) names it; a stable unit's figure has none."""
+    from matplotlib.collections import PolyCollection
+
+    from condmon.report.trends import FORECAST_LABEL
+
+    db = str(tmp_path / "wear.db")
+    with open_store(db) as store:
+        for n, (unit, pace) in enumerate((("WEAR", 0.3), ("STABLE", 0.0))):
+            add_baseline_tests(store, unit, [simulate_actuator(demo_rig, seed=10 * n + s)
+                                             for s in (1, 2, 3)], test_date="2026-03-01")
+            for day in range(1, 9):
+                f = 1.0 + pace * day
+                rig = demo_rig.with_faults([f"D=*{f}", f"coulomb_friction=*{f}"])
+                check_test(store, unit, simulate_actuator(rig, seed=100 * n + day),
+                           test_date=f"2026-03-{1 + day:02d}")
+        write_report(store, "WEAR", tmp_path / "w")
+        wear = _titled(drawn, "Change against")
+        drawn.clear()
+        write_report(store, "STABLE", tmp_path / "s")
+        stable = _titled(drawn, "Change against")
+    _assert_legends_outside(wear)
+    (legend,) = wear.legends
+    assert FORECAST_LABEL in [t.get_text() for t in legend.get_texts()]
+    banded = [ax.get_ylabel() for ax in wear.axes
+              if any(c.get_label() == FORECAST_LABEL for c in ax.collections
+                     if isinstance(c, PolyCollection))]
+    assert banded == ["D change [%]"]
+    d = next(ax for ax in wear.axes if ax.get_ylabel() == "D change [%]")
+    assert any(line.get_label() == "no-go (r2)" and line.get_ydata()[0] == 600.0
+               for line in d.get_lines())
+    assert FORECAST_LABEL not in [t.get_text() for leg in stable.legends
+                                  for t in leg.get_texts()]

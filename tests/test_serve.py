@@ -649,3 +649,65 @@ def test_figures_in_a_browser(fleet: dict[str, Any], browser_page: tuple[Any, st
             assert box is not None and box["width"] > 600, (fig, box)
         page.screenshot(path=str(shots / f"live-{name}.png"), full_page=True)
         assert (shots / f"live-{name}.png").stat().st_size > 10_000
+
+
+@pytest.fixture(scope="module")
+def wearing_page(tmp_path_factory: pytest.TempPathFactory, demo_rig: ActuatorRig,
+                 browser_page: tuple[Any, str]) -> Iterator[tuple[Any, str]]:
+    """The browser's page and a second server, over a history of three units with
+    8 dated checks: friction (viscous and Coulomb) rising fast (WEAR-FAST, +50 %
+    of healthy a day), slowly (WEAR-SLOW, +20 % a day) and not at all (STABLE)."""
+    db = str(tmp_path_factory.mktemp("wear") / "wear.db")
+    with open_store(db) as store:
+        for n, (unit, pace) in enumerate((("WEAR-SLOW", 0.2), ("STABLE", 0.0),
+                                          ("WEAR-FAST", 0.5))):
+            add_baseline_tests(store, unit,
+                               _records(demo_rig, [], range(10 * n, 10 * n + 3), "h"),
+                               test_date="2026-03-01")
+            for day in range(1, 9):
+                f = 1.0 + pace * day
+                rec = _records(demo_rig, [f"D=*{f}", f"coulomb_friction=*{f}"],
+                               range(100 * n + day, 100 * n + day + 1), "c")[0]
+                check_test(store, unit, rec, test_date=f"2026-03-{1 + day:02d}")
+    proc, url = _start(db)
+    try:
+        yield browser_page[0], url
+    finally:
+        _stop(proc)
+
+
+def test_forecast_band_in_a_browser(wearing_page: tuple[Any, str],
+                                    tmp_path: Path) -> None:
+    """The fleet ordered by urgency; a wearing unit's friction panel draws the
+    forecast band and says which band it is, a stable unit's draws none."""
+    page, url = wearing_page
+    page.goto(url)
+    page.select_option("select[name=sort]", "forecast")
+    expect_url = url + "?sort=forecast"
+    page.wait_for_url(expect_url)
+    rows = page.locator("#units-body tr")
+    assert [r.get_attribute("data-unit") for r in rows.all()] == [
+        "WEAR-FAST", "WEAR-SLOW", "STABLE"]
+    assert [r.get_attribute("data-forecast") for r in rows.all()] == ["D", "D", None]
+    assert "no trend" in page.locator('tr[data-unit="STABLE"] td.forecast').inner_text()
+    api = page.evaluate("(u) => fetch(u).then(r => r.json())", url + "api/units?sort=forecast")
+    fast = api["units"][0]["forecast"]
+    cell = page.locator('tr[data-unit="WEAR-FAST"] td.forecast').inner_text()
+    assert cell.startswith(f"D: {fast['median']:.2g} d (") or cell.startswith(
+        f"D: {fast['median']:.0f} d (")
+    page.get_by_role("link", name="WEAR-FAST").click()
+    page.wait_for_selector("svg.trend circle")
+    band = page.locator('svg.trend g.forecast[data-forecast="D"] polygon.forecast-band')
+    assert band.count() == 1
+    box = band.bounding_box()
+    assert box is not None and box["width"] > 20
+    assert page.locator("svg.trend g.forecast").count() == 1  # only the friction trends
+    legend = page.locator('[data-legend="forecast"]')
+    assert "forecast, 90 % interval" in legend.inner_text()
+    assert "Forecast: D no-go in" in page.locator("#forecast").inner_text()
+    page.screenshot(path=str(tmp_path / "wear.png"), full_page=True)
+    page.goto(url + "units/STABLE")
+    page.wait_for_selector("svg.trend circle")
+    assert page.locator("svg.trend g.forecast").count() == 0
+    assert page.locator('[data-legend="forecast"]').count() == 0
+    assert "none, no trend towards no-go" in page.locator("#forecast").inner_text()

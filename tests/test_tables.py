@@ -211,6 +211,17 @@ def test_units_table(history: History) -> None:
         count = str(u["tests"]) if not u["isolations"] else f"{u['isolations']} iso"
         row(out, u["unit"], u["model"], count, Path(u["latest_source"]).name,
             u["latest_date"][:10], u["status"])
+    # by urgency: the "no-go in" column, "—" for a unit that cannot be forecast
+    assert [u["forecast"] for u in units] == [None, None]
+    assert units[0]["forecast_reason"] == (  # test #2 excluded
+        "no baseline: 2 usable healthy test(s), a baseline needs 3")
+    assert units[1]["forecast_reason"] == "no baseline yet"  # H1: isolations only
+    out = history.run(None, "units", "--db", history.db, "--sort", "forecast")
+    row(out, "unit", "model", "tests", "latest", "date", "status", "no-go in")
+    for u in units:
+        count = str(u["tests"]) if not u["isolations"] else f"{u['isolations']} iso"
+        row(out, u["unit"], u["model"], count, Path(u["latest_source"]).name,
+            u["latest_date"][:10], u["status"], "—")
 
 
 @pytest.mark.parametrize("unit", [None, "E1", "H1"])

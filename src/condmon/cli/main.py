@@ -439,6 +439,7 @@ def check_cmd(
     if res.diagnosis is None:
         out.print(f"rejected: {res.estimate.reason}; the test is stored but changes no trend. "
                   "Retest.", markup=False)
+        _print_forecast(res.forecast)
         return
     table = Table()
     for col in ("parameter", "value", "unit", "change %", "SymH", "SymL"):
@@ -475,6 +476,23 @@ def check_cmd(
             markup=False, soft_wrap=True)
     if res.statistics is not None:
         out.print(res.statistics.describe(res.status), highlight=False, markup=False,
+                  soft_wrap=True)
+    _print_forecast(res.forecast)
+
+
+def _print_forecast(ahead: dict[str, Any]) -> None:
+    """The unit's earliest forecast to no-go after a check (none on a dry run)."""
+    from condmon.monitor.unit_forecast import remaining_text
+
+    f = ahead.get("forecast")
+    if f:
+        out.print(f"forecast: {f['parameter']} no-go in {remaining_text(f)}"
+                  + (f", about {f['date'][:10]}" if f["date"] else "")
+                  + (f" ({f['rule']})" if f["rule"] else "")
+                  + "; median (90 % interval), `condmon forecast` for more", highlight=False,
+                  markup=False, soft_wrap=True)
+    elif ahead.get("forecast_reason"):
+        out.print(f"forecast: none, {ahead['forecast_reason']}", highlight=False, markup=False,
                   soft_wrap=True)
 
 

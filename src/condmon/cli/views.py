@@ -25,30 +25,44 @@ def register(app: typer.Typer) -> None:
     @app.command("units")
     def units_cmd(
         db: DbOpt = "condmon.db",
-        as_json: Annotated[bool, typer.Option("--json", help="Print the units as JSON records.")] = False,
+        as_json: Annotated[bool, typer.Option("--json", help="Print the units as JSON records, each with its earliest forecast to no-go.")] = False,
+        sort: Annotated[str, typer.Option("--sort", help="Order: name, or forecast (the unit forecast to turn no-go soonest first).")] = "name",
     ) -> None:
-        """List the units of a history: model, tests and latest status."""
+        """List the units of a history: model, tests, latest status and when it turns no-go.
+
+        "no-go in": the earliest forecast to no-go of the unit's parameters
+        (`condmon forecast --unit U`), the tests (or days) left as a median
+        and a 90 % interval; "no trend" when none trends towards no-go, "—"
+        without enough checks since the baseline."""
+        from condmon.errors import ConfigError
+        from condmon.monitor.generic import load_generic_settings
         from condmon.store.db import open_store
         from condmon.store.engine import redact
+        from condmon.monitor.unit_forecast import remaining_text
+        from condmon.store.forecasts import by_urgency, fleet_summaries
 
-        from condmon.monitor.generic import load_generic_settings
-
+        if sort not in ("name", "forecast"):
+            raise ConfigError(f"--sort {sort!r}: allowed: name, forecast")
         least = load_generic_settings().group_min_units
         with open_store(db, create=False) as store:
-            rows = store.unit_summaries()
+            rows = fleet_summaries(store)
             small = {g: len(store.group_baselines(g)) for g in store.groups()}
         small = {g: n for g, n in small.items() if n < least}
+        if sort == "forecast":
+            rows = by_urgency(rows)
         if as_json:
             write_json({"units": rows})
             return
         grouped = any(r["group"] for r in rows)
         regimes = any(r["latest_regime"] for r in rows)
         table = Table(title=escape(f"Units in {redact(db)}"), box=box.SIMPLE_HEAD)
+        ahead = sort == "forecast" or any(r["forecast"] for r in rows)
         cols = ("unit", "model", *(("group",) if grouped else ()), "tests", "latest",
-                *(("regime",) if regimes else ()), "date", "status")
+                *(("regime",) if regimes else ()), "date", "status",
+                *(("no-go in",) if ahead else ()))
         for col in cols:  # names are folded, never cut: EMA-1… could be EMA-10 or EMA-11
             table.add_column(col, justify="right" if col == "tests" else "left",
-                             no_wrap=col in ("date", "status"), overflow="fold")
+                             no_wrap=col in ("date", "status", "no-go in"), overflow="fold")
         flagged = []
         for r in rows:
             model = Path(str(r["model"])).name
@@ -62,10 +76,16 @@ def register(app: typer.Typer) -> None:
                           *((escape(str(r["group"] or "—")),) if grouped else ()), count,
                           escape(Path(str(r["latest_source"] or "—")).name),
                           *((escape(str(r["latest_regime"] or "—")),) if regimes else ()),
-                          str(r["latest_date"] or "—")[:10], status)
+                          str(r["latest_date"] or "—")[:10], status,
+                          *((remaining_text(r["forecast"], r["forecast_reason"]),)
+                            if ahead else ()))
             if r["baseline_flags"]:
                 flagged.append(str(r["unit"]))
         out.print(table)
+        if ahead:
+            out.print("no-go in: the earliest forecast to no-go, tests (or days) left, median "
+                      "(90 % interval); `condmon forecast --unit U` for every parameter",
+                      markup=False, highlight=False, soft_wrap=True)
         if flagged:
             err.print(f"warning: baseline flagged for {', '.join(flagged)} (`condmon baseline list "
                       "--unit U` shows why)", highlight=False, markup=False, soft_wrap=True)

@@ -70,6 +70,14 @@ class Forecast:
     n : int
         Tests used.
     notes : tuple of str
+    coef : tuple of float
+        The chosen model's fitted coefficients ``(a, b)``: ``change = a + b·x``
+        (linear) or ``|change| = exp(a + b·x)`` (exponential; the linear fit's
+        for "no trend"). [%, % per x (linear); -, 1 per x (exponential)]
+    cov : tuple of float
+        Their covariance ``(var a, cov ab, var b)``.
+    last : float
+        ``x`` of the last test. [test (or d, h)]
     """
 
     model: str
@@ -80,11 +88,51 @@ class Forecast:
     p_within: float | None
     n: int
     notes: tuple[str, ...] = ()
+    coef: tuple[float, float] = (math.nan, math.nan)
+    cov: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+    last: float = math.nan
 
     @property
     def trend(self) -> bool:
         """Whether a trend towards the threshold was found."""
         return self.model != "no trend"
+
+    def band(self, ahead: ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The fitted trend continued past the last test, with its 90 % band.
+
+        Pointwise quantiles of the chosen model's fitted change under the
+        coefficients' covariance (the distribution the crossing is drawn
+        from: the band's edges meet the threshold at the 5 % and 95 % points
+        of ``remaining``).
+
+        Parameters
+        ----------
+        ahead : array_like
+            Tests (or days, hours) after the last one. [test (or d, h)]
+
+        Returns
+        -------
+        median, low, high : ndarray
+            The fitted change and its 90 % interval at each point. [%]
+
+        Example
+        -------
+        >>> x = np.arange(1.0, 16.0)
+        >>> f = forecast_series(x, 4.0 * x, np.full(15, 1.0), 2.0, threshold=100.0)
+        >>> med, lo, hi = f.band([0.0, 10.0])
+        >>> [round(float(v)) for v in med], bool(lo[1] < 100.0 < hi[1])
+        ([60, 100], True)
+        """
+        x = self.last + np.asarray(ahead, dtype=np.float64)
+        a, b = self.coef
+        var_a, cov_ab, var_b = self.cov
+        mid = a + b * x
+        half = _Z90 * np.sqrt(np.maximum(var_a + 2.0 * x * cov_ab + x * x * var_b, 0.0))
+        if self.model != "exponential":
+            return mid, mid - half, mid + half
+        sign = 1.0 if self.threshold > 0 else -1.0
+        ends = sign * np.exp(mid - half), sign * np.exp(mid + half)
+        return sign * np.exp(mid), np.minimum(*ends), np.maximum(*ends)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (inf as None)."""
@@ -184,6 +232,8 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
                      f"{aic['exponential']:.1f} exponential)")
     coef, cov, _ = fits[model]
     last = float(xa[-1])
+    fit = (float(coef[0]), float(coef[1]))
+    fit_cov = (float(cov[0, 0]), float(cov[0, 1]), float(cov[1, 1]))
     sd_b = math.sqrt(max(cov[1, 1], 0.0))
     if model == "linear":
         slope, slope_sd = float(coef[1]), sd_b
@@ -196,7 +246,8 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
         notes.append(f"the slope's 90 % interval [{interval[0]:.3g}, {interval[1]:.3g}] "
                      "holds no steady move towards the threshold")
         return Forecast("no trend", threshold, slope, interval, None,
-                        0.0 if horizon is not None else None, n, tuple(notes))
+                        0.0 if horizon is not None else None, n, tuple(notes), fit, fit_cov,
+                        last)
     draws = np.random.default_rng(seed).multivariate_normal(coef, cov, size=_DRAWS,
                                                             method="cholesky")
     a, b = draws[:, 0], draws[:, 1]
@@ -211,4 +262,5 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
     # the order statistics themselves: a draw that never crosses is inf, not interpolated
     med, lo, hi = (float(v) for v in np.quantile(left, [0.5, 0.05, 0.95], method="inverted_cdf"))
     p = float(np.mean(left <= horizon)) if horizon is not None else None
-    return Forecast(model, threshold, slope, interval, (med, lo, hi), p, n, tuple(notes))
+    return Forecast(model, threshold, slope, interval, (med, lo, hi), p, n, tuple(notes),
+                    fit, fit_cov, last)

@@ -8,7 +8,9 @@ bands, the active baseline's spread (±k·σ) around 0, and for each check the
 symptom half-width ±k·max(σ, SE) of its evaluation as its error bar (the one
 error bar of every figure and page, :func:`condmon.report.trends.error_bar`); each point
 is coloured by the status stored for it and filled when this parameter's
-symptom is above 0, so the picture agrees with the table. Excluded tests are
+symptom is above 0, so the picture agrees with the table; a parameter trending
+towards no-go gets its forecast: the fitted trend continued from the last check
+to the no-go line (r2, dotted) with its 90 % band shaded. Excluded tests are
 never drawn; rejected ones only in the fit figure.
 
 Every legend sits outside the axes (below them), so it never covers a point;
@@ -30,7 +32,7 @@ from typing import IO, TYPE_CHECKING, Any, TypeVar
 import numpy as np
 
 if TYPE_CHECKING:
-    from condmon.report.trends import FitData, IsolationTrend, TrendData
+    from condmon.report.trends import FitData, ForecastBand, IsolationTrend, TrendData
 
 __all__ = ["plot_trends", "plot_fits", "plot_symptoms", "plot_isolation_trends",
            "trend_figure", "fit_figure", "symptom_figure", "isolation_figure", "new_figure",
@@ -167,16 +169,43 @@ def _bottom_axes(axes: Any, n: int) -> list[Any]:
                                      for c in range(min(2, len(flat)))})]
 
 
-def trend_figure(trends: Sequence[TrendData]) -> Any:
+def _forecast(ax: Any, d: TrendData, band: ForecastBand) -> bool:
+    """The fitted trend continued from the last check to the no-go line, its
+    90 % band shaded, and the no-go line; whether it was drawn."""
+    from condmon.report.trends import FORECAST_LABEL
+
+    where = {i: j for j, i in enumerate(d.test_ids)}
+    at = [where[i] for i in band.test_ids if i in where]
+    dated = _dated(d.x)
+    if len(at) < 2 or (band.by == "days" and not dated):
+        return False
+    x = d.x[at].astype("datetime64[ns]").astype(np.int64).astype(np.float64) if dated \
+        else np.asarray(d.x[at], dtype=np.float64)
+    ahead = band.x(x, 86400e9)
+    xs = ahead.astype(np.int64).astype("datetime64[ns]") if dated else ahead
+    ax.fill_between(xs, band.low, band.high, color="#7e57c2", alpha=0.4, lw=0,
+                    label=FORECAST_LABEL, zorder=1)
+    ax.plot(xs, band.median, "--", color="#5e35b1", lw=1.0, zorder=2,
+            label="forecast: the fitted trend continued")
+    ax.axhline(band.threshold, color="#b71c1c", ls=":", lw=1.2, zorder=2, label="no-go (r2)")
+    return True
+
+
+def trend_figure(trends: Sequence[TrendData], bands: Sequence[ForecastBand] = ()) -> Any:
     """The trend figure of :func:`plot_trends` (a matplotlib ``Figure``)."""
     from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
 
-    from condmon.report.trends import error_bar
+    from condmon.report.trends import FORECAST_LABEL, error_bar
 
     n = len(trends)
     fig, axes = _grid(n, 2.4, 1.4)
     statuses: dict[str, None] = {}
+    ahead = {b.parameter: b for b in bands}
+    forecast = False
     for ax, d in zip(axes.ravel(), trends):
+        if d.parameter in ahead:
+            forecast = _forecast(ax, d, ahead[d.parameter]) or forecast
         reach = np.abs(d.change) + np.nan_to_num(d.width)
         top = max(d.r2 * 1.15, float(np.nanmax(reach)) * 1.1 if np.isfinite(reach).any() else 0)
         _bands(ax, d.r1, d.r2, top)
@@ -215,6 +244,11 @@ def trend_figure(trends: Sequence[TrendData]) -> Any:
         seen[f"error bar {error_bar(k)}"] = Line2D([], [], ls="-", color="0.3", lw=0.8)
         seen["filled: this symptom > 0"] = Line2D([], [], ls="", marker="o", color="0.3")
         seen["open: this symptom = 0"] = Line2D([], [], ls="", marker="o", mec="0.3", mfc="white")
+        if forecast:  # whichever panel drew it
+            seen[FORECAST_LABEL] = Patch(color="#7e57c2", alpha=0.4, lw=0)
+            seen["forecast: the fitted trend continued"] = Line2D([], [], ls="--",
+                                                                  color="#5e35b1", lw=1.0)
+            seen["no-go (r2)"] = Line2D([], [], ls=":", color="#b71c1c", lw=1.2)
         legend_below(fig, (list(seen.values()), list(seen)), ncol=5)
     fig.suptitle("Change against the healthy baseline (excluded and rejected tests not "
                  f"drawn)\nerror bars: {error_bar(k)}, the symptom half-width (σ: baseline "
@@ -222,7 +256,8 @@ def trend_figure(trends: Sequence[TrendData]) -> Any:
     return fig
 
 
-def plot_trends(trends: Sequence[TrendData], path: Target) -> Target:
+def plot_trends(trends: Sequence[TrendData], path: Target,
+                bands: Sequence[ForecastBand] = ()) -> Target:
     """Percent change of each parameter over the trended checks.
 
     Parameters
@@ -231,12 +266,17 @@ def plot_trends(trends: Sequence[TrendData], path: Target) -> Target:
         One per parameter (:func:`condmon.report.trends.trend_data`), same tests.
     path : str, Path or binary file
         Where the PNG goes.
+    bands : sequence of ForecastBand
+        Forecasts to no-go (:func:`condmon.report.trends.forecast_band`): on
+        its parameter's panel, the fitted trend continued from the last check
+        with its 90 % band shaded ("forecast, 90 % interval") and the no-go
+        line.
 
     Returns
     -------
     The ``path`` given.
     """
-    return save_figure(trend_figure(trends), path)
+    return save_figure(trend_figure(trends, bands), path)
 
 
 def fit_figure(data: FitData, threshold: float) -> Any:

@@ -126,7 +126,10 @@ def _tests_part(store: HistoryStore, unit: str, hist: Any, cfg: MonitorConfig, s
     """The checks, baseline, figures and tests table of an actuator unit."""
     from condmon.report import figures as F
     from condmon.report.reading import check_faults
-    from condmon.report.trends import error_bar, fit_data, trend_data, unexplained
+    from condmon.report.trends import (
+        FORECAST_LABEL, error_bar, fit_data, forecast_bands, trend_data, unexplained,
+    )
+    from condmon.store.forecasts import try_forecast
 
     every = store.baselines(unit)
     by_id = {b.id: b.baseline for b in every}
@@ -150,13 +153,17 @@ def _tests_part(store: HistoryStore, unit: str, hist: Any, cfg: MonitorConfig, s
     figs = [F.plot_fits(fits, fit_threshold, out / f"{name}-fits.png")]
     body.append("<h2>Trends</h2>")
     if trends and trends[0].test_ids:
-        figs = [F.plot_trends(trends, out / f"{name}-trends.png"), *figs,
+        bands = forecast_bands(try_forecast(store, unit)[0])
+        figs = [F.plot_trends(trends, out / f"{name}-trends.png", bands), *figs,
                 F.plot_symptoms(trends, out / f"{name}-symptoms.png")]
         body.append(
             "<p class='sub'>Each check's change against its baseline, coloured by its "
             f"status; {esc(error_bar(cfg.k, words=True))} (filled marker: above 0). Blue: "
             f"the active baseline's ±{cfg.k:g}·σ. Excluded and rejected tests are not "
-            "drawn.</p>")
+            "drawn." + (f" Purple ({FORECAST_LABEL}): the fitted trend of "
+                        f"{esc(', '.join(b.parameter for b in bands))} continued from the last "
+                        "check to the no-go line (r2, dotted), as <code>condmon forecast</code> "
+                        "gives it." if bands else "") + "</p>")
     else:
         body.append("<p class='sub'>No accepted check to trend yet.</p>")
     body += [f"<img src='{esc(f.name)}' alt='{esc(unit)}: {esc(f.stem[len(name) + 1:])}'>"

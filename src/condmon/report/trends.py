@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -29,10 +29,17 @@ import pandas as pd
 from condmon.monitor.baseline import Baseline
 from condmon.monitor.fuzzy import symptom_width
 
-__all__ = ["TrendData", "FitData", "IsolationTrend", "trend_data", "fit_data",
-           "isolation_trend", "unexplained", "axis_label", "error_bar"]
+if TYPE_CHECKING:
+    from condmon.monitor.unit_forecast import ParameterForecast, UnitForecast
+
+__all__ = ["TrendData", "FitData", "IsolationTrend", "ForecastBand", "trend_data", "fit_data",
+           "isolation_trend", "unexplained", "axis_label", "error_bar", "forecast_band",
+           "forecast_bands", "FORECAST_LABEL"]
 
 FloatArray = np.ndarray[Any, np.dtype[np.float64]]
+
+#: What the shaded forecast band is, in every figure and page that draws it.
+FORECAST_LABEL = "forecast, 90 % interval"
 
 #: Statuses that ground a unit or call for attention.
 _ALARM = ("advisory", "no-go")
@@ -380,3 +387,76 @@ def isolation_trend(isolations: pd.DataFrame) -> IsolationTrend:
                           "rejected from the comparison" if rejected.any() else "not estimated")
     return IsolationTrend(tuple(int(i) for i in rows.index), x, label,
                           tuple(str(s) for s in rows["status"]), change, isolated, unshown)
+
+
+@dataclass(frozen=True)
+class ForecastBand:
+    """What a trend figure draws of one parameter's forecast to no-go.
+
+    Attributes
+    ----------
+    parameter : str
+    by : {"tests", "days"}
+        What ``ahead`` counts.
+    test_ids : tuple of int
+        The checks of the forecast's series, in order (the band starts at the last).
+    ahead : ndarray
+        Tests (or days) after the last check, from 0 to past the median
+        crossing. [tests (or d)]
+    median, low, high : ndarray
+        The fitted trend continued and its 90 % band at ``ahead``. [%]
+    threshold : float
+        The no-go change (r2, signed in the trend's direction). [%]
+    """
+
+    parameter: str
+    by: str
+    test_ids: tuple[int, ...]
+    ahead: FloatArray
+    median: FloatArray
+    low: FloatArray
+    high: FloatArray
+    threshold: float
+
+    def x(self, at: Sequence[float] | FloatArray, day: float) -> FloatArray:
+        """``ahead`` on a figure's x axis, from the x of the series' checks
+        ``at`` (numbers: test positions, seconds or nanoseconds): a day is
+        ``day`` of them; a test, the checks' mean spacing."""
+        first, last = float(at[0]), float(at[-1])
+        step = day if self.by == "days" else (last - first) / max(len(at) - 1, 1)
+        return np.asarray(last + self.ahead * step, dtype=np.float64)
+
+
+def forecast_band(forecast: ParameterForecast, by: str, points: int = 40) -> ForecastBand | None:
+    """The band a trend figure draws for a parameter trending towards no-go.
+
+    From the last check to past the median crossing (to the 95 % point of
+    the tests (days) left, at most twice the median), the fitted trend and
+    its 90 % band (:meth:`condmon.monitor.forecast.Forecast.band`). None
+    without a trend.
+
+    Parameters
+    ----------
+    forecast : ParameterForecast
+    by : {"tests", "days"}
+        What the unit's forecasts count.
+    points : int
+        Points along the band.
+    """
+    f = forecast.forecast
+    if f.remaining is None or not forecast.test_ids:
+        return None
+    med, _, high = f.remaining
+    end = min(high, 2.0 * med) if np.isfinite(med) else max(f.last, 1.0)
+    ahead = np.linspace(0.0, max(float(end), 1e-9), points)
+    mid, lo, hi = f.band(ahead)
+    return ForecastBand(forecast.parameter, by, forecast.test_ids, ahead, mid, lo, hi,
+                        float(f.threshold))
+
+
+def forecast_bands(forecast: UnitForecast | None) -> tuple[ForecastBand, ...]:
+    """The band of every parameter of a unit's forecast that trends towards no-go."""
+    if forecast is None:
+        return ()
+    bands = (forecast_band(p, forecast.by) for p in forecast.parameters)
+    return tuple(b for b in bands if b is not None)

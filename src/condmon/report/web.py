@@ -11,17 +11,21 @@ Routes
 ------
 ``/``
     Every unit with its latest status, model, date, number of tests and
-    isolations and baseline flags. ``?status=no-go&q=EMA`` filters (several
-    statuses: ``status=go,advisory``; ``q``: part of the name, any case).
+    isolations, baseline flags and earliest forecast to no-go
+    ("no-go in"). ``?status=no-go&q=EMA`` filters (several statuses:
+    ``status=go,advisory``; ``q``: part of the name, any case);
+    ``sort=forecast`` lists the unit forecast to turn no-go soonest first.
 ``/units/<unit>``
     One unit: latest status and fault advice, trend figure (inline SVG: change
     against the baseline over the test dates, or the test ids when none is
     recorded; r1/r2 bands, the baseline spread, each test's symptom
-    half-width ±k·max(σ, SE) as its error bar), the report's fit, symptom and
+    half-width ±k·max(σ, SE) as its error bar; for a parameter trending
+    towards no-go, the fitted trend continued to the no-go line with its
+    90 % band), the report's fit, symptom and
     isolation figures (drawn by :mod:`condmon.report.figures` at each request,
     as ``data:`` images), baseline, tests, isolations.
 ``/api/units``
-    ``{"units": [...]}`` as ``condmon units --json`` (same filters as ``/``).
+    ``{"units": [...]}`` as ``condmon units --json`` (same filters and sort as ``/``).
 ``/api/units/<unit>``
     The unit's overview, tests (as ``condmon history --json``), isolations,
     baseline and latest fault advice.
@@ -53,12 +57,14 @@ from werkzeug.exceptions import HTTPException
 from werkzeug.routing import BaseConverter
 
 from condmon.errors import CondmonError
+from condmon.monitor.unit_forecast import remaining_text
 from condmon.report.figures import STATUS_COLOURS
 from condmon.report.live import LiveFeed, with_live
 from condmon.report.tables import unit_of
 from condmon.report.trends import error_bar
+from condmon.store.forecasts import fleet_summaries
 from condmon.report.web_data import (
-    STATUSES, FilterError, UnitData, UnknownUnitError, _filtered, _History, _statuses,
+    SORTS, STATUSES, FilterError, UnitData, UnknownUnitError, _filtered, _History, _statuses,
     fleet_document, read_unit, readonly_url, unit_document,
 )
 from condmon.report.web_render import (
@@ -147,6 +153,7 @@ def create_app(db: str | Path, *, refresh: float = 30.0, live: LiveFeed | None =
                                  else history.db.split("@")[-1])
     app.jinja_env.filters["model_name"] = lambda m: Path(str(m)).name
     app.jinja_env.filters["when"] = _fmt_date
+    app.jinja_env.filters["remaining"] = remaining_text
 
     def wants_json() -> bool:
         return request.path.startswith("/api/")
@@ -179,12 +186,12 @@ def create_app(db: str | Path, *, refresh: float = 30.0, live: LiveFeed | None =
 
     def summaries() -> list[dict[str, Any]]:
         with history.open() as store:
-            units = store.unit_summaries()
+            units = fleet_summaries(store)
         return with_live(units, live)
 
     def fleet() -> dict[str, Any]:
         return {"units": _filtered(summaries(), _statuses(request.args.getlist("status")),
-                                   request.args.get("q"))}
+                                   request.args.get("q"), request.args.get("sort"))}
 
     @app.get("/api/events")
     def events() -> Response:
@@ -216,10 +223,11 @@ def create_app(db: str | Path, *, refresh: float = 30.0, live: LiveFeed | None =
         tally: dict[str, int] = {}
         for u in everyone:
             tally[u["status"] or "none"] = tally.get(u["status"] or "none", 0) + 1
-        units = _filtered(everyone, chosen, request.args.get("q"))
+        units = _filtered(everyone, chosen, request.args.get("q"), request.args.get("sort"))
         return render_template("index.html", units=units, total=len(everyone),
                                tally=[(s, tally[s]) for s in STATUSES if s in tally],
                                statuses=STATUSES, chosen=chosen,
+                               sort=request.args.get("sort") or "name", sorts=SORTS,
                                q=request.args.get("q", ""), refresh=refresh,
                                events=url_for("events") if live is not None else "",
                                now=datetime.now(timezone.utc).strftime("%H:%M:%S"))

@@ -25,16 +25,19 @@ if TYPE_CHECKING:
     import pandas as pd
 
     from condmon.monitor.fuzzy import MonitorConfig
+    from condmon.monitor.unit_forecast import UnitForecast
     from condmon.store.baselines import StoredBaseline
     from condmon.store.db import HistoryStore
 
 __all__ = ["readonly_url", "fleet_document", "unit_document", "read_unit", "UnitData",
-           "UnknownUnitError", "STATUSES"]
+           "UnknownUnitError", "STATUSES", "SORTS"]
 
 #: Statuses a unit can show (``building``: its baseline is not saved yet; ``none``:
 #: nothing stored yet), in the filter's order.
 STATUSES = ("no-go", "advisory", "retest", "stale", "go", "unchecked", "building", "baseline",
             "rejected", "excluded", "none")
+#: Orders of the fleet: by name, or by urgency (earliest forecast to no-go first).
+SORTS = ("name", "forecast")
 
 
 class UnknownUnitError(CondmonError, LookupError):
@@ -126,8 +129,9 @@ def _statuses(values: Sequence[str]) -> set[str]:
 
 
 def fleet_document(store: HistoryStore, status: Sequence[str] = (),
-                   q: str | None = None) -> dict[str, Any]:
-    """``{"units": [...]}``: :meth:`HistoryStore.unit_summaries`, filtered.
+                   q: str | None = None, sort: str | None = None) -> dict[str, Any]:
+    """``{"units": [...]}``: :func:`condmon.store.forecasts.fleet_summaries`
+    (every unit's latest status and earliest forecast to no-go), filtered.
 
     Parameters
     ----------
@@ -137,20 +141,37 @@ def fleet_document(store: HistoryStore, status: Sequence[str] = (),
         be comma-separated); ``none`` is a unit with nothing stored. Empty: all.
     q : str, optional
         Keep the units whose name contains this text (any case).
+    sort : {"name", "forecast"}, optional
+        Order of the units: by name (default), or by urgency, the unit
+        forecast to turn no-go soonest first
+        (:func:`condmon.store.forecasts.by_urgency`).
 
     Raises
     ------
     ConfigError
-        A status not in :data:`STATUSES`.
+        A status not in :data:`STATUSES`, a sort not in :data:`SORTS`.
     """
-    return {"units": _filtered(store.unit_summaries(), _statuses(status), q)}
+    from condmon.store.forecasts import fleet_summaries
+
+    return {"units": _filtered(fleet_summaries(store), _statuses(status), q, sort)}
+
+
+def _sort(sort: str | None) -> str:
+    if sort in (None, ""):
+        return "name"
+    if sort not in SORTS:
+        raise FilterError(f"unknown sort {sort}; allowed: {', '.join(SORTS)}")
+    return str(sort)
 
 
 def _filtered(units: list[dict[str, Any]], wanted: set[str],
-              q: str | None) -> list[dict[str, Any]]:
+              q: str | None, sort: str | None = None) -> list[dict[str, Any]]:
+    from condmon.store.forecasts import by_urgency
+
     text = (q or "").strip().casefold()
-    return [json_safe(u) for u in units if (not wanted or (u["status"] or "none") in wanted)
+    kept = [json_safe(u) for u in units if (not wanted or (u["status"] or "none") in wanted)
             and text in str(u["unit"]).casefold()]
+    return by_urgency(kept) if _sort(sort) == "forecast" else kept
 
 
 @dataclass(frozen=True)
@@ -179,6 +200,10 @@ class UnitData:
         bar comes from the one it was evaluated with).
     units : dict of str to str
         Unit of every parameter of the model (empty when it cannot be loaded).
+    forecast : UnitForecast or None
+        Every parameter's forecast to no-go
+        (:func:`condmon.store.forecasts.read_forecast`); None without one
+        (the overview's ``forecast_reason`` says why).
     """
 
     unit: str
@@ -192,6 +217,7 @@ class UnitData:
     monitor: MonitorConfig | None
     baselines: tuple[StoredBaseline, ...] = ()
     units: dict[str, str] = field(default_factory=dict)
+    forecast: UnitForecast | None = None
 
 
 def _faults(store: HistoryStore, test_id: int, baseline_id: Any) -> list[dict[str, Any]]:
@@ -220,6 +246,7 @@ def read_unit(store: HistoryStore, unit: str) -> UnitData:
     from condmon.models.registry import get_model
     from condmon.monitor.generic import machine_monitor
     from condmon.report.reading import model_units
+    from condmon.store.forecasts import forecast_fields, try_forecast
 
     model = store.unit_model(unit)
     if model is None:
@@ -245,16 +272,19 @@ def read_unit(store: HistoryStore, unit: str) -> UnitData:
             faults = _faults(store, advice_test, latest["baseline_id"])
     group = store.unit_group(unit)
     unlike = store.group_flags().get(unit, []) if group else []
-    return UnitData(unit, model, _overview(unit, model, hist, isos, baseline, group, unlike),
-                    hist, isos, baseline, advice_test, faults, monitor,
-                    tuple(store.baselines(unit)) if len(hist) else (), units)
+    forecast, why = try_forecast(store, unit)
+    overview = {**_overview(unit, model, hist, isos, baseline, group, unlike),
+                **json_safe(forecast_fields(forecast, why))}
+    return UnitData(unit, model, overview, hist, isos, baseline, advice_test, faults, monitor,
+                    tuple(store.baselines(unit)) if len(hist) else (), units, forecast)
 
 
 def _overview(unit: str, model: str, hist: pd.DataFrame, isos: pd.DataFrame,
               baseline: StoredBaseline | None, group: str | None,
               unlike: list[dict[str, Any]]) -> dict[str, Any]:
     """The unit's entry of :meth:`HistoryStore.unit_summaries`, from what the page
-    has read anyway (that method reads every unit: seconds for a large fleet)."""
+    has read anyway (that method reads every unit: seconds for a large fleet);
+    :func:`read_unit` adds its forecast fields."""
     from condmon.store.views import building_summary
 
     status = source = when = summary = regime = None

@@ -5,7 +5,8 @@ This module holds the rendering side of :mod:`condmon.report.web`, free of
 the web framework: the trend panels a unit's page draws as SVG (each
 parameter's change against the baseline over the test dates, or the test ids
 when none is recorded, with the r1/r2 bands, the baseline spread and each
-test's symptom half-width ±k·max(σ, SE) as its error bar), the report's fit,
+test's symptom half-width ±k·max(σ, SE) as its error bar, and for a parameter
+trending towards no-go its forecast band), the report's fit,
 symptom and isolation figures as ``data:`` images (drawn by
 :mod:`condmon.report.figures`), the rows of its tests and isolations tables
 (each suspect's numbers with their units, as the report's), and the dates as
@@ -24,7 +25,7 @@ from condmon.report.figures import STATUS_COLOURS
 from condmon.report.tables import (
     SUSPECT_HEADS, isolation_suspects, latest_isolation, suspect_cells, test_note,
 )
-from condmon.report.trends import error_bar
+from condmon.report.trends import FORECAST_LABEL, error_bar, forecast_bands
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -56,6 +57,14 @@ class _Point:
 
 
 @dataclass(frozen=True)
+class _Forecast:
+    band: str      # the 90 % band's polygon
+    trend: str     # the fitted trend continued
+    no_go: float   # y of the no-go line
+    title: str
+
+
+@dataclass(frozen=True)
 class _Panel:
     parameter: str
     bands: list[tuple[float, float, str]]
@@ -70,6 +79,7 @@ class _Panel:
     right: int = _W - _RIGHT
     top: int = _TOP
     bottom: int = _H - _BOTTOM
+    forecast: _Forecast | None = None
 
 
 @dataclass(frozen=True)
@@ -82,6 +92,7 @@ class _Trends:
     spread: bool = False
     untrended: list[str] = field(default_factory=list)
     checks: tuple[TrendData, ...] = ()  # what the report's trend and symptom figures draw
+    forecast: bool = False  # a panel draws a forecast band
 
 
 def _nice(span: float, count: int = 5) -> float:
@@ -128,13 +139,20 @@ def _trends(data: UnitData) -> _Trends:
     shown = sorted({*members, *checks})
     if dated:  # on the time axis
         where = {i: stamps[i] for i in shown}
-        lo, hi = min(where.values()), max(where.values())
+    else:  # no test dates: one step per test, in id order
+        where = {i: float(n) for n, i in enumerate(shown)}
+    ahead = {b.parameter: (b, b.x([where[i] for i in b.test_ids], 86400.0))
+             for b in forecast_bands(data.forecast)
+             if all(i in where for i in b.test_ids) and (dated or b.by == "tests")}
+    if dated:
+        lo = min(where.values())
+        hi = max([*where.values(), *(float(x[-1]) for _, x in ahead.values())])
         pad = max((hi - lo) * 0.05, 3600.0)
         lo, hi = lo - pad, hi + pad
         xticks = _time_ticks(lo, hi)
-    else:  # no test dates: one step per test, in id order
-        where = {i: float(n) for n, i in enumerate(shown)}
-        lo, hi = -0.6, len(shown) - 0.4
+    else:
+        lo = -0.6
+        hi = max([len(shown) - 0.4, *(float(x[-1]) + 0.4 for _, x in ahead.values())])
         every = max(1, math.ceil(len(shown) / 12))
         xticks = [(where[i], f"#{i}") for i in shown[::every]]
 
@@ -188,17 +206,30 @@ def _trends(data: UnitData) -> _Trends:
                                  f"#{i} {when} {role}: {p} {c:+.1f} %{bar}", member))
             seen.append(s)
         line = " ".join(f"{q.x:.1f},{q.y:.1f}" for q in points if not q.member)
+        drawn_band = None
+        if p in ahead:
+            fb, fx = ahead[p]
+
+            def at(v: float, top: float = top) -> float:
+                return py(min(max(v, -top), top))
+
+            edge = [f"{px(x):.1f},{at(y):.1f}" for x, y in zip(fx, fb.low)]
+            edge += [f"{px(x):.1f},{at(y):.1f}" for x, y in zip(fx[::-1], fb.high[::-1])]
+            drawn_band = _Forecast(
+                " ".join(edge), " ".join(f"{px(x):.1f},{at(y):.1f}" for x, y in zip(fx, fb.median)),
+                at(fb.threshold), f"{p}: {FORECAST_LABEL} of the fitted trend continued to the "
+                f"no-go line ({fb.threshold:+g} %)")
         panels.append(_Panel(p, bands, py(0.0), [(py(v), f"{v:+g}") for v in ticks],
                              [(px(t), label) for t, label in xticks
                               if 28 <= px(t) <= _W - 28],  # the label fits the figure
-                             points, line))
+                             points, line, forecast=drawn_band))
     xlabel = ("test date (UTC)" if dated and not hist["test_date"].isna().any() else
               "date (UTC): test date, else when stored" if dated else
               "test # (no test dates recorded)")
     order: list[str] = [s for s in ("baseline", "go", "advisory", "no-go", "unchecked")
                         if s in seen]
     return _Trends(panels, xlabel, order, k, cfg is not None, bool(stats), _untrended(hist),
-                   tuple(drawn))
+                   tuple(drawn), any(q.forecast for q in panels))
 
 
 # -- the report's figures, as images in the page ------------------------------------------

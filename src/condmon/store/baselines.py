@@ -6,16 +6,21 @@ import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime, timezone
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import sqlalchemy as sa
 
-from condmon.monitor.baseline import Baseline
+from condmon.errors import DataError
+from condmon.monitor.baseline import MIN_BASELINE_TESTS, Baseline, make_baseline
 from condmon.store import schema as S
 from condmon.store.base import StoreBase, as_utc, check_name, now
 from condmon.store.engine import StoreError
 
-__all__ = ["BaselinesMixin", "StoredBaseline", "DEFAULT_BASELINE", "id_runs"]
+if TYPE_CHECKING:
+    from condmon.store.db import HistoryStore
+
+__all__ = ["BaselinesMixin", "StoredBaseline", "DEFAULT_BASELINE", "id_runs", "baseline_members",
+           "current_baseline"]
 
 #: Name of a unit's baseline until another is chosen.
 DEFAULT_BASELINE = "default"
@@ -264,3 +269,43 @@ class BaselinesMixin(StoreBase):
             return None if row is None else self._stored(c, unit, row)
 
         return self._read(run)
+
+
+# -- a unit's baseline in use, read from the store ------------------------------------
+def baseline_members(store: HistoryStore, unit: str) -> tuple[list[int], StoredBaseline | None]:
+    """Tests of the unit's active baseline (its latest version without the
+    tests excluded or rejected since), or every accepted, not excluded healthy
+    test while no version exists; with that latest version."""
+    if store.unit_model(unit) is None:  # a new unit: no tests yet
+        return [], None
+    latest = store.latest_baseline(unit)
+    if latest is None:
+        return store.usable_tests(unit, role="baseline"), None
+    keep = set(store.usable_tests(unit))
+    return [i for i in latest.test_ids if i in keep], latest
+
+
+def _baseline_of(store: HistoryStore, unit: str, ids: Sequence[int]) -> Baseline:
+    values, _ = store.estimates_of(ids)
+    order = store.parameter_order(unit, list(values.columns))
+    return make_baseline(values[order].to_numpy(), order)
+
+
+def current_baseline(store: HistoryStore, unit: str) -> tuple[Baseline, list[int]]:
+    """Baseline of a unit (its active baseline's tests) and their ids.
+
+    Raises
+    ------
+    DataError
+        Fewer than 3 usable tests.
+    """
+    ids, latest = baseline_members(store, unit)
+    if len(ids) < MIN_BASELINE_TESTS:
+        why = ("" if latest is None else
+               f" (baseline {latest.name!r} v{latest.version} after exclusions)")
+        raise DataError(f"unit {unit!r} has {len(ids)} accepted healthy test(s){why}; a "
+                        f"baseline needs at least {MIN_BASELINE_TESTS}: add them with "
+                        f"`condmon baseline add REC... --unit {unit}`")
+    if latest is not None and list(latest.test_ids) == ids:
+        return latest.baseline, ids
+    return _baseline_of(store, unit, ids), ids

@@ -35,6 +35,7 @@ from condmon.monitor.statistics import (
     CheckStatistics, StatisticsConfig, check_statistics, checked_alpha,
 )
 from condmon.store.db import HistoryStore
+from condmon.store.forecasts import forecast_fields, try_forecast
 from condmon.workflows.monitoring import (
     _existing_baseline, _held, _unit_error, _unit_options, current_baseline, evaluate,
     filed_elsewhere, monitoring_of, no_baseline_yet, save_current_baseline,
@@ -78,6 +79,11 @@ class CheckResult:
         The calibrated change and drift tests beside the status
         (:mod:`condmon.monitor.statistics`); None for a rejected test, or one
         compared with another's baseline.
+    forecast : dict
+        The unit's earliest forecast to no-go after this check, with the
+        check counted: ``{"forecast", "forecast_reason"}``
+        (:func:`condmon.store.forecasts.forecast_fields`; ``forecast`` None
+        with fewer than 3 checks since the baseline, no trend, a dry run).
     """
 
     unit: str
@@ -94,6 +100,7 @@ class CheckResult:
     note: str | None = None
     against: str = "unit"
     statistics: CheckStatistics | None = None
+    forecast: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready result (the ``condmon check --json`` document)."""
@@ -124,6 +131,8 @@ class CheckResult:
             "held": est["held"],
             "against": self.against,
             "statistics": None if self.statistics is None else self.statistics.to_dict(),
+            "forecast": self.forecast.get("forecast"),
+            "forecast_reason": self.forecast.get("forecast_reason", "not stored: a dry run"),
             "note": self.note,
             "condition": None if self.diagnosis is None else self.diagnosis.condition,
             "preprocessing_applied": ([] if self.diagnosis is None
@@ -251,6 +260,11 @@ def reference_for(store: HistoryStore, unit: str, machine: Machine, against: str
     return group_reference(store, peers, machine.origin or machine.name, exclude=unit)
 
 
+def _forecast(store: HistoryStore, unit: str, dry_run: bool) -> dict[str, Any]:
+    """The unit's earliest forecast to no-go, read after the check is stored."""
+    return {} if dry_run else forecast_fields(*try_forecast(store, unit))
+
+
 def check_test(store: HistoryStore, unit: str, record: RecordLike,
                options: EstimateOptions | None = None, monitor: MonitorConfig | None = None,
                rules: RuleBase | None = None, dry_run: bool = False,
@@ -314,7 +328,7 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
                                                 test_date=key.test_date)
         return CheckResult(unit, tid, res, "retest", baseline, baseline_flags=flags,
                            test_date=key.test_date, warning=filed_elsewhere(store, unit, key),
-                           against=against_label)
+                           against=against_label, forecast=_forecast(store, unit, dry_run))
     row, diag = evaluate(res, baseline, cfg, rb, machine.spec.report)
     stats = (unit_statistics(store, unit, ids, baseline, res,
                              dataclasses.replace(cfg.statistics, **override))
@@ -340,7 +354,7 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
                        {p: v["percent_change"] for p, v in row.items()},
                        {p: {"high": v["high"], "low": v["low"]} for p, v in row.items()},
                        diag, flags, key.test_date, filed_elsewhere(store, unit, key), note,
-                       against_label, stats)
+                       against_label, stats, _forecast(store, unit, dry_run))
 
 
 def unit_statistics(store: HistoryStore, unit: str, ids: list[int], baseline: Baseline,

@@ -253,8 +253,9 @@ def _commit_baseline_test(store: HistoryStore, plan: _Unit, out: RecordOutcome,
     tests (the unit's first, or one with a new regime)."""
     from condmon.errors import DataError
     from condmon.monitor.baseline import MIN_BASELINE_TESTS
+    from condmon.store.baselines import _baseline_of
     from condmon.workflows.monitoring import (
-        _baseline_of, _unit_error, filed_elsewhere, save_current_baseline,
+        _unit_error, filed_elsewhere, save_current_baseline,
     )
 
     res, key = out.estimate, out.key

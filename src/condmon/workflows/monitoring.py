@@ -29,11 +29,13 @@ from condmon.models.machine import Machine
 from condmon.models.regimes import split_key
 from condmon.models.registry import get_model
 from condmon.monitor.baseline import (
-    MIN_BASELINE_TESTS, Baseline, assess_baseline, make_baseline, missing_regimes,
+    MIN_BASELINE_TESTS, Baseline, assess_baseline, missing_regimes,
 )
 from condmon.monitor.fuzzy import MonitorConfig, compute_symptoms
 from condmon.monitor.generic import describe_generic, machine_monitor
-from condmon.store.baselines import StoredBaseline
+from condmon.store.baselines import (  # read from the store only; kept here for callers
+    StoredBaseline, _baseline_of, baseline_members, current_baseline,
+)
 from condmon.store.db import DuplicateTestError, HistoryStore
 from condmon.workflows.records import EstimateOptions, RecordKey, RecordLike, record_key
 
@@ -113,45 +115,6 @@ def monitoring_of(machine: Machine, baseline: Baseline, monitor: MonitorConfig |
     rb = rules or machine_rules(machine)
     rb.check_parameters(machine.spec.report)
     return cfg, rb
-
-
-def baseline_members(store: HistoryStore, unit: str) -> tuple[list[int], StoredBaseline | None]:
-    """Tests of the unit's active baseline (its latest version without the
-    tests excluded or rejected since), or every accepted, not excluded healthy
-    test while no version exists; with that latest version."""
-    if store.unit_model(unit) is None:  # a new unit: no tests yet
-        return [], None
-    latest = store.latest_baseline(unit)
-    if latest is None:
-        return store.usable_tests(unit, role="baseline"), None
-    keep = set(store.usable_tests(unit))
-    return [i for i in latest.test_ids if i in keep], latest
-
-
-def _baseline_of(store: HistoryStore, unit: str, ids: Sequence[int]) -> Baseline:
-    values, _ = store.estimates_of(ids)
-    order = store.parameter_order(unit, list(values.columns))
-    return make_baseline(values[order].to_numpy(), order)
-
-
-def current_baseline(store: HistoryStore, unit: str) -> tuple[Baseline, list[int]]:
-    """Baseline of a unit (its active baseline's tests) and their ids.
-
-    Raises
-    ------
-    DataError
-        Fewer than 3 usable tests.
-    """
-    ids, latest = baseline_members(store, unit)
-    if len(ids) < MIN_BASELINE_TESTS:
-        why = ("" if latest is None else
-               f" (baseline {latest.name!r} v{latest.version} after exclusions)")
-        raise DataError(f"unit {unit!r} has {len(ids)} accepted healthy test(s){why}; a "
-                        f"baseline needs at least {MIN_BASELINE_TESTS}: add them with "
-                        f"`condmon baseline add REC... --unit {unit}`")
-    if latest is not None and list(latest.test_ids) == ids:
-        return latest.baseline, ids
-    return _baseline_of(store, unit, ids), ids
 
 
 def save_current_baseline(store: HistoryStore, unit: str, ids: Sequence[int], *,

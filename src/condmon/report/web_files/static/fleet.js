@@ -16,6 +16,8 @@
     });
     var q = form.elements.q.value.trim();
     if (q) { params.set("q", q); }
+    var sort = form.elements.sort ? form.elements.sort.value : "name";
+    if (sort && sort !== "name") { params.set("sort", sort); }
     var text = params.toString();
     return form.getAttribute("action") + (text ? "?" + text : "");
   }

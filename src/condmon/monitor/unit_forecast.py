@@ -1,0 +1,245 @@
+"""A unit's forecasts to no-go: each parameter's change series since its baseline.
+
+:func:`forecast_checks` is pure: from a unit's checks since its current
+baseline (a frame of :meth:`~condmon.store.HistoryStore.history`'s rows), the
+baseline, each parameter's no-go change ``r2`` and the fault rules named by
+their one-symptom condition, it forecasts every parameter (and operating
+regime) with :func:`condmon.monitor.forecast.forecast_series`: the crossing
+of ``r2`` in the trend's direction. What ``x`` counts is chosen once, by
+:func:`forecast_axis`: the days since the first check when every check carries
+a date (increasing, none twice), else the checks' count.
+
+The store-level reader is :func:`condmon.store.forecasts.read_forecast`
+(``condmon forecast``, ``units``, ``check``, the report and the fleet page
+all forecast through it).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from condmon.errors import DataError
+from condmon.monitor.baseline import Baseline
+from condmon.monitor.forecast import MIN_TESTS, Forecast, forecast_series
+
+__all__ = ["ParameterForecast", "UnitForecast", "forecast_checks", "forecast_axis",
+           "axis_values", "remaining_text", "NO_TREND"]
+
+#: Why a unit with enough checks has no forecast.
+NO_TREND = "no trend towards no-go"
+
+
+@dataclass(frozen=True)
+class ParameterForecast:
+    """One parameter's forecast.
+
+    Attributes
+    ----------
+    parameter : str
+        With its regime (``Tc@forward``) when the baseline has regimes.
+    unit : str
+        The parameter's unit of measure.
+    rule : str
+        The fault rule the threshold comes from ("" when none names it alone).
+    forecast : Forecast
+    date : str or None
+        The median crossing date, ISO 8601 (when the checks carry dates).
+    test_ids : tuple of int
+        The checks of the series, in the order of ``x``.
+    """
+
+    parameter: str
+    unit: str
+    rule: str
+    forecast: Forecast
+    date: str | None = None
+    test_ids: tuple[int, ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"parameter": self.parameter, "unit": self.unit, "rule": self.rule,
+                "date": self.date, **self.forecast.to_dict()}
+
+
+@dataclass(frozen=True)
+class UnitForecast:
+    """Every parameter's forecast for one unit.
+
+    Attributes
+    ----------
+    unit : str
+    by : {"tests", "days"}
+        What ``remaining`` counts.
+    checks : int
+        Checks since the baseline.
+    parameters : tuple of ParameterForecast
+        Earliest median crossing first; "no trend" last.
+    """
+
+    unit: str
+    by: str
+    checks: int
+    parameters: tuple[ParameterForecast, ...]
+
+    @property
+    def earliest(self) -> ParameterForecast | None:
+        """The parameter forecast to turn no-go first (None: no trend anywhere)."""
+        trends = [p for p in self.parameters if p.forecast.remaining is not None]
+        return trends[0] if trends else None
+
+    def to_dict(self) -> dict[str, Any]:
+        e = self.earliest
+        return {"unit": self.unit, "by": self.by, "checks": self.checks,
+                "earliest": None if e is None else e.parameter,
+                "parameters": [p.to_dict() for p in self.parameters]}
+
+    def summary(self) -> dict[str, Any] | None:
+        """The earliest forecast to no-go, as ``units --json`` and ``check --json`` give it.
+
+        ``{"parameter", "unit", "by", "median", "low", "high", "date", "rule"}``:
+        the parameter (``Tc@forward`` for a regime's), its unit of measure,
+        what the numbers count (``tests`` or ``days``), the median and 90 %
+        interval of the tests (days) left [tests (or d)] (None: not within
+        any horizon), the median crossing date (ISO 8601, dated checks only,
+        else None) and the fault rule the no-go change fires ("" when none
+        names it alone). None when no parameter trends towards no-go.
+        """
+        e = self.earliest
+        if e is None or e.forecast.remaining is None:
+            return None
+        med, lo, hi = (v if math.isfinite(v) else None for v in e.forecast.remaining)
+        return {"parameter": e.parameter, "unit": e.unit, "by": self.by, "median": med,
+                "low": lo, "high": hi, "date": e.date, "rule": e.rule}
+
+
+def forecast_axis(checks: pd.DataFrame) -> tuple[str, pd.Series]:
+    """What a unit's forecasts count, ``"days"`` or ``"tests"``, and each check's date.
+
+    Days when every check carries a test date, in order and none twice;
+    else tests (their count). The one place the x axis is chosen.
+
+    Parameters
+    ----------
+    checks : DataFrame
+        The checks, oldest first, with a ``test_date`` column.
+
+    Example
+    -------
+    >>> c = pd.DataFrame({"test_date": ["2026-01-02", "2026-01-05", None]})
+    >>> forecast_axis(c)[0], forecast_axis(c.iloc[:2])[0]
+    ('tests', 'days')
+    """
+    dates = pd.to_datetime(checks["test_date"], utc=True, errors="coerce")
+    dated = bool(dates.notna().all()) and dates.is_monotonic_increasing \
+        and dates.nunique() == len(dates)
+    return ("days" if dated else "tests"), dates
+
+
+def axis_values(by: str, dates: pd.Series, rows: pd.Index) -> NDArray[np.float64]:
+    """``x`` of the checks ``rows`` (a subset of the checks, in order): their
+    count from 1, or the days since the first check's date. [test (or d)]"""
+    if by == "tests":
+        return np.arange(1.0, len(rows) + 1.0)
+    if by == "days":
+        days = (dates[rows] - dates.iloc[0]).dt.total_seconds() / 86400.0
+        return np.asarray(days.to_numpy(), dtype=np.float64)
+    raise DataError(f"unknown forecast axis {by!r}; allowed: tests, days")
+
+
+def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
+                    r2: Mapping[str, float], rules: Mapping[str, str],
+                    units: Mapping[str, str] | None = None, horizon: float | None = None,
+                    seed: int = 0) -> UnitForecast:
+    """Forecast every parameter of a unit to no-go from its checks since the baseline.
+
+    Parameters
+    ----------
+    unit : str
+        The unit's name (for messages and the result).
+    checks : DataFrame
+        The accepted checks since the baseline, not excluded, oldest first:
+        rows of :meth:`~condmon.store.HistoryStore.history` with ``test_date``,
+        ``<key>_change`` [%] and ``<key>_se`` [the parameter's unit] of each
+        parameter key (``Tc@forward`` for a regime's).
+    baseline : Baseline
+        The current baseline (its mean and spread per key).
+    r2 : mapping of str to float
+        The no-go change of each parameter (by name, without regime). [%]
+    rules : mapping of str to str
+        Fault rule names by their one-symptom condition (``"high(D)"``): the
+        rule a single parameter's no-go change fires.
+    units : mapping of str to str, optional
+        Each parameter's unit of measure.
+    horizon : float, optional
+        For the probability of crossing within it. [tests (or d)]
+    seed : int
+        Seed of the predictive draws.
+
+    Returns
+    -------
+    UnitForecast
+
+    Raises
+    ------
+    DataError
+        Fewer than 3 checks ("not enough tests to forecast"), a horizon <= 0.
+    """
+    if horizon is not None and not horizon > 0:
+        raise DataError(f"horizon must be > 0, not {horizon:g}")
+    if len(checks) < MIN_TESTS:
+        raise DataError(f"not enough tests to forecast: unit {unit!r} has {len(checks)} "
+                        f"check(s) since its baseline, need {MIN_TESTS}")
+    by, dates = forecast_axis(checks)
+    out = []
+    for key, mean, std in zip(baseline.parameters, baseline.mean, baseline.std):
+        name = key.split("@", 1)[0]
+        col = f"{key}_change"   # a regime's parameter has columns of its own (Tc@forward)
+        if col not in checks or name not in r2:
+            continue
+        rows = checks[checks[col].notna()]
+        if len(rows) < MIN_TESTS:
+            continue
+        change = rows[col].to_numpy(dtype=np.float64)
+        se = 100.0 * rows[f"{key}_se"].to_numpy(dtype=np.float64) / abs(mean) \
+            if f"{key}_se" in rows and mean else np.zeros(len(rows))
+        rising = float(np.nanmean(change[-MIN_TESTS:])) >= 0.0
+        threshold = r2[name] if rising else -r2[name]
+        rule = rules.get(f"{'high' if rising else 'low'}({name})", "")
+        f = forecast_series(axis_values(by, dates, rows.index), change, np.nan_to_num(se),
+                            100.0 * std / abs(mean) if mean else 0.0, threshold, horizon, seed)
+        when = None
+        if by == "days" and f.remaining is not None and np.isfinite(f.remaining[0]):
+            when = (dates[rows.index[-1]] + pd.Timedelta(days=f.remaining[0])).isoformat()
+        out.append(ParameterForecast(key, (units or {}).get(name, ""), rule, f, when,
+                                     tuple(int(i) for i in rows.index)))
+    out.sort(key=lambda p: (p.forecast.remaining is None,
+                            p.forecast.remaining[0] if p.forecast.remaining else 0.0))
+    return UnitForecast(unit, by, len(checks), tuple(out))
+
+
+def remaining_text(f: dict[str, Any] | None, reason: str | None = None) -> str:
+    """A unit's earliest forecast (:meth:`UnitForecast.summary`) in a few
+    words, as tables print it: ``12 d (11–13)`` (days), ``8.5 tests (6.1–∞)``;
+    ``—`` without one (``no trend`` when ``reason`` says so).
+
+    Example
+    -------
+    >>> remaining_text({"median": 12.1, "low": 11.1, "high": None, "by": "days"})
+    '12 d (11–∞)'
+    """
+    if not f:
+        return "no trend" if reason == NO_TREND else "—"
+
+    def n(v: float | None) -> str:
+        if v is None or not math.isfinite(v):
+            return "∞"
+        return f"{v:.0f}" if abs(v) >= 10 else f"{v:.2g}"
+
+    per = "d" if f["by"] == "days" else "tests"
+    return f"{n(f['median'])} {per} ({n(f['low'])}–{n(f['high'])})"

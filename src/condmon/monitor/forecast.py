@@ -21,6 +21,16 @@ probability of crossing within a horizon. A slope whose 90 % interval holds 0,
 or points away from the threshold, is "no trend": then no number of tests is
 given.
 
+A **fleet prior** (:class:`RatePrior`, built by :func:`fleet_prior` from units
+of the same model that have already degraded) is combined with the unit's own
+tests by Bayesian updating of the slope ``b`` (normal prior, the weighted
+least-squares likelihood, a flat prior on the intercept: Gebraeel 2006, and the
+degradation models of MATLAB's Predictive Maintenance Toolbox): after a few
+tests the fleet's rate carries the forecast; after many, the unit's own. Its
+model is then the prior's (the fleet says which shape this wear takes). With
+no fleet history the prior is vague, the forecast the unit's own, and a note
+says so.
+
 Why by hand: a weighted two-model fit with a crossing distribution is a few
 lines of numpy, and the prognostics libraries (ProgPy, the Predictive
 Maintenance Toolbox) fit their own degradation shapes to run-to-failure
@@ -30,6 +40,7 @@ ensembles, not a change series with its own per-test uncertainty.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -38,7 +49,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from condmon.errors import DataError
 
-__all__ = ["Forecast", "forecast_series", "MIN_TESTS"]
+__all__ = ["Forecast", "forecast_series", "MIN_TESTS", "RatePrior", "fleet_prior"]
 
 FloatArray = NDArray[np.float64]
 
@@ -99,6 +110,69 @@ class Forecast:
                 "p_within_horizon": self.p_within, "tests": self.n, "notes": list(self.notes)}
 
 
+@dataclass(frozen=True)
+class RatePrior:
+    """The fleet's prior on the degradation rate of one model.
+
+    Attributes
+    ----------
+    model : {"linear", "exponential"}
+        The degradation model whose slope ``b`` it is about.
+    mean : float
+        The rate: for "linear" the change per test (or day) [% per test (or day)];
+        for "exponential" the growth of log|change| [1 per test (or day)].
+    sd : float
+        Its standard deviation for a new unit (inf: vague). [as ``mean``]
+    units : int
+        How many units it came from (0: no fleet history).
+    per : str
+        What ``x`` counts, for the description ("test", "day", "h").
+    """
+
+    model: str
+    mean: float
+    sd: float
+    units: int
+    per: str = "test"
+
+    def __post_init__(self) -> None:
+        if self.model not in _MODELS:
+            raise DataError(f"unknown degradation model {self.model!r}: "
+                            f"use one of {', '.join(_MODELS)}")
+        if not (math.isfinite(self.mean) and self.sd > 0):
+            raise DataError(f"a rate prior needs a finite mean and an sd > 0, "
+                            f"not {self.mean:g} ± {self.sd:g}")
+
+    @classmethod
+    def vague(cls, model: str = "linear", per: str = "test") -> RatePrior:
+        """The prior with no fleet history: the unit's own tests decide."""
+        return cls(model, 0.0, math.inf, 0, per)
+
+    @property
+    def informative(self) -> bool:
+        """Whether it carries any fleet knowledge."""
+        return math.isfinite(self.sd)
+
+    def describe(self) -> str:
+        """One line: where the prior comes from and what it says."""
+        if not self.informative:
+            return "no fleet history: vague prior"
+        if self.model == "linear":
+            what = f"slope {self.mean:.3g} ± {self.sd:.2g} %/{self.per}"
+        else:
+            what = f"log-rate {self.mean:.3g} ± {self.sd:.2g} /{self.per}"
+        return f"fleet prior ({self.model}) from {self.units} units: {what}"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form (a vague sd as None)."""
+        return {"model": self.model, "mean": self.mean,
+                "sd": self.sd if self.informative else None, "units": self.units,
+                "per": self.per}
+
+
+_MODELS = ("linear", "exponential")
+
+
 def _wls(x: FloatArray, y: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray, float]:
     """Weighted straight line: coefficients (a, b), their covariance, weighted RSS."""
     X = np.column_stack([np.ones_like(x), x])
@@ -115,9 +189,118 @@ def _wls(x: FloatArray, y: FloatArray, w: FloatArray) -> tuple[FloatArray, Float
     return np.asarray(coef, dtype=np.float64), cov, rss
 
 
+def _updated(fit: tuple[FloatArray, FloatArray, float],
+             prior: RatePrior) -> tuple[FloatArray, FloatArray, float]:
+    """The fit's coefficients updated by a normal prior on the slope (flat on
+    the intercept): precision and precision-weighted mean add."""
+    coef, cov, rss = fit
+    if not prior.informative:
+        return fit
+    info = np.linalg.pinv(cov)
+    post_info = info + np.diag([0.0, 1.0 / prior.sd ** 2])
+    post_cov = np.asarray(np.linalg.inv(post_info), dtype=np.float64)
+    post_coef = post_cov @ (info @ coef + np.array([0.0, prior.mean / prior.sd ** 2]))
+    return np.asarray(post_coef, dtype=np.float64), post_cov, rss
+
+
+def _fits(xa: FloatArray, ya: FloatArray, sa: FloatArray, spread: float,
+          sign: float) -> dict[str, tuple[FloatArray, FloatArray, float]]:
+    """Both degradation models' weighted fits (the exponential only where the
+    series keeps the sign of the trend)."""
+    w = 1.0 / (sa ** 2 + spread ** 2 + 1e-12)
+    fits: dict[str, tuple[FloatArray, FloatArray, float]] = {"linear": _wls(xa, ya, w)}
+    toward = sign * ya
+    if np.all(toward > 0):
+        # log-change: the weight of log|y| is y² w (delta method)
+        coef, cov, _ = _wls(xa, np.log(toward), w * toward ** 2)
+        resid = (toward - np.exp(coef[0] + coef[1] * xa)) * np.sqrt(w)
+        fits["exponential"] = (coef, cov, float(resid @ resid))
+    return fits
+
+
+def fleet_prior(series: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike, float]],
+                model: str = "linear", per: str = "test") -> RatePrior:
+    """The prior on the degradation rate from units that have already degraded.
+
+    Each unit's own rate is its weighted fit of ``model`` (as in
+    :func:`forecast_series`); the prior is their mean, with the between-unit
+    standard deviation widened for a new unit (``sd·√(1 + 1/n)``, the
+    predictive spread of one more draw).
+
+    Parameters
+    ----------
+    series : sequence of (x, change, se, spread)
+        Each unit's series, the leading arguments of :func:`forecast_series`:
+        the tests' times [test (or d, h)], changes [%], standard errors and
+        baseline spread [% of the baseline mean].
+    model : {"linear", "exponential"}
+        The model whose slope is wanted. A unit whose series changes sign has
+        no exponential rate and is left out.
+    per : str
+        What ``x`` counts ("test", "day", "h"), for the description.
+
+    Returns
+    -------
+    RatePrior
+        Vague (``units=0``, sd inf) when fewer than 2 units give a rate.
+
+    Raises
+    ------
+    DataError
+        An unknown model; a series that :func:`forecast_series` would refuse.
+
+    References
+    ----------
+    N. Gebraeel, "Sensory-updated residual life distributions for components
+    with exponential degradation patterns", IEEE Trans. Automation Science
+    and Engineering 3(4), 2006.
+
+    Example
+    -------
+    >>> x = np.arange(1.0, 21.0)                  # three worn units: +1.8, +2.0, +2.2 % a test
+    >>> fleet = [(x, r * x, np.ones(20), 1.0, ) for r in (1.8, 2.0, 2.2)]
+    >>> p = fleet_prior(fleet)
+    >>> p.describe()
+    'fleet prior (linear) from 3 units: slope 2 ± 0.23 %/test'
+    >>> fleet_prior(fleet[:1]).describe()
+    'no fleet history: vague prior'
+    """
+    if model not in _MODELS:
+        raise DataError(f"unknown degradation model {model!r}: use one of {', '.join(_MODELS)}")
+    rates = []
+    for x, change, se, spread in series:
+        xa, ya, sa = _checked(x, change, se, spread)
+        tail = float(np.mean(ya[-MIN_TESTS:]))
+        fit = _fits(xa, ya, sa, spread, 1.0 if tail >= 0 else -1.0).get(model)
+        if fit is not None:
+            rates.append(float(fit[0][1]))
+    if len(rates) < 2:
+        return RatePrior.vague(model, per)
+    r = np.asarray(rates)
+    sd = float(np.std(r, ddof=1)) * math.sqrt(1.0 + 1.0 / len(r))
+    return RatePrior(model, float(np.mean(r)), max(sd, 1e-12), len(r), per)
+
+
+def _checked(x: ArrayLike, change: ArrayLike, se: ArrayLike,
+             spread: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """One series as arrays, refused as :func:`forecast_series` says."""
+    xa, ya, sa = (np.asarray(v, dtype=np.float64) for v in (x, change, se))
+    if not (len(xa) == len(ya) == len(sa)):
+        raise DataError("forecast: x, change and se differ in length")
+    if len(xa) < MIN_TESTS:
+        raise DataError(f"not enough tests to forecast: {len(xa)} check(s) since the baseline, "
+                        f"need {MIN_TESTS}")
+    if not (np.all(np.isfinite(xa)) and np.all(np.isfinite(ya)) and np.all(np.isfinite(sa))
+            and math.isfinite(spread)):
+        raise DataError("forecast: the series holds a non-finite value")
+    if np.any(np.diff(xa) <= 0):
+        raise DataError("forecast: the tests' times do not increase")
+    return xa, ya, sa
+
+
 def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
                     spread: float, threshold: float, horizon: float | None = None,
-                    seed: int = 0) -> Forecast:
+                    seed: int = 0, *, prior: RatePrior | None = None) -> Forecast:
     """Forecast when a change series crosses ``threshold``.
 
     Parameters
@@ -137,6 +320,11 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
         For the probability of crossing within it. [tests (or d, h)]
     seed : int
         Seed of the predictive draws.
+    prior : RatePrior, optional
+        The fleet's prior on the slope (:func:`fleet_prior`), in the units of
+        ``x``. Its model is fitted (when the series allows it) and its slope
+        updated by the unit's tests; a note names it. None: the unit's own
+        tests alone, no note.
 
     Raises
     ------
@@ -150,39 +338,38 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
     >>> f = forecast_series(x, 4.0 * x, np.full(15, 1.0), 2.0, threshold=100.0)
     >>> f.model, round(f.remaining[0], 1)             # 100 % at test 25: 10 tests left
     ('linear', 10.0)
+
+    Four tests of a unit whose fleet wore +4.0 ± 0.2 % a test:
+
+    >>> f = forecast_series(x[:4], 4.0 * x[:4] + [2.0, -2.0, 2.0, -2.0], np.full(4, 1.0), 2.0,
+    ...                     threshold=100.0, prior=RatePrior("linear", 4.0, 0.2, 12))
+    >>> round(f.remaining[0]), f.notes[-1]
+    (21, 'fleet prior (linear) from 12 units: slope 4 ± 0.2 %/test')
     """
-    xa, ya, sa = (np.asarray(v, dtype=np.float64) for v in (x, change, se))
-    if not (len(xa) == len(ya) == len(sa)):
-        raise DataError("forecast: x, change and se differ in length")
-    if len(xa) < MIN_TESTS:
-        raise DataError(f"not enough tests to forecast: {len(xa)} check(s) since the baseline, "
-                        f"need {MIN_TESTS}")
-    if not (np.all(np.isfinite(xa)) and np.all(np.isfinite(ya)) and np.all(np.isfinite(sa))
-            and math.isfinite(spread)):
-        raise DataError("forecast: the series holds a non-finite value")
-    if np.any(np.diff(xa) <= 0):
-        raise DataError("forecast: the tests' times do not increase")
+    xa, ya, sa = _checked(x, change, se, spread)
     if horizon is not None and not horizon > 0:
         raise DataError(f"horizon must be > 0, not {horizon:g}")
     if threshold == 0:
         raise DataError("forecast: the no-go threshold is 0 %")
-    w = 1.0 / (sa ** 2 + spread ** 2 + 1e-12)
     sign = 1.0 if threshold > 0 else -1.0
-    fits: dict[str, tuple[FloatArray, FloatArray, float]] = {"linear": _wls(xa, ya, w)}
+    fits = _fits(xa, ya, sa, spread, sign)
     notes: list[str] = []
-    toward = sign * ya
-    if np.all(toward > 0):
-        # log-change: the weight of log|y| is y² w (delta method)
-        coef, cov, _ = _wls(xa, np.log(toward), w * toward ** 2)
-        resid = (toward - np.exp(coef[0] + coef[1] * xa)) * np.sqrt(w)
-        fits["exponential"] = (coef, cov, float(resid @ resid))
     n = len(xa)
     aic = {k: n * math.log(max(v[2], 1e-300) / n) + 4.0 for k, v in fits.items()}
     model = min(aic, key=lambda k: aic[k])
-    if len(fits) > 1:
+    if prior is not None and prior.informative and prior.model in fits:
+        model = prior.model
+    elif len(fits) > 1:
         notes.append(f"{model} chosen by evidence (AIC {aic['linear']:.1f} linear, "
                      f"{aic['exponential']:.1f} exponential)")
     coef, cov, _ = fits[model]
+    if prior is not None:
+        if prior.model == model or not prior.informative:
+            coef, cov, _ = _updated(fits[model], prior)
+            notes.append(prior.describe())
+        else:
+            notes.append(f"{prior.describe()} not used: the series changes sign, "
+                         f"no {prior.model} fit")
     last = float(xa[-1])
     sd_b = math.sqrt(max(cov[1, 1], 0.0))
     if model == "linear":

@@ -94,11 +94,11 @@ def test_an_exponential_fleet_gives_its_log_rate() -> None:
 
 def test_a_prior_whose_model_cannot_be_fitted_is_not_used() -> None:
     x = np.arange(1.0, 7.0)
-    y = np.array([-1.0, 1.0, 3.0, 5.0, 8.0, 10.0])           # crosses 0: no exponential
+    y = np.array([0.0, 4.0, 6.0, 7.0, 7.5, 7.8])             # slowing down: no exponential
     p = RatePrior("exponential", 0.2, 0.01, 8)
-    f = forecast_series(x, y, np.ones(6), 1.0, threshold=40.0, prior=p)
-    assert f.model == "linear" and f.notes[-1].endswith("not used: the series changes sign, "
-                                                         "no exponential fit")
+    f = forecast_series(x, y, np.full(6, 0.1), 0.1, threshold=40.0, prior=p)
+    assert f.model == "linear" and f.notes[-1].endswith("not used: no growing exponential "
+                                                         "fits the series")
 
 
 @pytest.mark.parametrize("args,message", [

@@ -6,11 +6,12 @@ The series is a parameter's change against its unit's baseline, test after test
 is poor, or a parameter whose healthy scatter is wide, counts less.
 
 Two degradation models are fitted by weighted least squares and chosen by
-evidence (Akaike's criterion on the same weighted residuals):
+evidence (Akaike's criterion, small-sample corrected, on the same weighted residuals):
 
 - **linear**: ``change = a + b·x``;
-- **exponential**: ``|change| = exp(a + b·x)`` (linear in log-change; only
-  where the series keeps one sign, as a wear that feeds itself).
+- **exponential**: ``|change| = φ + c·exp(b·x)`` (a wear that feeds itself;
+  the offset φ as in Gebraeel's model, so a series that starts from the
+  healthy 0 % and crosses it in noise is held; from 5 tests).
 
 ``x`` is the test number (or the days since the first test, or operating
 hours). The forecast is the crossing of the no-go change (``r2`` of the
@@ -46,6 +47,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import minimize_scalar
 
 from condmon.errors import DataError
 
@@ -120,7 +122,7 @@ class RatePrior:
         The degradation model whose slope ``b`` it is about.
     mean : float
         The rate: for "linear" the change per test (or day) [% per test (or day)];
-        for "exponential" the growth of log|change| [1 per test (or day)].
+        for "exponential" the rate ``b`` of its growing part [1 per test (or day)].
     sd : float
         Its standard deviation for a new unit (inf: vague). [as ``mean``]
     units : int
@@ -160,7 +162,7 @@ class RatePrior:
         if self.model == "linear":
             what = f"slope {self.mean:.3g} ± {self.sd:.2g} %/{self.per}"
         else:
-            what = f"log-rate {self.mean:.3g} ± {self.sd:.2g} /{self.per}"
+            what = f"growth rate {self.mean:.3g} ± {self.sd:.2g} /{self.per}"
         return f"fleet prior ({self.model}) from {self.units} units: {what}"
 
     def to_dict(self) -> dict[str, Any]:
@@ -171,6 +173,8 @@ class RatePrior:
 
 
 _MODELS = ("linear", "exponential")
+#: Fewest tests for the exponential (three coefficients, and a residual to judge them by).
+_EXP_MIN_TESTS = 5
 
 
 def _wls(x: FloatArray, y: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray, float]:
@@ -197,24 +201,59 @@ def _updated(fit: tuple[FloatArray, FloatArray, float],
     if not prior.informative:
         return fit
     info = np.linalg.pinv(cov)
-    post_info = info + np.diag([0.0, 1.0 / prior.sd ** 2])
-    post_cov = np.asarray(np.linalg.inv(post_info), dtype=np.float64)
-    post_coef = post_cov @ (info @ coef + np.array([0.0, prior.mean / prior.sd ** 2]))
+    on_b = np.zeros(len(coef))     # the slope is the last coefficient
+    on_b[-1] = 1.0 / prior.sd ** 2
+    post_cov = np.asarray(np.linalg.inv(info + np.diag(on_b)), dtype=np.float64)
+    post_coef = post_cov @ (info @ coef + on_b * prior.mean)
     return np.asarray(post_coef, dtype=np.float64), post_cov, rss
+
+
+def _expfit(x: FloatArray, y: FloatArray,
+            w: FloatArray) -> tuple[FloatArray, FloatArray, float] | None:
+    """Weighted exponential with an offset, ``y = φ + c·exp(b·(x − x_last))``:
+    coefficients (φ, c, b), their covariance (Gauss-Newton), weighted RSS.
+    None where no growing exponential (``c > 0``, ``b`` above the flat end)
+    fits better than a line."""
+    t = x - x[-1]
+    span = float(x[-1] - x[0])
+    sw = np.sqrt(w)
+
+    def profile(b: float) -> tuple[float, FloatArray]:
+        # for a given rate the model is linear in (φ, c)
+        X = np.column_stack([np.ones_like(t), np.exp(b * t)])
+        coef, *_ = np.linalg.lstsq(X * sw[:, None], y * sw, rcond=None)
+        r = (y - X @ coef) * sw
+        return float(r @ r), np.asarray(coef, dtype=np.float64)
+
+    grid = np.geomspace(0.01, 30.0, 64) / span
+    rss = [profile(float(b))[0] for b in grid]
+    i = int(np.argmin(rss))
+    if i == 0:                     # flattest rate best: a line, not an exponential
+        return None
+    found = minimize_scalar(lambda b: profile(float(b))[0], method="bounded",
+                            bounds=(float(grid[i - 1]), float(grid[min(i + 1, len(grid) - 1)])))
+    b = float(found.x)
+    best, (phi, c) = profile(b)
+    if not c > 0:
+        return None
+    e = np.exp(b * t)
+    J = np.column_stack([np.ones_like(t), e, c * t * e])
+    scale = max(best / max(len(x) - 3, 1), 1.0)
+    cov = np.asarray(np.linalg.pinv((J * w[:, None]).T @ J) * scale, dtype=np.float64)
+    return np.array([phi, c, b]), cov, best
 
 
 def _fits(xa: FloatArray, ya: FloatArray, sa: FloatArray, spread: float,
           sign: float) -> dict[str, tuple[FloatArray, FloatArray, float]]:
-    """Both degradation models' weighted fits (the exponential only where the
-    series keeps the sign of the trend)."""
+    """Both degradation models' weighted fits, the change taken towards the
+    threshold (the exponential from :data:`_EXP_MIN_TESTS` tests, where it
+    grows). The slope ``b`` is each model's last coefficient."""
     w = 1.0 / (sa ** 2 + spread ** 2 + 1e-12)
     fits: dict[str, tuple[FloatArray, FloatArray, float]] = {"linear": _wls(xa, ya, w)}
-    toward = sign * ya
-    if np.all(toward > 0):
-        # log-change: the weight of log|y| is y² w (delta method)
-        coef, cov, _ = _wls(xa, np.log(toward), w * toward ** 2)
-        resid = (toward - np.exp(coef[0] + coef[1] * xa)) * np.sqrt(w)
-        fits["exponential"] = (coef, cov, float(resid @ resid))
+    if len(xa) >= _EXP_MIN_TESTS:
+        exp = _expfit(xa, sign * ya, w)
+        if exp is not None:
+            fits["exponential"] = exp
     return fits
 
 
@@ -234,8 +273,8 @@ def fleet_prior(series: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike, float]],
         the tests' times [test (or d, h)], changes [%], standard errors and
         baseline spread [% of the baseline mean].
     model : {"linear", "exponential"}
-        The model whose slope is wanted. A unit whose series changes sign has
-        no exponential rate and is left out.
+        The model whose slope is wanted. A unit that no growing exponential
+        fits has no exponential rate and is left out.
     per : str
         What ``x`` counts ("test", "day", "h"), for the description.
 
@@ -273,7 +312,7 @@ def fleet_prior(series: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike, float]],
         tail = float(np.mean(ya[-MIN_TESTS:]))
         fit = _fits(xa, ya, sa, spread, 1.0 if tail >= 0 else -1.0).get(model)
         if fit is not None:
-            rates.append(float(fit[0][1]))
+            rates.append(float(fit[0][-1]))
     if len(rates) < 2:
         return RatePrior.vague(model, per)
     r = np.asarray(rates)
@@ -355,12 +394,15 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
     fits = _fits(xa, ya, sa, spread, sign)
     notes: list[str] = []
     n = len(xa)
-    aic = {k: n * math.log(max(v[2], 1e-300) / n) + 4.0 for k, v in fits.items()}
-    model = min(aic, key=lambda k: aic[k])
+    model = "linear"
+    if len(fits) > 1:   # small-sample Akaike (AICc) on the same weighted residuals
+        aic = {k: n * math.log(max(v[2], 1e-300) / n) + 2 * len(v[0])
+               + 2 * len(v[0]) * (len(v[0]) + 1) / (n - len(v[0]) - 1) for k, v in fits.items()}
+        model = min(aic, key=lambda k: aic[k])
     if prior is not None and prior.informative and prior.model in fits:
         model = prior.model
     elif len(fits) > 1:
-        notes.append(f"{model} chosen by evidence (AIC {aic['linear']:.1f} linear, "
+        notes.append(f"{model} chosen by evidence (AICc {aic['linear']:.1f} linear, "
                      f"{aic['exponential']:.1f} exponential)")
     coef, cov, _ = fits[model]
     if prior is not None:
@@ -368,15 +410,15 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
             coef, cov, _ = _updated(fits[model], prior)
             notes.append(prior.describe())
         else:
-            notes.append(f"{prior.describe()} not used: the series changes sign, "
-                         f"no {prior.model} fit")
+            notes.append(f"{prior.describe()} not used: no growing {prior.model} "
+                         "fits the series")
     last = float(xa[-1])
-    sd_b = math.sqrt(max(cov[1, 1], 0.0))
     if model == "linear":
-        slope, slope_sd = float(coef[1]), sd_b
-    else:  # d|y|/dx at the last test
-        level = math.exp(coef[0] + coef[1] * last)
-        slope, slope_sd = sign * coef[1] * level, abs(level) * sd_b
+        slope, slope_sd = float(coef[1]), math.sqrt(max(cov[1, 1], 0.0))
+    else:  # d|y|/dx at the last test: c·b
+        grad = np.array([0.0, coef[2], coef[1]])
+        slope = sign * float(coef[1] * coef[2])
+        slope_sd = math.sqrt(max(float(grad @ cov @ grad), 0.0))
     interval = (slope - _Z90 * slope_sd, slope + _Z90 * slope_sd)
     towards = interval[0] > 0 if sign > 0 else interval[1] < 0
     if not towards:   # 0, or the wrong direction, inside the interval
@@ -386,14 +428,15 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
                         0.0 if horizon is not None else None, n, tuple(notes))
     draws = np.random.default_rng(seed).multivariate_normal(coef, cov, size=_DRAWS,
                                                             method="cholesky")
-    a, b = draws[:, 0], draws[:, 1]
     with np.errstate(all="ignore"):
         if model == "linear":
+            a, b = draws[:, 0], draws[:, 1]
             cross = (threshold - a) / b
             ok = sign * b > 0
-        else:
-            cross = (math.log(abs(threshold)) - a) / b
-            ok = b > 0
+        else:   # from the last test: b·(x − last) = ln((|thr| − φ) / c)
+            phi, c, b = draws[:, 0], draws[:, 1], draws[:, 2]
+            cross = last + np.log(np.maximum(abs(threshold) - phi, 0.0) / c) / b
+            ok = (b > 0) & (c > 0)
     left = np.where(ok, np.maximum(cross - last, 0.0), np.inf)
     # the order statistics themselves: a draw that never crosses is inf, not interpolated
     med, lo, hi = (float(v) for v in np.quantile(left, [0.5, 0.05, 0.95], method="inverted_cdf"))

@@ -426,16 +426,22 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
                      "holds no steady move towards the threshold")
         return Forecast("no trend", threshold, slope, interval, None,
                         0.0 if horizon is not None else None, n, tuple(notes))
-    draws = np.random.default_rng(seed).multivariate_normal(coef, cov, size=_DRAWS,
-                                                            method="cholesky")
+    # a check turns no-go when it *measures* the threshold: the path's crossing,
+    # less that check's own scatter (the fit's residual scale at a typical weight)
+    w = 1.0 / (sa ** 2 + spread ** 2 + 1e-12)
+    scale = max(fits[model][2] / max(n - len(coef), 1), 1.0)
+    rng = np.random.default_rng(seed)
+    draws = rng.multivariate_normal(coef, cov, size=_DRAWS, method="cholesky")
+    reach = abs(threshold) - rng.normal(0.0, math.sqrt(scale * float(np.median(1.0 / w))),
+                                        _DRAWS)
     with np.errstate(all="ignore"):
         if model == "linear":
             a, b = draws[:, 0], draws[:, 1]
-            cross = (threshold - a) / b
+            cross = (sign * reach - a) / b
             ok = sign * b > 0
         else:   # from the last test: b·(x − last) = ln((|thr| − φ) / c)
             phi, c, b = draws[:, 0], draws[:, 1], draws[:, 2]
-            cross = last + np.log(np.maximum(abs(threshold) - phi, 0.0) / c) / b
+            cross = last + np.log(np.maximum(reach - phi, 0.0) / c) / b
             ok = (b > 0) & (c > 0)
     left = np.where(ok, np.maximum(cross - last, 0.0), np.inf)
     # the order statistics themselves: a draw that never crosses is inf, not interpolated

@@ -76,7 +76,7 @@ def test_the_fleet_rate_and_spread_are_recovered() -> None:
     assert p.describe() == f"fleet prior (linear) from 40 units: slope {p.mean:.3g} ± {p.sd:.2g} %/test"
 
 
-def test_an_exponential_fleet_gives_its_log_rate() -> None:
+def test_an_exponential_fleet_gives_its_growth_rate() -> None:
     rng = np.random.default_rng(2)
     x = np.arange(1.0, 21.0)
     rates = rng.normal(0.15, 0.02, 10)
@@ -84,12 +84,15 @@ def test_an_exponential_fleet_gives_its_log_rate() -> None:
              for r in rates]
     p = fleet_prior(fleet, model="exponential")
     assert p.units == 10 and p.mean == pytest.approx(rates.mean(), abs=0.01)
-    # a unit's first tests with its fleet's log-rate: the exponential, updated
-    y = fleet[0][1][:5]
-    f = forecast_series(x[:5], y, np.full(5, 0.5), 0.5, threshold=200.0, prior=p)
-    assert f.model == "exponential" and f.notes[-1] == p.describe()
-    truth = math.log(200.0 / 5.0) / rates[0] - 5.0
-    assert f.remaining is not None and f.remaining[1] <= truth <= f.remaining[2]
+    # a unit's first tests with its fleet's growth rate: the exponential, updated
+    y = fleet[0][1][:8]
+    own = forecast_series(x[:8], y, np.full(8, 0.5), 0.5, threshold=200.0)
+    f = forecast_series(x[:8], y, np.full(8, 0.5), 0.5, threshold=200.0, prior=p)
+    assert f.notes[-1] == p.describe()
+    truth = math.log(200.0 / 5.0) / rates[0] - 8.0
+    assert f.remaining is not None and own.remaining is not None
+    assert f.remaining[1] <= truth <= f.remaining[2]
+    assert f.remaining[2] - f.remaining[1] < own.remaining[2] - own.remaining[1]
 
 
 def test_a_prior_whose_model_cannot_be_fitted_is_not_used() -> None:

@@ -11,7 +11,13 @@ evidence (Akaike's criterion, small-sample corrected, on the same weighted resid
 - **linear**: ``change = a + b·x``;
 - **exponential**: ``|change| = φ + c·exp(b·x)`` (a wear that feeds itself;
   the offset φ as in Gebraeel's model, so a series that starts from the
-  healthy 0 % and crosses it in noise is held; from 5 tests).
+  healthy 0 % and crosses it in noise is held; from 5 tests). It is fitted
+  as ``α + β·(exp(b·t) − 1)/b`` from the last test, so a rate b near 0 is
+  the line, not a draw that never crosses.
+
+When both models fit, the forecast's draws come from each in proportion to
+its evidence (Akaike weights): a series that cannot yet tell a line from a
+curve gets the interval of both.
 
 ``x`` is the test number (or the days since the first test, or operating
 hours). The forecast is the crossing of the no-go change (``r2`` of the
@@ -27,8 +33,7 @@ of the same model that have already degraded) is combined with the unit's own
 tests by Bayesian updating of the slope ``b`` (normal prior, the weighted
 least-squares likelihood, a flat prior on the intercept: Gebraeel 2006, and the
 degradation models of MATLAB's Predictive Maintenance Toolbox): after a few
-tests the fleet's rate carries the forecast; after many, the unit's own. Its
-model is then the prior's (the fleet says which shape this wear takes). With
+tests the fleet's rate carries the forecast; after many, the unit's own. With
 no fleet history the prior is vague, the forecast the unit's own, and a note
 says so.
 
@@ -208,19 +213,25 @@ def _updated(fit: tuple[FloatArray, FloatArray, float],
     return np.asarray(post_coef, dtype=np.float64), post_cov, rss
 
 
+def _growth(b: float, t: FloatArray) -> FloatArray:
+    """``(exp(b·t) − 1) / b``: ``t`` itself as ``b`` → 0."""
+    return np.asarray(t if b == 0 else np.expm1(b * t) / b, dtype=np.float64)
+
+
 def _expfit(x: FloatArray, y: FloatArray,
             w: FloatArray) -> tuple[FloatArray, FloatArray, float] | None:
-    """Weighted exponential with an offset, ``y = φ + c·exp(b·(x − x_last))``:
-    coefficients (φ, c, b), their covariance (Gauss-Newton), weighted RSS.
-    None where no growing exponential (``c > 0``, ``b`` above the flat end)
-    fits better than a line."""
+    """Weighted exponential with an offset, written from the last test
+    (``t = x − x_last``) as ``y = α + β·(exp(b·t) − 1)/b``: the level α and
+    slope β at the last test and the growth rate b (a line as b → 0).
+    Coefficients (α, β, b), their covariance (Gauss-Newton), weighted RSS;
+    None where no growing exponential (b above the flat end) fits better."""
     t = x - x[-1]
     span = float(x[-1] - x[0])
     sw = np.sqrt(w)
 
     def profile(b: float) -> tuple[float, FloatArray]:
-        # for a given rate the model is linear in (φ, c)
-        X = np.column_stack([np.ones_like(t), np.exp(b * t)])
+        # for a given rate the model is linear in (α, β)
+        X = np.column_stack([np.ones_like(t), _growth(b, t)])
         coef, *_ = np.linalg.lstsq(X * sw[:, None], y * sw, rcond=None)
         r = (y - X @ coef) * sw
         return float(r @ r), np.asarray(coef, dtype=np.float64)
@@ -233,14 +244,12 @@ def _expfit(x: FloatArray, y: FloatArray,
     found = minimize_scalar(lambda b: profile(float(b))[0], method="bounded",
                             bounds=(float(grid[i - 1]), float(grid[min(i + 1, len(grid) - 1)])))
     b = float(found.x)
-    best, (phi, c) = profile(b)
-    if not c > 0:
-        return None
-    e = np.exp(b * t)
-    J = np.column_stack([np.ones_like(t), e, c * t * e])
+    best, (level, slope) = profile(b)
+    g = _growth(b, t)
+    J = np.column_stack([np.ones_like(t), g, slope * (t * np.exp(b * t) - g) / b])
     scale = max(best / max(len(x) - 3, 1), 1.0)
     cov = np.asarray(np.linalg.pinv((J * w[:, None]).T @ J) * scale, dtype=np.float64)
-    return np.array([phi, c, b]), cov, best
+    return np.array([level, slope, b]), cov, best
 
 
 def _fits(xa: FloatArray, ya: FloatArray, sa: FloatArray, spread: float,
@@ -337,6 +346,33 @@ def _checked(x: ArrayLike, change: ArrayLike, se: ArrayLike,
     return xa, ya, sa
 
 
+def _left(model: str, fit: tuple[FloatArray, FloatArray, float], n: int, var1: float,
+          threshold: float, last: float, rng: np.random.Generator, size: int) -> FloatArray:
+    """Draws of the tests (or days) left until a check measures ``threshold``:
+    the path's crossing, less that check's own scatter (the fit's residual
+    scale at a typical weight, ``var1`` the typical ``1/w``); inf: never."""
+    coef, cov, rss = fit
+    sign = 1.0 if threshold > 0 else -1.0
+    scale = max(rss / max(n - len(coef), 1), 1.0)
+    if size == 0:
+        return np.empty(0)
+    draws = rng.multivariate_normal(coef, cov, size=size, method="eigh")
+    reach = abs(threshold) - rng.normal(0.0, math.sqrt(scale * var1), size)
+    with np.errstate(all="ignore"):
+        if model == "linear":
+            a, b = draws[:, 0], draws[:, 1]
+            cross = (sign * reach - a) / b
+            ok = sign * b > 0
+        else:   # from the last test: (exp(b·t) − 1)/b = q, t = q·ln(1 + b·q)/(b·q)
+            level, slope, b = draws[:, 0], draws[:, 1], draws[:, 2]
+            q = (reach - level) / slope
+            z = b * q
+            factor = np.where(np.abs(z) < 1e-9, 1.0, np.log1p(np.maximum(z, -1.0)) / z)
+            cross = last + np.where(level >= reach, 0.0, q * factor)
+            ok = (level >= reach) | ((slope > 0) & (z > -1.0))
+    return np.asarray(np.where(ok, np.maximum(cross - last, 0.0), np.inf), dtype=np.float64)
+
+
 def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
                     spread: float, threshold: float, horizon: float | None = None,
                     seed: int = 0, *, prior: RatePrior | None = None) -> Forecast:
@@ -361,9 +397,9 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
         Seed of the predictive draws.
     prior : RatePrior, optional
         The fleet's prior on the slope (:func:`fleet_prior`), in the units of
-        ``x``. Its model is fitted (when the series allows it) and its slope
-        updated by the unit's tests; a note names it. None: the unit's own
-        tests alone, no note.
+        ``x``. Its model's slope is updated by the unit's tests (the models
+        still weighted by the unit's evidence); a note names it. None: the
+        unit's own tests alone, no note.
 
     Raises
     ------
@@ -394,31 +430,32 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
     fits = _fits(xa, ya, sa, spread, sign)
     notes: list[str] = []
     n = len(xa)
-    model = "linear"
+    weight = {"linear": 1.0}
     if len(fits) > 1:   # small-sample Akaike (AICc) on the same weighted residuals
         aic = {k: n * math.log(max(v[2], 1e-300) / n) + 2 * len(v[0])
                + 2 * len(v[0]) * (len(v[0]) + 1) / (n - len(v[0]) - 1) for k, v in fits.items()}
-        model = min(aic, key=lambda k: aic[k])
-    if prior is not None and prior.informative and prior.model in fits:
-        model = prior.model
-    elif len(fits) > 1:
+        best = min(aic.values())
+        weight = {k: math.exp(-0.5 * (v - best)) for k, v in aic.items()}
+        weight = {k: v / sum(weight.values()) for k, v in weight.items()}
+    model = max(weight, key=lambda k: weight[k])
+    if len(fits) > 1:
         notes.append(f"{model} chosen by evidence (AICc {aic['linear']:.1f} linear, "
-                     f"{aic['exponential']:.1f} exponential)")
-    coef, cov, _ = fits[model]
+                     f"{aic['exponential']:.1f} exponential); the forecast averages both, "
+                     f"weighted {weight['linear']:.2f} and {weight['exponential']:.2f}")
     if prior is not None:
-        if prior.model == model or not prior.informative:
-            coef, cov, _ = _updated(fits[model], prior)
+        if prior.model in fits or not prior.informative:
+            if prior.model in fits:
+                fits[prior.model] = _updated(fits[prior.model], prior)
             notes.append(prior.describe())
         else:
             notes.append(f"{prior.describe()} not used: no growing {prior.model} "
                          "fits the series")
+    coef, cov, _ = fits[model]
     last = float(xa[-1])
     if model == "linear":
         slope, slope_sd = float(coef[1]), math.sqrt(max(cov[1, 1], 0.0))
-    else:  # d|y|/dx at the last test: c·b
-        grad = np.array([0.0, coef[2], coef[1]])
-        slope = sign * float(coef[1] * coef[2])
-        slope_sd = math.sqrt(max(float(grad @ cov @ grad), 0.0))
+    else:  # d|y|/dx at the last test: β, towards the threshold
+        slope, slope_sd = sign * float(coef[1]), math.sqrt(max(cov[1, 1], 0.0))
     interval = (slope - _Z90 * slope_sd, slope + _Z90 * slope_sd)
     towards = interval[0] > 0 if sign > 0 else interval[1] < 0
     if not towards:   # 0, or the wrong direction, inside the interval
@@ -426,24 +463,12 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
                      "holds no steady move towards the threshold")
         return Forecast("no trend", threshold, slope, interval, None,
                         0.0 if horizon is not None else None, n, tuple(notes))
-    # a check turns no-go when it *measures* the threshold: the path's crossing,
-    # less that check's own scatter (the fit's residual scale at a typical weight)
-    w = 1.0 / (sa ** 2 + spread ** 2 + 1e-12)
-    scale = max(fits[model][2] / max(n - len(coef), 1), 1.0)
+    # each model's draws in proportion to its evidence weight (model averaging)
     rng = np.random.default_rng(seed)
-    draws = rng.multivariate_normal(coef, cov, size=_DRAWS, method="cholesky")
-    reach = abs(threshold) - rng.normal(0.0, math.sqrt(scale * float(np.median(1.0 / w))),
-                                        _DRAWS)
-    with np.errstate(all="ignore"):
-        if model == "linear":
-            a, b = draws[:, 0], draws[:, 1]
-            cross = (sign * reach - a) / b
-            ok = sign * b > 0
-        else:   # from the last test: b·(x − last) = ln((|thr| − φ) / c)
-            phi, c, b = draws[:, 0], draws[:, 1], draws[:, 2]
-            cross = last + np.log(np.maximum(reach - phi, 0.0) / c) / b
-            ok = (b > 0) & (c > 0)
-    left = np.where(ok, np.maximum(cross - last, 0.0), np.inf)
+    w = 1.0 / (sa ** 2 + spread ** 2 + 1e-12)
+    lefts = [_left(m, fits[m], n, float(np.median(1.0 / w)), threshold, last, rng,
+                   round(_DRAWS * weight[m])) for m in sorted(weight)]
+    left = np.concatenate(lefts)
     # the order statistics themselves: a draw that never crosses is inf, not interpolated
     med, lo, hi = (float(v) for v in np.quantile(left, [0.5, 0.05, 0.95], method="inverted_cdf"))
     p = float(np.mean(left <= horizon)) if horizon is not None else None

@@ -166,13 +166,14 @@ def prognostics(units: list[dict[str, Any]], peer: bool) -> dict[str, Any]:
     for lam in LAMBDAS:
         preds: dict[str, list[tuple[float, float, float] | None]] = {
             "condmon": [], "condmon + fleet prior": [], "peer (Gebraeel 2006)": []}
-        truths = []
+        truths, shapes = [], []
         for u in done:
             t = max(MIN_TESTS, round(lam * u["life"]))
             truth = float(u["life"] - t)
             if truth <= 0:
                 continue
             truths.append(truth)
+            shapes.append(u["shape"])
             s = _cut(u["series"], t)
             thr = _threshold(s[1], u["param"])
             own = forecast_series(*s, threshold=thr)
@@ -189,16 +190,19 @@ def prognostics(units: list[dict[str, Any]], peer: bool) -> dict[str, Any]:
                              "model": own.model, "model_with_prior": post.model,
                              "prior": prior.to_dict()})
         for name, p in preds.items():
-            if p:
-                rows.append({"lambda": lam, "method": name, "units": len(truths),
-                             **_score(p, truths)})
+            for shape in ("all", "linear", "exponential"):
+                pick = [i for i, sh in enumerate(shapes) if shape in ("all", sh)]
+                if p:
+                    rows.append({"lambda": lam, "method": name, "wear": shape,
+                                 "units": len(pick), **_score([p[i] for i in pick],
+                                                               [truths[i] for i in pick])})
     return {"rows": rows, "per_unit": per_unit}
 
 
 def _ratios(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     out = []
     for lam in LAMBDAS:
-        by = {r["method"]: r for r in rows if r["lambda"] == lam}
+        by = {r["method"]: r for r in rows if r["lambda"] == lam and r["wear"] == "all"}
         peer = by.get("peer (Gebraeel 2006)")
         if peer is None:
             continue

@@ -21,6 +21,19 @@
    ``ln(S − φ)`` of the signal ``S = 1 + change/100`` (its default φ = −1 and
    vague priors), the threshold ``1 + r2/100``.
 
+2. Calibration. Healthy units (each its own 10-test baseline, then 20
+   checks) at alpha = 0.01: the observed false-alarm rate of the statistical
+   detector's level alarm and drift alarm (per check, where defined), with a
+   95 % Clopper-Pearson interval and the ratio to alpha; and the fuzzy
+   status's (not "go") on the same checks.
+3. Drift delay. Friction rises +4 % a test (D and the Coulomb friction
+   ×(1 + 0.04·k)): the first alarming check of the level statistic, the drift
+   statistic, either, and the fuzzy status (advisory or worse), at matched
+   false-alarm rates (the statistical alpha set to the fuzzy status's observed
+   rate, or its 95 % upper bound when that is 0).
+   Sections 2 and 3 need the calibrated detector (``CheckResult.statistics``);
+   without it they are skipped with a note.
+
 Prints a table per section and writes results/bench_prognostics.json.
 """
 
@@ -52,6 +65,8 @@ from condmon.workflows.forecasting import forecast_unit
 from condmon.workflows.monitoring import add_baseline_tests, current_baseline
 
 R2 = {"R": 40.0, "D": 600.0}
+CAL_UNITS, CAL_CHECKS, CAL_BASELINE, CAL_ALPHA = 100, 20, 10, 0.01
+DRIFT_UNITS, DRIFT_RATE, DRIFT_MAX = 20, 0.04, 90
 ALPHA, LAMBDAS = 0.2, (0.5, 0.75)
 EXP_A = 0.1                 # the exponential wear's scale: factor = 1 + a (exp(r k) - 1)
 MAX_CHECKS = 60
@@ -214,9 +229,102 @@ def _ratios(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return out
 
 
+def _statistics_config():  # type: ignore[no-untyped-def]
+    """The detector's settings class, or None before the detector exists."""
+    try:
+        from condmon.monitor.statistics import StatisticsConfig
+    except ImportError:
+        return None
+    return StatisticsConfig
+
+
+def _monitor(store, alpha: float):  # type: ignore[no-untyped-def]
+    from condmon.workflows.monitoring import unit_monitor
+
+    cfg = unit_monitor(store, "U", current_baseline(store, "U")[0])
+    return dataclasses.replace(cfg, statistics=_statistics_config()(alpha=alpha, drift_alpha=alpha))
+
+
+def _rate(k: int, n: int) -> dict[str, Any]:
+    """Rate and 95 % Clopper-Pearson interval of k events in n."""
+    from scipy.stats import beta
+
+    lo = float(beta.ppf(0.025, k, n - k + 1)) if k else 0.0
+    hi = float(beta.ppf(0.975, k + 1, n - k)) if k < n else 1.0
+    return {"checks": n, "alarms": k, "rate": k / n if n else math.nan, "low95": lo, "high95": hi}
+
+
+def calibration(rig, n_units: int) -> dict[str, Any]:  # type: ignore[no-untyped-def]
+    level, drift, fuzzy = [], [], []
+    for u in range(n_units):
+        with open_store("sqlite://") as store:
+            add_baseline_tests(store, "U", [simulate_actuator(rig, seed=500_000 + 100 * u + i)
+                                            for i in range(CAL_BASELINE)])
+            cfg = _monitor(store, CAL_ALPHA)
+            for k in range(CAL_CHECKS):
+                res = check_test(store, "U", simulate_actuator(rig, seed=600_000 + 100 * u + k),
+                                 monitor=cfg)
+                if res.status == "retest":
+                    continue
+                fuzzy.append(res.status != "go")
+                st = res.statistics
+                if st is None:
+                    continue
+                if st.alarm is not None:
+                    level.append(bool(st.alarm))
+                if st.drift_alarm is not None:
+                    drift.append(bool(st.drift_alarm))
+    rows = []
+    for name, hits, alpha in (("level alarm", level, CAL_ALPHA), ("drift alarm", drift, CAL_ALPHA),
+                              ("fuzzy status != go", fuzzy, None)):
+        r = _rate(sum(hits), len(hits))
+        rows.append({"detector": name, "alpha": alpha if alpha else "-", **r,
+                     "rate/alpha": r["rate"] / alpha if alpha else "-"})
+    return {"rows": rows}
+
+
+def drift_delay(rig, n_units: int, alpha: float) -> dict[str, Any]:  # type: ignore[no-untyped-def]
+    firsts: dict[str, list[float]] = {"level": [], "drift": [], "level or drift": [], "fuzzy": []}
+    for u in range(n_units):
+        seen: dict[str, float] = {}
+        with open_store("sqlite://") as store:
+            add_baseline_tests(store, "U", [simulate_actuator(rig, seed=700_000 + 100 * u + i)
+                                            for i in range(CAL_BASELINE)])
+            cfg = _monitor(store, alpha)
+            for k in range(1, DRIFT_MAX + 1):
+                f = 1.0 + DRIFT_RATE * k
+                res = check_test(store, "U", simulate_actuator(
+                    rig.with_faults([f"D=*{f}", f"coulomb_friction=*{f}"]),
+                    seed=800_000 + 100 * u + k), monitor=cfg)
+                st = res.statistics
+                flags = {"fuzzy": res.status in ("advisory", "no-go"),
+                         "level": bool(st and st.alarm), "drift": bool(st and st.drift_alarm)}
+                flags["level or drift"] = flags["level"] or flags["drift"]
+                for name, on in flags.items():
+                    if on and name not in seen:
+                        seen[name] = k
+                if len(seen) == len(firsts):
+                    break
+        for name in firsts:
+            firsts[name].append(seen.get(name, math.inf))
+    rows = []
+    fuzzy_med = float(np.median(firsts["fuzzy"]))
+    for name, v in firsts.items():
+        med = float(np.median(v))
+        rows.append({"detector": name, "alpha": alpha if name != "fuzzy" else "-",
+                     "median_delay": med, "min": float(min(v)), "max": float(max(v)),
+                     "undetected": sum(not math.isfinite(d) for d in v),
+                     "earlier_than_fuzzy_percent": 100.0 * (1.0 - med / fuzzy_med)
+                     if name != "fuzzy" else 0.0})
+    return {"rows": rows, "delays": {k: [d if math.isfinite(d) else None for d in v]
+                                     for k, v in firsts.items()}}
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--units", type=int, default=30)
+    ap.add_argument("--cal-units", type=int, default=CAL_UNITS)
+    ap.add_argument("--drift-units", type=int, default=DRIFT_UNITS)
     args = ap.parse_args()
     try:
         import exponential_degradation  # noqa: F401
@@ -246,6 +354,27 @@ def main() -> int:
             print(table(ratios, "condmon / peer"))
         doc["run_to_failure"] = {"units": fleet, "scores": res["rows"], "ratios": ratios,
                                  "per_unit": res["per_unit"], "peer": peer}
+        if _statistics_config() is None:
+            print("\nnote: no calibrated statistical detector (condmon.monitor.statistics) "
+                  "in this condmon: calibration and drift delay skipped")
+        else:
+            cal = calibration(demo_rig(), args.cal_units)
+            print()
+            print(table(cal["rows"], f"Calibration: {args.cal_units} healthy units × "
+                                     f"{CAL_CHECKS} checks, own {CAL_BASELINE}-test baselines; "
+                                     "false-alarm rate per check, 95 % interval [target "
+                                     "rate/alpha 0.5-2]"))
+            fuzzy = next(r for r in cal["rows"] if r["detector"].startswith("fuzzy"))
+            matched = fuzzy["rate"] if fuzzy["alarms"] else fuzzy["high95"]
+            how = ("the fuzzy status's observed false-alarm rate" if fuzzy["alarms"]
+                   else "the 95 % upper bound of the fuzzy status's false-alarm rate (0 seen)")
+            dd = drift_delay(demo_rig(), args.drift_units, matched)
+            print()
+            print(table(dd["rows"], f"Drift delay: friction +{100 * DRIFT_RATE:g} % a test, "
+                                    f"{args.drift_units} units; first alarming check; "
+                                    f"alpha = {matched:.4g} ({how}) [goal: >= 30 % earlier]"))
+            doc["calibration"] = cal
+            doc["drift"] = {**dd, "alpha": matched, "alpha_is": how}
     doc["seconds"] = time.perf_counter() - t0
     path = write_json("bench_prognostics", doc)
     print(f"\nwrote {path} ({doc['seconds']:.0f} s)")

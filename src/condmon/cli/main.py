@@ -396,9 +396,16 @@ def check_cmd(
     group: GroupOpt = None,
     against: Annotated[Optional[str], typer.Option("--against", help="Compare with another unit's or a group's baseline (UNIT, GROUP, unit:NAME or group:NAME) instead of the unit's own.")] = None,
     dry_run: Annotated[bool, typer.Option("--dry-run", help="Estimate and diagnose, store nothing.")] = False,
+    alpha: Annotated[Optional[float], typer.Option(help="False-alarm probability of the statistical change test, in (0, 0.5) (default: the monitor file's [statistics] alpha, 0.01).")] = None,
+    drift_alpha: Annotated[Optional[float], typer.Option(help="False-alarm probability of the drift test at each check, in (0, 0.5) (default: [statistics] drift_alpha, 0.01).")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
 ) -> None:
-    """Check one test against the unit's baseline: go / advisory / no-go and faults."""
+    """Check one test against the unit's baseline: go / advisory / no-go and faults.
+
+    Beside the fuzzy status, a calibrated test of the change against the
+    baseline's scatter and of a drift over the checks since the baseline, each
+    alarming with the stated false-alarm probability (--alpha, --drift-alpha);
+    they never change the status."""
     from condmon.diagnose.rules import load_rules
     from condmon.models.regimes import split_key
     from condmon.monitor.fuzzy import load_monitor_config
@@ -411,7 +418,8 @@ def check_cmd(
     rb = load_rules(rules) if rules is not None else None
     with open_store(db, create=False) as store:
         res = check_test(store, unit, record, opts, cfg, rb, dry_run=dry_run, test_date=date,
-                         against=against, group=group)
+                         against=against, group=group, alpha=alpha,
+                         drift_alpha=drift_alpha)
     if as_json:
         write_json(res.to_dict())
         return
@@ -465,6 +473,9 @@ def check_cmd(
         out.print("to watch (below advisory level, not faults): " + ", ".join(
             f"{f.name} ({f.degree:.2f})" for f in res.diagnosis.watch), highlight=False,
             markup=False, soft_wrap=True)
+    if res.statistics is not None:
+        out.print(res.statistics.describe(res.status), highlight=False, markup=False,
+                  soft_wrap=True)
 
 
 register_view_commands(app)  # after the commands above: their order in --help

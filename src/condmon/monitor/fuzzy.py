@@ -33,12 +33,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from condmon.errors import ConfigError
+from condmon.errors import CondmonError, ConfigError
 from condmon.io.config import load_default, load_toml
 from condmon.models.regimes import split_key
 from condmon.monitor.baseline import Baseline, BaselineChecks, percent_change
+from condmon.monitor.statistics import StatisticsConfig, checked_alpha
 
-__all__ = ["MonitorConfig", "load_monitor_config", "symptom_degree", "symptom_width",
+__all__ = ["MonitorConfig", "load_monitor_config", "load_statistics", "symptom_degree", "symptom_width",
            "Symptoms", "compute_symptoms"]
 
 FloatArray = NDArray[np.float64]
@@ -58,6 +59,9 @@ class MonitorConfig:
         File the configuration came from.
     baseline : BaselineChecks
         When a baseline is flagged as implausible (optional ``[baseline]`` table).
+    statistics : StatisticsConfig
+        False-alarm probabilities of the statistical tests beside the fuzzy
+        status (optional ``[statistics]`` table; :mod:`condmon.monitor.statistics`).
     """
 
     r1: dict[str, float]
@@ -65,6 +69,7 @@ class MonitorConfig:
     k: float = 2.0
     source: str = "condmon/data/monitor.toml"
     baseline: BaselineChecks = BaselineChecks()
+    statistics: StatisticsConfig = StatisticsConfig()
 
     def arrays(self, parameters: Sequence[str]) -> tuple[FloatArray, FloatArray]:
         """``r1`` and ``r2`` in the order of ``parameters``; a regime's parameter
@@ -124,6 +129,7 @@ def load_monitor_config(path: str | Path | None = None, k: float | None = None) 
     except (KeyError, TypeError, ValueError) as err:
         raise ConfigError(f"{src}: expected [breakpoints] P = {{ r1 = .., r2 = .. }}, "
                           f"k = number and an optional [baseline] table ({err})") from None
+    stats = load_statistics(raw.get("statistics", {}), src)
     if not all(np.isfinite(v) and v > 0 for v in (checks.outlier_z, checks.outlier_se,
                                                    checks.spread_ratio)):
         raise ConfigError(f"{src}: [baseline] values must be positive numbers")
@@ -133,7 +139,35 @@ def load_monitor_config(path: str | Path | None = None, k: float | None = None) 
                               f"got r1={r1[p]}, r2={r2[p]}")
     if kk < 0:
         raise ConfigError(f"{src}: k must be >= 0, got {kk}")
-    return MonitorConfig(r1, r2, kk, src, checks)
+    return MonitorConfig(r1, r2, kk, src, checks, stats)
+
+
+def load_statistics(table: Any, source: str) -> StatisticsConfig:
+    """The ``[statistics]`` table of a monitor file (``alpha``, ``drift_alpha``),
+    defaults for what it leaves out.
+
+    Raises
+    ------
+    ConfigError
+        Not a table, an unknown key, or a value outside (0, 0.5), naming ``source``.
+
+    Example
+    -------
+    >>> load_statistics({"alpha": 0.05}, "m.toml")
+    StatisticsConfig(alpha=0.05, drift_alpha=0.01)
+    """
+    allowed = ("alpha", "drift_alpha")
+    if not isinstance(table, dict):
+        raise ConfigError(f"{source}: [statistics] must be a table ({', '.join(allowed)})")
+    unknown = sorted(set(table) - set(allowed))
+    if unknown:
+        raise ConfigError(f"{source}: unknown [statistics] key(s) {unknown}; allowed: "
+                          f"{', '.join(allowed)}")
+    try:
+        values = {k: checked_alpha(v, f"[statistics] {k}") for k, v in table.items()}
+    except CondmonError as err:
+        raise ConfigError(f"{source}: {err}") from None
+    return StatisticsConfig(**values)
 
 
 def symptom_degree(r: ArrayLike, width: ArrayLike, r1: ArrayLike, r2: ArrayLike

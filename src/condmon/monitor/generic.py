@@ -26,7 +26,8 @@ from condmon.errors import ConfigError
 from condmon.io.config import load_default
 from condmon.models.machine import Machine
 from condmon.monitor.baseline import Baseline, BaselineChecks
-from condmon.monitor.fuzzy import MonitorConfig
+from condmon.monitor.fuzzy import MonitorConfig, load_statistics
+from condmon.monitor.statistics import StatisticsConfig
 
 __all__ = ["GenericSettings", "load_generic_settings", "spread_breakpoints", "generic_config",
            "describe_generic", "StatusPoints", "machine_monitor", "peer_monitor"]
@@ -57,6 +58,8 @@ class GenericSettings:
     group_flag_z : float
         A unit's own baseline further than this many between-unit standard
         deviations from its peers' is flagged. [-]
+    statistics : StatisticsConfig
+        False-alarm probabilities of the statistical tests (``[statistics]``).
     """
 
     r1_sigma: float = 4.0
@@ -68,6 +71,7 @@ class GenericSettings:
     baseline: BaselineChecks = BaselineChecks()
     group_min_units: int = 3
     group_flag_z: float = 3.0
+    statistics: StatisticsConfig = StatisticsConfig()
 
 
 def load_generic_settings() -> GenericSettings:
@@ -90,7 +94,9 @@ def load_generic_settings() -> GenericSettings:
                               str(raw["severity"]), status,
                               BaselineChecks(**{k: float(v) for k, v in
                                                 dict(raw.get("baseline", {})).items()}),
-                              int(group.get("min_units", 3)), float(group.get("flag_z", 3.0)))
+                              int(group.get("min_units", 3)), float(group.get("flag_z", 3.0)),
+                              load_statistics(raw.get("statistics", {}),
+                                              "condmon/data/generic-monitor.toml"))
     except (KeyError, TypeError, ValueError) as err:
         raise ConfigError(f"condmon/data/generic-monitor.toml: {err}") from None
     if not 0 < out.r1_sigma < out.r2_sigma or out.severity not in ("major", "minor"):
@@ -135,7 +141,7 @@ def generic_config(baseline: Baseline, settings: GenericSettings | None = None
     cfg = settings or load_generic_settings()
     r1, r2 = spread_breakpoints(baseline, cfg)
     return MonitorConfig(r1, r2, cfg.k, "generic monitoring (condmon/data/generic-monitor.toml)",
-                         cfg.baseline)
+                         cfg.baseline, cfg.statistics)
 
 
 def machine_monitor(machine: Machine, baseline: Baseline | None = None) -> MonitorConfig:
@@ -158,7 +164,7 @@ def machine_monitor(machine: Machine, baseline: Baseline | None = None) -> Monit
         floor = {p: cfg.min_relative_spread for p in machine.spec.report}
         return MonitorConfig({p: cfg.r1_sigma * v for p, v in floor.items()},
                              {p: cfg.r2_sigma * v for p, v in floor.items()}, cfg.k,
-                             "generic monitoring (no baseline yet)", cfg.baseline)
+                             "generic monitoring (no baseline yet)", cfg.baseline, cfg.statistics)
     return generic_config(baseline, cfg)
 
 
@@ -187,7 +193,8 @@ def peer_monitor(machine: Machine, reference: Baseline) -> MonitorConfig:
             r1[key] = min(r1[key], float(mine[0][i]))
             r2[key] = max(min(r2[key], float(mine[1][i])), r1[key] * (1 + 1e-9) + 1e-12)
     return MonitorConfig(r1, r2, own.k, f"peer comparison ({own.source}, capped at "
-                         f"{settings.r1_sigma:g}/{settings.r2_sigma:g} spreads)", own.baseline)
+                         f"{settings.r1_sigma:g}/{settings.r2_sigma:g} spreads)", own.baseline,
+                         own.statistics)
 
 
 def describe_generic(settings: GenericSettings | None = None) -> str:

@@ -12,9 +12,13 @@ own, its checks are evaluated against that too.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
+
+import numpy as np
+import pandas as pd
 
 from condmon.diagnose.diagnoser import Diagnosis
 from condmon.diagnose.rules import RuleBase, machine_rules
@@ -27,6 +31,9 @@ from condmon.monitor.baseline import Baseline, missing_regimes
 from condmon.monitor.fuzzy import MonitorConfig
 from condmon.monitor.generic import load_generic_settings, peer_monitor
 from condmon.monitor.group import GroupBaseline, group_baseline
+from condmon.monitor.statistics import (
+    CheckStatistics, StatisticsConfig, check_statistics, checked_alpha,
+)
 from condmon.store.db import HistoryStore
 from condmon.workflows.monitoring import (
     _existing_baseline, _held, _unit_error, _unit_options, current_baseline, evaluate,
@@ -34,7 +41,7 @@ from condmon.workflows.monitoring import (
 )
 from condmon.workflows.records import EstimateOptions, RecordLike
 
-__all__ = ["CheckResult", "check_test", "Reference", "reference_for", "resolve_against",
+__all__ = ["CheckResult", "check_test", "unit_statistics", "Reference", "reference_for", "resolve_against",
            "group_reference"]
 
 
@@ -67,6 +74,10 @@ class CheckResult:
     against : str
         What the test was compared with: ``unit`` (its own baseline),
         ``group NAME`` or ``unit NAME`` (another's).
+    statistics : CheckStatistics or None
+        The calibrated change and drift tests beside the status
+        (:mod:`condmon.monitor.statistics`); None for a rejected test, or one
+        compared with another's baseline.
     """
 
     unit: str
@@ -82,6 +93,7 @@ class CheckResult:
     warning: str | None = None
     note: str | None = None
     against: str = "unit"
+    statistics: CheckStatistics | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready result (the ``condmon check --json`` document)."""
@@ -111,6 +123,7 @@ class CheckResult:
                                 for o in self.estimate.others for k in o.parameters}},
             "held": est["held"],
             "against": self.against,
+            "statistics": None if self.statistics is None else self.statistics.to_dict(),
             "note": self.note,
             "condition": None if self.diagnosis is None else self.diagnosis.condition,
             "preprocessing_applied": ([] if self.diagnosis is None
@@ -242,7 +255,8 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
                options: EstimateOptions | None = None, monitor: MonitorConfig | None = None,
                rules: RuleBase | None = None, dry_run: bool = False,
                test_date: str | datetime | None = None, against: str | None = None,
-               group: str | None = None) -> CheckResult:
+               group: str | None = None, alpha: float | None = None,
+               drift_alpha: float | None = None) -> CheckResult:
     """Estimate a test, store it, compute symptoms against the baseline and diagnose.
 
     The baseline is the unit's own; for a unit without one, its group's
@@ -255,7 +269,9 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
     diagnose, store nothing (``test_id`` is -1; a record already in the
     history is checked again). ``test_date``: when the test was run
     (default: from the record's metadata, if any). ``group`` also puts the
-    unit in that group (not on a dry run).
+    unit in that group (not on a dry run). ``alpha``, ``drift_alpha``: the
+    false-alarm probabilities of the calibrated tests, in (0, 0.5) (default:
+    the monitor file's ``[statistics]``).
 
     Raises
     ------
@@ -263,10 +279,13 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
         The unit has no baseline yet (fewer than 3 accepted healthy tests) and
         no group with one, the group or unit to compare with has none, or the
         test's parameters jump beyond the model's believable change or flip
-        sign against the baseline (a likely unit or sign error; nothing stored).
+        sign against the baseline (a likely unit or sign error; nothing stored),
+        an alpha outside (0, 0.5).
     DuplicateTestError
         The record is already in the unit's history.
     """
+    override = {k: checked_alpha(v, f"--{k.replace('_', '-')}")
+                for k, v in (("alpha", alpha), ("drift_alpha", drift_alpha)) if v is not None}
     opts = _unit_options(store, unit, options or EstimateOptions())
     machine = get_model(opts.model or "dc-motor")
     ref = reference_for(store, unit, machine, against, group)
@@ -297,6 +316,9 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
                            test_date=key.test_date, warning=filed_elsewhere(store, unit, key),
                            against=against_label)
     row, diag = evaluate(res, baseline, cfg, rb, machine.spec.report)
+    stats = (unit_statistics(store, unit, ids, baseline, res,
+                             dataclasses.replace(cfg.statistics, **override))
+             if ref is None else None)
     missing = missing_regimes(list(res.stored_values()), baseline)
     note = no_baseline_yet(missing, baseline) if missing else None
     if dry_run:
@@ -318,4 +340,42 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
                        {p: v["percent_change"] for p, v in row.items()},
                        {p: {"high": v["high"], "low": v["low"]} for p, v in row.items()},
                        diag, flags, key.test_date, filed_elsewhere(store, unit, key), note,
-                       against_label)
+                       against_label, stats)
+
+
+def unit_statistics(store: HistoryStore, unit: str, ids: list[int], baseline: Baseline,
+                    res: EstimateResult, config: StatisticsConfig) -> CheckStatistics | None:
+    """The calibrated tests of a check of ``unit`` against its own baseline (tests
+    ``ids``), before it is stored: its change against the baseline's scatter,
+    and the drift of the accepted checks since the baseline's last test and it.
+
+    A test's parameters of one regime are tested with that regime's; None when
+    fewer than 3 baseline tests have every parameter the test has.
+    """
+    stored = res.stored_values()
+    keys = [k for k in baseline.parameters
+            if k in stored and np.isfinite(stored[k][0]) and np.isfinite(stored[k][1])]
+    hist = store.history(unit)
+    if not keys or not set(keys) <= set(hist.columns):
+        return None
+    mean = np.array([baseline.value(k) for k in keys], dtype=np.float64)
+    scale = 100.0 / np.abs(mean)
+
+    def changes(rows: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+        vals = rows[keys].to_numpy(dtype=np.float64)
+        ses = rows[[f"{k}_se" for k in keys]].to_numpy(dtype=np.float64)
+        ok = np.isfinite(vals).all(axis=1) & np.isfinite(ses).all(axis=1)
+        return (vals[ok] - mean) * scale, ses[ok] * scale
+
+    members = hist.loc[[i for i in ids if i in hist.index]]
+    base, base_se = changes(members)
+    if len(base) < 3:
+        return None
+    usable = (hist["role"] == "check") & hist["accepted"].astype(bool) \
+        & ~hist["excluded"].astype(bool)
+    since = hist[usable & (hist.index > max(ids))]
+    series, _ = changes(since)
+    now = np.array([stored[k][0] for k in keys]) - mean
+    now_se = np.array([stored[k][1] for k in keys]) * scale
+    return check_statistics(tuple(keys), now * scale, now_se, base, base_se,
+                            np.vstack([series, now * scale]), config)

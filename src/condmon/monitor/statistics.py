@@ -1,0 +1,305 @@
+"""Calibrated detection: a check's change, and a unit's drift, with a stated false-alarm rate.
+
+The fuzzy monitor (:mod:`condmon.monitor.fuzzy`) says *which* fault and how far
+it has gone, on breakpoints of a reference rig; it states no false-alarm rate.
+Beside it, each check gets two tests with one:
+
+**Change (level).** The test's change vector ``d`` [% of the baseline mean]
+against the baseline's ``n`` tests is a new draw from the baseline's
+distribution when the unit is healthy, so with the baseline's sample
+covariance ``S`` (which holds each test's estimation noise and the unit's
+test-to-test scatter alike)
+
+    T² = dᵀ [S (1 + 1/n) + E]⁻¹ d,      F = T² (n - r) / (r (n - 1)) ~ F(r, n - r)
+
+(Hotelling's prediction test; ``r`` the rank of ``S``: parameters that are
+functions of the same estimated coefficient, as ``Ke`` and ``Kt`` in SI
+units, count once). ``E`` is the test's own estimation variance beyond the
+baseline tests' typical one (``diag(max(0, se² - mean se_b²))``): a test that
+estimated its parameters worse than the baseline's is not taken as a change.
+The alarm is ``p < alpha``, so that ``alpha`` *is* the false-alarm probability of
+one check of a healthy unit. A baseline of ``n <= r`` tests cannot estimate
+``r`` directions: then each parameter's ``t = d / sqrt(s²(1 + 1/n) + e)``
+(``t(n - 1)``) is tested with Šidák's correction over the ``r`` directions
+(``max-t``; conservative when parameters correlate).
+
+**Drift.** A slow wear moves each check a little: too little for either test
+above until late. The drift test is the likelihood-ratio (GLR) test of a
+straight-line trend in the ``m >= 3`` checks since the baseline, level free:
+the slope vector ``b`` [% per check] of the checks against their order, whose
+covariance under no drift is ``Σ / Sxx``; ``Σ`` is pooled from the baseline's
+scatter and the checks' own residuals about the line (``ν = n + m - 3``
+degrees of freedom), so
+
+    T²_drift = Sxx bᵀ Σ̂⁻¹ b,      F = T²_drift (ν - r + 1) / (r ν) ~ F(r, ν - r + 1).
+
+Its alarm, ``p < drift_alpha``, has false-alarm probability ``drift_alpha`` at
+each check. The slope does not depend on the baseline's mean, so an unlucky
+baseline (its mean off by its own noise) raises no drift alarm, which a CUSUM
+on the changes would.
+
+Both are exact for normal estimates; the benchmark
+(``benchmarks/bench_prognostics.py``) measures the rates on simulated checks.
+
+How they combine with the fuzzy status: the status (go / advisory / no-go) is
+the fuzzy diagnoser's and names the fault; the statistics never change it.
+An alarm is shown beside it, and an alarm under a ``go`` is said as such
+("statistical alarm under go: a change beyond the healthy scatter, below the
+fault breakpoints"): a reason to look, not to stop.
+
+Why by hand: scipy has the F and t distributions but no Hotelling prediction
+or drift test with a rank-deficient covariance, and the change-detection
+libraries (ruptures, the CUSUM of statsmodels) work on one raw signal, not a
+parameter vector against a baseline of its own scatter.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from condmon.errors import DataError
+
+__all__ = ["StatisticsConfig", "CheckStatistics", "check_statistics", "checked_alpha"]
+
+FloatArray = NDArray[np.float64]
+
+#: Fewest checks since the baseline the drift test needs.
+MIN_DRIFT_CHECKS = 3
+_RANK_TOL = 1e-8
+
+
+def checked_alpha(value: Any, what: str = "alpha") -> float:
+    """``value`` as a false-alarm probability in (0, 0.5), else a DataError naming it.
+
+    Example
+    -------
+    >>> checked_alpha("0.01")
+    0.01
+    """
+    try:
+        a = float(value)
+    except (TypeError, ValueError):
+        raise DataError(f"{what} must be a number in (0, 0.5), not {value!r}") from None
+    if not 0.0 < a < 0.5:
+        raise DataError(f"{what} must be a false-alarm probability in (0, 0.5), not {a:g}")
+    return a
+
+
+@dataclass(frozen=True)
+class StatisticsConfig:
+    """False-alarm probabilities of the statistical detectors (the monitor file's
+    ``[statistics]`` table).
+
+    Attributes
+    ----------
+    alpha : float
+        Of one check's change test. [-]
+    drift_alpha : float
+        Of the drift test at one check. [-]
+    """
+
+    alpha: float = 0.01
+    drift_alpha: float = 0.01
+
+
+@dataclass(frozen=True)
+class CheckStatistics:
+    """The calibrated tests of one check.
+
+    Attributes
+    ----------
+    statistic : float
+        Hotelling's T² of the change vector (``max-t``: the largest |t|). [-]
+    p_value : float
+        Its probability under no change. [-]
+    alpha : float
+        The false-alarm probability it is tested at. [-]
+    alarm : bool
+        ``p_value < alpha``.
+    method : {"hotelling", "max-t"}
+    parameters : tuple of str
+        The parameters tested (a regime's as ``Tc@forward``).
+    rank : int
+        Independent directions among them. [-]
+    tests : int
+        Baseline tests the scatter comes from. [-]
+    drift_statistic, drift_p_value : float or None
+        The drift test's T² (or largest |t|) and probability under no drift;
+        None with fewer than 3 checks since the baseline. [-]
+    drift_alpha : float
+        Its false-alarm probability per check. [-]
+    drift_alarm : bool or None
+    drift_slope : dict of str to float
+        The fitted slope of each parameter's change. [% per check]
+    checks : int
+        Checks since the baseline, this one included. [-]
+    """
+
+    statistic: float
+    p_value: float
+    alpha: float
+    alarm: bool
+    method: str
+    parameters: tuple[str, ...]
+    rank: int
+    tests: int
+    drift_statistic: float | None
+    drift_p_value: float | None
+    drift_alpha: float
+    drift_alarm: bool | None
+    drift_slope: dict[str, float]
+    checks: int
+
+    @property
+    def any_alarm(self) -> bool:
+        """Either test alarms."""
+        return self.alarm or bool(self.drift_alarm)
+
+    def describe(self, status: str | None = None) -> str:
+        """One line for a person: both tests, and what an alarm under ``go`` means."""
+        level = (f"change T² {self.statistic:.3g}, p {self.p_value:.2g}"
+                 if self.method == "hotelling" else
+                 f"change max |t| {self.statistic:.3g}, p {self.p_value:.2g}")
+        drift = ("drift: fewer than 3 checks since the baseline" if self.drift_p_value is None
+                 else f"drift p {self.drift_p_value:.2g}")
+        alarms = [n for n, a in (("change", self.alarm), ("drift", self.drift_alarm)) if a]
+        verdict = (f"ALARM ({' and '.join(alarms)})" if alarms else "no alarm")
+        line = (f"statistics: {verdict}; {level} (α {self.alpha:g}); {drift} "
+                f"(α {self.drift_alpha:g})")
+        if alarms and status == "go":
+            line += ("; statistical alarm under go: a change beyond the healthy scatter, "
+                     "below the fault breakpoints")
+        return line
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form (the ``statistics`` of ``condmon check --json``)."""
+        return {"statistic": self.statistic, "p_value": self.p_value, "alpha": self.alpha,
+                "alarm": self.alarm, "method": self.method, "parameters": list(self.parameters),
+                "rank": self.rank, "baseline_tests": self.tests,
+                "drift_statistic": self.drift_statistic, "drift_p_value": self.drift_p_value,
+                "drift_alpha": self.drift_alpha, "drift_alarm": self.drift_alarm,
+                "drift_slope_percent_per_check": self.drift_slope, "checks": self.checks}
+
+
+def _distinct(S: FloatArray) -> int:
+    """Parameters that are not exact multiples of another (``Ke`` and ``Kt`` count once)."""
+    scale = np.sqrt(np.clip(np.diag(S), 1e-300, None))
+    R = np.abs(S / np.outer(scale, scale))
+    seen: set[int] = set()
+    groups = 0
+    for i in range(len(R)):
+        if i not in seen:
+            groups += 1
+            seen.update(int(j) for j in np.flatnonzero(R[i] > 1.0 - _RANK_TOL))
+    return groups
+
+
+def _test(z: FloatArray, scatter: FloatArray, factor: float, extra: FloatArray, dof: int,
+          distinct: int) -> tuple[float, float, str, int]:
+    """Statistic, p, method and rank of ``z`` against ``scatter`` (estimated on
+    ``dof`` degrees of freedom) times ``factor``, plus ``extra``.
+
+    Hotelling's T² in the directions the scatter spans when its rank is the
+    parameters' own (below ``dof``: a rank ``dof`` tests could show by
+    themselves says nothing of the structure); else the largest |t| with
+    Šidák's correction over the ``distinct`` parameters.
+    """
+    from scipy.stats import f as f_dist
+    from scipy.stats import t as t_dist
+
+    scale = np.sqrt(np.clip(np.diag(scatter), 1e-300, None))
+    w, V = np.linalg.eigh(scatter / np.outer(scale, scale))
+    keep = w > _RANK_TOL * max(float(w[-1]), 1e-300)
+    r = int(np.count_nonzero(keep))
+    if 1 <= r < dof:
+        W = V[:, keep] / scale[:, None]
+        zw = W.T @ z
+        t2 = float(zw @ np.linalg.solve(W.T @ (scatter * factor + extra) @ W, zw))
+        return t2, float(f_dist.sf(t2 * (dof - r + 1) / (r * dof), r, dof - r + 1)), \
+            "hotelling", r
+    t = z / np.sqrt(np.clip(np.diag(scatter) * factor + np.diag(extra), 1e-300, None))
+    big = float(np.max(np.abs(t)))
+    p1 = min(float(2.0 * t_dist.sf(big, dof)), 1.0 - 1e-16)
+    return big, float(min(1.0, -math.expm1(distinct * math.log1p(-p1)))), "max-t", distinct
+
+
+def check_statistics(parameters: tuple[str, ...], change: ArrayLike, se: ArrayLike,
+                     baseline_changes: ArrayLike, baseline_se: ArrayLike,
+                     series: ArrayLike, config: StatisticsConfig = StatisticsConfig()
+                     ) -> CheckStatistics:
+    """The change and drift tests of one check.
+
+    Parameters
+    ----------
+    parameters : tuple of str
+        Names of the columns below.
+    change : array_like, shape (p,)
+        The check's change against the baseline mean. [%]
+    se : array_like, shape (p,)
+        The check's standard errors. [% of the baseline mean]
+    baseline_changes : array_like, shape (n, p)
+        Each baseline test's change against the baseline mean. [%]
+    baseline_se : array_like, shape (n, p)
+        Their standard errors. [% of the baseline mean]
+    series : array_like, shape (m, p)
+        The checks since the baseline, in order, this one last. [%]
+    config : StatisticsConfig
+
+    Raises
+    ------
+    DataError
+        Fewer than 3 baseline tests, shapes that differ, a non-finite value.
+
+    Example
+    -------
+    >>> rng = np.random.default_rng(0)
+    >>> base = rng.normal(0.0, 1.0, (20, 2))
+    >>> s = check_statistics(("R", "D"), [0.5, -0.3], [1.0, 1.0], base, np.ones((20, 2)),
+    ...                      [[0.1, 0.2], [-0.4, 0.0], [0.5, -0.3]])
+    >>> s.method, s.alarm, s.drift_alarm
+    ('hotelling', False, False)
+    >>> check_statistics(("R", "D"), [9.0, 0.0], [1.0, 1.0], base, np.ones((20, 2)),
+    ...                  [[0.0, 0.0]]).alarm          # 9 baseline spreads
+    True
+    """
+    d = np.asarray(change, dtype=np.float64).reshape(-1)
+    e = np.asarray(se, dtype=np.float64).reshape(-1)
+    B = np.asarray(baseline_changes, dtype=np.float64)
+    Bse = np.asarray(baseline_se, dtype=np.float64)
+    Y = np.asarray(series, dtype=np.float64)
+    Y = Y.reshape(1, -1) if Y.ndim == 1 else Y
+    p, n = d.size, B.shape[0] if B.ndim == 2 else 0
+    if p == 0 or len(parameters) != p or B.shape != (n, p) or Bse.shape != (n, p) \
+            or e.size != p or Y.ndim != 2 or Y.shape[1] != p:
+        raise DataError("statistics: the change, its errors and the baseline differ in shape")
+    if n < 3:
+        raise DataError(f"statistics: the baseline has {n} complete test(s), need 3")
+    if not all(np.all(np.isfinite(a)) for a in (d, e, B, Bse, Y)):
+        raise DataError("statistics: a change or standard error is not finite")
+    S = np.cov(B, rowvar=False, ddof=1).reshape(p, p)
+    distinct = _distinct(S)
+    extra = np.diag(np.clip(e ** 2 - np.mean(Bse ** 2, axis=0), 0.0, None))
+    stat, pv, method, r = _test(d, S, 1.0 + 1.0 / n, extra, n - 1, distinct)
+    m = Y.shape[0]
+    dstat = dp = None
+    slope = np.full(p, np.nan)
+    if m >= MIN_DRIFT_CHECKS:
+        x = np.arange(m, dtype=np.float64)
+        x -= x.mean()
+        sxx = float(x @ x)
+        slope = (x @ (Y - Y.mean(axis=0))) / sxx
+        resid = Y - Y.mean(axis=0) - np.outer(x, slope)
+        nu = n + m - 3
+        pooled = (S * (n - 1) + resid.T @ resid) / nu
+        dstat, dp, _, _ = _test(slope * math.sqrt(sxx), pooled, 1.0, np.zeros((p, p)), nu,
+                                distinct)
+    return CheckStatistics(stat, pv, config.alpha, pv < config.alpha, method, tuple(parameters),
+                           r, n, dstat, dp, config.drift_alpha,
+                           None if dp is None else dp < config.drift_alpha,
+                           {k: float(v) for k, v in zip(parameters, slope)
+                            if math.isfinite(v)}, m)

@@ -207,7 +207,7 @@ def prognostics(units: list[dict[str, Any]], peer: bool) -> dict[str, Any]:
         for name, p in preds.items():
             for shape in ("all", "linear", "exponential"):
                 pick = [i for i, sh in enumerate(shapes) if shape in ("all", sh)]
-                if p:
+                if p and pick:
                     rows.append({"lambda": lam, "method": name, "wear": shape,
                                  "units": len(pick), **_score([p[i] for i in pick],
                                                                [truths[i] for i in pick])})

@@ -212,6 +212,8 @@ def test_units_sort_by_urgency(wearing: tuple[Path, float],
     """Fast wear first, slow wear next, the stable unit last; the table says when."""
     from _tables import row
 
+    from condmon.monitor.unit_forecast import remaining_text
+
     db = str(wearing[0])
     capsys.readouterr()
     assert main(["units", "--db", db, "--json", "--sort", "forecast"]) == 0
@@ -228,9 +230,7 @@ def test_units_sort_by_urgency(wearing: tuple[Path, float],
     assert text.index("WEAR") < text.index("SLOW") < text.index("STABLE")
     row(text, "unit", "model", "tests", "latest", "date", "status", "no-go in")
     for u in units:
-        f = u["forecast"]
-        shown = "no trend" if f is None else (
-            f"{f['median']:.0f} d ({f['low']:.0f}–{f['high']:.0f})")
+        shown = remaining_text(u["forecast"], u["forecast_reason"])
         row(text, u["unit"], "dc-motor", str(u["tests"]), "record", u["latest_date"][:10],
             u["status"], shown)
     assert main(["units", "--db", db, "--sort", "urgency"]) == 2

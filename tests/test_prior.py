@@ -1,0 +1,122 @@
+"""The fleet prior on the degradation rate against known truth: a tight correct
+prior sharpens an early forecast, a vague one leaves it alone, the fleet's rate
+and spread are recovered, and the refusals."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from condmon.errors import DataError
+from condmon.monitor.forecast import RatePrior, fleet_prior, forecast_series
+
+# the truth: +2 % a test, no-go at +60 %: crossed at test 30
+RATE, THRESHOLD, NOISE = 2.0, 60.0, 3.0
+
+
+def _early(seed: int, tests: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    x = np.arange(1.0, tests + 1.0)
+    return x, RATE * x + np.random.default_rng(seed).normal(0.0, NOISE, tests)
+
+
+def test_a_tight_correct_prior_sharpens_an_early_forecast() -> None:
+    truth = THRESHOLD / RATE - 4.0
+    tight = RatePrior("linear", RATE, 0.1, 20)
+    err_own, err_prior, width_own, width_prior = [], [], [], []
+    for seed in range(40):
+        x, y = _early(seed)
+        own = forecast_series(x, y, np.full(4, NOISE), 1.0, THRESHOLD)
+        post = forecast_series(x, y, np.full(4, NOISE), 1.0, THRESHOLD, prior=tight)
+        assert post.remaining is not None and post.model == "linear"
+        err_prior.append(abs(post.remaining[0] - truth))
+        width_prior.append(post.remaining[2] - post.remaining[1])
+        if own.remaining is not None:
+            err_own.append(abs(own.remaining[0] - truth))
+            width_own.append(own.remaining[2] - own.remaining[1])
+        else:                           # no trend seen in 4 tests: no number at all
+            err_own.append(math.inf)
+            width_own.append(math.inf)
+    assert np.median(err_prior) < 0.5 * np.median(err_own)
+    assert np.median(err_prior) / truth < 0.1
+    assert np.median(width_prior) < 0.5 * np.median(width_own)
+
+
+def test_a_wrong_but_vague_prior_does_not_move_the_forecast() -> None:
+    x, y = _early(3, tests=12)
+    own = forecast_series(x, y, np.full(12, NOISE), 1.0, THRESHOLD)
+    wide = forecast_series(x, y, np.full(12, NOISE), 1.0, THRESHOLD,
+                           prior=RatePrior("linear", -10.0, 1e4, 3))
+    assert own.remaining is not None and wide.remaining is not None
+    assert wide.remaining[0] == pytest.approx(own.remaining[0], rel=0.01)
+    assert wide.slope == pytest.approx(own.slope, rel=0.01)
+
+
+def test_no_fleet_history_is_a_vague_prior_and_said() -> None:
+    x, y = _early(5, tests=10)
+    alone = fleet_prior([(x, y, np.full(10, NOISE), 1.0)])
+    assert alone.units == 0 and not alone.informative
+    own = forecast_series(x, y, np.full(10, NOISE), 1.0, THRESHOLD)
+    vague = forecast_series(x, y, np.full(10, NOISE), 1.0, THRESHOLD, prior=alone)
+    assert vague.remaining == own.remaining and vague.model == own.model
+    assert vague.notes[-1] == "no fleet history: vague prior"
+    assert not any("prior" in n for n in own.notes)      # no prior asked: nothing said
+
+
+def test_the_fleet_rate_and_spread_are_recovered() -> None:
+    rng = np.random.default_rng(11)
+    rates = rng.normal(2.0, 0.3, 40)
+    x = np.arange(1.0, 26.0)
+    fleet = [(x, r * x + rng.normal(0.0, 1.0, 25), np.ones(25), 0.5) for r in rates]
+    p = fleet_prior(fleet)
+    assert p.model == "linear" and p.units == 40
+    assert p.mean == pytest.approx(rates.mean(), abs=0.05)
+    assert p.sd == pytest.approx(rates.std(ddof=1), rel=0.15)
+    assert p.describe() == f"fleet prior (linear) from 40 units: slope {p.mean:.3g} ± {p.sd:.2g} %/test"
+
+
+def test_an_exponential_fleet_gives_its_growth_rate() -> None:
+    rng = np.random.default_rng(2)
+    x = np.arange(1.0, 21.0)
+    rates = rng.normal(0.15, 0.02, 10)
+    fleet = [(x, 5.0 * np.exp(r * x) * (1.0 + rng.normal(0.0, 0.02, 20)), np.full(20, 0.5), 0.5)
+             for r in rates]
+    p = fleet_prior(fleet, model="exponential")
+    assert p.units == 10 and p.mean == pytest.approx(rates.mean(), abs=0.01)
+    # a unit's first tests with its fleet's growth rate: the exponential, updated
+    y = fleet[0][1][:8]
+    own = forecast_series(x[:8], y, np.full(8, 0.5), 0.5, threshold=200.0)
+    f = forecast_series(x[:8], y, np.full(8, 0.5), 0.5, threshold=200.0, prior=p)
+    assert f.notes[-1] == p.describe()
+    truth = math.log(200.0 / 5.0) / rates[0] - 8.0
+    assert f.remaining is not None and own.remaining is not None
+    assert f.remaining[1] <= truth <= f.remaining[2]
+    assert f.remaining[2] - f.remaining[1] < own.remaining[2] - own.remaining[1]
+
+
+def test_a_prior_whose_model_cannot_be_fitted_is_not_used() -> None:
+    x = np.arange(1.0, 7.0)
+    y = np.array([0.0, 4.0, 6.0, 7.0, 7.5, 7.8])             # slowing down: no exponential
+    p = RatePrior("exponential", 0.2, 0.01, 8)
+    f = forecast_series(x, y, np.full(6, 0.1), 0.1, threshold=40.0, prior=p)
+    assert f.model == "linear" and f.notes[-1].endswith("not used: no growing exponential "
+                                                         "fits the series")
+
+
+@pytest.mark.parametrize("args,message", [
+    (("quadratic", 1.0, 1.0, 3), "unknown degradation model 'quadratic'"),
+    (("linear", 1.0, 0.0, 3), "an sd > 0"),
+    (("linear", math.nan, 1.0, 3), "a finite mean"),
+])
+def test_bad_priors_are_refused(args: tuple[str, float, float, int], message: str) -> None:
+    with pytest.raises(DataError, match=message):
+        RatePrior(*args)
+
+
+def test_fleet_prior_refusals() -> None:
+    x = np.arange(1.0, 5.0)
+    with pytest.raises(DataError, match="unknown degradation model 'cubic'"):
+        fleet_prior([(x, x, np.ones(4), 1.0)] * 2, model="cubic")
+    with pytest.raises(DataError, match="not enough tests to forecast"):
+        fleet_prior([(x[:2], x[:2], np.ones(2), 1.0)] * 2)

@@ -261,3 +261,32 @@ def test_check_says_the_forecast(wearing: tuple[Path, float], demo_rig, tmp_path
     text = " ".join(capsys.readouterr().out.split())
     assert "forecast: D no-go in" in text and " d (" in text
     assert "(friction increase)" in text
+
+
+def test_the_fleet_teaches_a_new_unit_its_rate(tmp_path: Path, demo_rig,  # type: ignore[no-untyped-def]
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    """Two units of the group wore out (friction +100 % a day, to advisory and
+    no-go); a new unit of the group starts on the same path: its forecast of
+    D updates the fleet's prior rate (about +100 %/day); a unit of another
+    group learns nothing from them ("no fleet history")."""
+    db = str(tmp_path / "fleet.db")
+    with open_store(db) as store:
+        for i, (unit, group, days) in enumerate((("OLD1", "line-a", 9), ("OLD2", "line-a", 9),
+                                                 ("NEW", "line-a", 4), ("ELSE", "line-b", 4))):
+            add_baseline_tests(store, unit, [simulate_actuator(demo_rig, seed=10 * i + s)
+                                             for s in (1, 2, 3)], test_date="2026-01-01")
+            for k in range(1, days + 1):
+                rig = demo_rig.with_faults([f"D=*{1.0 + k}", f"coulomb_friction=*{1.0 + k}"])
+                check_test(store, unit, simulate_actuator(rig, seed=300 + 10 * k + i),
+                           test_date=f"2026-01-{1 + k:02d}", group=group)
+        assert {str(s) for s in store.history("OLD1")["status"].dropna()} & {"advisory", "no-go"}
+    capsys.readouterr()
+    assert main(["forecast", "--unit", "NEW", "--db", db, "--json"]) == 0
+    d = next(p for p in json.loads(capsys.readouterr().out)["parameters"]
+             if p["parameter"] == "D")
+    prior = next(n for n in d["notes"] if n.startswith("fleet prior"))
+    assert "from 2 units" in prior
+    rate = float(prior.split("slope ")[1].split(" ±")[0])
+    assert rate == pytest.approx(100.0, rel=0.3)
+    assert main(["forecast", "--unit", "ELSE", "--db", db]) == 0
+    assert "prior: no fleet history: vague prior" in capsys.readouterr().out

@@ -120,3 +120,14 @@ def test_fleet_prior_refusals() -> None:
         fleet_prior([(x, x, np.ones(4), 1.0)] * 2, model="cubic")
     with pytest.raises(DataError, match="not enough tests to forecast"):
         fleet_prior([(x[:2], x[:2], np.ones(2), 1.0)] * 2)
+
+
+def test_a_prior_as_tight_as_can_be_is_the_rate() -> None:
+    """A prior far tighter than the fit (two identical fleet units) fixes the
+    rate without a near-singular inverse: 600 % from +420 % at 115 %/day is
+    1.6 days, not 10^8."""
+    x = np.array([1.0, 2.0, 3.0, 4.0])
+    f = forecast_series(x, [100.0, 210.0, 290.0, 420.0], np.full(4, 5.0), 10.0, 600.0,
+                        prior=RatePrior("linear", 115.0, 1e-12, 2, "day"))
+    assert f.slope == pytest.approx(115.0) and f.remaining is not None
+    assert 1.2 < f.remaining[1] <= f.remaining[0] <= f.remaining[2] < 2.0

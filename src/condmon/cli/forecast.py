@@ -70,3 +70,8 @@ def register(app: typer.Typer) -> None:
                   f"earliest: {e.parameter} in {n(e.forecast.remaining[0])} {left.split()[0]} "  # type: ignore[index]
                   f"(90 %: {n(e.forecast.remaining[1])}–{n(e.forecast.remaining[2])})",  # type: ignore[index]
                   markup=False, highlight=False)
+        priors = sorted({f"{p.parameter}: {note}" if not note.startswith("no fleet") else note
+                         for p in res.parameters for note in p.forecast.notes
+                         if note.startswith(("fleet prior", "no fleet history"))})
+        for line in priors:
+            out.print(f"prior: {line}", markup=False, highlight=False, soft_wrap=True)

@@ -260,16 +260,17 @@ def _wls(x: FloatArray, y: FloatArray, w: FloatArray) -> tuple[FloatArray, Float
 def _updated(fit: tuple[FloatArray, FloatArray, float],
              prior: RatePrior) -> tuple[FloatArray, FloatArray, float]:
     """The fit's coefficients updated by a normal prior on the slope (flat on
-    the intercept): precision and precision-weighted mean add."""
+    the others), in the gain form ``θ + k (m − b)``, ``C − k C_b`` with
+    ``k = C_·b / (C_bb + s²)``: the same as adding precisions, and sound for
+    a prior as tight as the fit is loose (no inverse of a near-singular sum)."""
     coef, cov, rss = fit
     if not prior.informative:
         return fit
-    info = np.linalg.pinv(cov)
-    on_b = np.zeros(len(coef))     # the slope is the last coefficient
-    on_b[-1] = 1.0 / prior.sd ** 2
-    post_cov = np.asarray(np.linalg.inv(info + np.diag(on_b)), dtype=np.float64)
-    post_coef = post_cov @ (info @ coef + on_b * prior.mean)
-    return np.asarray(post_coef, dtype=np.float64), post_cov, rss
+    gain = cov[:, -1] / (cov[-1, -1] + prior.sd ** 2)   # the slope is the last coefficient
+    post_coef = coef + gain * (prior.mean - coef[-1])
+    post_cov = cov - np.outer(gain, cov[-1, :])
+    return (np.asarray(post_coef, dtype=np.float64),
+            np.asarray((post_cov + post_cov.T) / 2.0, dtype=np.float64), rss)
 
 
 def _fitted(fit: tuple[FloatArray, FloatArray, float]
@@ -381,18 +382,22 @@ def fleet_prior(series: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike, float]],
     """
     if model not in _MODELS:
         raise DataError(f"unknown degradation model {model!r}: use one of {', '.join(_MODELS)}")
-    rates = []
+    rates, own = [], []
     for x, change, se, spread in series:
         xa, ya, sa = _checked(x, change, se, spread)
         tail = float(np.mean(ya[-MIN_TESTS:]))
         fit = _fits(xa, ya, sa, spread, 1.0 if tail >= 0 else -1.0).get(model)
         if fit is not None:
             rates.append(float(fit[0][-1]))
+            own.append(float(fit[1][-1, -1]))
     if len(rates) < 2:
         return RatePrior.vague(model, per)
     r = np.asarray(rates)
-    sd = float(np.std(r, ddof=1)) * math.sqrt(1.0 + 1.0 / len(r))
-    return RatePrior(model, float(np.mean(r)), max(sd, 1e-12), len(r), per)
+    # the units' rates scatter by their own estimation error too: never less than that
+    var = max(float(np.var(r, ddof=1)), float(np.mean(own)))
+    sd = math.sqrt(var * (1.0 + 1.0 / len(r)))
+    return RatePrior(model, float(np.mean(r)), max(sd, 1e-12 * max(1.0, abs(float(np.mean(r))))),
+                     len(r), per)
 
 
 def _checked(x: ArrayLike, change: ArrayLike, se: ArrayLike,

@@ -27,10 +27,17 @@ from numpy.typing import NDArray
 
 from condmon.errors import DataError
 from condmon.monitor.baseline import Baseline
-from condmon.monitor.forecast import MIN_TESTS, Forecast, forecast_series
+from condmon.monitor.forecast import MIN_TESTS, Forecast, RatePrior, forecast_series
 
 __all__ = ["ParameterForecast", "UnitForecast", "forecast_checks", "forecast_axis",
-           "axis_values", "remaining_text", "NO_TREND"]
+           "axis_values", "remaining_text", "NO_TREND", "parameter_series", "Series"]
+
+#: One parameter's change series: x [test (or d)], change [%], each test's
+#: standard error and the baseline's spread [% of the baseline mean].
+Series = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float]
+
+#: The farthest crossing given a date. [d]
+_MAX_DAYS = 36525.0
 
 #: Why a unit with enough checks has no forecast.
 NO_TREND = "no trend towards no-go"
@@ -152,10 +159,31 @@ def axis_values(by: str, dates: pd.Series, rows: pd.Index) -> NDArray[np.float64
     raise DataError(f"unknown forecast axis {by!r}; allowed: tests, days")
 
 
+def parameter_series(checks: pd.DataFrame, baseline: Baseline, key: str, by: str,
+                     dates: pd.Series) -> tuple[Series, pd.Index] | None:
+    """The change series of parameter ``key`` (``Tc@forward`` for a regime's)
+    in ``checks``, and the checks it is in; None when fewer than 3 checks have
+    it or the baseline lacks it."""
+    col = f"{key}_change"   # a regime's parameter has columns of its own (Tc@forward)
+    if col not in checks or key not in baseline.parameters:
+        return None
+    i = baseline.parameters.index(key)
+    mean, std = baseline.mean[i], baseline.std[i]
+    rows = checks[checks[col].notna()]
+    if len(rows) < MIN_TESTS:
+        return None
+    change = rows[col].to_numpy(dtype=np.float64)
+    se = 100.0 * rows[f"{key}_se"].to_numpy(dtype=np.float64) / abs(mean) \
+        if f"{key}_se" in rows and mean else np.zeros(len(rows))
+    return (axis_values(by, dates, rows.index), change, np.nan_to_num(se),
+            100.0 * std / abs(mean) if mean else 0.0), rows.index
+
+
 def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
                     r2: Mapping[str, float], rules: Mapping[str, str],
                     units: Mapping[str, str] | None = None, horizon: float | None = None,
-                    seed: int = 0) -> UnitForecast:
+                    seed: int = 0, priors: Mapping[str, RatePrior] | None = None
+                    ) -> UnitForecast:
     """Forecast every parameter of a unit to no-go from its checks since the baseline.
 
     Parameters
@@ -180,6 +208,10 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
         For the probability of crossing within it. [tests (or d)]
     seed : int
         Seed of the predictive draws.
+    priors : mapping of str to RatePrior, optional
+        The fleet's prior on each parameter key's degradation rate
+        (:func:`~condmon.monitor.forecast.fleet_prior`); a key without one is
+        forecast from its own tests alone.
 
     Returns
     -------
@@ -197,27 +229,22 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
                         f"check(s) since its baseline, need {MIN_TESTS}")
     by, dates = forecast_axis(checks)
     out = []
-    for key, mean, std in zip(baseline.parameters, baseline.mean, baseline.std):
+    for key in baseline.parameters:
         name = key.split("@", 1)[0]
-        col = f"{key}_change"   # a regime's parameter has columns of its own (Tc@forward)
-        if col not in checks or name not in r2:
+        found = parameter_series(checks, baseline, key, by, dates) if name in r2 else None
+        if found is None:
             continue
-        rows = checks[checks[col].notna()]
-        if len(rows) < MIN_TESTS:
-            continue
-        change = rows[col].to_numpy(dtype=np.float64)
-        se = 100.0 * rows[f"{key}_se"].to_numpy(dtype=np.float64) / abs(mean) \
-            if f"{key}_se" in rows and mean else np.zeros(len(rows))
+        (x, change, se, spread), rows = found
         rising = float(np.nanmean(change[-MIN_TESTS:])) >= 0.0
         threshold = r2[name] if rising else -r2[name]
         rule = rules.get(f"{'high' if rising else 'low'}({name})", "")
-        f = forecast_series(axis_values(by, dates, rows.index), change, np.nan_to_num(se),
-                            100.0 * std / abs(mean) if mean else 0.0, threshold, horizon, seed)
-        when = None
-        if by == "days" and f.remaining is not None and np.isfinite(f.remaining[0]):
-            when = (dates[rows.index[-1]] + pd.Timedelta(days=f.remaining[0])).isoformat()
+        f = forecast_series(x, change, se, spread, threshold, horizon, seed,
+                            prior=(priors or {}).get(key))
+        when = None   # a crossing beyond a century is no date (nor a pandas timestamp)
+        if by == "days" and f.remaining is not None and f.remaining[0] < _MAX_DAYS:
+            when = (dates[rows[-1]] + pd.Timedelta(days=f.remaining[0])).isoformat()
         out.append(ParameterForecast(key, (units or {}).get(name, ""), rule, f, when,
-                                     tuple(int(i) for i in rows.index)))
+                                     tuple(int(i) for i in rows)))
     out.sort(key=lambda p: (p.forecast.remaining is None,
                             p.forecast.remaining[0] if p.forecast.remaining else 0.0))
     return UnitForecast(unit, by, len(checks), tuple(out))

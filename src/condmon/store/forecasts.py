@@ -14,25 +14,99 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
+import pandas as pd
+
 from condmon.errors import CondmonError
-from condmon.monitor.baseline import MIN_BASELINE_TESTS
-from condmon.monitor.unit_forecast import NO_TREND, UnitForecast, forecast_checks
+from condmon.monitor.baseline import MIN_BASELINE_TESTS, Baseline
+from condmon.monitor.forecast import RatePrior, fleet_prior
+from condmon.monitor.unit_forecast import (
+    NO_TREND, UnitForecast, forecast_axis, forecast_checks, parameter_series,
+)
 from condmon.store.baselines import baseline_members, current_baseline
 
 if TYPE_CHECKING:
     from condmon.store.db import HistoryStore
 
 __all__ = ["read_forecast", "try_forecast", "forecast_fields", "fleet_summaries",
-           "by_urgency", "NO_BASELINE"]
+           "by_urgency", "NO_BASELINE", "FleetHistory", "DEGRADED"]
+
+#: The statuses that make a unit one that "has degraded", whose series teach the fleet prior.
+DEGRADED = ("advisory", "no-go")
+
+
+class FleetHistory:
+    """The units that have already degraded, read once for many forecasts.
+
+    A unit has degraded when one of its checks since its current baseline was
+    advisory or no-go; its change series give the prior on the degradation
+    rate of a unit of the same model (and group, when the unit is in one)
+    (:func:`condmon.monitor.forecast.fleet_prior`), each unit left out of its
+    own prior.
+    """
+
+    def __init__(self, store: HistoryStore) -> None:
+        self.store = store
+        self._checks: dict[str, tuple[Baseline, pd.DataFrame]] = {}
+
+    def checks(self, unit: str) -> tuple[Baseline, pd.DataFrame]:
+        """The unit's current baseline and its accepted checks since it.
+
+        Raises
+        ------
+        DataError
+            The unit has no baseline (:func:`~condmon.store.baselines.current_baseline`).
+        """
+        if unit not in self._checks:
+            baseline, ids = current_baseline(self.store, unit)
+            hist = self.store.history(unit)
+            checks = hist[(hist["role"] == "check") & hist["accepted"].astype(bool)
+                          & ~hist["excluded"].astype(bool)]
+            self._checks[unit] = (baseline, checks[[i not in ids for i in checks.index]])
+        return self._checks[unit]
+
+    def peers(self, unit: str) -> list[str]:
+        """Units of ``unit``'s model (and group) that have degraded, ``unit`` left out."""
+        model, group = self.store.unit_model(unit), self.store.unit_group(unit)
+        out = []
+        for other in self.store.units():
+            if other == unit or self.store.unit_model(other) != model or (
+                    group is not None and self.store.unit_group(other) != group):
+                continue
+            try:
+                checks = self.checks(other)[1]
+            except CondmonError:   # no baseline: nothing to learn from
+                continue
+            if "status" in checks and checks["status"].isin(DEGRADED).any():
+                out.append(other)
+        return out
+
+    def priors(self, unit: str, keys: Sequence[str], by: str) -> dict[str, RatePrior]:
+        """The linear rate prior of each parameter key for ``unit``, its x
+        counting ``by`` (``tests`` or ``days``; peers counted otherwise are
+        left out); vague ("no fleet history") when fewer than 2 peers have the key."""
+        series: dict[str, list[Any]] = {k: [] for k in keys}
+        for other in self.peers(unit):
+            baseline, checks = self.checks(other)
+            their_by, dates = forecast_axis(checks)
+            if their_by != by:
+                continue
+            for key in keys:
+                found = parameter_series(checks, baseline, key, by, dates)
+                if found is not None:
+                    series[key].append(found[0])
+        per = by[:-1]
+        return {k: fleet_prior(v, "linear", per) for k, v in series.items()}
 
 #: Why a unit without a baseline in use has no forecast.
 NO_BASELINE = "no baseline yet"
 
 
 def read_forecast(store: HistoryStore, unit: str, horizon: float | None = None,
-                  seed: int = 0) -> UnitForecast:
+                  seed: int = 0, fleet: FleetHistory | None = None) -> UnitForecast:
     """Forecast every parameter of ``unit`` to no-go, from its checks since its
-    current baseline (accepted, not excluded), against its model's ``r2``.
+    current baseline (accepted, not excluded), against its model's ``r2``,
+    each rate updating the fleet's prior (:class:`FleetHistory`; vague, and
+    said, with no fleet history).
 
     Parameters
     ----------
@@ -42,6 +116,8 @@ def read_forecast(store: HistoryStore, unit: str, horizon: float | None = None,
         For the probability of crossing within it. [tests (or d)]
     seed : int
         Seed of the predictive draws.
+    fleet : FleetHistory, optional
+        The fleet's degraded units, when many units are forecast at once.
 
     Raises
     ------
@@ -56,20 +132,20 @@ def read_forecast(store: HistoryStore, unit: str, horizon: float | None = None,
     from condmon.monitor.generic import machine_monitor
 
     store.unit_id(unit)  # an unknown unit: the close names
-    baseline, ids = current_baseline(store, unit)
+    fleet = fleet or FleetHistory(store)
+    baseline, checks = fleet.checks(unit)
     machine = get_model(store.unit_model(unit) or "dc-motor")
-    hist = store.history(unit)
-    checks = hist[(hist["role"] == "check") & hist["accepted"].astype(bool)
-                  & ~hist["excluded"].astype(bool)]
-    checks = checks[[i not in ids for i in checks.index]]
     rules: dict[str, str] = {}
     for r in machine_rules(machine).faults:  # the first rule of each one-symptom condition
         rules.setdefault(r.text.strip(), r.name)
+    priors = (fleet.priors(unit, baseline.parameters, forecast_axis(checks)[0])
+              if len(checks) else {})
     return forecast_checks(unit, checks, baseline, machine_monitor(machine, baseline).r2,
-                           rules, machine.units, horizon, seed)
+                           rules, machine.units, horizon, seed, priors)
 
 
-def try_forecast(store: HistoryStore, unit: str) -> tuple[UnitForecast | None, str | None]:
+def try_forecast(store: HistoryStore, unit: str, fleet: FleetHistory | None = None
+                 ) -> tuple[UnitForecast | None, str | None]:
     """:func:`read_forecast`, or why there is none: ``(forecast, None)`` or
     ``(None, reason)`` (no baseline yet, too few usable healthy tests for
     one, not enough tests to forecast, the model cannot be loaded); never raises a :class:`~condmon.errors.CondmonError`."""
@@ -79,7 +155,7 @@ def try_forecast(store: HistoryStore, unit: str) -> tuple[UnitForecast | None, s
             f"no baseline: {usable} usable healthy test(s), a baseline needs "
             f"{MIN_BASELINE_TESTS}")
     try:
-        return read_forecast(store, unit), None
+        return read_forecast(store, unit, fleet=fleet), None
     except CondmonError as err:
         return None, str(err)
 
@@ -103,8 +179,9 @@ def fleet_summaries(store: HistoryStore) -> list[dict[str, Any]]:
     to no-go (:func:`forecast_fields`): what ``condmon units --json`` and the
     fleet page's ``/api/units`` list."""
     rows = store.unit_summaries()
+    fleet = FleetHistory(store)
     for r in rows:
-        r.update(forecast_fields(*try_forecast(store, str(r["unit"]))))
+        r.update(forecast_fields(*try_forecast(store, str(r["unit"]), fleet)))
     return rows
 
 

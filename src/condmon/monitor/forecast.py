@@ -56,7 +56,8 @@ from scipy.optimize import minimize_scalar
 
 from condmon.errors import DataError
 
-__all__ = ["Forecast", "forecast_series", "MIN_TESTS", "RatePrior", "fleet_prior"]
+__all__ = ["Forecast", "forecast_series", "MIN_TESTS", "RatePrior", "fleet_prior", "unit_rate",
+           "prior_from_rates"]
 
 FloatArray = NDArray[np.float64]
 
@@ -382,19 +383,32 @@ def fleet_prior(series: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike, float]],
     """
     if model not in _MODELS:
         raise DataError(f"unknown degradation model {model!r}: use one of {', '.join(_MODELS)}")
-    rates, own = [], []
-    for x, change, se, spread in series:
-        xa, ya, sa = _checked(x, change, se, spread)
-        tail = float(np.mean(ya[-MIN_TESTS:]))
-        fit = _fits(xa, ya, sa, spread, 1.0 if tail >= 0 else -1.0).get(model)
-        if fit is not None:
-            rates.append(float(fit[0][-1]))
-            own.append(float(fit[1][-1, -1]))
+    rates = [found for x, change, se, spread in series
+             if (found := unit_rate(x, change, se, spread, model)) is not None]
+    return prior_from_rates(rates, model, per)
+
+
+def unit_rate(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
+              model: str = "linear") -> tuple[float, float] | None:
+    """One unit's degradation rate under ``model`` and its variance (None: no
+    growing exponential fits the series), as :func:`fleet_prior` reads it.
+    [% per x (linear), 1 per x (exponential); squared]"""
+    xa, ya, sa = _checked(x, change, se, spread)
+    tail = float(np.mean(ya[-MIN_TESTS:]))
+    fit = _fits(xa, ya, sa, spread, 1.0 if tail >= 0 else -1.0).get(model)
+    return None if fit is None else (float(fit[0][-1]), float(fit[1][-1, -1]))
+
+
+def prior_from_rates(rates: Sequence[tuple[float, float]], model: str = "linear",
+                     per: str = "test") -> RatePrior:
+    """The prior from units' rates and their variances (:func:`unit_rate`):
+    their mean, and their spread for a new unit (``sd·√(1 + 1/n)``), never
+    less than the rates' own estimation error; vague with fewer than 2."""
     if len(rates) < 2:
         return RatePrior.vague(model, per)
-    r = np.asarray(rates)
+    r = np.asarray([v for v, _ in rates])
     # the units' rates scatter by their own estimation error too: never less than that
-    var = max(float(np.var(r, ddof=1)), float(np.mean(own)))
+    var = max(float(np.var(r, ddof=1)), float(np.mean([e for _, e in rates])))
     sd = math.sqrt(var * (1.0 + 1.0 / len(r)))
     return RatePrior(model, float(np.mean(r)), max(sd, 1e-12 * max(1.0, abs(float(np.mean(r))))),
                      len(r), per)

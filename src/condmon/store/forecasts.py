@@ -18,7 +18,7 @@ import pandas as pd
 
 from condmon.errors import CondmonError
 from condmon.monitor.baseline import MIN_BASELINE_TESTS, Baseline
-from condmon.monitor.forecast import RatePrior, fleet_prior
+from condmon.monitor.forecast import RatePrior, prior_from_rates, unit_rate
 from condmon.monitor.unit_forecast import (
     NO_TREND, UnitForecast, forecast_axis, forecast_checks, parameter_series,
 )
@@ -33,20 +33,26 @@ __all__ = ["read_forecast", "try_forecast", "forecast_fields", "fleet_summaries"
 #: The statuses that make a unit one that "has degraded", whose series teach the fleet prior.
 DEGRADED = ("advisory", "no-go")
 
+#: Why a unit without a baseline in use has no forecast.
+NO_BASELINE = "no baseline yet"
+
 
 class FleetHistory:
     """The units that have already degraded, read once for many forecasts.
 
-    A unit has degraded when one of its checks since its current baseline was
-    advisory or no-go; its change series give the prior on the degradation
-    rate of a unit of the same model (and group, when the unit is in one)
-    (:func:`condmon.monitor.forecast.fleet_prior`), each unit left out of its
-    own prior.
+    A unit has degraded when one of its accepted checks was advisory or
+    no-go; its change series since its current baseline give the prior on
+    the degradation rate of a unit of the same model (and group, when the
+    unit is in one) (:func:`condmon.monitor.forecast.prior_from_rates`), each
+    unit left out of its own prior. The degraded units are found by one
+    query, and each one's rates are fitted once.
     """
 
     def __init__(self, store: HistoryStore) -> None:
         self.store = store
         self._checks: dict[str, tuple[Baseline, pd.DataFrame]] = {}
+        self._degraded: dict[str, tuple[str, str | None]] | None = None
+        self._rates: dict[tuple[str, str, str], tuple[float, float] | None] = {}
 
     def checks(self, unit: str) -> tuple[Baseline, pd.DataFrame]:
         """The unit's current baseline and its accepted checks since it.
@@ -66,39 +72,37 @@ class FleetHistory:
 
     def peers(self, unit: str) -> list[str]:
         """Units of ``unit``'s model (and group) that have degraded, ``unit`` left out."""
+        if self._degraded is None:
+            self._degraded = self.store.units_with_status(DEGRADED)
         model, group = self.store.unit_model(unit), self.store.unit_group(unit)
-        out = []
-        for other in self.store.units():
-            if other == unit or self.store.unit_model(other) != model or (
-                    group is not None and self.store.unit_group(other) != group):
-                continue
+        return sorted(u for u, (m, g) in self._degraded.items()
+                      if u != unit and m == model and (group is None or g == group))
+
+    def _rate(self, unit: str, key: str, by: str) -> tuple[float, float] | None:
+        if (unit, key, by) not in self._rates:
+            found = None
             try:
-                checks = self.checks(other)[1]
-            except CondmonError:   # no baseline: nothing to learn from
-                continue
-            if "status" in checks and checks["status"].isin(DEGRADED).any():
-                out.append(other)
-        return out
+                baseline, checks = self.checks(unit)
+            except CondmonError:   # no baseline now: nothing to learn from
+                checks = pd.DataFrame()
+            if len(checks):
+                their_by, dates = forecast_axis(checks)
+                series = parameter_series(checks, baseline, key, by, dates) \
+                    if their_by == by else None
+                found = None if series is None else unit_rate(*series[0])
+            self._rates[(unit, key, by)] = found
+        return self._rates[(unit, key, by)]
 
     def priors(self, unit: str, keys: Sequence[str], by: str) -> dict[str, RatePrior]:
         """The linear rate prior of each parameter key for ``unit``, its x
         counting ``by`` (``tests`` or ``days``; peers counted otherwise are
         left out); vague ("no fleet history") when fewer than 2 peers have the key."""
-        series: dict[str, list[Any]] = {k: [] for k in keys}
-        for other in self.peers(unit):
-            baseline, checks = self.checks(other)
-            their_by, dates = forecast_axis(checks)
-            if their_by != by:
-                continue
-            for key in keys:
-                found = parameter_series(checks, baseline, key, by, dates)
-                if found is not None:
-                    series[key].append(found[0])
-        per = by[:-1]
-        return {k: fleet_prior(v, "linear", per) for k, v in series.items()}
-
-#: Why a unit without a baseline in use has no forecast.
-NO_BASELINE = "no baseline yet"
+        peers = self.peers(unit)
+        out = {}
+        for key in keys:
+            rates = [r for p in peers if (r := self._rate(p, key, by)) is not None]
+            out[key] = prior_from_rates(rates, "linear", by[:-1])
+        return out
 
 
 def read_forecast(store: HistoryStore, unit: str, horizon: float | None = None,

@@ -217,6 +217,17 @@ class ViewsMixin(StoreBase):
             r["group_flags"] = unlike.get(str(r["unit"]), [])
         return rows
 
+    def units_with_status(self, statuses: tuple[str, ...]) -> dict[str, tuple[str, str | None]]:
+        """Units with an accepted, not excluded check evaluated with one of
+        ``statuses``, each with its model and group, in one query."""
+        t, d, u = S.tests, S.diagnoses, S.units
+        q = (sa.select(u.c.name, u.c.model, u.c.group_name).distinct()
+             .select_from(u.join(t, t.c.unit_id == u.c.id).join(d, d.c.test_id == t.c.id))
+             .where(t.c.role == "check", t.c.accepted.is_(True), t.c.excluded.is_(False),
+                    d.c.status.in_(statuses)))
+        return self._read(lambda c: {str(r[0]): (str(r[1]), None if r[2] is None else str(r[2]))
+                                     for r in c.execute(q)})
+
 
 def _after(a: Any, b: Any) -> bool:
     ta, tb = as_utc(a), as_utc(b)

@@ -290,3 +290,34 @@ def test_the_fleet_teaches_a_new_unit_its_rate(tmp_path: Path, demo_rig,  # type
     assert rate == pytest.approx(100.0, rel=0.3)
     assert main(["forecast", "--unit", "ELSE", "--db", db]) == 0
     assert "prior: no fleet history: vague prior" in capsys.readouterr().out
+
+
+def test_a_listing_forecasts_only_what_changed(wearing: tuple[Path, float],
+                                               monkeypatch: pytest.MonkeyPatch,
+                                               tmp_path: Path) -> None:
+    """A check keeps its unit's forecast; a listing uses the kept ones, and
+    forecasts again a unit whose history changed since (here: a test excluded)."""
+    import shutil
+
+    import condmon.store.forecasts as F
+
+    db = str(tmp_path / "h.db")
+    shutil.copy(wearing[0], db)
+    with open_store(db) as store:
+        first = {r["unit"]: r["forecast"] for r in F.fleet_summaries(store)}
+        assert set(store.kept_forecasts()) == {"WEAR", "SLOW", "STABLE"}
+        F._MADE.clear()
+        made: list[str] = []
+        real = F.try_forecast
+
+        def counted(store_: object, unit: str, fleet: object = None) -> object:
+            made.append(unit)
+            return real(store_, unit, fleet)  # type: ignore[arg-type]
+
+        monkeypatch.setattr(F, "try_forecast", counted)
+        again = {r["unit"]: r["forecast"] for r in F.fleet_summaries(store)}
+        assert made == [] and again == first
+        last = int(store.history("SLOW").index[-1])
+        store.set_excluded(last, True, "a bad record")
+        F.fleet_summaries(store)
+        assert made == ["SLOW"]

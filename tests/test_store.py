@@ -104,7 +104,7 @@ def test_baseline_snapshots(store_url: str, results: list) -> None:  # type: ign
 def test_schema_version_and_migration(store_url: str, monkeypatch: pytest.MonkeyPatch) -> None:
     current = schema.SCHEMA_VERSION
     store = open_store(store_url)
-    assert store.schema_version == current == 5
+    assert store.schema_version == current == 6
     store.close()
 
     def add_operator(conn: sa.Connection) -> None:

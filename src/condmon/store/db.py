@@ -28,7 +28,7 @@ from condmon.store.engine import (
 )
 from condmon.store.history import DuplicateTestError, TestsMixin
 from condmon.store.isolations import IsolationsMixin
-from condmon.store.views import ViewsMixin
+from condmon.store.views import ForecastCacheMixin, ViewsMixin
 
 __all__ = ["HistoryStore", "open_store", "file_hash", "frame_hash", "DuplicateTestError",
            "StoreError", "StoreBusyError", "StoredBaseline", "DEFAULT_BASELINE"]
@@ -39,7 +39,7 @@ def frame_hash(df: pd.DataFrame) -> str:
     return content_hash(df)
 
 
-class HistoryStore(TestsMixin, GroupsMixin, IsolationsMixin, ViewsMixin):
+class HistoryStore(TestsMixin, GroupsMixin, IsolationsMixin, ViewsMixin, ForecastCacheMixin):
     """A history database. Open with :func:`open_store`.
 
     Use it as a context manager (or call :meth:`close`) so that its connections

@@ -11,6 +11,7 @@ through it. :func:`fleet_summaries` is every unit's listing (``condmon units
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -28,13 +29,18 @@ if TYPE_CHECKING:
     from condmon.store.db import HistoryStore
 
 __all__ = ["read_forecast", "try_forecast", "forecast_fields", "fleet_summaries",
-           "by_urgency", "NO_BASELINE", "FleetHistory", "DEGRADED"]
+           "by_urgency", "NO_BASELINE", "FleetHistory", "DEGRADED", "keep_forecast"]
 
 #: The statuses that make a unit one that "has degraded", whose series teach the fleet prior.
 DEGRADED = ("advisory", "no-go")
 
 #: Why a unit without a baseline in use has no forecast.
 NO_BASELINE = "no baseline yet"
+
+#: Forecasts this process made, by (history, unit): (its latest change, its
+#: degraded peers, the fields); for listings of a history it cannot write.
+_MADE: dict[tuple[str, str], tuple[int, int, dict[str, Any]]] = {}
+_MADE_MAX = 100_000
 
 
 class FleetHistory:
@@ -70,11 +76,15 @@ class FleetHistory:
             self._checks[unit] = (baseline, checks[[i not in ids for i in checks.index]])
         return self._checks[unit]
 
-    def peers(self, unit: str) -> list[str]:
-        """Units of ``unit``'s model (and group) that have degraded, ``unit`` left out."""
+    def peers(self, unit: str, model: str | None = None, group: str | None = None
+              ) -> list[str]:
+        """Units of ``unit``'s model (and group) that have degraded, ``unit``
+        left out (``model`` and ``group``: the unit's, when known; its model's
+        stored name, not a declaration's file)."""
         if self._degraded is None:
             self._degraded = self.store.units_with_status(DEGRADED)
-        model, group = self.store.unit_model(unit), self.store.unit_group(unit)
+        if model is None:
+            model, group = self.store.unit_model(unit), self.store.unit_group(unit)
         return sorted(u for u, (m, g) in self._degraded.items()
                       if u != unit and m == model and (group is None or g == group))
 
@@ -181,12 +191,61 @@ def forecast_fields(res: UnitForecast | None, reason: str | None) -> dict[str, A
 def fleet_summaries(store: HistoryStore) -> list[dict[str, Any]]:
     """:meth:`HistoryStore.unit_summaries`, each unit with its earliest forecast
     to no-go (:func:`forecast_fields`): what ``condmon units --json`` and the
-    fleet page's ``/api/units`` list."""
+    fleet page's ``/api/units`` list.
+
+    A unit's forecast is the one kept when its history and its count of
+    degraded peers are unchanged since (:func:`keep_forecast` after each
+    check), or the one this process made last for the same history (the
+    fleet page reads a history it may not write); the others are forecast
+    and kept (when the history can be written), so a listing forecasts only
+    what changed.
+    """
     rows = store.unit_summaries()
+    marks, kept = store.history_marks(), store.kept_forecasts()
     fleet = FleetHistory(store)
+    models = {u: (m, g) for u, m, g in store.unit_models()}
+    fresh = []
     for r in rows:
-        r.update(forecast_fields(*try_forecast(store, str(r["unit"]), fleet)))
+        unit = str(r["unit"])
+        model, group = models.get(unit, (None, None))
+        peers = len(fleet.peers(unit, model, group))
+        mark, old = marks.get(unit, 0), kept.get(unit)
+        if old is not None and old[:2] == (mark, peers):
+            r.update({"forecast": None if old[2] is None else json.loads(old[2]),
+                      "forecast_reason": old[3]})
+            continue
+        made = _MADE.get((store.url, unit))
+        if made is not None and made[:2] == (mark, peers):
+            r.update(made[2])
+            continue
+        fields = forecast_fields(*try_forecast(store, unit, fleet))
+        r.update(fields)
+        if len(_MADE) >= _MADE_MAX:
+            _MADE.clear()
+        _MADE[(store.url, unit)] = (mark, peers, fields)
+        fresh.append(_kept_row(unit, mark, peers, fields))
+    try:
+        store.keep_forecasts(fresh)
+    except CondmonError:   # a history opened read-only, or busy: forecast again next time
+        pass
     return rows
+
+
+def _kept_row(unit: str, mark: int, peers: int, fields: dict[str, Any]
+              ) -> tuple[str, int, int, str | None, str | None]:
+    summary = fields["forecast"]
+    return (unit, mark, peers, None if summary is None else json.dumps(summary),
+            fields["forecast_reason"])
+
+
+def keep_forecast(store: HistoryStore, unit: str) -> dict[str, Any]:
+    """Forecast ``unit`` (:func:`try_forecast`), keep it for the fleet
+    listings, and return its :func:`forecast_fields` (after a stored check)."""
+    fleet = FleetHistory(store)
+    fields = forecast_fields(*try_forecast(store, unit, fleet))
+    store.keep_forecasts([_kept_row(unit, store.history_marks(unit).get(unit, 0),
+                                    len(fleet.peers(unit)), fields)])
+    return fields
 
 
 def _urgency(row: dict[str, Any]) -> tuple[int, float, str]:

@@ -10,10 +10,11 @@ import sqlalchemy as sa
 
 __all__ = ["metadata", "units", "tests", "estimates", "baselines", "baseline_values",
            "symptoms", "diagnoses", "diagnosis_faults", "isolations", "isolation_estimates",
-           "audit", "meta", "SCHEMA_VERSION", "MIGRATIONS", "NAME_LENGTH", "PARAMETER_LENGTH"]
+           "audit", "meta", "forecasts", "SCHEMA_VERSION", "MIGRATIONS", "NAME_LENGTH",
+           "PARAMETER_LENGTH"]
 
 #: Version of the schema this code writes.
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 
 #: Longest unit, fault or baseline name the store keeps (the same on every back-end).
 NAME_LENGTH = 200
@@ -201,6 +202,19 @@ isolation_estimates = sa.Table(
     sa.Column("rejected", sa.Text, nullable=True),              # why left out, if it was
 )
 
+#: Each unit's earliest forecast to no-go, kept so a fleet listing does not
+#: forecast every unit (v6). Valid while the unit's history is as it was (its
+#: latest audit row) and so is the count of degraded units it learns from.
+forecasts = sa.Table(
+    "forecasts", metadata,
+    sa.Column("unit_id", sa.Integer, sa.ForeignKey("units.id"), primary_key=True),
+    sa.Column("audit_id", sa.Integer, nullable=False),
+    sa.Column("peers", sa.Integer, nullable=False),
+    sa.Column("computed_at", TolerantDateTime(), nullable=False),
+    sa.Column("summary", sa.Text, nullable=True),               # JSON, None: no forecast
+    sa.Column("reason", sa.Text, nullable=True),                # why there is none
+)
+
 #: Every change to a history: who, when, what and why. Nothing is deleted.
 audit = sa.Table(
     "audit", metadata,
@@ -214,6 +228,7 @@ audit = sa.Table(
     sa.Column("baseline_id", sa.Integer, sa.ForeignKey("baselines.id"), nullable=True),
     sa.Column("reason", sa.Text, nullable=True),
     sa.Column("detail", sa.Text, nullable=True),
+    sa.Index("ix_audit_unit", "unit_id", "id"),   # v6: a unit's latest change, at once
 )
 
 #: Upgrades, keyed by the version they start from: MIGRATIONS[v](conn) brings a
@@ -312,5 +327,14 @@ def _v4_to_v5(conn: sa.Connection) -> None:
                                  f"VARCHAR({PARAMETER_LENGTH})"))
 
 
+def _v5_to_v6(conn: sa.Connection) -> None:
+    """Kept forecasts: the ``forecasts`` table, new, is made by ``create_all``
+    before the migrations run; the audit gets an index by unit (a unit's
+    latest change is what a kept forecast is checked against)."""
+    for index in audit.indexes:
+        index.create(conn, checkfirst=True)
+
+
 MIGRATIONS: dict[int, Callable[[sa.Connection], None]] = {1: _v1_to_v2, 2: _v2_to_v3,
-                                                          3: _v3_to_v4, 4: _v4_to_v5}
+                                                          3: _v3_to_v4, 4: _v4_to_v5,
+                                                          5: _v5_to_v6}

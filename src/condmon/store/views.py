@@ -9,10 +9,10 @@ import pandas as pd
 import sqlalchemy as sa
 
 from condmon.store import schema as S
-from condmon.store.base import StoreBase, as_utc, utc_column
+from condmon.store.base import StoreBase, as_utc, now, utc_column
 from condmon.store.isolations import isolation_status
 
-__all__ = ["ViewsMixin", "test_status", "building_summary"]
+__all__ = ["ViewsMixin", "ForecastCacheMixin", "test_status", "building_summary"]
 
 
 def test_status(role: str, accepted: bool, excluded: bool, status: Any) -> str:
@@ -232,3 +232,52 @@ class ViewsMixin(StoreBase):
 def _after(a: Any, b: Any) -> bool:
     ta, tb = as_utc(a), as_utc(b)
     return ta is not None and tb is not None and ta >= tb
+
+
+class ForecastCacheMixin(StoreBase):
+    """Kept forecasts (schema v6's ``forecasts``): read for many units in two
+    queries, written in one transaction."""
+
+    def history_marks(self, unit: str | None = None) -> dict[str, int]:
+        """Each unit's latest audit row (or ``unit``'s alone): it changes
+        whenever the unit's history does."""
+        a, u = S.audit, S.units
+        q = (sa.select(u.c.name, sa.func.max(a.c.id)).select_from(u.join(a, a.c.unit_id == u.c.id))
+             .group_by(u.c.name))
+        if unit is not None:
+            q = q.where(u.c.name == unit)
+        return self._read(lambda c: {str(r[0]): int(r[1]) for r in c.execute(q)})
+
+    def unit_models(self) -> list[tuple[str, str, str | None]]:
+        """Every unit's name, model (as stored) and group, in one query."""
+        u = S.units
+        return self._read(lambda c: [(str(r[0]), str(r[1]), None if r[2] is None else str(r[2]))
+                                     for r in c.execute(sa.select(u.c.name, u.c.model,
+                                                                  u.c.group_name))])
+
+    def kept_forecasts(self) -> dict[str, tuple[int, int, str | None, str | None]]:
+        """``{unit: (audit_id, peers, summary JSON, reason)}`` of every kept forecast."""
+        f, u = S.forecasts, S.units
+        q = sa.select(u.c.name, f.c.audit_id, f.c.peers, f.c.summary, f.c.reason).select_from(
+            u.join(f, f.c.unit_id == u.c.id))
+        return self._read(lambda c: {str(r[0]): (int(r[1]), int(r[2]), r[3], r[4])
+                                     for r in c.execute(q)})
+
+    def keep_forecasts(self, rows: list[tuple[str, int, int, str | None, str | None]]) -> None:
+        """Keep ``(unit, audit_id, peers, summary JSON, reason)`` rows, replacing
+        the units' earlier ones."""
+        if not rows:
+            return
+        f, u = S.forecasts, S.units
+
+        def run(c: sa.Connection) -> None:
+            ids = {str(r[0]): int(r[1]) for r in c.execute(
+                sa.select(u.c.name, u.c.id).where(u.c.name.in_([r[0] for r in rows])))}
+            keep = [r for r in rows if r[0] in ids]
+            c.execute(sa.delete(f).where(f.c.unit_id.in_([ids[r[0]] for r in keep])))
+            stamp = now()
+            c.execute(sa.insert(f), [{"unit_id": ids[n], "audit_id": a, "peers": p,
+                                      "computed_at": stamp, "summary": s, "reason": why}
+                                     for n, a, p, s, why in keep])
+
+        self._write(run, lock=rows[0][0] if len(rows) == 1 else None)

@@ -35,7 +35,7 @@ from condmon.monitor.statistics import (
     CheckStatistics, StatisticsConfig, check_statistics, checked_alpha,
 )
 from condmon.store.db import HistoryStore
-from condmon.store.forecasts import forecast_fields, try_forecast
+from condmon.store.forecasts import keep_forecast
 from condmon.workflows.monitoring import (
     _existing_baseline, _held, _unit_error, _unit_options, current_baseline, evaluate,
     filed_elsewhere, monitoring_of, no_baseline_yet, save_current_baseline,
@@ -262,7 +262,7 @@ def reference_for(store: HistoryStore, unit: str, machine: Machine, against: str
 
 def _forecast(store: HistoryStore, unit: str, dry_run: bool) -> dict[str, Any]:
     """The unit's earliest forecast to no-go, read after the check is stored."""
-    return {} if dry_run else forecast_fields(*try_forecast(store, unit))
+    return {} if dry_run else keep_forecast(store, unit)
 
 
 def check_test(store: HistoryStore, unit: str, record: RecordLike,

@@ -15,8 +15,10 @@ test-to-test scatter alike)
 (Hotelling's prediction test; ``r`` the rank of ``S``: parameters that are
 functions of the same estimated coefficient, as ``Ke`` and ``Kt`` in SI
 units, count once). ``E`` is the test's own estimation variance beyond the
-baseline tests' typical one (``diag(max(0, se² - mean se_b²))``): a test that
-estimated its parameters worse than the baseline's is not taken as a change.
+worst of the baseline tests' (``diag(max(0, se² - max se_b²))``): a test that
+estimated its parameters worse than any baseline test is not taken as a
+change for that (beyond the baseline's worst, so that the ordinary
+test-to-test scatter of the standard errors leaves the rate as stated).
 The alarm is ``p < alpha``, so that ``alpha`` *is* the false-alarm probability of
 one check of a healthy unit. A baseline of ``n <= r`` tests cannot estimate
 ``r`` directions: then each parameter's ``t = d / sqrt(s²(1 + 1/n) + e)``
@@ -306,7 +308,8 @@ def check_statistics(parameters: tuple[str, ...], change: ArrayLike, se: ArrayLi
         raise DataError("statistics: a change or standard error is not finite")
     S = np.cov(B, rowvar=False, ddof=1).reshape(p, p)
     distinct = _distinct(S)
-    extra = np.diag(np.clip(e ** 2 - np.mean(Bse ** 2, axis=0), 0.0, None))
+    # a test estimated worse than every baseline test: its excess noise is no change
+    extra = np.diag(np.clip(e ** 2 - np.max(Bse ** 2, axis=0), 0.0, None))
     stat, pv, method, r = _test(d, S, 1.0 + 1.0 / n, extra, n - 1, distinct)
     m = Y.shape[0]
     dstat = dp = None

@@ -192,7 +192,8 @@ def test_units_carry_the_earliest_forecast(wearing: tuple[Path, float],
     assert main(["units", "--db", str(db), "--json"]) == 0
     units = {u["unit"]: u for u in json.loads(capsys.readouterr().out)["units"]}
     f = units["WEAR"]["forecast"]
-    assert set(f) == {"parameter", "unit", "by", "median", "low", "high", "date", "rule"}
+    assert set(f) == {"parameter", "unit", "by", "median", "low", "high", "date", "rule",
+                      "at_hours"}
     assert (f["parameter"], f["by"], f["rule"]) == ("D", "days", "friction increase")
     assert f["median"] == pytest.approx(truth, rel=0.2) and f["low"] <= truth <= f["high"]
     assert f["unit"] == "N m s/rad" and f["date"].startswith("2026-")
@@ -321,3 +322,55 @@ def test_a_listing_forecasts_only_what_changed(wearing: tuple[Path, float],
         store.set_excluded(last, True, "a bad record")
         F.fleet_summaries(store)
         assert made == ["SLOW"]
+
+
+def test_a_unit_with_operating_hours_is_forecast_in_hours(tmp_path: Path, demo_rig,  # type: ignore[no-untyped-def]
+                                                          capsys: pytest.CaptureFixture[str]
+                                                          ) -> None:
+    """Friction rises 2 % an operating hour; checks every 10 to 40 h (uneven),
+    one a day: the forecast counts hours, says the hours and the date at
+    no-go (at the unit's usage, about 25 h a day)."""
+    from condmon.workflows.records import EstimateOptions
+
+    db = str(tmp_path / "hours.db")
+    rng = np.random.default_rng(3)
+    hours = np.cumsum(rng.uniform(10.0, 40.0, 10))
+    with open_store(db) as store:
+        add_baseline_tests(store, "H", [simulate_actuator(demo_rig, seed=s) for s in (1, 2, 3)],
+                           test_date="2026-01-01")
+        for k, h in enumerate(hours):
+            f = 1.0 + 0.02 * h
+            rig = demo_rig.with_faults([f"D=*{f}", f"coulomb_friction=*{f}"])
+            check_test(store, "H", simulate_actuator(rig, seed=40 + k),
+                       EstimateOptions(metadata={"hours": f"{h:.3f}"}),
+                       test_date=f"2026-01-{2 + k:02d}")
+        assert store.history("H")["hours"].dropna().to_numpy() == pytest.approx(hours, abs=1e-3)
+        # the truth: the hours at which a check measures +600 % (dry runs)
+        at = next(h for h in np.arange(hours[-1], 2000.0, 5.0)
+                  if check_test(store, "H", simulate_actuator(demo_rig.with_faults(
+                      [f"D=*{1 + 0.02 * h}", f"coulomb_friction=*{1 + 0.02 * h}"]),
+                      seed=int(h)), dry_run=True).percent_change["D"] >= 600.0)
+    capsys.readouterr()
+    assert main(["forecast", "--unit", "H", "--db", db, "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["by"] == "hours" and doc["earliest"] == "D"
+    d = next(p for p in doc["parameters"] if p["parameter"] == "D")
+    # the truth is one check's crossing (its own scatter: about ±20 h here)
+    assert d["remaining"]["median"] == pytest.approx(at - hours[-1], rel=0.4)
+    assert d["remaining"]["low"] <= at - hours[-1] <= d["remaining"]["high"]
+    assert d["at_hours"] == pytest.approx(hours[-1] + d["remaining"]["median"])
+    assert d["at_hours"] == pytest.approx(at, rel=0.1) and d["date"].startswith("2026-01-1")
+    assert main(["units", "--db", db, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["units"][0]["forecast"]["by"] == "hours"
+
+
+def test_bad_hours_are_one_line(tmp_path: Path, demo_rig, capsys) -> None:  # type: ignore[no-untyped-def]
+    rec = tmp_path / "r.csv"
+    simulate_actuator(demo_rig, seed=5).to_csv(rec, index=False)
+    db = str(tmp_path / "h.db")
+    with open_store(db) as store:
+        add_baseline_tests(store, "U", [simulate_actuator(demo_rig, seed=s) for s in (1, 2, 3)])
+    capsys.readouterr()
+    assert main(["check", str(rec), "--unit", "U", "--db", db, "--meta", "hours=-4"]) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert "r.csv: metadata 'hours' must be a finite number >= 0 [h], not -4" in err

@@ -19,7 +19,7 @@ def register(app: typer.Typer) -> None:
     def forecast_cmd(
         unit: Annotated[str, typer.Option("--unit", help="The unit to forecast.")],
         db: Annotated[str, typer.Option("--db", help="History database: a SQLite file or a postgresql:// URL.")] = "condmon.db",
-        horizon: Annotated[Optional[float], typer.Option(help="Also give the probability of turning no-go within this many tests (days, when the checks carry dates).")] = None,
+        horizon: Annotated[Optional[float], typer.Option(help="Also give the probability of turning no-go within this many tests (days, when the checks carry dates; operating hours, when they carry the unit's hours: --meta hours=H on check).")] = None,
         as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
     ) -> None:
         """Forecast when each parameter of a unit turns no-go, from its checks since the baseline.
@@ -38,8 +38,8 @@ def register(app: typer.Typer) -> None:
         if as_json:
             write_json(res.to_dict())
             return
-        left = "tests left" if res.by == "tests" else "days left"
-        per = "%/test" if res.by == "tests" else "%/day"
+        left = {"tests": "tests left", "days": "days left", "hours": "hours left"}[res.by]
+        per = {"tests": "%/test", "days": "%/day", "hours": "%/h"}[res.by]
         table = Table(title=f"{unit}: forecast to no-go from {res.checks} checks since the "
                       "baseline", title_justify="left")
         cols = ["parameter", f"slope [{per}]", f"{left} (90 %)", "date",

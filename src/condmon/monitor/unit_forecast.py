@@ -29,8 +29,8 @@ from condmon.errors import DataError
 from condmon.monitor.baseline import Baseline
 from condmon.monitor.forecast import MIN_TESTS, Forecast, RatePrior, forecast_series
 
-__all__ = ["ParameterForecast", "UnitForecast", "forecast_checks", "forecast_axis",
-           "axis_values", "remaining_text", "NO_TREND", "parameter_series", "Series"]
+__all__ = ["ParameterForecast", "UnitForecast", "forecast_checks", "forecast_axis", "Axis",
+           "remaining_text", "NO_TREND", "parameter_series", "Series"]
 
 #: One parameter's change series: x [test (or d)], change [%], each test's
 #: standard error and the baseline's spread [% of the baseline mean].
@@ -60,6 +60,11 @@ class ParameterForecast:
         The median crossing date, ISO 8601 (when the checks carry dates).
     test_ids : tuple of int
         The checks of the series, in the order of ``x``.
+    span : float
+        ``x`` of the last of them less that of the first. [tests (or d, h)]
+    hours : float or None
+        The unit's operating hours at the median crossing (a forecast in
+        hours). [h]
     """
 
     parameter: str
@@ -68,10 +73,12 @@ class ParameterForecast:
     forecast: Forecast
     date: str | None = None
     test_ids: tuple[int, ...] = ()
+    span: float = 0.0
+    hours: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {"parameter": self.parameter, "unit": self.unit, "rule": self.rule,
-                "date": self.date, **self.forecast.to_dict()}
+                "date": self.date, "at_hours": self.hours, **self.forecast.to_dict()}
 
 
 @dataclass(frozen=True)
@@ -81,8 +88,8 @@ class UnitForecast:
     Attributes
     ----------
     unit : str
-    by : {"tests", "days"}
-        What ``remaining`` counts.
+    by : {"tests", "days", "hours"}
+        What ``remaining`` counts (operating hours when every check gives them).
     checks : int
         Checks since the baseline.
     parameters : tuple of ParameterForecast
@@ -109,58 +116,113 @@ class UnitForecast:
     def summary(self) -> dict[str, Any] | None:
         """The earliest forecast to no-go, as ``units --json`` and ``check --json`` give it.
 
-        ``{"parameter", "unit", "by", "median", "low", "high", "date", "rule"}``:
-        the parameter (``Tc@forward`` for a regime's), its unit of measure,
-        what the numbers count (``tests`` or ``days``), the median and 90 %
-        interval of the tests (days) left [tests (or d)] (None: not within
-        any horizon), the median crossing date (ISO 8601, dated checks only,
-        else None) and the fault rule the no-go change fires ("" when none
-        names it alone). None when no parameter trends towards no-go.
+        ``{"parameter", "unit", "by", "median", "low", "high", "date", "rule",
+        "at_hours"}``: the parameter (``Tc@forward`` for a regime's), its unit
+        of measure, what the numbers count (``tests``, ``days`` or operating
+        ``hours``), the median and 90 % interval of the tests (days, hours)
+        left [tests (or d, h)] (None: not within any horizon), the median
+        crossing date (ISO 8601, dated checks only, else None), the fault rule
+        the no-go change fires ("" when none names it alone) and the
+        operating hours at the median crossing (a forecast in hours, else
+        None) [h]. None when no parameter trends towards no-go.
         """
         e = self.earliest
         if e is None or e.forecast.remaining is None:
             return None
         med, lo, hi = (v if math.isfinite(v) else None for v in e.forecast.remaining)
         return {"parameter": e.parameter, "unit": e.unit, "by": self.by, "median": med,
-                "low": lo, "high": hi, "date": e.date, "rule": e.rule}
+                "low": lo, "high": hi, "date": e.date, "rule": e.rule, "at_hours": e.hours}
 
 
-def forecast_axis(checks: pd.DataFrame) -> tuple[str, pd.Series]:
-    """What a unit's forecasts count, ``"days"`` or ``"tests"``, and each check's date.
+@dataclass(frozen=True)
+class Axis:
+    """What a unit's forecasts count, and where each check stands on it.
 
-    Days when every check carries a test date, in order and none twice;
-    else tests (their count). The one place the x axis is chosen.
+    Attributes
+    ----------
+    by : {"tests", "days", "hours"}
+        Checks counted, days since the first check, or the unit's operating
+        hours since the first check.
+    dates : Series
+        Each check's test date (NaT: unknown), by test id.
+    hours : Series
+        Each check's operating hours (NaN: not given), by test id. [h]
+    """
+
+    by: str
+    dates: pd.Series
+    hours: pd.Series
+
+    def values(self, rows: pd.Index) -> NDArray[np.float64]:
+        """``x`` of the checks ``rows`` (a subset of the checks, in order):
+        their count from 1, or the days (hours) since the first check.
+        [test (or d, h)]"""
+        if self.by == "tests":
+            return np.arange(1.0, len(rows) + 1.0)
+        if self.by == "days":
+            days = (self.dates[rows] - self.dates.iloc[0]).dt.total_seconds() / 86400.0
+            return np.asarray(days.to_numpy(), dtype=np.float64)
+        return np.asarray((self.hours[rows] - self.hours.iloc[0]).to_numpy(), dtype=np.float64)
+
+    @property
+    def dated(self) -> bool:
+        """Every check carries a date, in order, none twice."""
+        return _increasing(self.dates)
+
+    def date_after(self, row: Any, ahead: float) -> str | None:
+        """The date ``ahead`` tests (days, hours) after check ``row``: for
+        hours, at the unit's usage over its dated checks [h per day]; None
+        when not dated (tests), or beyond a century."""
+        if not self.dated or self.by == "tests" or not ahead >= 0:
+            return None
+        days = ahead
+        if self.by == "hours":
+            span_h = float(self.hours.iloc[-1] - self.hours.iloc[0])
+            span_d = (self.dates.iloc[-1] - self.dates.iloc[0]).total_seconds() / 86400.0
+            if not (span_h > 0 and span_d > 0):
+                return None
+            days = ahead * span_d / span_h
+        if days >= _MAX_DAYS:   # a crossing beyond a century is no date (nor a timestamp)
+            return None
+        return str((self.dates[row] + pd.Timedelta(days=days)).isoformat())
+
+
+def _increasing(values: pd.Series) -> bool:
+    return bool(values.notna().all()) and bool(values.is_monotonic_increasing) \
+        and values.nunique() == len(values)
+
+
+def forecast_axis(checks: pd.DataFrame) -> Axis:
+    """What a unit's forecasts count: the one place the x axis is chosen.
+
+    Operating hours when every check carries them (the ``hours`` column),
+    increasing, none twice: wear follows use. Else days when every check
+    carries a test date, in order and none twice. Else tests (their count).
 
     Parameters
     ----------
     checks : DataFrame
-        The checks, oldest first, with a ``test_date`` column.
+        The checks, oldest first, with a ``test_date`` and optionally an
+        ``hours`` column.
 
     Example
     -------
-    >>> c = pd.DataFrame({"test_date": ["2026-01-02", "2026-01-05", None]})
-    >>> forecast_axis(c)[0], forecast_axis(c.iloc[:2])[0]
-    ('tests', 'days')
+    >>> c = pd.DataFrame({"test_date": ["2026-01-02", "2026-01-05", None],
+    ...                   "hours": [120.0, 190.5, 260.0]})
+    >>> forecast_axis(c).by, forecast_axis(c.drop(columns="hours").iloc[:2]).by
+    ('hours', 'days')
+    >>> forecast_axis(c.drop(columns="hours")).by
+    'tests'
     """
     dates = pd.to_datetime(checks["test_date"], utc=True, errors="coerce")
-    dated = bool(dates.notna().all()) and dates.is_monotonic_increasing \
-        and dates.nunique() == len(dates)
-    return ("days" if dated else "tests"), dates
+    hours = pd.to_numeric(checks["hours"], errors="coerce") if "hours" in checks \
+        else pd.Series(np.nan, index=checks.index, dtype=np.float64)
+    by = "hours" if _increasing(hours) else "days" if _increasing(dates) else "tests"
+    return Axis(by, dates, hours)
 
 
-def axis_values(by: str, dates: pd.Series, rows: pd.Index) -> NDArray[np.float64]:
-    """``x`` of the checks ``rows`` (a subset of the checks, in order): their
-    count from 1, or the days since the first check's date. [test (or d)]"""
-    if by == "tests":
-        return np.arange(1.0, len(rows) + 1.0)
-    if by == "days":
-        days = (dates[rows] - dates.iloc[0]).dt.total_seconds() / 86400.0
-        return np.asarray(days.to_numpy(), dtype=np.float64)
-    raise DataError(f"unknown forecast axis {by!r}; allowed: tests, days")
-
-
-def parameter_series(checks: pd.DataFrame, baseline: Baseline, key: str, by: str,
-                     dates: pd.Series) -> tuple[Series, pd.Index] | None:
+def parameter_series(checks: pd.DataFrame, baseline: Baseline, key: str, axis: Axis
+                     ) -> tuple[Series, pd.Index] | None:
     """The change series of parameter ``key`` (``Tc@forward`` for a regime's)
     in ``checks``, and the checks it is in; None when fewer than 3 checks have
     it or the baseline lacks it."""
@@ -175,7 +237,7 @@ def parameter_series(checks: pd.DataFrame, baseline: Baseline, key: str, by: str
     change = rows[col].to_numpy(dtype=np.float64)
     se = 100.0 * rows[f"{key}_se"].to_numpy(dtype=np.float64) / abs(mean) \
         if f"{key}_se" in rows and mean else np.zeros(len(rows))
-    return (axis_values(by, dates, rows.index), change, np.nan_to_num(se),
+    return (axis.values(rows.index), change, np.nan_to_num(se),
             100.0 * std / abs(mean) if mean else 0.0), rows.index
 
 
@@ -227,11 +289,11 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
     if len(checks) < MIN_TESTS:
         raise DataError(f"not enough tests to forecast: unit {unit!r} has {len(checks)} "
                         f"check(s) since its baseline, need {MIN_TESTS}")
-    by, dates = forecast_axis(checks)
+    axis = forecast_axis(checks)
     out = []
     for key in baseline.parameters:
         name = key.split("@", 1)[0]
-        found = parameter_series(checks, baseline, key, by, dates) if name in r2 else None
+        found = parameter_series(checks, baseline, key, axis) if name in r2 else None
         if found is None:
             continue
         (x, change, se, spread), rows = found
@@ -240,14 +302,15 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
         rule = rules.get(f"{'high' if rising else 'low'}({name})", "")
         f = forecast_series(x, change, se, spread, threshold, horizon, seed,
                             prior=(priors or {}).get(key))
-        when = None   # a crossing beyond a century is no date (nor a pandas timestamp)
-        if by == "days" and f.remaining is not None and f.remaining[0] < _MAX_DAYS:
-            when = (dates[rows[-1]] + pd.Timedelta(days=f.remaining[0])).isoformat()
+        when = None if f.remaining is None else axis.date_after(rows[-1], f.remaining[0])
+        at = (float(axis.hours[rows[-1]] + f.remaining[0])
+              if axis.by == "hours" and f.remaining is not None
+              and math.isfinite(f.remaining[0]) else None)
         out.append(ParameterForecast(key, (units or {}).get(name, ""), rule, f, when,
-                                     tuple(int(i) for i in rows)))
+                                     tuple(int(i) for i in rows), float(x[-1] - x[0]), at))
     out.sort(key=lambda p: (p.forecast.remaining is None,
                             p.forecast.remaining[0] if p.forecast.remaining else 0.0))
-    return UnitForecast(unit, by, len(checks), tuple(out))
+    return UnitForecast(unit, axis.by, len(checks), tuple(out))
 
 
 def remaining_text(f: dict[str, Any] | None, reason: str | None = None) -> str:
@@ -268,5 +331,5 @@ def remaining_text(f: dict[str, Any] | None, reason: str | None = None) -> str:
             return "∞"
         return f"{v:.0f}" if abs(v) >= 10 else f"{v:.2g}"
 
-    per = "d" if f["by"] == "days" else "tests"
+    per = {"days": "d", "hours": "h"}.get(f["by"], "tests")
     return f"{n(f['median'])} {per} ({n(f['low'])}–{n(f['high'])})"

@@ -450,6 +450,11 @@ def forecast_band(forecast: ParameterForecast, by: str, points: int = 40) -> For
     end = min(high, 2.0 * med) if np.isfinite(med) else max(f.last, 1.0)
     ahead = np.linspace(0.0, max(float(end), 1e-9), points)
     mid, lo, hi = f.band(ahead)
+    if by == "hours":   # drawn against the checks: their mean usage a check
+        per_check = forecast.span / max(len(forecast.test_ids) - 1, 1)
+        if not per_check > 0:
+            return None
+        ahead, by = ahead / per_check, "tests"
     return ForecastBand(forecast.parameter, by, forecast.test_ids, ahead, mid, lo, hi,
                         float(f.threshold))
 

@@ -96,9 +96,9 @@ class FleetHistory:
             except CondmonError:   # no baseline now: nothing to learn from
                 checks = pd.DataFrame()
             if len(checks):
-                their_by, dates = forecast_axis(checks)
-                series = parameter_series(checks, baseline, key, by, dates) \
-                    if their_by == by else None
+                axis = forecast_axis(checks)
+                series = parameter_series(checks, baseline, key, axis) \
+                    if axis.by == by else None
                 found = None if series is None else unit_rate(*series[0])
             self._rates[(unit, key, by)] = found
         return self._rates[(unit, key, by)]
@@ -152,7 +152,7 @@ def read_forecast(store: HistoryStore, unit: str, horizon: float | None = None,
     rules: dict[str, str] = {}
     for r in machine_rules(machine).faults:  # the first rule of each one-symptom condition
         rules.setdefault(r.text.strip(), r.name)
-    priors = (fleet.priors(unit, baseline.parameters, forecast_axis(checks)[0])
+    priors = (fleet.priors(unit, baseline.parameters, forecast_axis(checks).by)
               if len(checks) else {})
     return forecast_checks(unit, checks, baseline, machine_monitor(machine, baseline).r2,
                            rules, machine.units, horizon, seed, priors)

@@ -63,6 +63,7 @@ class TestsMixin(StoreBase):
 
     def add_test(self, unit: str, result: Any, *, role: str, digest: str,
                  file_digest: str | None = None, test_date: datetime | None = None,
+                 hours: float | None = None,
                  fingerprint: str | None = None,
                  symptoms: Mapping[str, Mapping[str, float]] | None = None,
                  baseline_id: int | None = None, diagnosis: Any = None) -> int:
@@ -82,6 +83,8 @@ class TestsMixin(StoreBase):
             SHA-256 of the file's bytes (information; default ``digest``).
         test_date : datetime, optional
             When the test was run (default: unknown; shown by when it was stored).
+        hours : float, optional
+            The unit's operating hours at the test. [h]
         fingerprint : str, optional
             :func:`condmon.io.digest.fingerprint` of the record: a copy rounded
             otherwise (float32, fewer digits) or with a column more or fewer is
@@ -118,7 +121,7 @@ class TestsMixin(StoreBase):
             usable = bool(getattr(result, "usable", result.accepted))
             res = conn.execute(sa.insert(S.tests).values(
                 unit_id=uid, created_at=now(), source=result.source, file_hash=fdig,
-                record_hash=digest, test_date=when, fingerprint=fingerprint,
+                record_hash=digest, test_date=when, fingerprint=fingerprint, hours=hours,
                 regime=getattr(result, "regime_label", "") or None,
                 role=role, accepted=usable, reason=None if usable else result.reason,
                 fit_percent=num(result.fit_percent),

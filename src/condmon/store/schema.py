@@ -104,6 +104,7 @@ tests = sa.Table(
     sa.Column("fingerprint", sa.Text, nullable=True),
     # v5: the operating regime(s) of the windows estimated ("" or NULL: none declared)
     sa.Column("regime", sa.Text, nullable=True),
+    sa.Column("hours", TolerantFloat(), nullable=True),       # v6: operating hours at the test [h]
     sa.UniqueConstraint("unit_id", "file_hash", name="uq_test_file"),
     sa.Index("uq_test_record", "unit_id", "record_hash", unique=True),
 )
@@ -330,7 +331,9 @@ def _v4_to_v5(conn: sa.Connection) -> None:
 def _v5_to_v6(conn: sa.Connection) -> None:
     """Kept forecasts: the ``forecasts`` table, new, is made by ``create_all``
     before the migrations run; the audit gets an index by unit (a unit's
-    latest change is what a kept forecast is checked against)."""
+    latest change is what a kept forecast is checked against); a test keeps
+    the unit's operating hours, when given."""
+    conn.execute(sa.text("ALTER TABLE tests ADD COLUMN hours FLOAT"))
     for index in audit.indexes:
         index.create(conn, checkfirst=True)
 

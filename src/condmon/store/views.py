@@ -69,7 +69,8 @@ class ViewsMixin(StoreBase):
         stored), ``source, role, accepted, excluded, excluded_reason, reason,
         fit_percent, fits, method, status`` (see :func:`test_status`),
         ``summary, baseline_id`` (of the evaluation shown: the newest),
-        ``regime`` (the operating regime(s) estimated, None without), then
+        ``regime`` (the operating regime(s) estimated, None without),
+        ``hours`` (the unit's operating hours at the test, if given [h]), then
         each parameter's value (a regime's as ``Tc@forward``), ``<param>_se``
         (its standard error) and, for checked tests, ``<param>_change`` [%],
         ``<param>_high``, ``<param>_low``.
@@ -84,7 +85,7 @@ class ViewsMixin(StoreBase):
                 sa.select(t.c.id, t.c.created_at, t.c.test_date, t.c.source, t.c.role,
                           t.c.accepted, t.c.excluded, t.c.excluded_reason, t.c.reason,
                           t.c.fit_percent, t.c.fits, t.c.method, d.c.status, d.c.summary,
-                          d.c.baseline_id, t.c.regime)
+                          d.c.baseline_id, t.c.regime, t.c.hours)
                 .outerjoin(ld, ld.c.test_id == t.c.id)
                 .outerjoin(d, sa.and_(d.c.test_id == t.c.id, d.c.baseline_id == ld.c.bid))
                 .where(t.c.unit_id == urow.id).order_by(t.c.id)).all()
@@ -103,8 +104,9 @@ class ViewsMixin(StoreBase):
         base, est, sym = self._read(run)
         cols = ["test_id", "created_at", "test_date", "source", "role", "accepted", "excluded",
                 "excluded_reason", "reason", "fit_percent", "fits", "method", "status",
-                "summary", "baseline_id", "regime"]
+                "summary", "baseline_id", "regime", "hours"]
         df = pd.DataFrame(base, columns=cols).set_index("test_id")
+        df["hours"] = pd.to_numeric(df["hours"], errors="coerce")
         df["created_at"] = utc_column(df["created_at"])
         df["test_date"] = utc_column(df["test_date"])
         df.insert(2, "date", df["test_date"].fillna(df["created_at"]))

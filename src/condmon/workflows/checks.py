@@ -325,7 +325,7 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
         tid = -1 if dry_run else store.add_test(unit, res, role="check", digest=key.content,
                                                 file_digest=key.file,
                                                 fingerprint=key.fingerprint,
-                                                test_date=key.test_date)
+                                                test_date=key.test_date, hours=key.hours)
         return CheckResult(unit, tid, res, "retest", baseline, baseline_flags=flags,
                            test_date=key.test_date, warning=filed_elsewhere(store, unit, key),
                            against=against_label, forecast=_forecast(store, unit, dry_run))
@@ -348,7 +348,7 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
                 flags = latest.flags
             bid = latest.id
         tid = store.add_test(unit, res, role="check", digest=key.content, file_digest=key.file,
-                             fingerprint=key.fingerprint, test_date=key.test_date,
+                             fingerprint=key.fingerprint, test_date=key.test_date, hours=key.hours,
                              symptoms=row, baseline_id=bid, diagnosis=diag)
     return CheckResult(unit, tid, res, diag.status, baseline,
                        {p: v["percent_change"] for p, v in row.items()},

@@ -228,7 +228,8 @@ def _commit_isolation(store: HistoryStore, plan: _Unit, out: RecordOutcome,
     assert iso is not None and key is not None and plan.model is not None
     machine = get_model(plan.model)
     iid = store.add_isolation(plan.name, iso, model=machine.name, source=out.path,
-                              digest=key.content, file_digest=key.file, fingerprint=key.fingerprint, test_date=key.test_date,
+                              digest=key.content, file_digest=key.file,
+                              fingerprint=key.fingerprint, test_date=key.test_date,
                               model_source=machine.origin)
     return report("stored", isolation_status(iso.detected, iso.decided),
                   iso.statement if iso.decided else (iso.reason or iso.statement), iid)
@@ -273,7 +274,7 @@ def _commit_baseline_test(store: HistoryStore, plan: _Unit, out: RecordOutcome,
                                                    "stored"))
     tid = store.add_test(plan.name, res, role="baseline", digest=key.content,
                          file_digest=key.file, fingerprint=key.fingerprint,
-                         test_date=key.test_date)
+                         test_date=key.test_date, hours=key.hours)
     elsewhere = filed_elsewhere(store, plan.name, key)
     if not res.usable:
         return report("rejected", "retest", one_line(str(res.reason), None), tid, elsewhere)
@@ -323,7 +324,7 @@ def _commit_check(store: HistoryStore, plan: _Unit, out: RecordOutcome,
     if not res.usable:
         tid = store.add_test(plan.name, res, role="check", digest=key.content,
                              file_digest=key.file, fingerprint=key.fingerprint,
-                             test_date=key.test_date)
+                             test_date=key.test_date, hours=key.hours)
         return report("rejected", "retest", one_line(str(res.reason), None), tid,
                       filed_elsewhere(store, plan.name, key))
     from condmon.models.registry import get_model
@@ -333,8 +334,8 @@ def _commit_check(store: HistoryStore, plan: _Unit, out: RecordOutcome,
         state.latest, _ = save_current_baseline(store, plan.name, state.ids, monitor=cfg,
                                                 reason="baseline of the first check")
     tid = store.add_test(plan.name, res, role="check", digest=key.content, file_digest=key.file,
-                         fingerprint=key.fingerprint, test_date=key.test_date, symptoms=row,
-                         baseline_id=state.latest.id, diagnosis=diag)
+                         fingerprint=key.fingerprint, test_date=key.test_date, hours=key.hours,
+                         symptoms=row, baseline_id=state.latest.id, diagnosis=diag)
     return report("stored", diag.status, diag.summary, tid,
                   filed_elsewhere(store, plan.name, key))
 

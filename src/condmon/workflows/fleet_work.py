@@ -149,7 +149,7 @@ def process_record(task: RecordTask) -> RecordOutcome:
         try:
             opts = dataclasses.replace(task.options, model=task.model)
             df = opts.read(task.path)  # the record settings applied once, here
-            key = record_key(df, task.path, task.test_date)
+            key = record_key(df, task.path, task.test_date, opts.metadata)
             if key.content in task.known:
                 return RecordOutcome(task.unit, task.path, key, known=True,
                                      seconds=time.perf_counter() - started)

@@ -321,7 +321,7 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
         try:
             tid = store.add_test(unit, res, role="baseline", digest=key.content,
                                  file_digest=key.file, fingerprint=key.fingerprint,
-                                 test_date=key.test_date)
+                                 test_date=key.test_date, hours=key.hours)
             added.append(AddedTest(res.source, tid, res.usable, False,
                                    None if res.usable else res.reason,
                                    warning=filed_elsewhere(store, unit, key)))

@@ -5,6 +5,7 @@ history (content hash, file hash, test date). Nothing here touches the store, so
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
@@ -13,6 +14,7 @@ from typing import Any
 
 import pandas as pd
 
+from condmon.errors import DataError
 from condmon.identify.estimate import EstimateResult, estimate
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD
 from condmon.io.dates import parse_date
@@ -42,24 +44,60 @@ class RecordKey:
     fingerprint : str or None
         A few figures per column (:func:`condmon.io.digest.fingerprint`): a
         copy rounded otherwise or with a column more or fewer is the same test.
+    hours : float or None
+        The unit's operating hours at the test: the record's ``hours``
+        metadata field (``--meta hours=1234``, a unit folder's or a manifest
+        row's metadata), if any. [h]
     """
 
     content: str
     file: str
     test_date: datetime | None
     fingerprint: str | None = None
+    hours: float | None = None
 
 
 def record_key(df: pd.DataFrame, path: str | Path | None = None,
-               test_date: str | datetime | None = None) -> RecordKey:
-    """The :class:`RecordKey` of a parsed record (``path``: its file, if any)."""
+               test_date: str | datetime | None = None,
+               metadata: Mapping[str, Any] | None = None) -> RecordKey:
+    """The :class:`RecordKey` of a parsed record (``path``: its file, if any;
+    ``metadata``: its fields, of which ``hours`` is the unit's usage).
+
+    Raises
+    ------
+    DataError
+        ``hours`` that is not a finite number >= 0.
+    """
     digest = content_hash(df)
+    hours = usage_hours((metadata or {}).get("hours"), str(path or df.attrs.get("source",
+                                                                                "record")))
     when = parse_date(test_date)
     if when is None and df.attrs.get("start_time"):
         when = parse_date(str(df.attrs["start_time"]), f"{df.attrs.get('source', 'record')}: "
                           "start time")
     return RecordKey(digest, file_hash(path) if path is not None else digest, when,
-                     fingerprint(df))
+                     fingerprint(df), hours)
+
+
+def usage_hours(value: Any, source: str) -> float | None:
+    """A record's ``hours`` metadata as operating hours, None when not given. [h]
+
+    Example
+    -------
+    >>> usage_hours("1250.5", "rec.csv"), usage_hours(None, "rec.csv")
+    (1250.5, None)
+    """
+    if value is None or value == "":
+        return None
+    try:
+        hours = float(value)
+    except (TypeError, ValueError):
+        raise DataError(f"{source}: metadata 'hours' must be the unit's operating hours, a "
+                        f"number >= 0, not {value!r}") from None
+    if not (math.isfinite(hours) and hours >= 0):
+        raise DataError(f"{source}: metadata 'hours' must be a finite number >= 0 [h], "
+                        f"not {hours:g}")
+    return hours
 
 
 @dataclass(frozen=True)
@@ -121,11 +159,11 @@ class EstimateOptions:
         """Read (if a path), estimate; returns the result and how the record is known."""
         if isinstance(record, pd.DataFrame):
             df = self.prepared(record)
-            key = record_key(df, None, test_date)
+            key = record_key(df, None, test_date, self.metadata)
             source = str(record.attrs.get("source", "record"))
         else:
             df = self.read(record)
-            key, source = record_key(df, record, test_date), str(record)
+            key, source = record_key(df, record, test_date, self.metadata), str(record)
         return self.estimate_parsed(df, source), key
 
     def estimate_parsed(self, df: pd.DataFrame, source: str, *, mapped: bool = True

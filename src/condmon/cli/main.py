@@ -508,7 +508,10 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``condmon`` console script; returns the exit status."""
     warnings.showwarning = _show_warning
     try:
-        app(args=argv, prog_name="condmon")  # usage errors exit 2 through SystemExit
+        from condmon._threads import small_blas
+
+        with small_blas():  # small matrices: one BLAS thread (CONDMON_BLAS_THREADS)
+            app(args=argv, prog_name="condmon")  # usage errors exit 2 through SystemExit
     except SystemExit as exc:
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
     except CondmonError as exc:

@@ -38,6 +38,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
+from condmon._threads import one_blas_thread
 from condmon.diagnose.checks import RecordSettings, validate_plant_record
 from condmon.diagnose.residuals import (
     Detection, DetectionSettings, Normalisation, Residuals, compute_residuals, detect,
@@ -275,6 +276,7 @@ def healthy_normalisation(model: PlantModel, healthy: Sequence[pd.DataFrame],
     return learn_normalisation(sets, settings or DetectionSettings.from_config())
 
 
+@one_blas_thread
 def isolate(record: pd.DataFrame, model: PlantModel, *,
             normalisation: Normalisation | None = None, kind: ResidualKind = "simulation",
             settings: IsolationSettings | None = None, workers: int | None = None,

@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
+from condmon._threads import one_blas_thread
 from condmon.errors import CondmonError, ModelError
 from condmon.identify.defaults import list_estimators
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD, FitCheck
@@ -120,6 +121,7 @@ def _record_frame(record: pd.DataFrame, machine: Machine, columns: Mapping[str, 
     return apply_record_settings(record, merged, source)
 
 
+@one_blas_thread
 def estimate(record: pd.DataFrame, model: str | Machine = "dc-motor", *,
              method: str = "sriv", gamma: float | None = None,
              excitation: Sequence[str] | str | None = "auto",
@@ -224,6 +226,7 @@ def _condition_columns(machine: Machine) -> tuple[str, ...]:
     return tuple(sorted({n for r in machine.regimes.regimes for n in r.condition.names}))
 
 
+@one_blas_thread
 def estimate_joint(records: Sequence[pd.DataFrame], model: str | Machine = "dc-motor", *,
                    fit_threshold: float = DEFAULT_FIT_THRESHOLD,
                    columns: Mapping[str, str] | None = None,

@@ -214,6 +214,10 @@ forecasts = sa.Table(
     sa.Column("computed_at", TolerantDateTime(), nullable=False),
     sa.Column("summary", sa.Text, nullable=True),               # JSON, None: no forecast
     sa.Column("reason", sa.Text, nullable=True),                # why there is none
+    # for ordering a fleet by urgency in SQL: the median crossing's date (dated
+    # forecasts) and the median tests (days, hours) left
+    sa.Column("crossing_date", TolerantDateTime(), nullable=True),
+    sa.Column("median", TolerantFloat(), nullable=True),
 )
 
 #: Every change to a history: who, when, what and why. Nothing is deleted.

@@ -279,7 +279,18 @@ class ForecastCacheMixin(StoreBase):
             c.execute(sa.delete(f).where(f.c.unit_id.in_([ids[r[0]] for r in keep])))
             stamp = now()
             c.execute(sa.insert(f), [{"unit_id": ids[n], "audit_id": a, "peers": p,
-                                      "computed_at": stamp, "summary": s, "reason": why}
+                                      "computed_at": stamp, "summary": s, "reason": why,
+                                      **_urgency_columns(s)}
                                      for n, a, p, s, why in keep])
 
         self._write(run, lock=rows[0][0] if len(rows) == 1 else None)
+
+
+def _urgency_columns(summary: str | None) -> dict[str, Any]:
+    """A kept forecast's crossing date and median, for ordering in SQL."""
+    doc = json.loads(summary) if summary else {}
+    date = doc.get("date")
+    median = doc.get("median")
+    when = pd.Timestamp(date).floor("us").to_pydatetime() if date else None  # to the microsecond
+    return {"crossing_date": as_utc(when),
+            "median": float(median) if isinstance(median, (int, float)) else None}

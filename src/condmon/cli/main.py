@@ -10,13 +10,19 @@ import math
 import sys
 import warnings
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, Optional
+from typing import Annotated, Any, Optional
 
 import typer
 from rich.markup import escape
 from rich.table import Table
 
 from condmon.cli._console import err, fmt, out, progress, status_text, write_json
+from condmon.cli.check import register as register_check_command
+from condmon.cli.estimation import (
+    ColOpt, ConstOpt, DateOpt, DbOpt, ExcOpt, FitOpt, GammaOpt, GroupOpt, IgnoreOpt, MetaOpt,
+    MethodOpt, ModelOpt, OffsetOpt, RateOpt, RouteOpt, ScaleOpt, UnitModelOpt, UnitOpt,
+    WindowOpt, options,
+)
 from condmon.cli.fleet import register as register_fleet_commands
 from condmon.cli.forecast import register as register_forecast_command
 from condmon.cli.history import print_flags
@@ -27,9 +33,6 @@ from condmon.cli.views import register as register_view_commands
 from condmon.cli.watch import register as register_watch_command
 from condmon.errors import CondmonError
 from condmon.identify.defaults import DEFAULT_FIT_THRESHOLD, list_estimators
-
-if TYPE_CHECKING:
-    from condmon.workflows.records import EstimateOptions
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode="markdown",
                   help="Model-based condition monitoring: estimate, trend, diagnose.")
@@ -46,17 +49,6 @@ register_forecast_command(app)
 
 
 
-ModelOpt = Annotated[str, typer.Option(help="Machine model: a shipped name (dc-motor) or a declaration file (.toml).")]
-UnitModelOpt = Annotated[Optional[str], typer.Option("--model", help="Machine model (name or declaration file); default: the unit's, else dc-motor.")]
-RouteOpt = Annotated[Optional[str], typer.Option(help="Estimation route: auto, linear, inverse or oe (default: the declaration's).")]
-ConstOpt = Annotated[Optional[str], typer.Option(help="Known constants overriding the declaration's, NAME=VALUE,... e.g. gamma=0.9; naming an unknown fixes it for the run (reported, not estimated).")]
-RateOpt = Annotated[Optional[float], typer.Option("--sample-rate", help="Samples per second when t counts samples or is absent [Hz] (over the model's [record] table).")]
-ScaleOpt = Annotated[Optional[str], typer.Option("--scale", help="Scale per column NAME=FACTOR,...: value = raw*FACTOR + OFFSET (raw counts to SI units).")]
-OffsetOpt = Annotated[Optional[str], typer.Option("--offset", help="Offset per column NAME=VALUE,... [SI], added after the scale.")]
-IgnoreOpt = Annotated[Optional[str], typer.Option("--ignore", help="File columns to leave out, comma-separated (a logger's own columns).")]
-GroupOpt = Annotated[Optional[str], typer.Option("--group", help="Put the unit in this group of peer units (a unit without a baseline of its own is checked against its group's).")]
-MetaOpt = Annotated[Optional[str], typer.Option("--meta", help="The record's metadata KEY=VALUE,... that regimes may name, e.g. load=ball.")]
-WindowOpt = Annotated[Optional[str], typer.Option("--window", help="Only this span of the record, START:END in seconds (either side may be empty).")]
 
 
 @app.command("estimate")
@@ -79,7 +71,7 @@ def estimate_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
 ) -> None:
     """Estimate the physical parameters of one test record (or of several together)."""
-    opts = _options(method, gamma, excitation, columns, fit_threshold, model, route, constants,
+    opts = options(method, gamma, excitation, columns, fit_threshold, model, route, constants,
                     sample_rate, scale, offset, ignore, meta, window)
     if len(records) == 1:
         res, _ = opts.run(records[0])
@@ -222,61 +214,6 @@ def _remove_if_empty(path: Path) -> None:
             Path(str(path) + suffix).unlink(missing_ok=True)
 
 
-def _options(method: str, gamma: float | None, excitation: str, columns: str | None,
-             fit_threshold: float, model: str | None = None, route: str | None = None,
-             constants: str | None = None, sample_rate: float | None = None,
-             scale: str | None = None, offset: str | None = None, ignore: str | None = None,
-             meta: str | None = None, window: str | None = None) -> EstimateOptions:
-    from condmon.identify.windows import parse_window
-    from condmon.io.records import parse_column_map
-    from condmon.io.rig import settings_from_options
-    from condmon.workflows.records import EstimateOptions
-
-    if method not in list_estimators():
-        raise CondmonError(f"unknown --method {method!r}; allowed: {', '.join(list_estimators())}")
-    exc: str | tuple[str, ...] | None
-    if excitation == "auto":
-        exc = "auto"
-    elif excitation.lower() == "none":
-        exc = None
-    else:
-        exc = tuple(c.strip() for c in excitation.split(",") if c.strip())
-    consts: dict[str, float] = {}
-    for key, value in parse_column_map(constants).items():
-        try:
-            consts[key] = float(value)
-        except ValueError:
-            raise CondmonError(f"--constants: {key}={value!r} is not a number") from None
-    record = settings_from_options(sample_rate=sample_rate, scale=scale, offset=offset,
-                                   ignore=ignore)
-    return EstimateOptions(model, method, gamma, exc, fit_threshold,
-                           parse_column_map(columns) or None, route, consts or None,
-                           None if record.empty else record, parse_metadata(meta),
-                           parse_window(window))
-
-
-def parse_metadata(text: str | None) -> dict[str, Any] | None:
-    """``--meta load=ball,temp=40`` -> ``{"load": "ball", "temp": 40.0}`` (numbers as numbers)."""
-    from condmon.io.rig import parse_assignments
-
-    out: dict[str, Any] = {}
-    for key, value in parse_assignments(text, "--meta").items():
-        try:
-            out[key] = float(value)
-        except ValueError:
-            out[key] = value
-    return out or None
-
-
-DateOpt = Annotated[Optional[str], typer.Option(help="When the test was run, ISO 8601 (2026-03-01 or 2026-03-01T14:30, UTC unless a zone is given); default: the record's own date, if it has one.")]
-DbOpt = Annotated[str, typer.Option("--db", help="History database: a SQLite file or a postgresql:// URL.")]
-UnitOpt = Annotated[str, typer.Option("--unit", help="Unit (machine) name.")]
-MethodOpt = Annotated[str, typer.Option(help=f"Estimator: {', '.join(list_estimators())}.")]
-GammaOpt = Annotated[Optional[float], typer.Option(help="Ke/Kt of the motor (default 0.95).")]
-ExcOpt = Annotated[str, typer.Option(help="Excitation columns ('auto', 'none' or a,b).")]
-ColOpt = Annotated[Optional[str], typer.Option(help="Column mapping CANONICAL=FILE_COLUMN,...")]
-FitOpt = Annotated[float, typer.Option(help="Reject below this percentage fit [%].")]
-
 
 @baseline_app.command("add")
 def baseline_add_cmd(
@@ -308,7 +245,7 @@ def baseline_add_cmd(
     from condmon.models.registry import get_model
     from condmon.models.regimes import split_key
 
-    opts = _options(method, gamma, excitation, columns, fit_threshold, model, route, constants,
+    opts = options(method, gamma, excitation, columns, fit_threshold, model, route, constants,
                     sample_rate, scale, offset, ignore, meta, window)
     # what can be checked without the records, before a new history file is made
     parse_date(date)
@@ -371,129 +308,8 @@ def baseline_add_cmd(
         raise typer.Exit(1)
 
 
-@app.command("check")
-def check_cmd(
-    record: Annotated[Path, typer.Argument(help="Test record (CSV, Parquet, .mat, TDMS).")],
-    unit: UnitOpt,
-    db: DbOpt = "condmon.db",
-    method: MethodOpt = "sriv",
-    gamma: GammaOpt = None,
-    excitation: ExcOpt = "auto",
-    columns: ColOpt = None,
-    fit_threshold: FitOpt = DEFAULT_FIT_THRESHOLD,
-    rules: Annotated[Optional[Path], typer.Option(help="Rule base TOML (default: the shipped one).")] = None,
-    monitor: Annotated[Optional[Path], typer.Option(help="Monitor breakpoints TOML (default: the shipped one).")] = None,
-    model: UnitModelOpt = None,
-    route: RouteOpt = None,
-    constants: ConstOpt = None,
-    date: DateOpt = None,
-    sample_rate: RateOpt = None,
-    scale: ScaleOpt = None,
-    offset: OffsetOpt = None,
-    ignore: IgnoreOpt = None,
-    meta: MetaOpt = None,
-    window: WindowOpt = None,
-    group: GroupOpt = None,
-    against: Annotated[Optional[str], typer.Option("--against", help="Compare with another unit's or a group's baseline (UNIT, GROUP, unit:NAME or group:NAME) instead of the unit's own.")] = None,
-    dry_run: Annotated[bool, typer.Option("--dry-run", help="Estimate and diagnose, store nothing.")] = False,
-    alpha: Annotated[Optional[float], typer.Option(help="False-alarm probability of the statistical change test, in (0, 0.5) (default: the monitor file's [statistics] alpha, 0.01).")] = None,
-    drift_alpha: Annotated[Optional[float], typer.Option(help="False-alarm probability of the drift test at each check, in (0, 0.5) (default: [statistics] drift_alpha, 0.01).")] = None,
-    as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
-) -> None:
-    """Check one test against the unit's baseline: go / advisory / no-go and faults.
+register_check_command(app)
 
-    Beside the fuzzy status, a calibrated test of the change against the
-    baseline's scatter and of a drift over the checks since the baseline, each
-    alarming with the stated false-alarm probability (--alpha, --drift-alpha);
-    they never change the status."""
-    from condmon.diagnose.rules import load_rules
-    from condmon.models.regimes import split_key
-    from condmon.monitor.fuzzy import load_monitor_config
-    from condmon.workflows.checks import check_test
-    from condmon.store.db import open_store
-
-    opts = _options(method, gamma, excitation, columns, fit_threshold, model, route, constants,
-                    sample_rate, scale, offset, ignore, meta, window)
-    cfg = load_monitor_config(monitor) if monitor is not None else None
-    rb = load_rules(rules) if rules is not None else None
-    with open_store(db, create=False) as store:
-        res = check_test(store, unit, record, opts, cfg, rb, dry_run=dry_run, test_date=date,
-                         against=against, group=group, alpha=alpha,
-                         drift_alpha=drift_alpha)
-    if as_json:
-        write_json(res.to_dict())
-        return
-    if dry_run:
-        err.print("dry run: nothing was stored", highlight=False)
-    if res.warning:
-        err.print(f"warning: {record}: {res.warning}", highlight=False, markup=False,
-                  soft_wrap=True)
-    print_flags(res.baseline_flags, unit)
-    fit = res.estimate.fit_percent
-    out.print(f"{escape(unit)} — {escape(str(record))}: {status_text(res.status)}  "
-              + (f"(fit {fit:.1f} %" if math.isfinite(fit) else "(no fit")
-              + (f", regime {escape(res.estimate.regime_label)}"
-                 if res.estimate.regime_label else "")
-              + (f", against {escape(res.against)}" if res.against != "unit" else "")
-              + (f", test #{res.test_id})" if res.test_id >= 0 else ", not stored)"))
-    if res.diagnosis is None:
-        out.print(f"rejected: {res.estimate.reason}; the test is stored but changes no trend. "
-                  "Retest.", markup=False)
-        _print_forecast(res.forecast)
-        return
-    table = Table()
-    for col in ("parameter", "value", "unit", "change %", "SymH", "SymL"):
-        table.add_column(col, justify="left" if col in ("parameter", "unit") else "right")
-    stored = res.estimate.stored_values()
-    units = res.estimate.units
-    for p, change in res.percent_change.items():
-        sym = res.symptoms.get(p, {"high": 0.0, "low": 0.0})
-        table.add_row(escape(p), fmt(stored[p][0]) if p in stored else "—",
-                      escape(units.get(split_key(p)[0], "")), f"{change:+.1f}",
-                      f"{sym['high']:.2f}", f"{sym['low']:.2f}")
-    out.print(table)
-    held = {k: v for part in res.estimate.regimes for k, v in part.held.items()}
-    if held:
-        out.print("held (not identified by this record): " + ", ".join(
-            f"{k} ({v})" for k, v in held.items()), highlight=False, markup=False,
-            soft_wrap=True)
-    if res.note:
-        out.print(f"note: {res.note}", highlight=False, markup=False, soft_wrap=True)
-    for note in res.estimate.notes:
-        if note.startswith("possible structure mismatch"):
-            out.print(f"note: {note}", highlight=False, markup=False)
-    if res.diagnosis.no_fault:
-        out.print("no fault")
-    for f in res.diagnosis.faults:
-        level = ("major: at no-go level" if f.severity == "major" else
-                 "minor: at advisory level" + (", a major fault if it grows"
-                                               if f.rule_severity == "major" else ""))
-        out.print(f"[bold]{escape(f.name)}[/] — degree {f.degree:.2f} ({level}): "
-                  f"{escape(f.advice)}")
-    if res.diagnosis.watch:
-        out.print("to watch (below advisory level, not faults): " + ", ".join(
-            f"{f.name} ({f.degree:.2f})" for f in res.diagnosis.watch), highlight=False,
-            markup=False, soft_wrap=True)
-    if res.statistics is not None:
-        out.print(res.statistics.describe(res.status), highlight=False, markup=False,
-                  soft_wrap=True)
-    _print_forecast(res.forecast)
-
-
-def _print_forecast(ahead: dict[str, Any]) -> None:
-    """The unit's earliest forecast to no-go after a check (none on a dry run)."""
-    from condmon.monitor.unit_forecast import remaining_text
-
-    f = ahead.get("forecast")
-    if f:
-        out.print(f"forecast: {f['parameter']} no-go in {remaining_text(f)}"
-                  + (f", about {f['date'][:10]}" if f["date"] else "")
-                  + (f" ({f['rule']})" if f["rule"] else "")
-                  + "; median (90 % interval), `condmon forecast` for more", highlight=False,
-                  markup=False, soft_wrap=True)
-    elif ahead.get("forecast_reason"):
-        out.print(f"forecast: none, {ahead['forecast_reason']}", highlight=False, markup=False,
-                  soft_wrap=True)
 
 
 register_view_commands(app)  # after the commands above: their order in --help

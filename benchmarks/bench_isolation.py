@@ -26,7 +26,7 @@ from condmon.diagnose.isolation import (  # noqa: E402
     SuspectTask, isolate, simulate_suspect,
 )
 from condmon.errors import DataWarning  # noqa: E402
-from condmon.models.declared import load_plant_model  # noqa: E402
+from condmon.models.registry import load_plant_model  # noqa: E402
 from condmon.simulate.plant import input_signals, simulate_plant  # noqa: E402
 
 FAULTS = [f"{p}={c:+d}%@10s" for p in ("Rv", "Dm") for c in (-50, -25, -10, 10, 25, 50)] + [

@@ -39,7 +39,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from condmon.diagnose.residuals import DetectionSettings  # noqa: E402
 from condmon.diagnose.tracking import ModelTracker  # noqa: E402
-from condmon.models.declared import load_plant_model  # noqa: E402
+from condmon.models.registry import load_plant_model  # noqa: E402
 from condmon.simulate.plant import simulate_plant  # noqa: E402
 from condmon.store import open_store  # noqa: E402
 from condmon.workflows.live import watch_mqtt  # noqa: E402

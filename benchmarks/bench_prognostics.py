@@ -56,7 +56,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from _common import table, write_json
-from condmon.monitor.forecast import MIN_TESTS, Forecast, fleet_prior, forecast_series
+from condmon.monitor.forecast import MIN_TESTS, fleet_prior, forecast_series
 from condmon.simulate import load_actuator_rig, simulate_actuator
 from condmon.store import open_store
 from condmon.workflows.checks import check_test

@@ -28,7 +28,7 @@ def _declarations() -> list[str]:
 
 
 def _declared(model: str) -> dict[str, float]:
-    from condmon.models.declared import load_plant_model
+    from condmon.models.registry import load_plant_model
 
     return load_plant_model(model).parameter_values()
 

@@ -21,7 +21,7 @@ _RUN = """
 import json, sys
 import condmon
 from condmon.diagnose.isolation import isolate
-from condmon.models.declared import load_plant_model
+from condmon.models.registry import load_plant_model
 from condmon.simulate.plant import simulate_plant
 res = condmon.estimate(condmon.simulate_actuator(seed=2))
 hst = load_plant_model("hst")
@@ -98,7 +98,7 @@ def test_only_functions_of_known_modules_are_kept() -> None:
 
 
 def test_the_key_ignores_values_and_paths_not_equations() -> None:
-    from condmon.models.declared import load_plant_model
+    from condmon.models.registry import load_plant_model
 
     hst = load_plant_model("hst")
     assert derived_cache.plant_key(hst.with_parameters({"Rv": 3.0}, "elsewhere.toml")) \

@@ -15,7 +15,8 @@ from condmon.diagnose.residuals import (
 )
 from condmon.diagnose.structure import residual_generators
 from condmon.errors import DataError, DataWarning
-from condmon.models.declared import PlantModel, BuiltInTest, load_plant_model
+from condmon.models.declared import PlantModel, BuiltInTest
+from condmon.models.registry import load_plant_model
 from condmon.simulate.plant import simulate_plant
 
 

@@ -21,7 +21,8 @@ from condmon.diagnose.isolation import IsolationSettings, healthy_normalisation,
 from condmon.diagnose.suspects import SuspectTask, plausible_range, run_suspects
 from condmon.errors import ConfigError, DataError, DataWarning
 from condmon.identify.steady_state import SteadyStateEstimate
-from condmon.models.declared import PlantModel, load_plant_model
+from condmon.models.declared import PlantModel
+from condmon.models.registry import load_plant_model
 from condmon.models.expressions import smoothed
 from condmon.simulate.plant import (
     SimulationLimits, SimulationTimeout, input_signals, integrate, sensor_readings,

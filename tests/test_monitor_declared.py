@@ -114,7 +114,7 @@ def test_shipped_coulomb_model_monitors_with_its_own_rules(
 
 def test_plant_models_come_from_the_one_registry(tmp_path: Path,
                                                  monkeypatch: pytest.MonkeyPatch) -> None:
-    from condmon.models.declared import list_plant_models, load_plant_model
+    from condmon.models.registry import list_plant_models, load_plant_model
 
     assert {"dc-motor", "dc-motor-coulomb", "hst"} <= set(list_plant_models())
     assert load_plant_model("dc-motor-coulomb").state_names == ("I", "omega")

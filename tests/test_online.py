@@ -12,7 +12,7 @@ from condmon.diagnose.residuals import DetectionSettings, compute_residuals, det
     noise_normalisation
 from condmon.diagnose.structure import residual_generators
 from condmon.diagnose.tracking import ModelTracker
-from condmon.models.declared import load_plant_model
+from condmon.models.registry import load_plant_model
 from condmon.simulate.plant import input_signals, integrate, sensor_readings
 from condmon.simulate.plant import simulate_plant
 from condmon.simulate.stepper import BatchStepper

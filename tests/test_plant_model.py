@@ -9,7 +9,7 @@ import pytest
 from scipy import optimize, signal
 
 from condmon.errors import ConfigError
-from condmon.models.declared import load_plant_model
+from condmon.models.registry import load_plant_model
 from condmon.simulate.plant import integrate, parameter_steps, simulate_plant, time_grid
 
 HST_TABLE = {"wp": 152.0, "Dp": 4.45e-6, "Rlkgp": 1e13, "Kp": 5e10, "Dm": 4.45e-5,

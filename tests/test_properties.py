@@ -272,7 +272,7 @@ def declarations(draw: st.DrawFn) -> str:
 @settings(FAST, max_examples=60)
 @given(declarations())
 def test_declarations_load_or_refuse_with_one_line(text: str) -> None:
-    from condmon.models.declared import load_plant_model
+    from condmon.models.registry import load_plant_model
 
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "plant.toml"

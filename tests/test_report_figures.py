@@ -30,7 +30,7 @@ def history(tmp_path_factory: pytest.TempPathFactory, rig: ActuatorRig) -> str:
     isolation estimated the motor leakage resistance far from nominal."""
     from condmon.diagnose.isolation import isolate
     from condmon.io.digest import content_hash
-    from condmon.models.declared import load_plant_model
+    from condmon.models.registry import load_plant_model
     from condmon.simulate.plant import simulate_plant
 
     db = str(tmp_path_factory.mktemp("figs") / "h.db")
@@ -126,7 +126,7 @@ def test_no_legend_covers_data(history: str, tmp_path: Path, drawn: list[Any]) -
 def test_isolation_figures_legends_are_outside(history: str, tmp_path: Path,
                                                drawn: list[Any]) -> None:
     from condmon.diagnose.isolation import isolate
-    from condmon.models.declared import load_plant_model
+    from condmon.models.registry import load_plant_model
     from condmon.report.isolation_figures import write_isolation_figures
     from condmon.simulate.plant import simulate_plant
 

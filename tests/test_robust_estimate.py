@@ -276,7 +276,7 @@ def test_text_in_rig_parameters_is_refused(tmp_path: Path, capsys: pytest.Captur
 
 def test_declaration_dividing_by_zero_is_refused(tmp_path: Path) -> None:
     from condmon.errors import ConfigError
-    from condmon.models.declared import load_plant_model
+    from condmon.models.registry import load_plant_model
 
     text = (Path(__file__).parents[1] / "examples" / "template.toml").read_text()
     bad = tmp_path / "bad.toml"

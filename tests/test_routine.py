@@ -312,7 +312,7 @@ def test_the_transmission_steady_state_is_a_case_of_the_steady_route(tmp_path: P
     not measured, so the route solves the model's whole steady state in each
     window (the fault isolation's solver). One operating point cannot tell a
     viscous load from a constant one; two can."""
-    from condmon.models.declared import load_plant_model
+    from condmon.models.registry import load_plant_model
     from condmon.models.machine import DATA_DIR
     from condmon.simulate.plant import simulate_plant
 

@@ -51,7 +51,7 @@ def fleet(tmp_path_factory: pytest.TempPathFactory, rig: ActuatorRig) -> dict[st
     unit with one stored isolation, empty units with awkward names."""
     from condmon.diagnose.isolation import isolate
     from condmon.io.digest import content_hash
-    from condmon.models.declared import load_plant_model
+    from condmon.models.registry import load_plant_model
     from condmon.simulate.plant import simulate_plant
 
     db = str(tmp_path_factory.mktemp("serve") / "fleet.db")
@@ -281,7 +281,7 @@ def test_hst_numbers_carry_their_units(fleet: dict[str, Any], client: Any,
                                        tmp_path: Path) -> None:
     """Every estimate and nominal of an HST unit, on the report's page and the
     fleet page, is written with the unit its model declares."""
-    from condmon.models.declared import load_plant_model
+    from condmon.models.registry import load_plant_model
     from condmon.report import write_report
 
     units = load_plant_model("hst").parameter_units()

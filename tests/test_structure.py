@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from condmon.diagnose.structure import fault_signature, residual_generators, suspects
-from condmon.models.declared import load_plant_model
+from condmon.models.registry import load_plant_model
 
 SIX = ("Dp", "Rlkgp", "Dm", "Rlkgm", "Rv", "Tld")
 

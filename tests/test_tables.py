@@ -151,7 +151,7 @@ def test_check_table(history: History, key: str, test_id: int, status: str) -> N
 
 
 def test_isolate_tables(history: History) -> None:
-    from condmon.models.declared import load_plant_model
+    from condmon.models.registry import load_plant_model
 
     out = history.printed["isolate"]
     iso = _json(history, "history", "--unit", "H1", "--db", history.db)[0]

@@ -21,7 +21,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from condmon.models.declared import load_plant_model
+from condmon.models.registry import load_plant_model
 from condmon.simulate.plant import simulate_plant
 from condmon.store import open_store
 from condmon.workflows.live import watch_mqtt

@@ -33,6 +33,8 @@ def options(method: str, gamma: float | None, excitation: str, columns: str | No
              constants: str | None = None, sample_rate: float | None = None,
              scale: str | None = None, offset: str | None = None, ignore: str | None = None,
              meta: str | None = None, window: str | None = None) -> EstimateOptions:
+    """The command line's estimation options as :class:`EstimateOptions`
+    (every value checked here, once; a bad one is a one-line error)."""
     from condmon.identify.windows import parse_window
     from condmon.io.records import parse_column_map
     from condmon.io.rig import settings_from_options

@@ -69,7 +69,7 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
         from condmon.diagnose.structure import RESIDUAL_KINDS
         from condmon.errors import ConfigError
         from condmon.io.records import parse_column_map, read_record
-        from condmon.models.declared import load_plant_model
+        from condmon.models.registry import load_plant_model
         from condmon.models.registry import recognised_records
 
         mapping = parse_column_map(columns) or None
@@ -133,7 +133,7 @@ def _simulate(model: str, out_path: Path, fault: list[str] | None, params: Path 
               seed: int, duration: float | None, si: bool = False) -> None:
     from condmon.io.records import write_record
     from condmon.io.rig import rig_layout
-    from condmon.models.declared import load_plant_model
+    from condmon.models.registry import load_plant_model
     from condmon.models.registry import get_model
     from condmon.simulate.plant import parameter_steps, simulate_plant
 

@@ -100,7 +100,7 @@ def validate_plant_record(model: PlantModel, record: pd.DataFrame, source: str =
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> from condmon.simulate.plant import simulate_plant
     >>> m = load_plant_model("hst")
     >>> rec = simulate_plant(m, seed=1)
@@ -190,7 +190,7 @@ def check_stream_chunk(model: PlantModel, cols: Mapping[str, FloatArray], source
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> check_stream_chunk(load_plant_model("hst"), {"t": np.array([0.0, 1000.0]),
     ...                    "Ps": np.zeros(2), "omega_m": np.zeros(2)}, "unit 'U'")
     Traceback (most recent call last):

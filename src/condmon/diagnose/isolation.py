@@ -260,7 +260,7 @@ def healthy_normalisation(model: PlantModel, healthy: Sequence[pd.DataFrame],
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> from condmon.simulate.plant import simulate_plant
     >>> m = load_plant_model("hst")
     >>> norm = healthy_normalisation(m, [simulate_plant(m, seed=s) for s in range(3)])
@@ -320,7 +320,7 @@ def isolate(record: pd.DataFrame, model: PlantModel, *,
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> from condmon.simulate.plant import simulate_plant
     >>> m = load_plant_model("hst")
     >>> res = isolate(simulate_plant(m, ["Dm=-25%@10s"], seed=4), m, workers=1)

@@ -34,7 +34,7 @@ def noise_figures(model: PlantModel, dt: float, settings: DetectionSettings) -> 
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> n = noise_figures(load_plant_model("hst"), 0.01, DetectionSettings())
     >>> n.names, round(float(n.std[0]))          # 2.5e4 Pa / sqrt(20 samples)
     (('r_Ps', 'r_omega_m'), 5590)
@@ -79,7 +79,7 @@ class OnlineDetector:
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> s = DetectionSettings()
     >>> d = OnlineDetector(noise_figures(load_plant_model("hst"), 0.01, s), s, 0.01)
     >>> t = np.arange(300) * 0.01

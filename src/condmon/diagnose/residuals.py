@@ -246,7 +246,7 @@ def compute_residuals(model: PlantModel, record: pd.DataFrame, generators: Seque
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> from condmon.simulate.plant import simulate_plant
     >>> from condmon.diagnose.structure import residual_generators
     >>> m = load_plant_model("hst")
@@ -320,7 +320,7 @@ def learn_normalisation(residual_sets: Sequence[Residuals], settings: DetectionS
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> from condmon.simulate.plant import simulate_plant
     >>> from condmon.diagnose.structure import residual_generators
     >>> m = load_plant_model("hst")
@@ -416,7 +416,7 @@ def detect(residuals: Residuals, norm: Normalisation, settings: DetectionSetting
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> from condmon.simulate.plant import simulate_plant
     >>> from condmon.diagnose.structure import residual_generators
     >>> m = load_plant_model("hst")

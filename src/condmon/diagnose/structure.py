@@ -243,7 +243,7 @@ def residual_generators(model: PlantModel, kind: ResidualKind = "simulation"
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> [g.name for g in residual_generators(load_plant_model("hst"))]
     ['r_Ps', 'r_omega_m']
     """
@@ -291,7 +291,7 @@ def fault_signature(model: PlantModel, kind: ResidualKind = "simulation") -> Fau
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> fsm = fault_signature(load_plant_model("hst"))
     >>> fsm.signature("Rv"), fsm.mb["Rv"], fsm.ib["Rv"]
     ((1, 1), 1, 0)
@@ -331,7 +331,7 @@ def suspects(fsm: FaultSignature, fired: Iterable[str]) -> tuple[str, ...]:
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> fsm = fault_signature(load_plant_model("hst"))
     >>> suspects(fsm, ["r_Ps"])
     ('Dp', 'Rlkgp', 'Dm', 'Rlkgm', 'Rv', 'Tld')

@@ -175,7 +175,7 @@ def plausible_range(parameter: Parameter, factor: float) -> tuple[float, float] 
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> m = load_plant_model("hst")
     >>> [round(v, 4) for v in plausible_range(m.parameter("Rv"), 100.0)]
     [0.1127, 1127.1]

@@ -92,7 +92,7 @@ class ModelTracker:
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> from condmon.simulate.plant import simulate_plant
     >>> m = load_plant_model("hst")
     >>> rec = simulate_plant(m, ["Rv=+40%@10s"], seed=2, duration=16.0)
@@ -274,7 +274,7 @@ def measured_start(model: PlantModel, chunk: Mapping[str, FloatArray]) -> dict[s
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> x = measured_start(load_plant_model("hst"), {"t": np.arange(3.0),
     ...     "Ps": np.full(3, 4.0e6), "omega_m": np.full(3, 14.4), "omega_p": np.full(3, 152.0)})
     >>> {k: round(v / 1e5, 2) if k != "omega_m" else v for k, v in x.items()}   # [bar]
@@ -322,7 +322,7 @@ def started_at(model: PlantModel, initial: Mapping[str, float]) -> PlantModel:
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> [s.initial for s in started_at(load_plant_model("hst"), {"Ps": 4e6}).states]
     [4000000.0, 0.0, 0.0]
     """

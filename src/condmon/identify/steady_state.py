@@ -269,7 +269,7 @@ def estimate_steady_state(model: PlantModel, parameter: str, windows: Sequence[S
     Example
     -------
     >>> import numpy as np
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> from condmon.simulate.plant import simulate_plant, integrate, input_signals
     >>> m = load_plant_model("hst")
     >>> rec = simulate_plant(m, ["Rv=+25%@10s"], seed=2)

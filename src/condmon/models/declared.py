@@ -33,8 +33,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from condmon.errors import ConfigError, ModelError
-from condmon.io.config import load_default, load_toml
+from condmon.errors import ConfigError
+from condmon.io.config import load_default
 from condmon.models import derived_cache
 from condmon.models.excitation import Excitation, parse_excitation
 
@@ -46,7 +46,7 @@ if TYPE_CHECKING:
 # cache (condmon.models.derived_cache) is used without it.
 
 __all__ = ["Parameter", "Input", "Variable", "State", "Sensor", "InputStep", "BuiltInTest",
-           "PlantModel", "CompiledModel", "load_plant_model", "list_plant_models", "plant_from_doc",
+           "PlantModel", "CompiledModel", "plant_from_doc",
            "equations_of", "substituted_equations", "symbols_of"]
 
 FloatArray = NDArray[np.float64]
@@ -139,10 +139,12 @@ class BuiltInTest:
 
 @dataclass(frozen=True)
 class PlantModel:
-    """A declared plant model (immutable; see :func:`load_plant_model`).
+    """A declared plant model (immutable; see
+    :func:`condmon.models.registry.load_plant_model`).
 
     Example
     -------
+    >>> from condmon.models.registry import load_plant_model
     >>> m = load_plant_model("hst")
     >>> m.state_names, m.sensor_names
     (('Ps', 'Pm', 'omega_m'), ('Ps', 'omega_m'))
@@ -375,61 +377,6 @@ def _dump_compiled(model: PlantModel, fns: tuple[Callable[..., Any], ...]
 
 
 # -- loading and validation ------------------------------------------------------------
-
-
-def list_plant_models() -> list[str]:
-    """Names of the registered machine models (see :func:`condmon.models.list_models`)."""
-    from condmon.models.registry import list_models
-
-    return list_models()
-
-
-def load_plant_model(model: str | Path = "hst", params: str | Path | Mapping[str, float] | None = None
-                     ) -> PlantModel:
-    """Read and validate a model declaration.
-
-    Parameters
-    ----------
-    model : str or Path
-        A shipped model's name (``"hst"``) or the path of a declaration file.
-    params : str, Path or mapping, optional
-        Parameter values overriding the declaration's: a TOML file with
-        ``name = value`` lines (top level or under ``[parameters]``), or a mapping.
-
-    Returns
-    -------
-    PlantModel
-
-    Example
-    -------
-    >>> m = load_plant_model("hst", {"Rv": 12.0})
-    >>> m.parameter("Rv").value
-    12.0
-    """
-    # The one registry of machine models, for a name or a file alike: a
-    # declaration is validated whole, once, the same way for every command
-    # (imported here, as the registry itself is built on this module).
-    from condmon.models.registry import get_model
-
-    try:
-        plant = get_model(model).plant
-    except ModelError as err:
-        raise ConfigError(str(err)) from None
-    if params is None:
-        return plant
-    if isinstance(params, Mapping):
-        return plant.with_parameters(params)
-    pdoc = load_toml(params)
-    values = pdoc.get("parameters", pdoc)
-    bad = {k: v for k, v in values.items()
-           if isinstance(v, bool) or not isinstance(v, (int, float))}
-    if bad:
-        k = next(iter(bad))
-        raise ConfigError(f"{params}: parameter {k!r} must be a number, not {bad[k]!r}")
-    try:
-        return plant.with_parameters(values, str(params))
-    except ConfigError as err:
-        raise ConfigError(f"{params}: {err}") from None
 
 
 #: Top-level entries a declaration may hold.

@@ -11,20 +11,20 @@ from __future__ import annotations
 
 import signal
 import threading
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 from condmon.errors import CondmonError, ConfigError, MissingColumnsError, ModelError
 from condmon.io.config import load_default, load_toml
-from condmon.models.declared import plant_from_doc
+from condmon.models.declared import PlantModel, plant_from_doc
 from condmon.models.limits import equation_limits
 from condmon.models.machine import Machine
 from condmon.models.machine_doc import machine_from_doc
 
 __all__ = ["get_model", "list_models", "register_model", "recognise_record",
-           "recognised_records"]
+           "recognised_records", "load_plant_model", "list_plant_models"]
 
 #: Shipped declarations: name -> file in condmon/data.
 _SHIPPED = {"dc-motor": "dc-motor.toml", "dc-motor-coulomb": "dc-motor-coulomb.toml",
@@ -205,3 +205,53 @@ def recognised_records(model: str | Machine | None) -> Iterator[None]:
             f"{', '.join(err.columns)}), not of model {current.name!r} (missing "
             f"{', '.join(err.missing)}): is the model, or the unit, the right one?",
             err.missing, err.columns) from None
+
+
+def list_plant_models() -> list[str]:
+    """Names of the registered machine models (see :func:`condmon.models.list_models`)."""
+    return list_models()
+
+
+def load_plant_model(model: str | Path = "hst", params: str | Path | Mapping[str, float] | None = None
+                     ) -> PlantModel:
+    """Read and validate a model declaration.
+
+    Parameters
+    ----------
+    model : str or Path
+        A shipped model's name (``"hst"``) or the path of a declaration file.
+    params : str, Path or mapping, optional
+        Parameter values overriding the declaration's: a TOML file with
+        ``name = value`` lines (top level or under ``[parameters]``), or a mapping.
+
+    Returns
+    -------
+    PlantModel
+
+    Example
+    -------
+    >>> m = load_plant_model("hst", {"Rv": 12.0})
+    >>> m.parameter("Rv").value
+    12.0
+    """
+    # The one registry of machine models, for a name or a file alike: a
+    # declaration is validated whole, once, the same way for every command.
+    try:
+        plant = get_model(model).plant
+    except ModelError as err:
+        raise ConfigError(str(err)) from None
+    if params is None:
+        return plant
+    if isinstance(params, Mapping):
+        return plant.with_parameters(params)
+    pdoc = load_toml(params)
+    values = pdoc.get("parameters", pdoc)
+    bad = {k: v for k, v in values.items()
+           if isinstance(v, bool) or not isinstance(v, (int, float))}
+    if bad:
+        k = next(iter(bad))
+        raise ConfigError(f"{params}: parameter {k!r} must be a number, not {bad[k]!r}")
+    try:
+        return plant.with_parameters(values, str(params))
+    except ConfigError as err:
+        raise ConfigError(f"{params}: {err}") from None

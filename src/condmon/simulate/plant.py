@@ -97,7 +97,7 @@ def parameter_steps(model: PlantModel, faults: Iterable[str | Fault]) -> tuple[P
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> parameter_steps(load_plant_model("hst"), ["Rv=+10%@5s"])[0].value
     12.3981
     """
@@ -119,7 +119,7 @@ def time_grid(model: PlantModel, duration: float | None = None,
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> t = time_grid(load_plant_model("hst"))
     >>> len(t), float(t[-1])
     (3001, 30.0)
@@ -140,7 +140,7 @@ def input_signals(model: PlantModel, t: FloatArray, record: pd.DataFrame | None 
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> m = load_plant_model("hst")
     >>> u = input_signals(m, time_grid(m))
     >>> u[[0, -1], 0].tolist()      # nominal pump speed, then 75 % from 20 s [rad/s]
@@ -234,7 +234,7 @@ def integrate(compiled: CompiledModel, t: FloatArray, u: FloatArray,
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> m = load_plant_model("hst")
     >>> t = time_grid(m)
     >>> x = integrate(m.compile(), t, input_signals(m, t))
@@ -373,7 +373,7 @@ def simulate_plant(model: PlantModel, faults: Iterable[str | Fault] = (), *, see
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> rec = simulate_plant(load_plant_model("hst"), seed=1)
     >>> list(rec.columns), round(float(rec["omega_m"].iloc[1900]))
     (['t', 'Ps', 'omega_m', 'omega_p'], 14)

@@ -47,7 +47,7 @@ class BatchStepper:
 
     Example
     -------
-    >>> from condmon.models.declared import load_plant_model
+    >>> from condmon.models.registry import load_plant_model
     >>> s = BatchStepper(load_plant_model("hst"))
     >>> a, b = s.add(), s.add()
     >>> u = np.full((1, 2), 152.0)                 # pump speed of both [rad/s]

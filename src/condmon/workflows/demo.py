@@ -20,7 +20,7 @@ from typing import Any
 
 from condmon.diagnose.isolation import IsolationResult, healthy_normalisation, isolate
 from condmon.errors import ConfigError
-from condmon.models.declared import load_plant_model
+from condmon.models.registry import load_plant_model
 from condmon.io.config import load_default, load_toml
 from condmon.workflows.isolation import store_isolation
 from condmon.workflows.checks import CheckResult, check_test

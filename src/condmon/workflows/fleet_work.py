@@ -106,7 +106,7 @@ def _named(path: str, message: str) -> str:
 
 @functools.lru_cache(maxsize=16)
 def _plant(model: str) -> PlantModel:
-    from condmon.models.declared import load_plant_model
+    from condmon.models.registry import load_plant_model
 
     return load_plant_model(model)
 

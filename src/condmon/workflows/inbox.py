@@ -64,7 +64,7 @@ def simulated_inbox(folder: str | Path, units: Sequence[SimulatedUnit], seed: in
     ['rec-01.csv', 'rec-02.csv']
     """
     from condmon.io.records import write_record
-    from condmon.models.declared import load_plant_model
+    from condmon.models.registry import load_plant_model
     from condmon.simulate.actuator import load_actuator_rig, simulate_actuator
     from condmon.simulate.plant import simulate_plant
 

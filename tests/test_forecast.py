@@ -57,7 +57,7 @@ def test_a_stable_series_is_no_trend() -> None:
 def test_bad_series_are_refused(args: dict, message: str) -> None:
     with pytest.raises(DataError, match=message):
         forecast_series(spread=1.0, threshold=50.0, **args)
-    with pytest.raises(DataError, match="horizon must be > 0"):
+    with pytest.raises(DataError, match="horizon must be a finite number > 0"):
         forecast_series([1.0, 2.0, 3.0], [1.0, 2.0, 3.0], [1.0] * 3, 1.0, 50.0, horizon=0.0)
 
 
@@ -127,7 +127,8 @@ def test_a_stable_unit_has_no_trend(wearing: tuple[Path, float],
 
 
 @pytest.mark.parametrize("args,message", [
-    (["--unit", "WEAR", "--horizon", "0"], "horizon must be > 0"),
+    (["--unit", "WEAR", "--horizon", "0"], "--horizon must be a finite number > 0"),
+    (["--unit", "WEAR", "--horizon", "inf"], "--horizon must be a finite number > 0"),
     (["--unit", "WEARR"], "did you mean 'WEAR'?"),
 ])
 def test_forecast_refusals_are_one_line(wearing: tuple[Path, float], args: list[str],
@@ -374,3 +375,35 @@ def test_bad_hours_are_one_line(tmp_path: Path, demo_rig, capsys) -> None:  # ty
     assert main(["check", str(rec), "--unit", "U", "--db", db, "--meta", "hours=-4"]) == 2
     err = " ".join(capsys.readouterr().err.split())
     assert "r.csv: metadata 'hours' must be a finite number >= 0 [h], not -4" in err
+
+
+def test_a_mistyped_history_is_not_made(tmp_path: Path, capsys: pytest.CaptureFixture[str]
+                                        ) -> None:
+    typo = tmp_path / "typo.db"
+    assert main(["forecast", "--unit", "X", "--db", str(typo)]) == 2
+    assert "no history database there" in capsys.readouterr().err and not typo.exists()
+
+
+def test_the_axis_says_why_it_does_not_count_hours() -> None:
+    """Operating hours that go back (a counter read wrong) leave the forecast in days, and say so."""
+    import pandas as pd
+
+    from condmon.monitor.unit_forecast import forecast_axis
+
+    checks = pd.DataFrame({"test_date": ["2026-01-01", "2026-01-02", "2026-01-03"],
+                           "hours": [1120.0, 1960.0, 100.0]}, index=[5, 6, 7])
+    axis = forecast_axis(checks)
+    assert axis.by == "days"
+    assert axis.note == ("counted in days, not operating hours: test #7 has 100 h, not after "
+                         "the check before it (1960 h)")
+
+
+def test_no_history_here_points_at_the_demo_s(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "condmon-demo").mkdir()
+    with open_store(str(tmp_path / "condmon-demo" / "condmon.db")):
+        pass
+    monkeypatch.chdir(tmp_path)
+    assert main(["units"]) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert "`condmon demo` wrote its history to condmon-demo/condmon.db" in err

@@ -211,3 +211,10 @@ def test_a_baseline_narrower_than_the_checks_is_said() -> None:
     same = rng.normal(0.0, 1.0, (12, 2)) - mean
     assert check_statistics(("R", "D"), same[-1], [1.0, 1.0], base - mean, np.ones((10, 2)),
                             same).calibrated
+
+
+def test_a_boolean_is_no_alpha() -> None:
+    from condmon.monitor.statistics import checked_alpha
+
+    with pytest.raises(DataError, match="must be a number in \\(0, 0.5\\), not True"):
+        checked_alpha(True)

@@ -9,7 +9,23 @@ import typer
 
 from condmon.cli._console import out, write_json
 
-__all__ = ["register"]
+__all__ = ["register", "slope_text"]
+
+
+def slope_text(v: float) -> str:
+    """A slope as people read it: ``+110``, ``+2.2``, ``-0.043``; ``0`` below 1e-3. [%/x]
+
+    Example
+    -------
+    >>> slope_text(112.4), slope_text(2.17), slope_text(-0.0431), slope_text(-2.7e-05)
+    ('+112', '+2.2', '-0.043', '0')
+    """
+    if not math.isfinite(v):
+        return "—"
+    if abs(v) < 1e-3:
+        return "0"
+    return f"{v:+.0f}" if abs(v) >= 100 else f"{v:+.2g}" if abs(v) >= 1 else f"{v:+.2f}" \
+        if abs(v) >= 0.1 else f"{v:+.2g}"
 
 
 def register(app: typer.Typer) -> None:
@@ -26,24 +42,27 @@ def register(app: typer.Typer) -> None:
 
         Each parameter's change series is fitted (linear or exponential, chosen by
         evidence, each test weighted by its standard error and the baseline's spread)
-        and its crossing of the no-go change (r2) forecast: the tests (or days) left
+        and its crossing of the no-go change (r2) forecast: the tests (days, hours) left
         as a median and a 90 % interval; "no trend" when the slope's interval holds 0."""
         from rich.table import Table
 
         from condmon.store.db import open_store
         from condmon.workflows.forecasting import forecast_unit
 
-        with open_store(db) as store:
+        with open_store(db, create=False) as store:
             res = forecast_unit(store, unit, horizon)
         if as_json:
             write_json(res.to_dict())
             return
         left = {"tests": "tests left", "days": "days left", "hours": "hours left"}[res.by]
         per = {"tests": "%/test", "days": "%/day", "hours": "%/h"}[res.by]
+        span = {"tests": " tests", "days": " d", "hours": " h"}[res.by]
         table = Table(title=f"{unit}: forecast to no-go from {res.checks} checks since the "
                       "baseline", title_justify="left")
+        hours = res.by == "hours"
         cols = ["parameter", f"slope [{per}]", f"{left} (90 %)", "date",
-                *([f"P(≤{horizon:g})"] if horizon is not None else []), "no-go at (rule)"]
+                *(["at hours [h]"] if hours else []),
+                *([f"P(≤{horizon:g}{span})"] if horizon is not None else []), "no-go at (rule)"]
         for col in cols:
             table.add_column(col, justify="left" if col in ("parameter", "no-go at (rule)")
                              else "right", no_wrap=col in ("date", "parameter"))
@@ -54,22 +73,29 @@ def register(app: typer.Typer) -> None:
         for p in res.parameters:
             f = p.forecast
             rem = ("no trend" if f.remaining is None else
+                   "at no-go now" if f.remaining[2] == 0 else
                    f"{n(f.remaining[0])} ({n(f.remaining[1])}–{n(f.remaining[2])})"
                    + (" exp." if f.model == "exponential" else ""))
-            table.add_row(p.parameter, f"{f.slope:+.2g}", rem, (p.date or "—")[:10],
+            # no trend: the threshold either way (its sign would follow noise)
+            at = (f"±{abs(f.threshold):g} %" if f.remaining is None else
+                  f"{f.threshold:+g} %" + (f" ({p.rule})" if p.rule else ""))
+            table.add_row(p.parameter, slope_text(f.slope), rem, (p.date or "—")[:10],
+                          *([n(p.hours) if p.hours is not None else "—"] if hours else []),
                           *([f"{f.p_within:.2f}" if f.p_within is not None else "—"]
-                            if horizon is not None else []),
-                          f"{f.threshold:+g} %" + (f" ({p.rule})" if p.rule else ""))
+                            if horizon is not None else []), at)
         out.print(table)
         out.print(f"slope: the trend at the last check, {per} of the baseline mean; "
                   f"{left}: median and 90 % interval (exp.: an exponential trend); no trend: "
                   "the slope's 90 % interval holds 0 (see --json)", markup=False,
                   highlight=False, soft_wrap=True)
         e = res.earliest
-        out.print("no parameter trends towards no-go" if e is None else
-                  f"earliest: {e.parameter} in {n(e.forecast.remaining[0])} {left.split()[0]} "  # type: ignore[index]
-                  f"(90 %: {n(e.forecast.remaining[1])}–{n(e.forecast.remaining[2])})",  # type: ignore[index]
-                  markup=False, highlight=False)
+        r = None if e is None else e.forecast.remaining
+        out.print("no parameter trends towards no-go" if r is None or e is None else
+                  f"earliest: {e.parameter}, at no-go now" if r[2] == 0 else
+                  f"earliest: {e.parameter} in {n(r[0])} {left.split()[0]} "
+                  f"(90 %: {n(r[1])}–{n(r[2])})", markup=False, highlight=False)
+        for note in res.notes:
+            out.print(f"note: {note}", markup=False, highlight=False, soft_wrap=True)
         priors = sorted({f"{p.parameter}: {note}" if not note.startswith("no fleet") else note
                          for p in res.parameters for note in p.forecast.notes
                          if note.startswith(("fleet prior", "no fleet history"))})

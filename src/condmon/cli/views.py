@@ -31,7 +31,7 @@ def register(app: typer.Typer) -> None:
         """List the units of a history: model, tests, latest status and when it turns no-go.
 
         "no-go in": the earliest forecast to no-go of the unit's parameters
-        (`condmon forecast --unit U`), the tests (or days) left as a median
+        (`condmon forecast --unit U`), the tests (days, hours) left as a median
         and a 90 % interval; "no trend" when none trends towards no-go, "—"
         without enough checks since the baseline."""
         from condmon.errors import ConfigError
@@ -83,7 +83,7 @@ def register(app: typer.Typer) -> None:
                 flagged.append(str(r["unit"]))
         out.print(table)
         if ahead:
-            out.print("no-go in: the earliest forecast to no-go, tests (or days) left, median "
+            out.print("no-go in: the earliest forecast to no-go, tests (days, hours) left, median "
                       "(90 % interval); `condmon forecast --unit U` for every parameter",
                       markup=False, highlight=False, soft_wrap=True)
         if flagged:

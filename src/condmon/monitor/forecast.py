@@ -23,7 +23,7 @@ curve gets the interval of both.
 hours). The forecast is the crossing of the no-go change (``r2`` of the
 parameter's breakpoints, in the trend's direction): its predictive distribution
 comes from the fitted coefficients' covariance (4,000 draws, a fixed seed),
-given as a median and a 90 % interval of the tests (or days) left, and the
+given as a median and a 90 % interval of the tests (days, hours) left, and the
 probability of crossing within a horizon. A slope whose 90 % interval holds 0,
 or points away from the threshold, is "no trend": then no number of tests is
 given.
@@ -433,7 +433,7 @@ def _checked(x: ArrayLike, change: ArrayLike, se: ArrayLike,
 
 def _left(model: str, fit: tuple[FloatArray, FloatArray, float], n: int, var1: float,
           threshold: float, last: float, rng: np.random.Generator, size: int) -> FloatArray:
-    """Draws of the tests (or days) left until a check measures ``threshold``:
+    """Draws of the tests (days, hours) left until a check measures ``threshold``:
     the path's crossing, less that check's own scatter (the fit's residual
     scale at a typical weight, ``var1`` the typical ``1/w``); inf: never."""
     coef, cov, rss = fit
@@ -507,8 +507,9 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
     (21, 'fleet prior (linear) from 12 units: slope 4 ± 0.2 %/test')
     """
     xa, ya, sa = _checked(x, change, se, spread)
-    if horizon is not None and not horizon > 0:
-        raise DataError(f"horizon must be > 0, not {horizon:g}")
+    if horizon is not None and not (horizon > 0 and math.isfinite(horizon)):
+        raise DataError(f"--horizon must be a finite number > 0 (tests, days or hours "
+                        f"ahead), not {horizon:g}")
     if threshold == 0:
         raise DataError("forecast: the no-go threshold is 0 %")
     sign = 1.0 if threshold > 0 else -1.0

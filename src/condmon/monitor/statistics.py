@@ -89,6 +89,8 @@ def checked_alpha(value: Any, what: str = "alpha") -> float:
     0.01
     """
     try:
+        if isinstance(value, bool):
+            raise TypeError
         a = float(value)
     except (TypeError, ValueError):
         raise DataError(f"{what} must be a number in (0, 0.5), not {value!r}") from None

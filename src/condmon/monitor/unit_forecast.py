@@ -94,12 +94,15 @@ class UnitForecast:
         Checks since the baseline.
     parameters : tuple of ParameterForecast
         Earliest median crossing first; "no trend" last.
+    notes : tuple of str
+        What to know of the whole forecast (why it counts days, not hours).
     """
 
     unit: str
     by: str
     checks: int
     parameters: tuple[ParameterForecast, ...]
+    notes: tuple[str, ...] = ()
 
     @property
     def earliest(self) -> ParameterForecast | None:
@@ -110,7 +113,7 @@ class UnitForecast:
     def to_dict(self) -> dict[str, Any]:
         e = self.earliest
         return {"unit": self.unit, "by": self.by, "checks": self.checks,
-                "earliest": None if e is None else e.parameter,
+                "earliest": None if e is None else e.parameter, "notes": list(self.notes),
                 "parameters": [p.to_dict() for p in self.parameters]}
 
     def summary(self) -> dict[str, Any] | None:
@@ -147,11 +150,14 @@ class Axis:
         Each check's test date (NaT: unknown), by test id.
     hours : Series
         Each check's operating hours (NaN: not given), by test id. [h]
+    note : str or None
+        Why the forecast does not count hours (or days) that some checks give.
     """
 
     by: str
     dates: pd.Series
     hours: pd.Series
+    note: str | None = None
 
     def values(self, rows: pd.Index) -> NDArray[np.float64]:
         """``x`` of the checks ``rows`` (a subset of the checks, in order):
@@ -218,7 +224,28 @@ def forecast_axis(checks: pd.DataFrame) -> Axis:
     hours = pd.to_numeric(checks["hours"], errors="coerce") if "hours" in checks \
         else pd.Series(np.nan, index=checks.index, dtype=np.float64)
     by = "hours" if _increasing(hours) else "days" if _increasing(dates) else "tests"
-    return Axis(by, dates, hours)
+    note = None
+    if by != "hours" and hours.notna().any():
+        note = f"counted in {by}, not operating hours: {_why_not(hours, 'hours', ' h')}"
+    elif by == "tests" and dates.notna().any():
+        note = f"counted in tests, not days: {_why_not(dates, 'a date', '')}"
+    return Axis(by, dates, hours, note)
+
+
+def _why_not(values: pd.Series, what: str, unit: str) -> str:
+    """Why ``values`` (by test id) cannot be a forecast's axis, in a clause."""
+    missing = values[values.isna()]
+    if len(missing):
+        return f"test #{missing.index[0]} has no {what.removeprefix('a ')}"
+    prev = values.shift(1)
+    back = values[values <= prev]
+    i = back.index[0]
+
+    def show(v: Any) -> str:
+        return f"{v:g}{unit}" if unit else str(v)
+
+    return (f"test #{i} has {show(values[i])}, not after the check before it "
+            f"({show(prev[i])})")
 
 
 def parameter_series(checks: pd.DataFrame, baseline: Baseline, key: str, axis: Axis
@@ -284,8 +311,9 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
     DataError
         Fewer than 3 checks ("not enough tests to forecast"), a horizon <= 0.
     """
-    if horizon is not None and not horizon > 0:
-        raise DataError(f"horizon must be > 0, not {horizon:g}")
+    if horizon is not None and not (horizon > 0 and math.isfinite(horizon)):
+        raise DataError(f"--horizon must be a finite number > 0 (tests, days or hours "
+                        f"ahead), not {horizon:g}")
     if len(checks) < MIN_TESTS:
         raise DataError(f"not enough tests to forecast: unit {unit!r} has {len(checks)} "
                         f"check(s) since its baseline, need {MIN_TESTS}")
@@ -310,7 +338,8 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
                                      tuple(int(i) for i in rows), float(x[-1] - x[0]), at))
     out.sort(key=lambda p: (p.forecast.remaining is None,
                             p.forecast.remaining[0] if p.forecast.remaining else 0.0))
-    return UnitForecast(unit, axis.by, len(checks), tuple(out))
+    return UnitForecast(unit, axis.by, len(checks), tuple(out),
+                        (axis.note,) if axis.note else ())
 
 
 def remaining_text(f: dict[str, Any] | None, reason: str | None = None) -> str:
@@ -325,6 +354,8 @@ def remaining_text(f: dict[str, Any] | None, reason: str | None = None) -> str:
     """
     if not f:
         return "no trend" if reason == NO_TREND else "—"
+    if f["high"] == 0:
+        return "at no-go now"
 
     def n(v: float | None) -> str:
         if v is None or not math.isfinite(v):

@@ -176,8 +176,11 @@ def open_store(db: str | Path, *, create: bool = True,
     path = sqlite_path(url)
     if path is not None:
         if not create and not path.exists():
+            demo = path.parent / "condmon-demo" / path.name
+            hint = (f"; `condmon demo` wrote its history to {demo} (--db {demo})"
+                    if demo.is_file() else "")
             raise StoreError(f"{db}: no history database there (check the path; `baseline add` "
-                             "creates one)")
+                             f"creates one){hint}")
         if path.is_dir():
             raise StoreError(f"{db}: is a folder, not a history database file")
         if not create and path.stat().st_size == 0:

@@ -459,7 +459,7 @@ def test_the_fleet_page_shows_a_status_change_live(broker: Broker, tmp_path: Pat
         store.unit_id("HST-L", create=True, model="hst")
     proc = subprocess.Popen([sys.executable, "-m", "condmon.cli.main", "serve", "--db", str(db),
                              "--port", "0", "--refresh", "0", "--mqtt", broker.address,
-                             "--stale-after", "2"],
+                             "--stale-after", "5"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     assert proc.stdout is not None
     url = re.search(r"(http://127\.0\.0\.1:\d+/)", proc.stdout.readline()).group(1)  # type: ignore[union-attr]
@@ -490,7 +490,7 @@ def test_the_fleet_page_shows_a_status_change_live(broker: Broker, tmp_path: Pat
             expect(page.locator('[data-count="no-go"]')).to_have_text("1")  # the tally too
             expect(page.locator('[data-count="none"]')).to_have_count(0)
             assert page.evaluate("window.__same_page === true")  # no reload
-            expect(row).to_have_attribute("data-status", "stale", timeout=10_000)
+            expect(row).to_have_attribute("data-status", "stale", timeout=15_000)
             expect(row).to_contain_text("no samples since")
             pub.publish("condmon/HST-L/samples", b'{"t": [1, 1.01], "Ps": [0, 0], '
                         b'"omega_m": [0, 0]}', qos=1).wait_for_publish(5)

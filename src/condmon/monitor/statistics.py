@@ -20,10 +20,11 @@ estimated its parameters worse than any baseline test is not taken as a
 change for that (beyond the baseline's worst, so that the ordinary
 test-to-test scatter of the standard errors leaves the rate as stated).
 The alarm is ``p < alpha``, so that ``alpha`` *is* the false-alarm probability of
-one check of a healthy unit. A baseline of ``n <= r`` tests cannot estimate
-``r`` directions: then each parameter's ``t = d / sqrt(s²(1 + 1/n) + e)``
-(``t(n - 1)``) is tested with Šidák's correction over the ``r`` directions
-(``max-t``; conservative when parameters correlate).
+one check of a healthy unit. A rank its ``n`` tests could show by
+themselves (``r >= n - 1``) says nothing of the parameters' structure: then
+each parameter's ``t = d / sqrt(s²(1 + 1/n) + e)`` (``t(n - 1)``) is tested
+with Šidák's correction over the distinct parameters (``max-t``;
+conservative when parameters correlate).
 
 **Drift.** A slow wear moves each check a little: too little for either test
 above until late. The drift test is the likelihood-ratio (GLR) test of a
@@ -38,7 +39,17 @@ degrees of freedom), so
 Its alarm, ``p < drift_alpha``, has false-alarm probability ``drift_alpha`` at
 each check. The slope does not depend on the baseline's mean, so an unlucky
 baseline (its mean off by its own noise) raises no drift alarm, which a CUSUM
-on the changes would.
+on the changes would. Checks that wander from test to test (a machine's
+warm-up) are serially correlated and hold fewer independent checks: the
+slope's variance is taken ``(1 + ρ)/(1 - ρ)`` times larger, ``ρ`` the lag-one
+autocorrelation of the residuals with its small-sample bias added back
+(Kendall's ``(1 + 3ρ)/m``), clipped to [0, 0.95] (6 checks or more).
+
+**Calibration.** Both rates hold when the baseline's tests span the unit's
+healthy scatter. From 5 earlier checks on, their variance (half the mean
+squared successive difference: blind to a drift or one step) is compared with
+the baseline's per parameter (``F(2(k-1)/3, n-1)``, 1 % over the parameters);
+too large a ratio sets ``calibrated`` false and the line says so.
 
 Both are exact for normal estimates; the benchmark
 (``benchmarks/bench_prognostics.py``) measures the rates on simulated checks.

@@ -52,7 +52,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import minimize_scalar
 
 from condmon.errors import DataError
 
@@ -309,6 +308,8 @@ def _expfit(x: FloatArray, y: FloatArray,
     i = int(np.argmin(rss))
     if i == 0:                     # flattest rate best: a line, not an exponential
         return None
+    from scipy.optimize import minimize_scalar  # 0.2 s to import: only when a curve is fitted
+
     found = minimize_scalar(lambda b: profile(float(b))[0], method="bounded",
                             bounds=(float(grid[i - 1]), float(grid[min(i + 1, len(grid) - 1)])))
     b = float(found.x)

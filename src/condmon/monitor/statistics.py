@@ -247,8 +247,7 @@ def _test(z: FloatArray, scatter: FloatArray, factor: float, extra: FloatArray, 
     themselves says nothing of the structure); else the largest |t| with
     Šidák's correction over the ``distinct`` parameters.
     """
-    from scipy.stats import f as f_dist
-    from scipy.stats import t as t_dist
+    from scipy.special import fdtrc, stdtr  # the distributions, not scipy.stats (0.35 s)
 
     scale = np.sqrt(np.clip(np.diag(scatter), 1e-300, None))
     w, V = np.linalg.eigh(scatter / np.outer(scale, scale))
@@ -258,11 +257,11 @@ def _test(z: FloatArray, scatter: FloatArray, factor: float, extra: FloatArray, 
         W = V[:, keep] / scale[:, None]
         zw = W.T @ z
         t2 = float(zw @ np.linalg.solve(W.T @ (scatter * factor + extra) @ W, zw))
-        return t2, float(f_dist.sf(t2 * (dof - r + 1) / (r * dof), r, dof - r + 1)), \
+        return t2, float(fdtrc(r, dof - r + 1, t2 * (dof - r + 1) / (r * dof))), \
             "hotelling", r
     t = z / np.sqrt(np.clip(np.diag(scatter) * factor + np.diag(extra), 1e-300, None))
     big = float(np.max(np.abs(t)))
-    p1 = min(float(2.0 * t_dist.sf(big, dof)), 1.0 - 1e-16)
+    p1 = min(float(2.0 * stdtr(dof, -big)), 1.0 - 1e-16)
     return big, float(min(1.0, -math.expm1(distinct * math.log1p(-p1)))), "max-t", distinct
 
 
@@ -372,7 +371,7 @@ def _scatter_check(earlier: FloatArray, S: FloatArray, n: int, distinct: int
     successive differences' efficiency), at 1 % over the ``distinct``
     parameters (Bonferroni).
     """
-    from scipy.stats import f as f_dist
+    from scipy.special import fdtrc
 
     k = earlier.shape[0]
     if k < _SCATTER_CHECKS:
@@ -380,5 +379,5 @@ def _scatter_check(earlier: FloatArray, S: FloatArray, n: int, distinct: int
     q = np.mean(np.diff(earlier, axis=0) ** 2, axis=0) / 2.0
     ratio = q / np.clip(np.diag(S), 1e-300, None)
     nu = 2.0 * (k - 1) / 3.0
-    p = f_dist.sf(ratio, nu, n - 1)
+    p = fdtrc(nu, n - 1, ratio)
     return ratio, bool(np.min(p) >= _SCATTER_LEVEL / max(distinct, 1))

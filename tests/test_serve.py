@@ -94,8 +94,11 @@ def _api(client: Any, url: str, status: int = 200) -> Any:
 # -- the JSON API ------------------------------------------------------------------------
 def test_api_units_is_the_cli_units_json(fleet: dict[str, Any], client: Any,
                                          capsys: pytest.CaptureFixture[str]) -> None:
-    doc = _api(client, "/api/units")
-    assert doc == _cli_json(capsys, "units", "--db", fleet["db"], "--json")
+    doc = _api(client, "/api/units")   # pages of 100 units, as `units --per-page 100`
+    assert doc == _cli_json(capsys, "units", "--db", fleet["db"], "--json", "--per-page", "100")
+    assert (doc["page"], doc["pages"], doc["per_page"], doc["total"]) == (1, 1, 100, 4)
+    assert _api(client, "/api/units?per_page=all") == _cli_json(capsys, "units", "--db",
+                                                                 fleet["db"], "--json")
     status = {u["unit"]: u["status"] for u in doc["units"]}
     assert status == {ODD: "no-go", "HST-1": "no-go", DOTTED: None, LEADING: None}
 
@@ -394,7 +397,7 @@ def test_a_unit_without_a_baseline_yet_is_building(fleet: dict[str, Any], tmp_pa
     _add_tests(db, "EMA-bad", [("baseline", True, None), ("baseline", False, "fit 40 %")])
     client = create_app(db).test_client()
     doc = _api(client, "/api/units")
-    assert doc == _cli_json(capsys, "units", "--db", str(db), "--json")
+    assert doc == _cli_json(capsys, "units", "--db", str(db), "--json", "--per-page", "100")
     units = {u["unit"]: u for u in doc["units"]}
     assert units["EMA-new"]["status"] == units["EMA-bad"]["status"] == "building"
     assert units["EMA-new"]["summary"] == "building the baseline: 2 of 3 accepted healthy tests"

@@ -27,6 +27,8 @@ def register(app: typer.Typer) -> None:
         db: DbOpt = "condmon.db",
         as_json: Annotated[bool, typer.Option("--json", help="Print the units as JSON records, each with its earliest forecast to no-go.")] = False,
         sort: Annotated[str, typer.Option("--sort", help="Order: name, or forecast (the unit forecast to turn no-go soonest first).")] = "name",
+        page: Annotated[int, typer.Option("--page", help="Which page of --per-page units (from 1).")] = 1,
+        per_page: Annotated[Optional[int], typer.Option("--per-page", help="Units a page (default: all on one).")] = None,
     ) -> None:
         """List the units of a history: model, tests, latest status and when it turns no-go.
 
@@ -39,19 +41,18 @@ def register(app: typer.Typer) -> None:
         from condmon.store.db import open_store
         from condmon.store.engine import redact
         from condmon.monitor.unit_forecast import remaining_text
-        from condmon.store.forecasts import by_urgency, fleet_summaries
+        from condmon.report.web_data import fleet_document
 
         if sort not in ("name", "forecast"):
             raise ConfigError(f"--sort {sort!r}: allowed: name, forecast")
         least = load_generic_settings().group_min_units
         with open_store(db, create=False) as store:
-            rows = fleet_summaries(store)
+            doc = fleet_document(store, sort=sort, page=page, per_page=per_page)
             small = {g: len(store.group_baselines(g)) for g in store.groups()}
         small = {g: n for g, n in small.items() if n < least}
-        if sort == "forecast":
-            rows = by_urgency(rows)
+        rows = doc["units"]
         if as_json:
-            write_json({"units": rows})
+            write_json(doc)
             return
         grouped = any(r["group"] for r in rows)
         regimes = any(r["latest_regime"] for r in rows)
@@ -82,6 +83,10 @@ def register(app: typer.Typer) -> None:
             if r["baseline_flags"]:
                 flagged.append(str(r["unit"]))
         out.print(table)
+        if doc["pages"] > 1:
+            out.print(f"page {doc['page']} of {doc['pages']} ({doc['per_page']} units a page, "
+                      f"{doc['total']} in all); --page N for another", markup=False,
+                      highlight=False)
         if ahead:
             out.print("no-go in: the earliest forecast to no-go, tests (days, hours) left, median "
                       "(90 % interval); `condmon forecast --unit U` for every parameter",

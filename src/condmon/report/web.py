@@ -62,10 +62,9 @@ from condmon.report.figures import STATUS_COLOURS
 from condmon.report.live import LiveFeed, with_live
 from condmon.report.tables import unit_of
 from condmon.report.trends import error_bar
-from condmon.store.forecasts import fleet_summaries
 from condmon.report.web_data import (
-    SORTS, STATUSES, FilterError, UnitData, UnknownUnitError, _filtered, _History, _statuses,
-    fleet_document, read_unit, readonly_url, unit_document,
+    PER_PAGE, SORTS, STATUSES, FilterError, UnitData, UnknownUnitError, _History, _page_links,
+    _statuses, fleet_document, read_unit, readonly_url, unit_document,
 )
 from condmon.report.web_render import (
     _figures, _fmt_date, _isolation_rows, _test_rows, _trends,
@@ -184,14 +183,25 @@ def create_app(db: str | Path, *, refresh: float = 30.0, live: LiveFeed | None =
     def _http_error(err: HTTPException) -> Response | tuple[str, int]:
         return problem(err.code or 500, f"{err.name}: {request.path}")
 
-    def summaries() -> list[dict[str, Any]]:
-        with history.open() as store:
-            units = fleet_summaries(store)
-        return with_live(units, live)
+    def number(name: str, default: int | None) -> int | None:
+        raw = request.args.get(name)
+        if raw in (None, ""):
+            return default
+        if raw == "all" and name == "per_page":
+            return None
+        try:
+            return int(str(raw))
+        except ValueError:
+            raise FilterError(f"{name}={raw!r}: a whole number >= 1"
+                              + (" or 'all'" if name == "per_page" else "")) from None
 
-    def fleet() -> dict[str, Any]:
-        return {"units": _filtered(summaries(), _statuses(request.args.getlist("status")),
-                                   request.args.get("q"), request.args.get("sort"))}
+    def fleet(clamp: bool = False) -> dict[str, Any]:
+        """The page of the fleet the request asks for (its live statuses over the history's)."""
+        with history.open() as store:
+            return fleet_document(store, request.args.getlist("status"), request.args.get("q"),
+                                  request.args.get("sort"), number("page", 1) or 1,
+                                  number("per_page", PER_PAGE),
+                                  with_live(store.unit_summaries(), live), clamp)
 
     @app.get("/api/events")
     def events() -> Response:
@@ -219,13 +229,10 @@ def create_app(db: str | Path, *, refresh: float = 30.0, live: LiveFeed | None =
     @app.get("/")
     def index() -> str:
         chosen = _statuses(request.args.getlist("status"))
-        everyone = summaries()
-        tally: dict[str, int] = {}
-        for u in everyone:
-            tally[u["status"] or "none"] = tally.get(u["status"] or "none", 0) + 1
-        units = _filtered(everyone, chosen, request.args.get("q"), request.args.get("sort"))
-        return render_template("index.html", units=units, total=len(everyone),
-                               tally=[(s, tally[s]) for s in STATUSES if s in tally],
+        doc = fleet(clamp=True)
+        return render_template("index.html", units=doc["units"], total=doc["total"],
+                               tally=list(doc["counts"].items()), doc=doc,
+                               pages=_page_links(doc, request.args),
                                statuses=STATUSES, chosen=chosen,
                                sort=request.args.get("sort") or "name", sorts=SORTS,
                                q=request.args.get("q", ""), refresh=refresh,

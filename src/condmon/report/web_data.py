@@ -29,7 +29,7 @@ if TYPE_CHECKING:
     from condmon.store.baselines import StoredBaseline
     from condmon.store.db import HistoryStore
 
-__all__ = ["readonly_url", "fleet_document", "unit_document", "read_unit", "UnitData",
+__all__ = ["readonly_url", "fleet_document", "PER_PAGE", "unit_document", "read_unit", "UnitData",
            "UnknownUnitError", "STATUSES", "SORTS"]
 
 #: Statuses a unit can show (``building``: its baseline is not saved yet; ``none``:
@@ -38,6 +38,8 @@ STATUSES = ("no-go", "advisory", "retest", "stale", "go", "unchecked", "building
             "rejected", "excluded", "none")
 #: Orders of the fleet: by name, or by urgency (earliest forecast to no-go first).
 SORTS = ("name", "forecast")
+#: Units a fleet page (and ``/api/units``) shows at once unless asked otherwise.
+PER_PAGE = 100
 
 
 class UnknownUnitError(CondmonError, LookupError):
@@ -129,9 +131,19 @@ def _statuses(values: Sequence[str]) -> set[str]:
 
 
 def fleet_document(store: HistoryStore, status: Sequence[str] = (),
-                   q: str | None = None, sort: str | None = None) -> dict[str, Any]:
-    """``{"units": [...]}``: :func:`condmon.store.forecasts.fleet_summaries`
-    (every unit's latest status and earliest forecast to no-go), filtered.
+                   q: str | None = None, sort: str | None = None, page: int = 1,
+                   per_page: int | None = None,
+                   rows: list[dict[str, Any]] | None = None, clamp: bool = False
+                   ) -> dict[str, Any]:
+    """One page of the fleet: the units (each with its latest status and
+    earliest forecast to no-go) that pass the filter, in order, and the counts.
+
+    ``{"units", "page", "per_page", "pages", "matching", "total", "counts"}``:
+    the page's units, which page of how many, the units that pass the
+    filter, the units of the history and the units per latest status (of
+    them all). What ``condmon units --json`` and ``/api/units`` give. Only
+    the page's units are forecast (all of them to order by urgency; a check
+    keeps its unit's forecast, so this is mostly a read).
 
     Parameters
     ----------
@@ -145,15 +157,49 @@ def fleet_document(store: HistoryStore, status: Sequence[str] = (),
         Order of the units: by name (default), or by urgency, the unit
         forecast to turn no-go soonest first
         (:func:`condmon.store.forecasts.by_urgency`).
+    page : int
+        Which page, from 1.
+    per_page : int, optional
+        Units a page (default: every unit on one page).
+    rows : list of dict, optional
+        The units' summaries (:meth:`HistoryStore.unit_summaries`; the page
+        passes them with its live statuses); default: the history's.
+    clamp : bool
+        A page past the last shows the last (the page, whose fleet may have
+        shrunk since its link was made), instead of an error.
 
     Raises
     ------
     ConfigError
-        A status not in :data:`STATUSES`, a sort not in :data:`SORTS`.
+        A status not in :data:`STATUSES`, a sort not in :data:`SORTS`, a page
+        or page size < 1, a page past the last.
     """
-    from condmon.store.forecasts import fleet_summaries
+    from condmon.store.forecasts import attach_forecasts, by_urgency
 
-    return {"units": _filtered(fleet_summaries(store), _statuses(status), q, sort)}
+    everyone = store.unit_summaries() if rows is None else rows
+    counts: dict[str, int] = {}
+    for u in everyone:
+        counts[u["status"] or "none"] = counts.get(u["status"] or "none", 0) + 1
+    wanted, how = _statuses(status), _sort(sort)
+    text = (q or "").strip().casefold()
+    kept = [u for u in everyone if (not wanted or (u["status"] or "none") in wanted)
+            and text in str(u["unit"]).casefold()]
+    if per_page is not None and per_page < 1 or page < 1:
+        raise FilterError(f"page {page}, {per_page} a page: both must be >= 1")
+    pages = max(1, -(-len(kept) // per_page)) if per_page else 1
+    if page > pages and clamp:
+        page = pages
+    if page > pages:
+        raise FilterError(f"page {page}: the {len(kept)} matching unit(s) fill {pages} "
+                          f"page(s) of {per_page}")
+    if how == "forecast":
+        kept = by_urgency(attach_forecasts(store, kept))
+    shown = kept[(page - 1) * per_page: page * per_page] if per_page else kept
+    if how != "forecast":
+        attach_forecasts(store, shown)
+    return {"units": [json_safe(u) for u in shown], "page": page, "per_page": per_page,
+            "pages": pages, "matching": len(kept), "total": len(everyone),
+            "counts": {s: counts[s] for s in STATUSES if s in counts}}
 
 
 def _sort(sort: str | None) -> str:
@@ -164,14 +210,30 @@ def _sort(sort: str | None) -> str:
     return str(sort)
 
 
-def _filtered(units: list[dict[str, Any]], wanted: set[str],
-              q: str | None, sort: str | None = None) -> list[dict[str, Any]]:
-    from condmon.store.forecasts import by_urgency
+def _page_links(doc: dict[str, Any], args: Any) -> list[tuple[str, str | None]]:
+    """The fleet page's page links: ``(label, query string or None for the current)``,
+    the other arguments (filter, order, page size) kept."""
+    from urllib.parse import urlencode
 
-    text = (q or "").strip().casefold()
-    kept = [json_safe(u) for u in units if (not wanted or (u["status"] or "none") in wanted)
-            and text in str(u["unit"]).casefold()]
-    return by_urgency(kept) if _sort(sort) == "forecast" else kept
+    if doc["pages"] <= 1:
+        return []
+    keep = [(k, v) for k in args for v in args.getlist(k) if k != "page"]
+
+    def at(n: int) -> str:
+        return "?" + urlencode([*keep, ("page", str(n))])
+
+    page, pages = doc["page"], doc["pages"]
+    near = sorted({1, pages, *range(max(1, page - 2), min(pages, page + 2) + 1)})
+    links: list[tuple[str, str | None]] = []
+    if page > 1:
+        links.append(("‹ previous", at(page - 1)))
+    for i, n in enumerate(near):
+        if i and n - near[i - 1] > 1:
+            links.append(("…", None))
+        links.append((str(n), None if n == page else at(n)))
+    if page < pages:
+        links.append(("next ›", at(page + 1)))
+    return links
 
 
 @dataclass(frozen=True)

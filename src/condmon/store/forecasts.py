@@ -29,7 +29,8 @@ if TYPE_CHECKING:
     from condmon.store.db import HistoryStore
 
 __all__ = ["read_forecast", "try_forecast", "forecast_fields", "fleet_summaries",
-           "by_urgency", "NO_BASELINE", "FleetHistory", "DEGRADED", "keep_forecast"]
+           "by_urgency", "NO_BASELINE", "FleetHistory", "DEGRADED", "keep_forecast",
+           "attach_forecasts"]
 
 #: The statuses that make a unit one that "has degraded", whose series teach the fleet prior.
 DEGRADED = ("advisory", "no-go")
@@ -200,7 +201,15 @@ def fleet_summaries(store: HistoryStore) -> list[dict[str, Any]]:
     and kept (when the history can be written), so a listing forecasts only
     what changed.
     """
-    rows = store.unit_summaries()
+    return attach_forecasts(store, store.unit_summaries())
+
+
+def attach_forecasts(store: HistoryStore, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Each of ``rows`` (entries of :meth:`HistoryStore.unit_summaries`) with
+    its unit's earliest forecast to no-go (:func:`forecast_fields`), in place;
+    kept forecasts reused as :func:`fleet_summaries` says. Returns ``rows``."""
+    if not rows:
+        return rows
     marks, kept = store.history_marks(), store.kept_forecasts()
     fleet = FleetHistory(store)
     models = {u: (m, g) for u, m, g in store.unit_models()}

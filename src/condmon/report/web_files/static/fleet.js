@@ -18,13 +18,17 @@
     if (q) { params.set("q", q); }
     var sort = form.elements.sort ? form.elements.sort.value : "name";
     if (sort && sort !== "name") { params.set("sort", sort); }
+    // the page shown (a page link sets it; a new filter starts again at 1)
+    var page = form.elements.page ? form.elements.page.value : "1";
+    if (page && page !== "1") { params.set("page", page); }
+    if (form.elements.per_page) { params.set("per_page", form.elements.per_page.value); }
     var text = params.toString();
     return form.getAttribute("action") + (text ? "?" + text : "");
   }
 
   function swap(html) {
     var doc = new DOMParser().parseFromString(html, "text/html");
-    ["units", "shown"].forEach(function (id) {
+    ["units", "shown", "pages"].forEach(function (id) {
       var fresh = doc.getElementById(id);
       var old = document.getElementById(id);
       if (fresh && old) { old.replaceWith(fresh); }
@@ -66,6 +70,7 @@
   }
 
   form.addEventListener("input", function () {
+    if (form.elements.page) { form.elements.page.value = "1"; }
     clearTimeout(timer);
     timer = setTimeout(function () { reload(true); }, 150);
   });

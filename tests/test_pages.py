@@ -1,0 +1,80 @@
+"""A fleet that pages: `/api/units`, the index and `condmon units` show one page at a time,
+with the counts of the whole fleet."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from condmon.cli.main import main
+from condmon.report.web import create_app
+from condmon.store import open_store
+
+
+@pytest.fixture(scope="module")
+def big(tmp_path_factory: pytest.TempPathFactory) -> str:
+    """250 units, nothing stored for any yet (status none)."""
+    db = str(tmp_path_factory.mktemp("pages") / "big.db")
+    with open_store(db) as store:
+        for i in range(250):
+            store.unit_id(f"U{i:03d}", create=True)
+    return db
+
+
+def _get(client: Any, url: str, code: int = 200) -> Any:
+    resp = client.get(url)
+    assert resp.status_code == code, resp.get_data(as_text=True)
+    return resp
+
+
+def test_the_api_pages_and_counts_the_whole_fleet(big: str) -> None:
+    client = create_app(big).test_client()
+    first = _get(client, "/api/units").get_json()
+    assert [u["unit"] for u in first["units"]] == [f"U{i:03d}" for i in range(100)]
+    assert (first["page"], first["pages"], first["per_page"]) == (1, 3, 100)
+    assert (first["matching"], first["total"], first["counts"]) == (250, 250, {"none": 250})
+    last = _get(client, "/api/units?page=3").get_json()
+    assert [u["unit"] for u in last["units"]] == [f"U{i:03d}" for i in range(200, 250)]
+    small = _get(client, "/api/units?per_page=20&page=2&q=U1").get_json()
+    assert [u["unit"] for u in small["units"]] == [f"U{i:03d}" for i in range(120, 140)]
+    assert (small["pages"], small["matching"]) == (5, 100)
+    assert len(_get(client, "/api/units?per_page=all").get_json()["units"]) == 250
+
+
+@pytest.mark.parametrize("query,message", [
+    ("page=4", "page 4: the 250 matching unit(s) fill 3 page(s) of 100"),
+    ("per_page=0", "page 1, 0 a page: both must be >= 1"),
+    ("per_page=abc", "per_page='abc': a whole number >= 1 or 'all'"),
+    ("page=x", "page='x': a whole number >= 1"),
+])
+def test_a_bad_page_is_one_line(big: str, query: str, message: str) -> None:
+    doc = _get(create_app(big).test_client(), f"/api/units?{query}", 400).get_json()
+    assert doc["error"] == message
+
+
+def test_the_index_pages_with_links_and_a_page_past_the_last_shows_the_last(big: str) -> None:
+    client = create_app(big).test_client()
+    html = _get(client, "/").get_data(as_text=True)
+    assert html.count("<tr data-unit=") == 100 and "(page 1 of 3, 250 matching)" in html
+    assert '<strong aria-current="page" data-page="1">1</strong>' in html
+    assert 'href="?page=2" data-page="next ›"' in html and 'data-page="3"' in html
+    assert '<span class="count" data-count="none">250</span>' in html  # the whole fleet's
+    late = _get(client, "/?page=9&q=U").get_data(as_text=True)
+    assert late.count("<tr data-unit=") == 50 and "(page 3 of 3, 250 matching)" in late
+    assert 'href="?q=U&amp;page=2" data-page="‹ previous"' in late
+
+
+def test_units_pages_as_the_api_does(big: str, capsys: pytest.CaptureFixture[str]) -> None:
+    client = create_app(big).test_client()
+    capsys.readouterr()
+    assert main(["units", "--db", big, "--json", "--per-page", "100", "--page", "2"]) == 0
+    assert json.loads(capsys.readouterr().out) == _get(client, "/api/units?page=2").get_json()
+    assert main(["units", "--db", big, "--per-page", "100", "--page", "3"]) == 0
+    text = capsys.readouterr().out
+    assert "U249" in text and "U199" not in text and "page 3 of 3 (100 units a page" in text
+    assert main(["units", "--db", big, "--per-page", "100", "--page", "4"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == "error: page 4: the 250 matching unit(s) fill 3 page(s) of 100"

@@ -29,8 +29,8 @@ def test_demo_writes_history_and_report(tmp_path: Path, capsys: pytest.CaptureFi
         assert changes[changed] == pytest.approx(percent, rel=0.25), label
     for fault, name, truth in (("Rv=+25%@10s", "Rv", 14.089), ("Tld=+20@10s", "Tld", 20.0)):
         detected = row(out, fault).split("  ", 1)[1]
-        found = re.fullmatch(r"\d+\.\d\d s  (\w+)  (\S+) \((\S+)\)", detected)
-        assert found is not None and found[1] == name, fault
+        found = re.fullmatch(r"\d+\.\d\d s  (\w+)  (\S+) \((\S+)\) (\S.*)", detected)
+        assert found is not None and found[1] == name, fault     # the estimate with its unit
         assert float(found[2]) == pytest.approx(float(found[3]), rel=0.02)
         assert float(found[3]) == pytest.approx(truth, rel=1e-3)
     row(out, "Rlkgp=+50%@10s", "no", "—", "—")  # too small to see

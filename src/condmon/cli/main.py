@@ -188,13 +188,18 @@ def demo_cmd(
     if res.isolations:
         table = Table(title="HST: detection, steady-state estimate and multi-model isolation",
                       title_justify="left")
+        from condmon.models.registry import load_plant_model
+
+        plant = load_plant_model("hst")
         for col in ("fault", "detected", "isolated", "estimate (true)"):
             table.add_column(col)
         for iso in res.isolations:
             found, est = iso.result, iso.result.estimates.get(iso.parameter)
+            unit = next((q.unit for q in plant.parameters if q.name == iso.parameter), "")
             table.add_row(iso.fault, "no" if found.detection_time is None
                           else f"{found.detection_time:.2f} s", ", ".join(found.isolated) or "—",
-                          "—" if est is None else f"{fmt(est.value)} ({fmt(iso.true_value)})")
+                          "—" if est is None else
+                          f"{fmt(est.value)} ({fmt(iso.true_value)}) {unit}".rstrip())
         out.print(table)
     out.print(f"history: {res.database}")
     out.print(f"report:  {res.report}  (open it in a browser)")

@@ -149,3 +149,23 @@ def test_bad_input_is_one_line_exit_2(args: list[str], message: str, tmp_path: P
 
 def test_usage_error_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["estimate"]) == 2
+
+
+@pytest.mark.parametrize("args,message", [
+    (["check", "r.csv", "--unit", "U", "--alpha", "abc"],
+     "error: Invalid value for '--alpha': Input should be a valid number"),
+    (["forecast", "--unit", "U", "--horizon", "abc"], "error: Invalid value for '--horizon'"),
+    (["check"], "error: Missing argument 'record'. (`condmon check --help` lists the options)"),
+    (["nosuch"], "error: No such command 'nosuch'."),
+])
+def test_a_usage_error_is_one_line(args: list[str], message: str,
+                                   capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(message) and len(err.splitlines()) == 1, err
+
+
+def test_help_and_a_bare_command_still_help(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--help"]) == 0 and "Commands" in capsys.readouterr().out
+    assert main([]) == 2 and "Commands" in capsys.readouterr().out
+    assert main(["simulate"]) == 2 and "actuator" in capsys.readouterr().out

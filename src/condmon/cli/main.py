@@ -332,7 +332,8 @@ def main(argv: list[str] | None = None) -> int:
         from condmon._threads import small_blas
 
         with small_blas():  # small matrices: one BLAS thread (CONDMON_BLAS_THREADS)
-            app(args=argv, prog_name="condmon")  # usage errors exit 2 through SystemExit
+            rc = app(args=argv, prog_name="condmon", standalone_mode=False)
+        return rc if isinstance(rc, int) else 0
     except SystemExit as exc:
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
     except CondmonError as exc:
@@ -352,7 +353,31 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         err.print("interrupted")
         return 130
-    return 0
+    except Exception as exc:  # noqa: BLE001 - the command line's own errors, else re-raised
+        return _usage_error(exc)
+
+
+def _usage_error(exc: Exception) -> int:
+    """A usage error of the command line (a bad option value, a missing
+    argument, an unknown command) in one line, exit status 2; ``condmon``
+    alone prints its help. typer raises click's errors (its own copy of click
+    in recent versions), so they are known by their class names; anything
+    else is not a usage error and is raised again."""
+    names = {c.__name__ for c in type(exc).__mro__}
+    if "NoArgsIsHelpError" in names and getattr(exc, "ctx", None) is not None:
+        out.print(exc.ctx.get_help(), markup=False, highlight=False)  # type: ignore[attr-defined]
+        return 2
+    if "Abort" in names:
+        err.print("interrupted")
+        return 130
+    if "ClickException" not in names:
+        raise exc
+    ctx = getattr(exc, "ctx", None)
+    where = f" (`{ctx.command_path} --help` lists the options)" if ctx is not None and \
+        "UsageError" in names else ""
+    err.print(f"error: {exc.format_message()}{where}", highlight=False,  # type: ignore[attr-defined]
+              markup=False, soft_wrap=True)
+    return int(getattr(exc, "exit_code", 2))
 
 
 def run() -> None:

@@ -55,7 +55,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from condmon.errors import DataError
 
-__all__ = ["Forecast", "forecast_series", "MIN_TESTS", "RatePrior", "fleet_prior", "unit_rate",
+__all__ = ["Forecast", "forecast_series", "MIN_TESTS", "checked_horizon", "RatePrior", "fleet_prior", "unit_rate",
            "prior_from_rates"]
 
 FloatArray = NDArray[np.float64]
@@ -271,6 +271,13 @@ def _updated(fit: tuple[FloatArray, FloatArray, float],
     post_cov = cov - np.outer(gain, cov[-1, :])
     return (np.asarray(post_coef, dtype=np.float64),
             np.asarray((post_cov + post_cov.T) / 2.0, dtype=np.float64), rss)
+
+
+def checked_horizon(horizon: float | None) -> None:
+    """Refuse a horizon that is not a finite number > 0 (None: no horizon). [tests (or d, h)]"""
+    if horizon is not None and not (horizon > 0 and math.isfinite(horizon)):
+        raise DataError(f"--horizon must be a finite number > 0 (tests, days or hours "
+                        f"ahead), not {horizon:g}")
 
 
 def _fitted(fit: tuple[FloatArray, FloatArray, float]
@@ -508,9 +515,7 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
     (21, 'fleet prior (linear) from 12 units: slope 4 ± 0.2 %/test')
     """
     xa, ya, sa = _checked(x, change, se, spread)
-    if horizon is not None and not (horizon > 0 and math.isfinite(horizon)):
-        raise DataError(f"--horizon must be a finite number > 0 (tests, days or hours "
-                        f"ahead), not {horizon:g}")
+    checked_horizon(horizon)
     if threshold == 0:
         raise DataError("forecast: the no-go threshold is 0 %")
     sign = 1.0 if threshold > 0 else -1.0

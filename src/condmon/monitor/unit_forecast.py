@@ -27,7 +27,9 @@ from numpy.typing import NDArray
 
 from condmon.errors import DataError
 from condmon.monitor.baseline import Baseline
-from condmon.monitor.forecast import MIN_TESTS, Forecast, RatePrior, forecast_series
+from condmon.monitor.forecast import (
+    MIN_TESTS, Forecast, RatePrior, checked_horizon, forecast_series,
+)
 
 __all__ = ["ParameterForecast", "UnitForecast", "forecast_checks", "forecast_axis", "Axis",
            "remaining_text", "NO_TREND", "parameter_series", "Series"]
@@ -311,9 +313,7 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
     DataError
         Fewer than 3 checks ("not enough tests to forecast"), a horizon <= 0.
     """
-    if horizon is not None and not (horizon > 0 and math.isfinite(horizon)):
-        raise DataError(f"--horizon must be a finite number > 0 (tests, days or hours "
-                        f"ahead), not {horizon:g}")
+    checked_horizon(horizon)
     if len(checks) < MIN_TESTS:
         raise DataError(f"not enough tests to forecast: unit {unit!r} has {len(checks)} "
                         f"check(s) since its baseline, need {MIN_TESTS}")

@@ -241,10 +241,8 @@ def attach_forecasts(store: HistoryStore, rows: list[dict[str, Any]]) -> list[di
 
 
 def _kept_row(unit: str, mark: int, peers: int, fields: dict[str, Any]
-              ) -> tuple[str, int, int, str | None, str | None]:
-    summary = fields["forecast"]
-    return (unit, mark, peers, None if summary is None else json.dumps(summary),
-            fields["forecast_reason"])
+              ) -> tuple[str, int, int, dict[str, Any] | None, str | None]:
+    return (unit, mark, peers, fields["forecast"], fields["forecast_reason"])
 
 
 def keep_forecast(store: HistoryStore, unit: str) -> dict[str, Any]:

@@ -265,9 +265,10 @@ class ForecastCacheMixin(StoreBase):
         return self._read(lambda c: {str(r[0]): (int(r[1]), int(r[2]), r[3], r[4])
                                      for r in c.execute(q)})
 
-    def keep_forecasts(self, rows: list[tuple[str, int, int, str | None, str | None]]) -> None:
-        """Keep ``(unit, audit_id, peers, summary JSON, reason)`` rows, replacing
-        the units' earlier ones."""
+    def keep_forecasts(self, rows: list[tuple[str, int, int, dict[str, Any] | None, str | None]]
+                       ) -> None:
+        """Keep ``(unit, audit_id, peers, summary, reason)`` rows (the summary
+        kept as JSON), replacing the units' earlier ones."""
         if not rows:
             return
         f, u = S.forecasts, S.units
@@ -279,18 +280,18 @@ class ForecastCacheMixin(StoreBase):
             c.execute(sa.delete(f).where(f.c.unit_id.in_([ids[r[0]] for r in keep])))
             stamp = now()
             c.execute(sa.insert(f), [{"unit_id": ids[n], "audit_id": a, "peers": p,
-                                      "computed_at": stamp, "summary": s, "reason": why,
-                                      **_urgency_columns(s)}
+                                      "computed_at": stamp, "reason": why,
+                                      "summary": None if s is None else json.dumps(s),
+                                      **_urgency_columns(s or {})}
                                      for n, a, p, s, why in keep])
 
         self._write(run, lock=rows[0][0] if len(rows) == 1 else None)
 
 
-def _urgency_columns(summary: str | None) -> dict[str, Any]:
+def _urgency_columns(summary: dict[str, Any]) -> dict[str, Any]:
     """A kept forecast's crossing date and median, for ordering in SQL."""
-    doc = json.loads(summary) if summary else {}
-    date = doc.get("date")
-    median = doc.get("median")
+    date = summary.get("date")
+    median = summary.get("median")
     when = pd.Timestamp(date).floor("us").to_pydatetime() if date else None  # to the microsecond
     return {"crossing_date": as_utc(when),
             "median": float(median) if isinstance(median, (int, float)) else None}

@@ -14,7 +14,7 @@ __all__ = ["metadata", "units", "tests", "estimates", "baselines", "baseline_val
            "PARAMETER_LENGTH"]
 
 #: Version of the schema this code writes.
-SCHEMA_VERSION = 6
+SCHEMA_VERSION = 7
 
 #: Longest unit, fault or baseline name the store keeps (the same on every back-end).
 NAME_LENGTH = 200
@@ -342,6 +342,19 @@ def _v5_to_v6(conn: sa.Connection) -> None:
         index.create(conn, checkfirst=True)
 
 
+def _v6_to_v7(conn: sa.Connection) -> None:
+    """The columns a history written while v6 was being made may lack: a
+    test's operating hours, a kept forecast's crossing date and median (each
+    added only where it is missing)."""
+    have = {t: {c["name"] for c in sa.inspect(conn).get_columns(t)}
+            for t in ("tests", "forecasts")}
+    for table, column, kind in (("tests", "hours", "FLOAT"),
+                                ("forecasts", "crossing_date", "TIMESTAMP"),
+                                ("forecasts", "median", "FLOAT")):
+        if column not in have[table]:
+            conn.execute(sa.text(f"ALTER TABLE {table} ADD COLUMN {column} {kind}"))
+
+
 MIGRATIONS: dict[int, Callable[[sa.Connection], None]] = {1: _v1_to_v2, 2: _v2_to_v3,
                                                           3: _v3_to_v4, 4: _v4_to_v5,
-                                                          5: _v5_to_v6}
+                                                          5: _v5_to_v6, 6: _v6_to_v7}

@@ -105,7 +105,7 @@ def test_baseline_snapshots(store_url: str, results: list) -> None:  # type: ign
 def test_schema_version_and_migration(store_url: str, monkeypatch: pytest.MonkeyPatch) -> None:
     current = schema.SCHEMA_VERSION
     store = open_store(store_url)
-    assert store.schema_version == current == 7
+    assert store.schema_version == current == 8
     store.close()
 
     def add_operator(conn: sa.Connection) -> None:
@@ -144,7 +144,7 @@ def test_frame_hash_is_content_based(rig: ActuatorRig) -> None:
 
 def test_a_v6_history_without_its_later_columns_is_completed(tmp_path: Path) -> None:
     """A history written while v6 was being made (no operating hours, no
-    forecast urgency columns) gets them on opening, and is v7."""
+    forecast urgency columns) gets them on opening, and is current."""
     import sqlite3
 
     db = tmp_path / "v6.db"
@@ -156,7 +156,7 @@ def test_a_v6_history_without_its_later_columns_is_completed(tmp_path: Path) -> 
         c.execute("ALTER TABLE forecasts DROP COLUMN crossing_date")
         c.execute("UPDATE condmon_meta SET value = '6' WHERE key = 'schema_version'")
     with open_store(str(db)) as store:
-        assert store.schema_version == 7
+        assert store.schema_version == 8
     with sqlite3.connect(db) as c:
         assert "hours" in {r[1] for r in c.execute("PRAGMA table_info(tests)")}
         assert {"median", "crossing_date"} <= {r[1] for r in

@@ -20,6 +20,7 @@ from urllib.parse import quote
 
 from condmon.errors import CondmonError, ConfigError
 from condmon.io.jsonable import frame_records, json_safe
+from condmon.store.states import STATUS_ORDER
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -33,11 +34,11 @@ __all__ = ["readonly_url", "fleet_document", "PER_PAGE", "unit_document", "read_
            "UnknownUnitError", "STATUSES", "SORTS"]
 
 #: Statuses a unit can show (``building``: its baseline is not saved yet; ``none``:
-#: nothing stored yet), in the filter's order.
-STATUSES = ("no-go", "advisory", "retest", "stale", "go", "unchecked", "building", "baseline",
-            "rejected", "excluded", "none")
-#: Orders of the fleet: by name, or by urgency (earliest forecast to no-go first).
-SORTS = ("name", "forecast")
+#: nothing stored yet), in the filter's order, the most severe first.
+STATUSES = STATUS_ORDER
+#: Orders of the fleet: by name, by status (the most severe first), by latest
+#: date (the newest first), or by urgency (earliest forecast to no-go first).
+SORTS = ("name", "status", "date", "forecast")
 #: Units a fleet page (and ``/api/units``) shows at once unless asked otherwise.
 PER_PAGE = 100
 
@@ -143,7 +144,9 @@ def fleet_document(store: HistoryStore, status: Sequence[str] = (),
     filter, the units of the history and the units per latest status (of
     them all). What ``condmon units --json`` and ``/api/units`` give. Only
     the page's units are forecast (all of them to order by urgency; a check
-    keeps its unit's forecast, so this is mostly a read).
+    keeps its unit's forecast, so this is mostly a read). Without ``rows``
+    and by any order but urgency, the database filters, counts and pages
+    (a page of 100 units costs the same in a fleet of 10,000).
 
     Parameters
     ----------
@@ -153,10 +156,11 @@ def fleet_document(store: HistoryStore, status: Sequence[str] = (),
         be comma-separated); ``none`` is a unit with nothing stored. Empty: all.
     q : str, optional
         Keep the units whose name contains this text (any case).
-    sort : {"name", "forecast"}, optional
-        Order of the units: by name (default), or by urgency, the unit
-        forecast to turn no-go soonest first
-        (:func:`condmon.store.forecasts.by_urgency`).
+    sort : {"name", "status", "date", "forecast"}, optional
+        Order of the units: by name (default); by status, the most severe
+        first (:data:`STATUSES`' order), then by name; by latest date, the
+        newest first; or by urgency, the unit forecast to turn no-go soonest
+        first (:func:`condmon.store.forecasts.by_urgency`).
     page : int
         Which page, from 1.
     per_page : int, optional
@@ -176,30 +180,54 @@ def fleet_document(store: HistoryStore, status: Sequence[str] = (),
     """
     from condmon.store.forecasts import attach_forecasts, by_urgency
 
-    everyone = store.unit_summaries() if rows is None else rows
-    counts: dict[str, int] = {}
-    for u in everyone:
-        counts[u["status"] or "none"] = counts.get(u["status"] or "none", 0) + 1
     wanted, how = _statuses(status), _sort(sort)
-    text = (q or "").strip().casefold()
-    kept = [u for u in everyone if (not wanted or (u["status"] or "none") in wanted)
-            and text in str(u["unit"]).casefold()]
+    text = (q or "").strip()
     if per_page is not None and per_page < 1 or page < 1:
         raise FilterError(f"page {page}, {per_page} a page: both must be >= 1")
-    pages = max(1, -(-len(kept) // per_page)) if per_page else 1
+    in_sql = (rows is None and how != "forecast" and text.isascii()
+              and store.states_current())
+    if in_sql:  # the database filters, counts and pages: a page's cost is its own units'
+        counts = store.status_counts()
+        matching = store.count_units(sorted(wanted), text)
+    else:
+        everyone = store.unit_summaries() if rows is None else rows
+        counts = {}
+        for u in everyone:
+            counts[u["status"] or "none"] = counts.get(u["status"] or "none", 0) + 1
+        folded = text.casefold()
+        kept = [u for u in everyone if (not wanted or (u["status"] or "none") in wanted)
+                and folded in str(u["unit"]).casefold()]
+        matching = len(kept)
+    pages = max(1, -(-matching // per_page)) if per_page else 1
     if page > pages and clamp:
         page = pages
     if page > pages:
-        raise FilterError(f"page {page}: the {len(kept)} matching unit(s) fill {pages} "
+        raise FilterError(f"page {page}: the {matching} matching unit(s) fill {pages} "
                           f"page(s) of {per_page}")
-    if how == "forecast":
-        kept = by_urgency(attach_forecasts(store, kept))
-    shown = kept[(page - 1) * per_page: page * per_page] if per_page else kept
+    start = (page - 1) * (per_page or 0)
+    if in_sql:
+        shown = store.unit_page(sorted(wanted), text, how, start, per_page)
+    else:
+        if how == "forecast":
+            kept = by_urgency(attach_forecasts(store, kept))
+        elif how != "name":
+            kept = _ordered(kept, how)
+        shown = kept[start: start + per_page] if per_page else kept
     if how != "forecast":
         attach_forecasts(store, shown)
     return {"units": [json_safe(u) for u in shown], "page": page, "per_page": per_page,
-            "pages": pages, "matching": len(kept), "total": len(everyone),
+            "pages": pages, "matching": matching, "total": sum(counts.values()),
             "counts": {s: counts[s] for s in STATUSES if s in counts}}
+
+
+def _ordered(rows: list[dict[str, Any]], how: str) -> list[dict[str, Any]]:
+    """``rows`` (by name) by status severity, or by latest date (newest first)."""
+    if how == "status":
+        return sorted(rows, key=lambda u: STATUSES.index(u["status"] or "none")
+                      if (u["status"] or "none") in STATUSES else len(STATUSES))
+    dated = sorted((u for u in rows if u["latest_date"]), key=lambda u: str(u["latest_date"]),
+                   reverse=True)
+    return dated + [u for u in rows if not u["latest_date"]]
 
 
 def _sort(sort: str | None) -> str:

@@ -18,9 +18,12 @@ from condmon.models.regimes import split_key
 from condmon.store import schema as S
 from condmon.store.engine import SCHEMA_LOCK, actor, redact, run_read, run_write, store_error
 
-__all__ = ["StoreBase", "now", "num", "check_name", "as_utc", "utc_column", "unknown_unit_message"]
+__all__ = ["StoreBase", "TOUCHED", "now", "num", "check_name", "as_utc", "utc_column", "unknown_unit_message"]
 
 T = TypeVar("T")
+
+#: Key of a connection's ``info``: the ids of the units its transaction changed.
+TOUCHED = "condmon_touched_units"
 
 
 def now() -> datetime:
@@ -83,10 +86,23 @@ class StoreBase:
         return run_read(self.engine, fn, db=self.url, timeout=self.timeout)
 
     def _write(self, fn: Callable[[sa.Connection], T], lock: str | None) -> T:
-        """One write transaction holding ``lock`` (a unit name; None: the schema)."""
+        """One write transaction holding ``lock`` (a unit name; None: the schema);
+        the units it changed have their state rows worked out again before it
+        commits (:meth:`_settle`)."""
         if self._batch is not None:
             return self._in_batch(fn)
-        return run_write(self.engine, fn, db=self.url, timeout=self.timeout, lock=lock)
+
+        def run(conn: sa.Connection) -> T:
+            conn.info.pop(TOUCHED, None)   # left by an attempt that failed
+            out = fn(conn)
+            self._settle(conn)
+            return out
+
+        return run_write(self.engine, run, db=self.url, timeout=self.timeout, lock=lock)
+
+    def _settle(self, conn: sa.Connection) -> None:
+        """Bring what is kept per unit up to date with the transaction's changes
+        (the units :meth:`_log` marked, ``conn.info[TOUCHED]``); nothing here."""
 
     def _in_batch(self, fn: Callable[[sa.Connection], T]) -> T:
         assert self._batch is not None
@@ -127,8 +143,10 @@ class StoreBase:
                         conn.exec_driver_sql(
                             f"SET LOCAL lock_timeout = {int(self.timeout * 1000)}")
                         conn.execute(sa.select(sa.func.pg_advisory_xact_lock(SCHEMA_LOCK)))
+                    conn.info.pop(TOUCHED, None)
                     hold(conn)
                     yield
+                    self._settle(conn)
         except sa.exc.SQLAlchemyError as err:
             raise store_error(err, self.url, self.timeout) from None
         finally:
@@ -138,7 +156,10 @@ class StoreBase:
              test_id: int | None = None, isolation_id: int | None = None,
              baseline_id: int | None = None, reason: str | None = None,
              detail: dict[str, Any] | None = None) -> None:
-        """One audit row, inside the caller's transaction."""
+        """One audit row, inside the caller's transaction; the unit is marked
+        changed (its kept state is worked out again before the commit)."""
+        if unit_id is not None:
+            conn.info.setdefault(TOUCHED, set()).add(int(unit_id))
         conn.execute(sa.insert(S.audit).values(
             at=now(), actor=actor(), action=action, unit_id=unit_id, test_id=test_id,
             isolation_id=isolation_id, baseline_id=baseline_id, reason=reason,

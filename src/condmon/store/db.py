@@ -28,6 +28,7 @@ from condmon.store.engine import (
 )
 from condmon.store.history import DuplicateTestError, TestsMixin
 from condmon.store.isolations import IsolationsMixin
+from condmon.store.states import StatesMixin, write_states
 from condmon.store.views import ForecastCacheMixin, ViewsMixin
 
 __all__ = ["HistoryStore", "open_store", "file_hash", "frame_hash", "DuplicateTestError",
@@ -39,7 +40,8 @@ def frame_hash(df: pd.DataFrame) -> str:
     return content_hash(df)
 
 
-class HistoryStore(TestsMixin, GroupsMixin, IsolationsMixin, ViewsMixin, ForecastCacheMixin):
+class HistoryStore(TestsMixin, GroupsMixin, IsolationsMixin, StatesMixin, ViewsMixin,
+                   ForecastCacheMixin):
     """A history database. Open with :func:`open_store`.
 
     Use it as a context manager (or call :meth:`close`) so that its connections
@@ -103,6 +105,7 @@ class HistoryStore(TestsMixin, GroupsMixin, IsolationsMixin, ViewsMixin, Forecas
                 current += 1
                 conn.execute(sa.update(S.meta).where(S.meta.c.key == "schema_version")
                              .values(value=str(current)))
+            write_states(conn)   # every unit's status, as the new code keeps it
 
         self._write(run, lock=None)
 

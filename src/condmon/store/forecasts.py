@@ -24,16 +24,14 @@ from condmon.monitor.unit_forecast import (
     NO_TREND, UnitForecast, forecast_axis, forecast_checks, parameter_series,
 )
 from condmon.store.baselines import baseline_members, current_baseline
+from condmon.store.states import DEGRADED
 
 if TYPE_CHECKING:
     from condmon.store.db import HistoryStore
 
 __all__ = ["read_forecast", "try_forecast", "forecast_fields", "fleet_summaries",
            "by_urgency", "NO_BASELINE", "FleetHistory", "DEGRADED", "keep_forecast",
-           "attach_forecasts"]
-
-#: The statuses that make a unit one that "has degraded", whose series teach the fleet prior.
-DEGRADED = ("advisory", "no-go")
+           "attach_forecasts", "prior_units"]
 
 #: Why a unit without a baseline in use has no forecast.
 NO_BASELINE = "no baseline yet"
@@ -60,6 +58,52 @@ class FleetHistory:
         self._checks: dict[str, tuple[Baseline, pd.DataFrame]] = {}
         self._degraded: dict[str, tuple[str, str | None]] | None = None
         self._rates: dict[tuple[str, str, str], tuple[float, float] | None] = {}
+        self._kept: set[str] = set()
+        self._marks: dict[str, int] = {}
+        self._limit = 0
+
+    def degraded(self, unit: str) -> bool:
+        """Whether ``unit`` has degraded (its rates teach its peers)."""
+        if self._degraded is None:
+            self._degraded = self.store.units_with_status(DEGRADED)
+        return unit in self._degraded
+
+    def learning_peers(self, unit: str) -> list[str]:
+        """The peers (:meth:`peers`) the prior learns from: the most recently
+        changed ``[forecast] prior_units`` of them (``generic-monitor.toml``),
+        so a forecast's cost does not grow with the fleet; their kept rates
+        (:meth:`rates_of`, kept with their forecasts) are read in one query."""
+        peers = self.peers(unit)
+        unread = [p for p in peers if p not in self._marks]
+        if unread:
+            self._marks.update({p: 0 for p in unread})
+            self._marks.update(self.store.history_marks(unread))
+        self._limit = self._limit or prior_units()
+        chosen = sorted(peers, key=lambda p: (-self._marks[p], p))[:self._limit]
+        fresh = [p for p in chosen if p not in self._kept]
+        for p, (mark, rates) in self.store.kept_rates(fresh).items() if fresh else ():
+            if mark == self._marks.get(p):
+                for k, v in rates.items():
+                    by, key = k.split("|", 1)
+                    self._rates[(p, key, by)] = None if v is None else (float(v[0]), float(v[1]))
+        self._kept.update(fresh)
+        return sorted(chosen)
+
+    def rates_of(self, unit: str) -> dict[str, list[float] | None] | None:
+        """``unit``'s own degradation rates, ``{"<by>|<parameter>": [rate, se]}``
+        (None when it has not degraded or has no checks since its baseline):
+        what is kept with its forecast for its peers' priors."""
+        if not self.degraded(unit):
+            return None
+        try:
+            baseline, checks = self.checks(unit)
+        except CondmonError:
+            return None
+        if not len(checks):
+            return None
+        by = forecast_axis(checks).by
+        return {f"{by}|{key}": None if (r := self._rate(unit, key, by)) is None else list(r)
+                for key in baseline.parameters}
 
     def checks(self, unit: str) -> tuple[Baseline, pd.DataFrame]:
         """The unit's current baseline and its accepted checks since it.
@@ -82,8 +126,8 @@ class FleetHistory:
         """Units of ``unit``'s model (and group) that have degraded, ``unit``
         left out (``model`` and ``group``: the unit's, when known; its model's
         stored name, not a declaration's file)."""
-        if self._degraded is None:
-            self._degraded = self.store.units_with_status(DEGRADED)
+        self.degraded(unit)
+        assert self._degraded is not None
         if model is None:
             model, group = self.store.unit_model(unit), self.store.unit_group(unit)
         return sorted(u for u, (m, g) in self._degraded.items()
@@ -108,7 +152,7 @@ class FleetHistory:
         """The linear rate prior of each parameter key for ``unit``, its x
         counting ``by`` (``tests`` or ``days``; peers counted otherwise are
         left out); vague ("no fleet history") when fewer than 2 peers have the key."""
-        peers = self.peers(unit)
+        peers = self.learning_peers(unit)
         out = {}
         for key in keys:
             rates = [r for p in peers if (r := self._rate(p, key, by)) is not None]
@@ -210,9 +254,10 @@ def attach_forecasts(store: HistoryStore, rows: list[dict[str, Any]]) -> list[di
     kept forecasts reused as :func:`fleet_summaries` says. Returns ``rows``."""
     if not rows:
         return rows
-    marks, kept = store.history_marks(), store.kept_forecasts()
+    names = [str(r["unit"]) for r in rows]
+    marks, kept = store.history_marks(names), store.kept_forecasts(names)
     fleet = FleetHistory(store)
-    models = {u: (m, g) for u, m, g in store.unit_models()}
+    models = {u: (m, g) for u, m, g in store.unit_models(names)}
     fresh = []
     for r in rows:
         unit = str(r["unit"])
@@ -232,7 +277,7 @@ def attach_forecasts(store: HistoryStore, rows: list[dict[str, Any]]) -> list[di
         if len(_MADE) >= _MADE_MAX:
             _MADE.clear()
         _MADE[(store.url, unit)] = (mark, peers, fields)
-        fresh.append(_kept_row(unit, mark, peers, fields))
+        fresh.append(_kept_row(unit, mark, peers, fields, fleet))
     try:
         store.keep_forecasts(fresh)
     except CondmonError:   # a history opened read-only, or busy: forecast again next time
@@ -240,9 +285,23 @@ def attach_forecasts(store: HistoryStore, rows: list[dict[str, Any]]) -> list[di
     return rows
 
 
-def _kept_row(unit: str, mark: int, peers: int, fields: dict[str, Any]
-              ) -> tuple[str, int, int, dict[str, Any] | None, str | None]:
-    return (unit, mark, peers, fields["forecast"], fields["forecast_reason"])
+def _kept_row(unit: str, mark: int, peers: int, fields: dict[str, Any], fleet: FleetHistory
+              ) -> tuple[Any, ...]:
+    return (unit, mark, peers, fields["forecast"], fields["forecast_reason"],
+            fleet.rates_of(unit))
+
+
+def prior_units() -> int:
+    """How many degraded peers a fleet prior learns from at most
+    (``[forecast] prior_units`` of ``condmon/data/generic-monitor.toml``)."""
+    from condmon.errors import ConfigError
+    from condmon.io.config import load_default
+
+    raw = load_default("generic-monitor.toml").get("forecast", {}).get("prior_units", 20)
+    if isinstance(raw, bool) or not isinstance(raw, int) or raw < 2:
+        raise ConfigError(f"condmon/data/generic-monitor.toml: [forecast] prior_units = {raw!r}:"
+                          " a whole number >= 2")
+    return raw
 
 
 def keep_forecast(store: HistoryStore, unit: str) -> dict[str, Any]:
@@ -250,8 +309,8 @@ def keep_forecast(store: HistoryStore, unit: str) -> dict[str, Any]:
     listings, and return its :func:`forecast_fields` (after a stored check)."""
     fleet = FleetHistory(store)
     fields = forecast_fields(*try_forecast(store, unit, fleet))
-    store.keep_forecasts([_kept_row(unit, store.history_marks(unit).get(unit, 0),
-                                    len(fleet.peers(unit)), fields)])
+    store.keep_forecasts([_kept_row(unit, store.history_marks([unit]).get(unit, 0),
+                                    len(fleet.peers(unit)), fields, fleet)])
     return fields
 
 

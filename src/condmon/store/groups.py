@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Any
 
 import sqlalchemy as sa
@@ -72,8 +73,9 @@ class GroupsMixin(BaselinesMixin, StoreBase):
                 out[unit] = latest
         return out
 
-    def group_flags(self) -> dict[str, list[dict[str, Any]]]:
-        """For every unit in a group with a baseline of its own, where that
+    def group_flags(self, groups: Iterable[str] | None = None
+                    ) -> dict[str, list[dict[str, Any]]]:
+        """For every unit in a group (of ``groups``, default all) with a baseline of its own, where that
         baseline lies outside its peers' between-unit spread (peers of the same
         model; see :func:`condmon.monitor.group.unlike_group`, limits in
         ``condmon/data/generic-monitor.toml``); units like their peers are left out."""
@@ -82,7 +84,10 @@ class GroupsMixin(BaselinesMixin, StoreBase):
 
         settings = load_generic_settings()
         out: dict[str, list[dict[str, Any]]] = {}
+        wanted = None if groups is None else set(groups)
         for group in self.groups():
+            if wanted is not None and group not in wanted:
+                continue
             members = self.group_baselines(group)
             models = {u: self.unit_model(u) for u in members}
             for unit, own in members.items():

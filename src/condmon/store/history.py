@@ -179,6 +179,9 @@ class TestsMixin(StoreBase):
             if have is not None:
                 return False
             self._insert_evaluation(conn, test_id, baseline_id, symptoms, diagnosis)
+            self._log(conn, "test re-evaluated", unit_id=self.unit_id(unit, conn=conn),
+                      test_id=test_id, baseline_id=baseline_id,
+                      detail=None if diagnosis is None else {"status": diagnosis.status})
             return True
 
         return self._write(run, lock=unit)

@@ -10,11 +10,11 @@ import sqlalchemy as sa
 
 __all__ = ["metadata", "units", "tests", "estimates", "baselines", "baseline_values",
            "symptoms", "diagnoses", "diagnosis_faults", "isolations", "isolation_estimates",
-           "audit", "meta", "forecasts", "SCHEMA_VERSION", "MIGRATIONS", "NAME_LENGTH",
+           "audit", "meta", "forecasts", "unit_states", "SCHEMA_VERSION", "MIGRATIONS", "NAME_LENGTH",
            "PARAMETER_LENGTH"]
 
 #: Version of the schema this code writes.
-SCHEMA_VERSION = 7
+SCHEMA_VERSION = 8
 
 #: Longest unit, fault or baseline name the store keeps (the same on every back-end).
 NAME_LENGTH = 200
@@ -218,6 +218,31 @@ forecasts = sa.Table(
     # forecasts) and the median tests (days, hours) left
     sa.Column("crossing_date", TolerantDateTime(), nullable=True),
     sa.Column("median", TolerantFloat(), nullable=True),
+    # v8: a degraded unit's own degradation rates, JSON {"<by>|<parameter>": [rate, se]},
+    # what its peers' fleet prior learns from it (valid with the same audit_id)
+    sa.Column("rates", sa.Text, nullable=True),
+)
+
+#: Each unit's latest status, worked out again by every write that changes the
+#: unit (v8; :mod:`condmon.store.states`): a fleet is listed, counted and paged
+#: from these rows, whatever the length of its histories.
+unit_states = sa.Table(
+    "unit_states", metadata,
+    sa.Column("unit_id", sa.Integer, sa.ForeignKey("units.id"), primary_key=True),
+    sa.Column("mark", sa.Integer, nullable=False),              # the unit's latest audit row
+    sa.Column("status", sa.String(32), nullable=True),          # None: nothing stored yet
+    sa.Column("latest_source", sa.Text, nullable=True),
+    sa.Column("latest_date", TolerantDateTime(), nullable=True),
+    sa.Column("summary", sa.Text, nullable=True),
+    sa.Column("latest_regime", sa.Text, nullable=True),
+    sa.Column("tests", sa.Integer, nullable=False),
+    sa.Column("isolations", sa.Integer, nullable=False),
+    sa.Column("degraded", sa.Boolean, nullable=False),          # a check advisory or no-go
+    # the unit's newest test, isolation and baseline rows seen: rows another tool adds are found
+    sa.Column("last_test", sa.Integer, nullable=True),
+    sa.Column("last_isolation", sa.Integer, nullable=True),
+    sa.Column("last_baseline", sa.Integer, nullable=True),
+    sa.Index("ix_unit_states_status", "status"),
 )
 
 #: Every change to a history: who, when, what and why. Nothing is deleted.
@@ -355,6 +380,16 @@ def _v6_to_v7(conn: sa.Connection) -> None:
             conn.execute(sa.text(f"ALTER TABLE {table} ADD COLUMN {column} {kind}"))
 
 
+def _v7_to_v8(conn: sa.Connection) -> None:
+    """Each unit's latest status kept (``unit_states``): the table, new, is made
+    by ``create_all``; the store fills it for every unit once the migrations
+    have run (:func:`condmon.store.states.write_states`). A kept forecast
+    keeps its unit's degradation rates (``forecasts.rates``)."""
+    if "rates" not in {c["name"] for c in sa.inspect(conn).get_columns("forecasts")}:
+        conn.execute(sa.text("ALTER TABLE forecasts ADD COLUMN rates TEXT"))
+
+
 MIGRATIONS: dict[int, Callable[[sa.Connection], None]] = {1: _v1_to_v2, 2: _v2_to_v3,
                                                           3: _v3_to_v4, 4: _v4_to_v5,
-                                                          5: _v5_to_v6, 6: _v6_to_v7}
+                                                          5: _v5_to_v6, 6: _v6_to_v7,
+                                                          7: _v7_to_v8}

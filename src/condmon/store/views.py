@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from typing import Any
 
 import pandas as pd
@@ -10,7 +11,6 @@ import sqlalchemy as sa
 
 from condmon.store import schema as S
 from condmon.store.base import StoreBase, as_utc, now, utc_column
-from condmon.store.isolations import isolation_status
 
 __all__ = ["ViewsMixin", "ForecastCacheMixin", "test_status", "building_summary"]
 
@@ -129,146 +129,47 @@ class ViewsMixin(StoreBase):
                 df = df.join(w)
         return df
 
-    def unit_summaries(self) -> list[dict[str, Any]]:
-        """Every unit with its model, number of tests and isolations, its
-        latest test or isolation (by date), that one's status and operating
-        regime (``latest_regime``), its ``group`` and where its own baseline
-        lies outside its peers' spread (``group_flags``), and the active
-        baseline's flags (``baseline_flags``: how many warnings).
-
-        A unit whose latest record is a baseline test while no version of its
-        active baseline is saved yet is ``building`` (as ``condmon fleet run``
-        says), its summary how far (:func:`building_summary`).
-
-        The same few queries however many units there are: each unit's latest
-        test, isolation and baseline version are ranked in the database."""
-        def run(c: sa.Connection) -> list[dict[str, Any]]:
-            t, i, d, b = S.tests, S.isolations, S.diagnoses, S.baselines
-            units = c.execute(sa.select(S.units).order_by(S.units.c.name)).all()
-            healthy = sa.and_(t.c.role == "baseline", t.c.accepted.is_(True),
-                              t.c.excluded.is_(False))
-            n_tests = {r[0]: (int(r[1]), int(r[2] or 0)) for r in c.execute(
-                sa.select(t.c.unit_id, sa.func.count(),
-                          sa.func.sum(sa.case((healthy, 1), else_=0)))
-                .group_by(t.c.unit_id))}
-            n_isos: dict[int, int] = dict(c.execute(
-                sa.select(i.c.unit_id, sa.func.count()).group_by(i.c.unit_id)).all())
-            t_when = sa.func.coalesce(t.c.test_date, t.c.created_at)
-            # a unit's status is its latest check's; baseline tests only without checks
-            ranked = (sa.select(t.c.unit_id, t.c.id, t.c.source, t.c.role, t.c.accepted,
-                                t.c.excluded, t_when.label("at"), t.c.reason, t.c.regime,
-                                sa.func.row_number().over(
-                                    partition_by=t.c.unit_id,
-                                    order_by=((t.c.role == "check").desc(), t_when.desc(),
-                                              t.c.id.desc())).label("rank"))
-                      .where(t.c.excluded.is_(False)).subquery())
-            ld = self._latest_evaluation(d)
-            last = {r[0]: r[1:] for r in c.execute(
-                sa.select(ranked.c.unit_id, ranked.c.id, ranked.c.source, ranked.c.role,
-                          ranked.c.accepted, ranked.c.excluded, d.c.status, ranked.c.at,
-                          d.c.summary, ranked.c.reason, ranked.c.regime)
-                .outerjoin(ld, ld.c.test_id == ranked.c.id)
-                .outerjoin(d, sa.and_(d.c.test_id == ranked.c.id, d.c.baseline_id == ld.c.bid))
-                .where(ranked.c.rank == 1))}
-            i_when = sa.func.coalesce(i.c.test_date, i.c.created_at)
-            iranked = (sa.select(i.c.unit_id, i.c.id, i.c.source, i.c.detected, i.c.decided,
-                                 i.c.statement, i_when.label("at"),
-                                 sa.func.row_number().over(
-                                     partition_by=i.c.unit_id,
-                                     order_by=(i_when.desc(), i.c.id.desc())).label("rank"))
-                       .where(i.c.excluded.is_(False)).subquery())
-            isos = {r[0]: r[1:] for r in c.execute(
-                sa.select(*[col for col in iranked.c if col.name != "rank"])
-                .where(iranked.c.rank == 1))}
-            branked = sa.select(b.c.unit_id, b.c.name, b.c.flags, sa.func.row_number().over(
-                partition_by=(b.c.unit_id, b.c.name), order_by=b.c.version.desc()
-            ).label("rank")).subquery()
-            flags_of = {(r[0], r[1]): r[2] for r in c.execute(
-                sa.select(branked.c.unit_id, branked.c.name, branked.c.flags)
-                .where(branked.c.rank == 1))}
-            out = []
-            for u in units:
-                test, iso = last.get(u.id), isos.get(u.id)
-                status, source, when, summary, regime = None, None, None, None, None
-                active = (u.id, u.baseline_name or "default")
-                n, accepted = n_tests.get(u.id, (0, 0))
-                if test is not None:
-                    status = test_status(test[2], bool(test[3]), bool(test[4]), test[5])
-                    source, when, regime = test[1], test[6], test[9] or None
-                    summary = test[7] if test[3] else test[8]
-                    if status in ("baseline", "rejected") and active not in flags_of:
-                        status = "building"
-                        summary = building_summary(accepted, None if test[3] else test[8])
-                if iso is not None and (when is None or _after(iso[5], when)):
-                    status = isolation_status(bool(iso[2]), bool(iso[3]))
-                    source, when, summary, regime = iso[1], iso[5], iso[4], None
-                flags = flags_of.get(active)
-                stamp = as_utc(when)
-                out.append({"unit": u.name, "model": u.model_source or u.model,
-                            "tests": n,
-                            "isolations": int(n_isos.get(u.id, 0)), "latest_source": source,
-                            "latest_date": None if stamp is None else stamp.isoformat(),
-                            "status": status, "summary": summary, "latest_regime": regime,
-                            "group": u.group_name,
-                            "baseline_flags": len(json.loads(flags)) if flags else 0})
-            return out
-
-        rows = self._read(run)
-        unlike = self.group_flags() if any(r["group"] for r in rows) else {}  # type: ignore[attr-defined]
-        for r in rows:
-            r["group_flags"] = unlike.get(str(r["unit"]), [])
-        return rows
-
-    def units_with_status(self, statuses: tuple[str, ...]) -> dict[str, tuple[str, str | None]]:
-        """Units with an accepted, not excluded check evaluated with one of
-        ``statuses``, each with its model and group, in one query."""
-        t, d, u = S.tests, S.diagnoses, S.units
-        q = (sa.select(u.c.name, u.c.model, u.c.group_name).distinct()
-             .select_from(u.join(t, t.c.unit_id == u.c.id).join(d, d.c.test_id == t.c.id))
-             .where(t.c.role == "check", t.c.accepted.is_(True), t.c.excluded.is_(False),
-                    d.c.status.in_(statuses)))
-        return self._read(lambda c: {str(r[0]): (str(r[1]), None if r[2] is None else str(r[2]))
-                                     for r in c.execute(q)})
-
-
-def _after(a: Any, b: Any) -> bool:
-    ta, tb = as_utc(a), as_utc(b)
-    return ta is not None and tb is not None and ta >= tb
-
 
 class ForecastCacheMixin(StoreBase):
     """Kept forecasts (schema v6's ``forecasts``): read for many units in two
     queries, written in one transaction."""
 
-    def history_marks(self, unit: str | None = None) -> dict[str, int]:
-        """Each unit's latest audit row (or ``unit``'s alone): it changes
-        whenever the unit's history does."""
-        a, u = S.audit, S.units
-        q = (sa.select(u.c.name, sa.func.max(a.c.id)).select_from(u.join(a, a.c.unit_id == u.c.id))
-             .group_by(u.c.name))
-        if unit is not None:
-            q = q.where(u.c.name == unit)
-        return self._read(lambda c: {str(r[0]): int(r[1]) for r in c.execute(q)})
-
-    def unit_models(self) -> list[tuple[str, str, str | None]]:
-        """Every unit's name, model (as stored) and group, in one query."""
+    def unit_models(self, units: Sequence[str] | None = None
+                    ) -> list[tuple[str, str, str | None]]:
+        """Every unit's (or ``units``') name, model (as stored) and group, in one query."""
         u = S.units
+        q = sa.select(u.c.name, u.c.model, u.c.group_name)
+        if units is not None:
+            q = q.where(u.c.name.in_(list(units)))
         return self._read(lambda c: [(str(r[0]), str(r[1]), None if r[2] is None else str(r[2]))
-                                     for r in c.execute(sa.select(u.c.name, u.c.model,
-                                                                  u.c.group_name))])
+                                     for r in c.execute(q)])
 
-    def kept_forecasts(self) -> dict[str, tuple[int, int, str | None, str | None]]:
-        """``{unit: (audit_id, peers, summary JSON, reason)}`` of every kept forecast."""
+    def kept_forecasts(self, units: Sequence[str] | None = None
+                       ) -> dict[str, tuple[int, int, str | None, str | None]]:
+        """``{unit: (audit_id, peers, summary JSON, reason)}`` of every kept
+        forecast (or ``units``')."""
         f, u = S.forecasts, S.units
         q = sa.select(u.c.name, f.c.audit_id, f.c.peers, f.c.summary, f.c.reason).select_from(
             u.join(f, f.c.unit_id == u.c.id))
+        if units is not None:
+            q = q.where(u.c.name.in_(list(units)))
         return self._read(lambda c: {str(r[0]): (int(r[1]), int(r[2]), r[3], r[4])
                                      for r in c.execute(q)})
 
-    def keep_forecasts(self, rows: list[tuple[str, int, int, dict[str, Any] | None, str | None]]
-                       ) -> None:
-        """Keep ``(unit, audit_id, peers, summary, reason)`` rows (the summary
-        kept as JSON), replacing the units' earlier ones."""
+    def kept_rates(self, units: Sequence[str]) -> dict[str, tuple[int, dict[str, Any]]]:
+        """``{unit: (audit_id, rates)}`` of the kept degradation rates of ``units``
+        (``{"<by>|<parameter>": [rate, se] or None}``), where kept."""
+        f, u = S.forecasts, S.units
+        q = (sa.select(u.c.name, f.c.audit_id, f.c.rates).select_from(
+            u.join(f, f.c.unit_id == u.c.id))
+            .where(u.c.name.in_(list(units)), f.c.rates.is_not(None)))
+        return self._read(lambda c: {str(r[0]): (int(r[1]), json.loads(r[2]))
+                                     for r in c.execute(q)})
+
+    def keep_forecasts(self, rows: Sequence[tuple[Any, ...]]) -> None:
+        """Keep ``(unit, audit_id, peers, summary, reason[, rates])`` rows (the
+        summary and the unit's degradation rates kept as JSON), replacing the
+        units' earlier ones."""
         if not rows:
             return
         f, u = S.forecasts, S.units
@@ -282,8 +183,10 @@ class ForecastCacheMixin(StoreBase):
             c.execute(sa.insert(f), [{"unit_id": ids[n], "audit_id": a, "peers": p,
                                       "computed_at": stamp, "reason": why,
                                       "summary": None if s is None else json.dumps(s),
+                                      "rates": (json.dumps(more[0]) if more and more[0]
+                                                is not None else None),
                                       **_urgency_columns(s or {})}
-                                     for n, a, p, s, why in keep])
+                                     for n, a, p, s, why, *more in keep])
 
         self._write(run, lock=rows[0][0] if len(rows) == 1 else None)
 

@@ -1,6 +1,6 @@
 """Prognostics on simulated fleets with known truth (the actuator, nonlinear effects on).
 
-    python benchmarks/bench_prognostics.py [--units 30]
+    python benchmarks/bench_prognostics.py [--units 30] [--only rtf|calibration|drift]
     pip install exponential-degradation-model   # the peer (optional; skipped with a note)
 
 1. Run to failure. Each unit wears one parameter (friction D with the Coulomb
@@ -70,6 +70,7 @@ DRIFT_UNITS, DRIFT_RATE, DRIFT_MAX = 20, 0.04, 90
 ALPHA, LAMBDAS = 0.2, (0.5, 0.75)
 EXP_A = 0.1                 # the exponential wear's scale: factor = 1 + a (exp(r k) - 1)
 MAX_CHECKS = 60
+SECTIONS = ("rtf", "calibration", "drift")
 
 Series = tuple[np.ndarray, np.ndarray, np.ndarray, float]
 
@@ -320,12 +321,56 @@ def drift_delay(rig, n_units: int, alpha: float) -> dict[str, Any]:  # type: ign
                                      for k, v in firsts.items()}}
 
 
+def _rtf_section(n_units: int, peer: bool) -> dict[str, Any]:
+    units = run_to_failure(demo_rig(), n_units)
+    lives = [u for u in units if u["life"] is not None]
+    fleet = [{"unit": u["unit"], "param": u["param"], "shape": u["shape"],
+              "rate": u["rate"], "true_param_life": u["true_life"], "life": u["life"]}
+             for u in units]
+    print(table(fleet, f"Run to failure: {len(lives)} of {len(units)} units crossed no-go "
+                       f"within {MAX_CHECKS} checks (life: the crossing check)"))
+    res = prognostics(units, peer)
+    print()
+    print(table(res["rows"], f"RUL at λ of each life: α-λ (α = {ALPHA}: median within "
+                             "±20 % of the true RUL), 90 % interval coverage, median "
+                             "relative error [targets: α-λ >= 80 %, coverage 80-97 %]"))
+    ratios = _ratios(res["rows"])
+    if ratios:
+        print()
+        print(table(ratios, "condmon / peer"))
+    return {"units": fleet, "scores": res["rows"], "ratios": ratios,
+            "per_unit": res["per_unit"], "peer": peer}
+
+
+def _detector_sections(cal_units: int, drift_units: int) -> dict[str, Any]:
+    cal = calibration(demo_rig(), cal_units)
+    print()
+    print(table(cal["rows"], f"Calibration: {cal_units} healthy units × "
+                             f"{CAL_CHECKS} checks, own {CAL_BASELINE}-test baselines; "
+                             "false-alarm rate per check, 95 % interval [target "
+                             "rate/alpha 0.5-2]"))
+    fuzzy = next(r for r in cal["rows"] if r["detector"].startswith("fuzzy"))
+    matched = fuzzy["rate"] if fuzzy["alarms"] else fuzzy["high95"]
+    how = ("the fuzzy status's observed false-alarm rate" if fuzzy["alarms"]
+           else "the 95 % upper bound of the fuzzy status's false-alarm rate (0 seen)")
+    dd = drift_delay(demo_rig(), drift_units, matched)
+    print()
+    print(table(dd["rows"], f"Drift delay: friction +{100 * DRIFT_RATE:g} % a test, "
+                            f"{drift_units} units; first alarming check; "
+                            f"alpha = {matched:.4g} ({how}) [goal: >= 30 % earlier]"))
+    return {"calibration": cal, "drift": {**dd, "alpha": matched, "alpha_is": how}}
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--units", type=int, default=30)
     ap.add_argument("--cal-units", type=int, default=CAL_UNITS)
     ap.add_argument("--drift-units", type=int, default=DRIFT_UNITS)
+    ap.add_argument("--only", choices=SECTIONS, action="append",
+                    help="run only this section (repeatable; default: all; drift runs the "
+                         "calibration too: its alpha is the fuzzy status's rate there)")
     args = ap.parse_args()
+    only = set(args.only or SECTIONS)
     try:
         import exponential_degradation  # noqa: F401
         peer = True
@@ -336,47 +381,18 @@ def main() -> int:
     t0 = time.perf_counter()
     doc: dict[str, Any] = {}
     with threadpool_limits(limits=1):
-        units = run_to_failure(demo_rig(), args.units)
-        lives = [u for u in units if u["life"] is not None]
-        fleet = [{"unit": u["unit"], "param": u["param"], "shape": u["shape"],
-                  "rate": u["rate"], "true_param_life": u["true_life"], "life": u["life"]}
-                 for u in units]
-        print(table(fleet, f"Run to failure: {len(lives)} of {len(units)} units crossed no-go "
-                           f"within {MAX_CHECKS} checks (life: the crossing check)"))
-        res = prognostics(units, peer)
-        print()
-        print(table(res["rows"], f"RUL at λ of each life: α-λ (α = {ALPHA}: median within "
-                                 "±20 % of the true RUL), 90 % interval coverage, median "
-                                 "relative error [targets: α-λ >= 80 %, coverage 80-97 %]"))
-        ratios = _ratios(res["rows"])
-        if ratios:
-            print()
-            print(table(ratios, "condmon / peer"))
-        doc["run_to_failure"] = {"units": fleet, "scores": res["rows"], "ratios": ratios,
-                                 "per_unit": res["per_unit"], "peer": peer}
-        if _statistics_config() is None:
-            print("\nnote: no calibrated statistical detector (condmon.monitor.statistics) "
-                  "in this condmon: calibration and drift delay skipped")
-        else:
-            cal = calibration(demo_rig(), args.cal_units)
-            print()
-            print(table(cal["rows"], f"Calibration: {args.cal_units} healthy units × "
-                                     f"{CAL_CHECKS} checks, own {CAL_BASELINE}-test baselines; "
-                                     "false-alarm rate per check, 95 % interval [target "
-                                     "rate/alpha 0.5-2]"))
-            fuzzy = next(r for r in cal["rows"] if r["detector"].startswith("fuzzy"))
-            matched = fuzzy["rate"] if fuzzy["alarms"] else fuzzy["high95"]
-            how = ("the fuzzy status's observed false-alarm rate" if fuzzy["alarms"]
-                   else "the 95 % upper bound of the fuzzy status's false-alarm rate (0 seen)")
-            dd = drift_delay(demo_rig(), args.drift_units, matched)
-            print()
-            print(table(dd["rows"], f"Drift delay: friction +{100 * DRIFT_RATE:g} % a test, "
-                                    f"{args.drift_units} units; first alarming check; "
-                                    f"alpha = {matched:.4g} ({how}) [goal: >= 30 % earlier]"))
-            doc["calibration"] = cal
-            doc["drift"] = {**dd, "alpha": matched, "alpha_is": how}
+        if "rtf" in only:
+            doc["run_to_failure"] = _rtf_section(args.units, peer)
+        if only & {"calibration", "drift"}:
+            if _statistics_config() is None:
+                print("\nnote: no calibrated statistical detector (condmon.monitor.statistics) "
+                      "in this condmon: calibration and drift delay skipped")
+            else:   # the drift section's alpha is the calibration's fuzzy rate: both run
+                doc.update(_detector_sections(args.cal_units, args.drift_units))
     doc["seconds"] = time.perf_counter() - t0
-    path = write_json("bench_prognostics", doc)
+    name = "bench_prognostics" if only == set(SECTIONS) else \
+        "bench_prognostics_" + "_".join(k for k in SECTIONS if k in only)
+    path = write_json(name, doc)
     print(f"\nwrote {path} ({doc['seconds']:.0f} s)")
     return 0
 

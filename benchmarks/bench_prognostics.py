@@ -15,8 +15,9 @@
    share of units whose median RUL is within ±20 % of the true RUL), the
    coverage of the 90 % interval, and the median relative error. Again with the
    fleet prior (leave-one-out: from the other units that wore the same
-   parameter, their full series; the model the unit's own evidence chooses),
-   and with the peer ``exponential-degradation-model`` (Gebraeel 2006, as
+   parameter, their full series: the share that wore exponentially, the
+   linear slope and the exponential growth rate, as ``condmon forecast``
+   takes it from a unit's degraded peers), and with the peer ``exponential-degradation-model`` (Gebraeel 2006, as
    MATLAB's exponentialDegradationModel) fed the same series as
    ``ln(S − φ)`` of the signal ``S = 1 + change/100`` (its default φ = −1 and
    vague priors), the threshold ``1 + r2/100``.
@@ -56,7 +57,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from _common import table, write_json
-from condmon.monitor.forecast import MIN_TESTS, fleet_prior, forecast_series
+from condmon.monitor.forecast import MIN_TESTS, fleet_wear_prior, forecast_series
 from condmon.simulate import load_actuator_rig, simulate_actuator
 from condmon.store import open_store
 from condmon.workflows.checks import check_test
@@ -181,7 +182,7 @@ def prognostics(units: list[dict[str, Any]], peer: bool) -> dict[str, Any]:
     rows, per_unit = [], []
     for lam in LAMBDAS:
         preds: dict[str, list[tuple[float, float, float] | None]] = {
-            "condmon": [], "condmon + fleet prior": [], "peer (Gebraeel 2006)": []}
+            "condmon, no prior": [], "condmon, fleet prior (leave-one-out)": [], "peer (Gebraeel 2006)": []}
         truths, shapes = [], []
         for u in done:
             t = max(MIN_TESTS, round(lam * u["life"]))
@@ -193,12 +194,11 @@ def prognostics(units: list[dict[str, Any]], peer: bool) -> dict[str, Any]:
             s = _cut(u["series"], t)
             thr = _threshold(s[1], u["param"])
             own = forecast_series(*s, threshold=thr)
-            model = own.model if own.model != "no trend" else "linear"
             others = [v["series"] for v in done if v is not u and v["param"] == u["param"]]
-            prior = fleet_prior(others, model=model)
+            prior = fleet_wear_prior(others)
             post = forecast_series(*s, threshold=thr, prior=prior)
-            preds["condmon"].append(own.remaining)
-            preds["condmon + fleet prior"].append(post.remaining)
+            preds["condmon, no prior"].append(own.remaining)
+            preds["condmon, fleet prior (leave-one-out)"].append(post.remaining)
             if peer:
                 preds["peer (Gebraeel 2006)"].append(_peer(u["series"], t, u["param"]))
             per_unit.append({"unit": u["unit"], "lambda": lam, "true_rul": truth,
@@ -222,7 +222,7 @@ def _ratios(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
         peer = by.get("peer (Gebraeel 2006)")
         if peer is None:
             continue
-        for name in ("condmon", "condmon + fleet prior"):
+        for name in ("condmon, no prior", "condmon, fleet prior (leave-one-out)"):
             mine = by[name]
             out.append({"lambda": lam, "method": name, **{
                 f"{k} ratio": (mine[k] / peer[k] if peer[k] else math.inf)

@@ -19,7 +19,7 @@ import pandas as pd
 
 from condmon.errors import CondmonError
 from condmon.monitor.baseline import MIN_BASELINE_TESTS, Baseline
-from condmon.monitor.forecast import RatePrior, prior_from_rates, unit_rate
+from condmon.monitor.prior import FleetPrior, UnitWear, prior_from_wear, unit_wear
 from condmon.monitor.unit_forecast import (
     NO_TREND, UnitForecast, forecast_axis, forecast_checks, parameter_series,
 )
@@ -49,17 +49,18 @@ class FleetHistory:
 
     A unit has degraded when one of its accepted checks was advisory or
     no-go; its change series since its current baseline give the prior on
-    the degradation rate of a unit of the same model (and group, when the
-    unit is in one) (:func:`condmon.monitor.forecast.prior_from_rates`), each
-    unit left out of its own prior. The degraded units are found by one
-    query, and each one's rates are fitted once.
+    the degradation of a unit of the same model (and group, when the unit is
+    in one): its shape (how many peers wore exponentially) and each shape's
+    rate (:func:`condmon.monitor.prior.prior_from_wear`), each unit left out
+    of its own prior. The degraded units are found by one query, and each
+    one's wear is fitted once.
     """
 
     def __init__(self, store: HistoryStore) -> None:
         self.store = store
         self._checks: dict[str, tuple[Baseline, pd.DataFrame]] = {}
         self._degraded: dict[str, tuple[str, str | None]] | None = None
-        self._rates: dict[tuple[str, str, str], tuple[float, float] | None] = {}
+        self._wear: dict[tuple[str, str, str], UnitWear | None] = {}
 
     def checks(self, unit: str) -> tuple[Baseline, pd.DataFrame]:
         """The unit's current baseline and its accepted checks since it.
@@ -89,8 +90,8 @@ class FleetHistory:
         return sorted(u for u, (m, g) in self._degraded.items()
                       if u != unit and m == model and (group is None or g == group))
 
-    def _rate(self, unit: str, key: str, by: str) -> tuple[float, float] | None:
-        if (unit, key, by) not in self._rates:
+    def _unit_wear(self, unit: str, key: str, by: str) -> UnitWear | None:
+        if (unit, key, by) not in self._wear:
             found = None
             try:
                 baseline, checks = self.checks(unit)
@@ -100,19 +101,21 @@ class FleetHistory:
                 axis = forecast_axis(checks)
                 series = parameter_series(checks, baseline, key, axis) \
                     if axis.by == by else None
-                found = None if series is None else unit_rate(*series[0])
-            self._rates[(unit, key, by)] = found
-        return self._rates[(unit, key, by)]
+                found = None if series is None else unit_wear(*series[0])
+            self._wear[(unit, key, by)] = found
+        return self._wear[(unit, key, by)]
 
-    def priors(self, unit: str, keys: Sequence[str], by: str) -> dict[str, RatePrior]:
-        """The linear rate prior of each parameter key for ``unit``, its x
-        counting ``by`` (``tests`` or ``days``; peers counted otherwise are
-        left out); vague ("no fleet history") when fewer than 2 peers have the key."""
+    def priors(self, unit: str, keys: Sequence[str], by: str) -> dict[str, FleetPrior]:
+        """The fleet prior (shape and rates) of each parameter key for
+        ``unit``, its x counting ``by`` (``tests``, ``days`` or ``hours``;
+        peers counted otherwise are left out); vague ("no fleet history")
+        when no peer has the key, and each shape's rate vague when fewer
+        than 2 peers wore that way."""
         peers = self.peers(unit)
         out = {}
         for key in keys:
-            rates = [r for p in peers if (r := self._rate(p, key, by)) is not None]
-            out[key] = prior_from_rates(rates, "linear", by[:-1])
+            wears = [r for p in peers if (r := self._unit_wear(p, key, by)) is not None]
+            out[key] = prior_from_wear(wears, by[:-1] if by != "hours" else "h")
         return out
 
 

@@ -28,14 +28,27 @@ probability of crossing within a horizon. A slope whose 90 % interval holds 0,
 or points away from the threshold, is "no trend": then no number of tests is
 given.
 
-A **fleet prior** (:class:`RatePrior`, built by :func:`fleet_prior` from units
-of the same model that have already degraded) is combined with the unit's own
-tests by Bayesian updating of the slope ``b`` (normal prior, the weighted
-least-squares likelihood, a flat prior on the intercept: Gebraeel 2006, and the
-degradation models of MATLAB's Predictive Maintenance Toolbox): after a few
-tests the fleet's rate carries the forecast; after many, the unit's own. With
-no fleet history the prior is vague, the forecast the unit's own, and a note
-says so.
+A **fleet prior**, built from units of the same model that have already
+degraded (:mod:`condmon.monitor.prior`), is combined with the unit's own
+tests by Bayesian updating (Gebraeel 2006, and the degradation models of
+MATLAB's Predictive Maintenance Toolbox, fit such priors on a fleet):
+
+- :class:`RatePrior` (:func:`fleet_prior`): a normal prior on one model's
+  rate, updated with the weighted least-squares likelihood (a flat prior on
+  the other coefficients);
+- :class:`FleetPrior` (:func:`fleet_wear_prior`, what ``condmon forecast``
+  uses): the shape as well. The line's slope is updated as above; the
+  exponential's growth rate ``b`` by its exact posterior on a grid
+  (:func:`~condmon.monitor.degradation.rate_posterior`: for a given ``b``
+  the model is linear, so (α, β) are integrated out in closed form), and the
+  two models are weighted by the fleet's odds of the exponential times the
+  Bayes factor of the unit's tests, in place of Akaike's weights. A unit
+  whose peers wore exponentially is forecast with their curve before its own
+  tests could show it.
+
+After a few tests the fleet carries the forecast; after many, the unit's own
+tests. With no fleet history the prior is vague, the forecast the unit's
+own, and a note says so.
 
 Why by hand: a weighted two-model fit with a crossing distribution is a few
 lines of numpy, and the prognostics libraries (ProgPy, the Predictive

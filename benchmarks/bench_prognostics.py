@@ -20,7 +20,11 @@
    takes it from a unit's degraded peers), and with the peer ``exponential-degradation-model`` (Gebraeel 2006, as
    MATLAB's exponentialDegradationModel) fed the same series as
    ``ln(S − φ)`` of the signal ``S = 1 + change/100`` (its default φ = −1 and
-   vague priors), the threshold ``1 + r2/100``.
+   vague priors), the threshold ``1 + r2/100``. A reference row scores the
+   true parameter's own crossing (``true_param_life`` less the cut): what
+   a forecaster who knew each unit's wear exactly would say, against the
+   check whose noisy estimate first crossed; its misses are the floor the
+   estimates' scatter and the checks' spacing put under any forecast.
 
 2. Calibration. Healthy units (each its own 10-test baseline, then 20
    checks) at alpha = 0.01: the observed false-alarm rate of the statistical
@@ -72,6 +76,8 @@ ALPHA, LAMBDAS = 0.2, (0.5, 0.75)
 EXP_A = 0.1                 # the exponential wear's scale: factor = 1 + a (exp(r k) - 1)
 MAX_CHECKS = 60
 SECTIONS = ("rtf", "calibration", "drift")
+#: The reference row: the true parameter's own crossing, against the check that saw it.
+REFERENCE = "true wear's crossing (reference)"
 
 Series = tuple[np.ndarray, np.ndarray, np.ndarray, float]
 
@@ -182,7 +188,8 @@ def prognostics(units: list[dict[str, Any]], peer: bool) -> dict[str, Any]:
     rows, per_unit = [], []
     for lam in LAMBDAS:
         preds: dict[str, list[tuple[float, float, float] | None]] = {
-            "condmon, no prior": [], "condmon, fleet prior (leave-one-out)": [], "peer (Gebraeel 2006)": []}
+            REFERENCE: [], "condmon, no prior": [], "condmon, fleet prior (leave-one-out)": [],
+            "peer (Gebraeel 2006)": []}
         truths, shapes = [], []
         for u in done:
             t = max(MIN_TESTS, round(lam * u["life"]))
@@ -197,6 +204,9 @@ def prognostics(units: list[dict[str, Any]], peer: bool) -> dict[str, Any]:
             others = [v["series"] for v in done if v is not u and v["param"] == u["param"]]
             prior = fleet_wear_prior(others)
             post = forecast_series(*s, threshold=thr, prior=prior)
+            # what a forecaster who knew the true wear would say: the true
+            # parameter's crossing, a point (no interval)
+            preds[REFERENCE].append((u["true_life"] - t, math.nan, math.nan))
             preds["condmon, no prior"].append(own.remaining)
             preds["condmon, fleet prior (leave-one-out)"].append(post.remaining)
             if peer:
@@ -209,9 +219,11 @@ def prognostics(units: list[dict[str, Any]], peer: bool) -> dict[str, Any]:
             for shape in ("all", "linear", "exponential"):
                 pick = [i for i, sh in enumerate(shapes) if shape in ("all", sh)]
                 if p and pick:
+                    scores = _score([p[i] for i in pick], [truths[i] for i in pick])
+                    if name == REFERENCE:
+                        scores["coverage_percent"] = "-"
                     rows.append({"lambda": lam, "method": name, "wear": shape,
-                                 "units": len(pick), **_score([p[i] for i in pick],
-                                                               [truths[i] for i in pick])})
+                                 "units": len(pick), **scores})
     return {"rows": rows, "per_unit": per_unit}
 
 

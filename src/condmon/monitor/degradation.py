@@ -58,7 +58,6 @@ def wls(x: FloatArray, y: FloatArray, w: FloatArray) -> Fit:
     return np.asarray(coef, dtype=np.float64), cov, rss
 
 
-
 def growth(b: float, t: FloatArray) -> FloatArray:
     """``(exp(b·t) − 1) / b``: ``t`` itself as ``b`` → 0."""
     return np.asarray(t if b == 0 else np.expm1(b * t) / b, dtype=np.float64)
@@ -101,18 +100,18 @@ def exp_fit(x: FloatArray, y: FloatArray,
 
 
 def fits(xa: FloatArray, ya: FloatArray, sa: FloatArray, spread: float,
-          sign: float) -> dict[str, Fit]:
+          sign: float, exponential: bool = True) -> dict[str, Fit]:
     """Both degradation models' weighted fits, the change taken towards the
     threshold (the exponential from :data:`EXP_MIN_TESTS` tests, where it
-    grows). The slope ``b`` is each model's last coefficient."""
+    grows; not at all when ``exponential`` is false). The slope ``b`` is
+    each model's last coefficient."""
     w = weights(sa, spread)
     fits: dict[str, Fit] = {"linear": wls(xa, ya, w)}
-    if len(xa) >= EXP_MIN_TESTS:
+    if exponential and len(xa) >= EXP_MIN_TESTS:
         exp = exp_fit(xa, sign * ya, w)
         if exp is not None:
             fits["exponential"] = exp
     return fits
-
 
 
 def checked_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
@@ -180,14 +179,11 @@ class RatePosterior:
 
     def draws(self, rng: np.random.Generator, size: int) -> FloatArray:
         """Draws of (α, β, b) from the posterior, shape (size, 3)."""
-        out = np.empty((size, 3))
         pick = rng.choice(len(self.prob), size=size, p=self.prob)
-        for j in np.unique(pick):
-            at = pick == j
-            out[at, :2] = rng.multivariate_normal(self.coef[j], self.cov[j], size=int(at.sum()),
-                                                  method="eigh")
-            out[at, 2] = self.rates[j]
-        return out
+        vals, vecs = np.linalg.eigh(self.cov[pick])     # each draw's (α, β) | b
+        root = vecs * np.sqrt(np.maximum(vals, 0.0))[:, None, :]
+        ab = self.coef[pick] + np.einsum("sij,sj->si", root, rng.standard_normal((size, 2)))
+        return np.column_stack([ab, self.rates[pick]])
 
     def moments(self) -> tuple[FloatArray, FloatArray]:
         """The posterior mean of (α, β, b) and its covariance (within and between rates)."""
@@ -227,15 +223,12 @@ def rate_posterior(x: FloatArray, y: FloatArray, w: FloatArray, mean: float, sd:
     t = x - x[-1]
     span = float(x[-1] - x[0])
     rates = np.geomspace(*_RATE_SPAN, grid) / span
-    coef = np.empty((grid + 1, 2))
-    info = np.empty((grid + 1, 2, 2))
-    rss = np.empty(grid + 1)
-    for j, b in enumerate(np.concatenate([[0.0], rates])):
-        X = np.column_stack([np.ones_like(t), growth(float(b), t)])
-        info[j] = (X * w[:, None]).T @ X
-        coef[j] = np.linalg.solve(info[j], X.T @ (w * y))
-        r = y - X @ coef[j]
-        rss[j] = float(r @ (w * r))
+    g = np.vstack([t, np.expm1(np.outer(rates, t)) / rates[:, None]])   # b = 0: the line
+    X = np.stack([np.ones_like(g), g], axis=-1)                           # (rate, test, 2)
+    info = np.einsum("gni,n,gnj->gij", X, w, X)
+    coef = np.linalg.solve(info, np.einsum("gni,n->gi", X, w * y)[..., None])[..., 0]
+    r = y - np.einsum("gni,gi->gn", X, coef)
+    rss = np.einsum("gn,n,gn->g", r, w, r)
     scale = max(float(rss.min()) / max(len(x) - 3, 1), 1.0)
     logdet = np.linalg.slogdet(info)[1]
     loglik = -0.5 * (rss - rss[0]) / scale - 0.5 * (logdet - logdet[0])

@@ -330,13 +330,16 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
     if threshold == 0:
         raise DataError("forecast: the no-go threshold is 0 %")
     sign = 1.0 if threshold > 0 else -1.0
-    fits = degradation_fits(xa, ya, sa, spread, sign)
+    shaped = isinstance(prior, FleetPrior) and prior.informative
+    # with the fleet's growth rate the exponential is its exact posterior, not the fit alone
+    fits = degradation_fits(xa, ya, sa, spread, sign, exponential=not (
+        shaped and isinstance(prior, FleetPrior) and prior.exponential.informative))
     notes: list[str] = []
     n = len(xa)
     w = weights(sa, spread)
     aic, weight = aicc_weights(fits, n) if len(fits) > 1 else ({}, {"linear": 1.0})
     posterior = None
-    if isinstance(prior, FleetPrior) and prior.informative:
+    if shaped and isinstance(prior, FleetPrior):
         weight, posterior, how = _with_shape(prior, fits, xa, sign * ya, w, weight)
         if posterior is not None:
             mean, cov = posterior.moments()

@@ -17,14 +17,16 @@
    fleet prior (leave-one-out: from the other units that wore the same
    parameter, their full series: the share that wore exponentially, the
    linear slope and the exponential growth rate, as ``condmon forecast``
-   takes it from a unit's degraded peers), and with the peer ``exponential-degradation-model`` (Gebraeel 2006, as
+   takes it from a unit's degraded peers), and with the peer
+   ``exponential-degradation-model`` (Gebraeel 2006, as
    MATLAB's exponentialDegradationModel) fed the same series as
    ``ln(S − φ)`` of the signal ``S = 1 + change/100`` (its default φ = −1 and
    vague priors), the threshold ``1 + r2/100``. A reference row scores the
    true parameter's own crossing (``true_param_life`` less the cut): what
    a forecaster who knew each unit's wear exactly would say, against the
-   check whose noisy estimate first crossed; its misses are the floor the
-   estimates' scatter and the checks' spacing put under any forecast.
+   check whose noisy estimate first crossed; its misses show how much of
+   the ±20 % the estimates' scatter and bias and the checks' spacing take
+   (a forecast of the estimates, bias and all, can do better).
 
 2. Calibration. Healthy units (each its own 10-test baseline, then 20
    checks) at alpha = 0.01: the observed false-alarm rate of the statistical

@@ -76,9 +76,9 @@ from condmon.monitor.prior import (
     prior_from_wear, unit_rate, unit_wear, updated,
 )
 
-__all__ = ["Forecast", "forecast_series", "MIN_TESTS", "checked_horizon", "RatePrior", "fleet_prior",
-           "unit_rate", "prior_from_rates", "FleetPrior", "fleet_wear_prior", "prior_from_wear",
-           "unit_wear", "Prior"]
+__all__ = ["Forecast", "forecast_series", "MIN_TESTS", "checked_horizon", "RatePrior",
+           "fleet_prior", "unit_rate", "prior_from_rates", "FleetPrior", "fleet_wear_prior",
+           "prior_from_wear", "unit_wear", "Prior"]
 
 FloatArray = NDArray[np.float64]
 
@@ -194,8 +194,6 @@ class Forecast:
                     "median": num(self.remaining[0]), "low": num(self.remaining[1]),
                     "high": num(self.remaining[2])},
                 "p_within_horizon": self.p_within, "tests": self.n, "notes": list(self.notes)}
-
-
 
 
 def checked_horizon(horizon: float | None) -> None:

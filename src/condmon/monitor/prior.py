@@ -100,21 +100,20 @@ class RatePrior:
                 "per": self.per}
 
 
-
 def fleet_prior(series: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike, float]],
                 model: str = "linear", per: str = "test") -> RatePrior:
     """The prior on the degradation rate from units that have already degraded.
 
     Each unit's own rate is its weighted fit of ``model`` (as in
-    :func:`~condmon.monitor.forecast.forecast_series`); the prior is their mean, with the between-unit
-    standard deviation widened for a new unit (``sd·√(1 + 1/n)``, the
+    :func:`~condmon.monitor.forecast.forecast_series`); the prior is their
+    mean, with the between-unit standard deviation widened for a new unit (``sd·√(1 + 1/n)``, the
     predictive spread of one more draw).
 
     Parameters
     ----------
     series : sequence of (x, change, se, spread)
-        Each unit's series, the leading arguments of :func:`~condmon.monitor.forecast.forecast_series`:
-        the tests' times [test (or d, h)], changes [%], standard errors and
+        Each unit's series, the leading arguments of
+        :func:`~condmon.monitor.forecast.forecast_series`: the tests' times [test (or d, h)], changes [%], standard errors and
         baseline spread [% of the baseline mean].
     model : {"linear", "exponential"}
         The model whose slope is wanted. A unit that no growing exponential
@@ -130,7 +129,8 @@ def fleet_prior(series: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike, float]],
     Raises
     ------
     DataError
-        An unknown model; a series that :func:`~condmon.monitor.forecast.forecast_series` would refuse.
+        An unknown model; a series that
+        :func:`~condmon.monitor.forecast.forecast_series` would refuse.
 
     References
     ----------
@@ -181,7 +181,6 @@ def prior_from_rates(rates: Sequence[tuple[float, float]], model: str = "linear"
                      len(r), per)
 
 
-
 def updated(fit: Fit, prior: RatePrior) -> Fit:
     """The fit's coefficients updated by a normal prior on the slope (flat on
     the others), in the gain form ``θ + k (m − b)``, ``C − k C_b`` with
@@ -195,7 +194,6 @@ def updated(fit: Fit, prior: RatePrior) -> Fit:
     post_cov = cov - np.outer(gain, cov[-1, :])
     return (np.asarray(post_coef, dtype=np.float64),
             np.asarray((post_cov + post_cov.T) / 2.0, dtype=np.float64), rss)
-
 
 
 @dataclass(frozen=True)

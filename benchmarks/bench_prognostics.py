@@ -1,6 +1,6 @@
 """Prognostics on simulated fleets with known truth (the actuator, nonlinear effects on).
 
-    python benchmarks/bench_prognostics.py [--units 30]
+    python benchmarks/bench_prognostics.py [--units 30] [--only rtf|calibration|drift]
     pip install exponential-degradation-model   # the peer (optional; skipped with a note)
 
 1. Run to failure. Each unit wears one parameter (friction D with the Coulomb
@@ -15,11 +15,18 @@
    share of units whose median RUL is within ±20 % of the true RUL), the
    coverage of the 90 % interval, and the median relative error. Again with the
    fleet prior (leave-one-out: from the other units that wore the same
-   parameter, their full series; the model the unit's own evidence chooses),
-   and with the peer ``exponential-degradation-model`` (Gebraeel 2006, as
+   parameter, their full series: the share that wore exponentially, the
+   linear slope and the exponential growth rate, as ``condmon forecast``
+   takes it from a unit's degraded peers), and with the peer
+   ``exponential-degradation-model`` (Gebraeel 2006, as
    MATLAB's exponentialDegradationModel) fed the same series as
    ``ln(S − φ)`` of the signal ``S = 1 + change/100`` (its default φ = −1 and
-   vague priors), the threshold ``1 + r2/100``.
+   vague priors), the threshold ``1 + r2/100``. A reference row scores the
+   true parameter's own crossing (``true_param_life`` less the cut): what
+   a forecaster who knew each unit's wear exactly would say, against the
+   check whose noisy estimate first crossed; its misses show how much of
+   the ±20 % the estimates' scatter and bias and the checks' spacing take
+   (a forecast of the estimates, bias and all, can do better).
 
 2. Calibration. Healthy units (each its own 10-test baseline, then 20
    checks) at alpha = 0.01: the observed false-alarm rate of the statistical
@@ -56,7 +63,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from _common import table, write_json
-from condmon.monitor.forecast import MIN_TESTS, fleet_prior, forecast_series
+from condmon.monitor.forecast import MIN_TESTS, fleet_wear_prior, forecast_series
 from condmon.simulate import load_actuator_rig, simulate_actuator
 from condmon.store import open_store
 from condmon.workflows.checks import check_test
@@ -70,6 +77,9 @@ DRIFT_UNITS, DRIFT_RATE, DRIFT_MAX = 20, 0.04, 90
 ALPHA, LAMBDAS = 0.2, (0.5, 0.75)
 EXP_A = 0.1                 # the exponential wear's scale: factor = 1 + a (exp(r k) - 1)
 MAX_CHECKS = 60
+SECTIONS = ("rtf", "calibration", "drift")
+#: The reference row: the true parameter's own crossing, against the check that saw it.
+REFERENCE = "true wear's crossing (reference)"
 
 Series = tuple[np.ndarray, np.ndarray, np.ndarray, float]
 
@@ -180,7 +190,8 @@ def prognostics(units: list[dict[str, Any]], peer: bool) -> dict[str, Any]:
     rows, per_unit = [], []
     for lam in LAMBDAS:
         preds: dict[str, list[tuple[float, float, float] | None]] = {
-            "condmon": [], "condmon + fleet prior": [], "peer (Gebraeel 2006)": []}
+            REFERENCE: [], "condmon, no prior": [], "condmon, fleet prior (leave-one-out)": [],
+            "peer (Gebraeel 2006)": []}
         truths, shapes = [], []
         for u in done:
             t = max(MIN_TESTS, round(lam * u["life"]))
@@ -192,12 +203,14 @@ def prognostics(units: list[dict[str, Any]], peer: bool) -> dict[str, Any]:
             s = _cut(u["series"], t)
             thr = _threshold(s[1], u["param"])
             own = forecast_series(*s, threshold=thr)
-            model = own.model if own.model != "no trend" else "linear"
             others = [v["series"] for v in done if v is not u and v["param"] == u["param"]]
-            prior = fleet_prior(others, model=model)
+            prior = fleet_wear_prior(others)
             post = forecast_series(*s, threshold=thr, prior=prior)
-            preds["condmon"].append(own.remaining)
-            preds["condmon + fleet prior"].append(post.remaining)
+            # what a forecaster who knew the true wear would say: the true
+            # parameter's crossing, a point (no interval)
+            preds[REFERENCE].append((u["true_life"] - t, math.nan, math.nan))
+            preds["condmon, no prior"].append(own.remaining)
+            preds["condmon, fleet prior (leave-one-out)"].append(post.remaining)
             if peer:
                 preds["peer (Gebraeel 2006)"].append(_peer(u["series"], t, u["param"]))
             per_unit.append({"unit": u["unit"], "lambda": lam, "true_rul": truth,
@@ -208,9 +221,11 @@ def prognostics(units: list[dict[str, Any]], peer: bool) -> dict[str, Any]:
             for shape in ("all", "linear", "exponential"):
                 pick = [i for i, sh in enumerate(shapes) if shape in ("all", sh)]
                 if p and pick:
+                    scores = _score([p[i] for i in pick], [truths[i] for i in pick])
+                    if name == REFERENCE:
+                        scores["coverage_percent"] = "-"
                     rows.append({"lambda": lam, "method": name, "wear": shape,
-                                 "units": len(pick), **_score([p[i] for i in pick],
-                                                               [truths[i] for i in pick])})
+                                 "units": len(pick), **scores})
     return {"rows": rows, "per_unit": per_unit}
 
 
@@ -221,7 +236,7 @@ def _ratios(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
         peer = by.get("peer (Gebraeel 2006)")
         if peer is None:
             continue
-        for name in ("condmon", "condmon + fleet prior"):
+        for name in ("condmon, no prior", "condmon, fleet prior (leave-one-out)"):
             mine = by[name]
             out.append({"lambda": lam, "method": name, **{
                 f"{k} ratio": (mine[k] / peer[k] if peer[k] else math.inf)
@@ -320,12 +335,56 @@ def drift_delay(rig, n_units: int, alpha: float) -> dict[str, Any]:  # type: ign
                                      for k, v in firsts.items()}}
 
 
+def _rtf_section(n_units: int, peer: bool) -> dict[str, Any]:
+    units = run_to_failure(demo_rig(), n_units)
+    lives = [u for u in units if u["life"] is not None]
+    fleet = [{"unit": u["unit"], "param": u["param"], "shape": u["shape"],
+              "rate": u["rate"], "true_param_life": u["true_life"], "life": u["life"]}
+             for u in units]
+    print(table(fleet, f"Run to failure: {len(lives)} of {len(units)} units crossed no-go "
+                       f"within {MAX_CHECKS} checks (life: the crossing check)"))
+    res = prognostics(units, peer)
+    print()
+    print(table(res["rows"], f"RUL at λ of each life: α-λ (α = {ALPHA}: median within "
+                             "±20 % of the true RUL), 90 % interval coverage, median "
+                             "relative error [targets: α-λ >= 80 %, coverage 80-97 %]"))
+    ratios = _ratios(res["rows"])
+    if ratios:
+        print()
+        print(table(ratios, "condmon / peer"))
+    return {"units": fleet, "scores": res["rows"], "ratios": ratios,
+            "per_unit": res["per_unit"], "peer": peer}
+
+
+def _detector_sections(cal_units: int, drift_units: int) -> dict[str, Any]:
+    cal = calibration(demo_rig(), cal_units)
+    print()
+    print(table(cal["rows"], f"Calibration: {cal_units} healthy units × "
+                             f"{CAL_CHECKS} checks, own {CAL_BASELINE}-test baselines; "
+                             "false-alarm rate per check, 95 % interval [target "
+                             "rate/alpha 0.5-2]"))
+    fuzzy = next(r for r in cal["rows"] if r["detector"].startswith("fuzzy"))
+    matched = fuzzy["rate"] if fuzzy["alarms"] else fuzzy["high95"]
+    how = ("the fuzzy status's observed false-alarm rate" if fuzzy["alarms"]
+           else "the 95 % upper bound of the fuzzy status's false-alarm rate (0 seen)")
+    dd = drift_delay(demo_rig(), drift_units, matched)
+    print()
+    print(table(dd["rows"], f"Drift delay: friction +{100 * DRIFT_RATE:g} % a test, "
+                            f"{drift_units} units; first alarming check; "
+                            f"alpha = {matched:.4g} ({how}) [goal: >= 30 % earlier]"))
+    return {"calibration": cal, "drift": {**dd, "alpha": matched, "alpha_is": how}}
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--units", type=int, default=30)
     ap.add_argument("--cal-units", type=int, default=CAL_UNITS)
     ap.add_argument("--drift-units", type=int, default=DRIFT_UNITS)
+    ap.add_argument("--only", choices=SECTIONS, action="append",
+                    help="run only this section (repeatable; default: all; drift runs the "
+                         "calibration too: its alpha is the fuzzy status's rate there)")
     args = ap.parse_args()
+    only = set(args.only or SECTIONS)
     try:
         import exponential_degradation  # noqa: F401
         peer = True
@@ -336,47 +395,18 @@ def main() -> int:
     t0 = time.perf_counter()
     doc: dict[str, Any] = {}
     with threadpool_limits(limits=1):
-        units = run_to_failure(demo_rig(), args.units)
-        lives = [u for u in units if u["life"] is not None]
-        fleet = [{"unit": u["unit"], "param": u["param"], "shape": u["shape"],
-                  "rate": u["rate"], "true_param_life": u["true_life"], "life": u["life"]}
-                 for u in units]
-        print(table(fleet, f"Run to failure: {len(lives)} of {len(units)} units crossed no-go "
-                           f"within {MAX_CHECKS} checks (life: the crossing check)"))
-        res = prognostics(units, peer)
-        print()
-        print(table(res["rows"], f"RUL at λ of each life: α-λ (α = {ALPHA}: median within "
-                                 "±20 % of the true RUL), 90 % interval coverage, median "
-                                 "relative error [targets: α-λ >= 80 %, coverage 80-97 %]"))
-        ratios = _ratios(res["rows"])
-        if ratios:
-            print()
-            print(table(ratios, "condmon / peer"))
-        doc["run_to_failure"] = {"units": fleet, "scores": res["rows"], "ratios": ratios,
-                                 "per_unit": res["per_unit"], "peer": peer}
-        if _statistics_config() is None:
-            print("\nnote: no calibrated statistical detector (condmon.monitor.statistics) "
-                  "in this condmon: calibration and drift delay skipped")
-        else:
-            cal = calibration(demo_rig(), args.cal_units)
-            print()
-            print(table(cal["rows"], f"Calibration: {args.cal_units} healthy units × "
-                                     f"{CAL_CHECKS} checks, own {CAL_BASELINE}-test baselines; "
-                                     "false-alarm rate per check, 95 % interval [target "
-                                     "rate/alpha 0.5-2]"))
-            fuzzy = next(r for r in cal["rows"] if r["detector"].startswith("fuzzy"))
-            matched = fuzzy["rate"] if fuzzy["alarms"] else fuzzy["high95"]
-            how = ("the fuzzy status's observed false-alarm rate" if fuzzy["alarms"]
-                   else "the 95 % upper bound of the fuzzy status's false-alarm rate (0 seen)")
-            dd = drift_delay(demo_rig(), args.drift_units, matched)
-            print()
-            print(table(dd["rows"], f"Drift delay: friction +{100 * DRIFT_RATE:g} % a test, "
-                                    f"{args.drift_units} units; first alarming check; "
-                                    f"alpha = {matched:.4g} ({how}) [goal: >= 30 % earlier]"))
-            doc["calibration"] = cal
-            doc["drift"] = {**dd, "alpha": matched, "alpha_is": how}
+        if "rtf" in only:
+            doc["run_to_failure"] = _rtf_section(args.units, peer)
+        if only & {"calibration", "drift"}:
+            if _statistics_config() is None:
+                print("\nnote: no calibrated statistical detector (condmon.monitor.statistics) "
+                      "in this condmon: calibration and drift delay skipped")
+            else:   # the drift section's alpha is the calibration's fuzzy rate: both run
+                doc.update(_detector_sections(args.cal_units, args.drift_units))
     doc["seconds"] = time.perf_counter() - t0
-    path = write_json("bench_prognostics", doc)
+    name = "bench_prognostics" if only == set(SECTIONS) else \
+        "bench_prognostics_" + "_".join(k for k in SECTIONS if k in only)
+    path = write_json(name, doc)
     print(f"\nwrote {path} ({doc['seconds']:.0f} s)")
     return 0
 

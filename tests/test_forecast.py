@@ -269,8 +269,8 @@ def test_the_fleet_teaches_a_new_unit_its_rate(tmp_path: Path, demo_rig,  # type
                                                capsys: pytest.CaptureFixture[str]) -> None:
     """Two units of the group wore out (friction +100 % a day, to advisory and
     no-go); a new unit of the group starts on the same path: its forecast of
-    D updates the fleet's prior rate (about +100 %/day); a unit of another
-    group learns nothing from them ("no fleet history")."""
+    D updates the fleet's prior (their shape and rate) and crosses when they
+    did; a unit of another group learns nothing from them ("no fleet history")."""
     db = str(tmp_path / "fleet.db")
     with open_store(db) as store:
         for i, (unit, group, days) in enumerate((("OLD1", "line-a", 9), ("OLD2", "line-a", 9),
@@ -282,14 +282,36 @@ def test_the_fleet_teaches_a_new_unit_its_rate(tmp_path: Path, demo_rig,  # type
                 check_test(store, unit, simulate_actuator(rig, seed=300 + 10 * k + i),
                            test_date=f"2026-01-{1 + k:02d}", group=group)
         assert {str(s) for s in store.history("OLD1")["status"].dropna()} & {"advisory", "no-go"}
+        # the worn units' wear was kept by their own checks: a prior reads it, not
+        # their histories, and it is the wear their histories give
+        from condmon.store.forecasts import FleetHistory
+
+        kept = FleetHistory(store)
+        read: list[str] = []
+        real_history = store.history
+        store.history = lambda u: read.append(u) or real_history(u)  # type: ignore[method-assign]
+        assert kept.learning_peers("NEW") == ["OLD1", "OLD2"] and read == []
+        store.history = real_history  # type: ignore[method-assign]
+        fresh = FleetHistory(store)
+        fresh.learning_peers("ELSE")
+        for unit in ("OLD1", "OLD2"):
+            assert kept._wear[(unit, "D", "days")] == pytest.approx(
+                fresh._unit_wear(unit, "D", "days"))
     capsys.readouterr()
     assert main(["forecast", "--unit", "NEW", "--db", db, "--json"]) == 0
     d = next(p for p in json.loads(capsys.readouterr().out)["parameters"]
              if p["parameter"] == "D")
     prior = next(n for n in d["notes"] if n.startswith("fleet prior"))
     assert "from 2 units" in prior
-    rate = float(prior.split("slope ")[1].split(" ±")[0])
-    assert rate == pytest.approx(100.0, rel=0.3)
+    # the estimated friction of the worn units grew a little faster than the
+    # true one (their daily rises 120, 100, 140, 90, 130, 150 %): their own
+    # evidence chose a mildly curved exponential, and that is the shape taught
+    assert "(2 wore exponentially)" in prior
+    rate = float(prior.split("growth rate ")[1].split(" ±")[0])
+    assert 0.0 < rate * 9 < 1.0          # e^(b·9 days) < e: a gentle curve
+    # both crossed +600 % between their 5th and 6th day; the new unit, on the
+    # same path, is due between 4.5 and 6.5 (its 4th day was its last check)
+    assert d["model"] == "exponential" and 0.5 < d["remaining"]["median"] < 2.5
     assert main(["forecast", "--unit", "ELSE", "--db", db]) == 0
     assert "prior: no fleet history: vague prior" in capsys.readouterr().out
 

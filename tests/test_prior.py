@@ -1,4 +1,4 @@
-"""The fleet prior on the degradation rate against known truth: a tight correct
+"""The fleet prior on the degradation rate (and shape) against known truth: a tight correct
 prior sharpens an early forecast, a vague one leaves it alone, the fleet's rate
 and spread are recovered, and the refusals."""
 
@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 
 from condmon.errors import DataError
-from condmon.monitor.forecast import RatePrior, fleet_prior, forecast_series
+from condmon.monitor.forecast import (
+    FleetPrior, RatePrior, fleet_prior, fleet_wear_prior, forecast_series,
+)
 
 # the truth: +2 % a test, no-go at +60 %: crossed at test 30
 RATE, THRESHOLD, NOISE = 2.0, 60.0, 3.0
@@ -131,3 +133,65 @@ def test_a_prior_as_tight_as_can_be_is_the_rate() -> None:
                         prior=RatePrior("linear", 115.0, 1e-12, 2, "day"))
     assert f.slope == pytest.approx(115.0) and f.remaining is not None
     assert 1.2 < f.remaining[1] <= f.remaining[0] <= f.remaining[2] < 2.0
+
+
+def _exp_unit(rate: float, seed: int, tests: int) -> tuple[np.ndarray, np.ndarray]:
+    """A unit that wears exponentially: +10·(e^(r·k) − 1) %, ±2 % per test."""
+    x = np.arange(1.0, tests + 1.0)
+    return x, 10.0 * np.expm1(rate * x) + np.random.default_rng(seed).normal(0.0, 2.0, tests)
+
+
+def test_peers_that_wore_exponentially_make_a_new_unit_exponential() -> None:
+    """Half-way to no-go (+300 %) a unit's own 11 tests barely pin the curve;
+    a fleet that wore exponentially at a like rate makes its forecast
+    exponential and on time (the truth inside the 90 % interval), closer than
+    its own evidence alone."""
+    rng = np.random.default_rng(4)
+    fleet = [(*_exp_unit(r, 100 + i, 30), np.full(30, 2.0), 1.0)
+             for i, r in enumerate(rng.normal(0.15, 0.015, 8))]
+    prior = fleet_wear_prior(fleet)
+    assert prior.exponential.units == 8 and prior.p_exponential == pytest.approx(0.9)
+    assert prior.exponential.mean == pytest.approx(0.15, abs=0.015)
+    own_hits = shaped = 0
+    err_own, err_prior = [], []
+    for seed in range(10):
+        x, y = _exp_unit(0.15, seed, 11)
+        truth = math.log(31.0) / 0.15 - 11.0            # 10·(e^(0.15·k) − 1) = 300
+        own = forecast_series(x, y, np.full(11, 2.0), 1.0, 300.0)
+        f = forecast_series(x, y, np.full(11, 2.0), 1.0, 300.0, prior=prior)
+        assert f.remaining is not None and own.remaining is not None
+        assert f.model == "exponential" and f.notes[-1] == prior.describe()
+        assert f.remaining[1] <= truth <= f.remaining[2]
+        shaped += abs(f.remaining[0] - truth) <= 0.2 * truth
+        own_hits += abs(own.remaining[0] - truth) <= 0.2 * truth
+        err_own.append(abs(own.remaining[0] - truth))
+        err_prior.append(abs(f.remaining[0] - truth))
+    # own evidence: 7 of 10 within ±20 %, a median error of 1.2 tests; the fleet's: 10, 0.2
+    assert shaped >= 9 and shaped > own_hits
+    assert np.median(err_prior) < 0.5 * np.median(err_own)
+
+
+def test_a_linear_fleet_keeps_a_linear_unit_linear() -> None:
+    """Peers that wore linearly give the slope and no curve: a unit on their
+    path is forecast by the line, on time."""
+    rng = np.random.default_rng(8)
+    x = np.arange(1.0, 31.0)
+    fleet = [(x, r * x + rng.normal(0.0, NOISE, 30), np.full(30, NOISE), 1.0)
+             for r in rng.normal(RATE, 0.2, 8)]
+    prior = fleet_wear_prior(fleet)
+    # (noise curves 2 of the 8 a little, b·span ≈ 0.5: the odds stay with the line)
+    assert prior.p_exponential < 0.5 and prior.linear.units >= 6
+    assert prior.linear.mean == pytest.approx(RATE, abs=0.2)
+    x, y = _early(7, tests=10)
+    f = forecast_series(x, y, np.full(10, NOISE), 1.0, THRESHOLD, prior=prior)
+    assert f.model == "linear" and f.remaining is not None
+    assert f.remaining[0] == pytest.approx(THRESHOLD / RATE - 10.0, rel=0.2)
+
+
+def test_a_shape_prior_without_peers_is_vague_and_said() -> None:
+    x, y = _early(5, tests=10)
+    own = forecast_series(x, y, np.full(10, NOISE), 1.0, THRESHOLD)
+    f = forecast_series(x, y, np.full(10, NOISE), 1.0, THRESHOLD, prior=fleet_wear_prior([]))
+    assert f.remaining == own.remaining and f.notes[-1] == "no fleet history: vague prior"
+    with pytest.raises(DataError, match=r"in \(0, 1\)"):
+        FleetPrior(1.0, RatePrior.vague(), RatePrior.vague("exponential"), 3)

@@ -28,14 +28,27 @@ probability of crossing within a horizon. A slope whose 90 % interval holds 0,
 or points away from the threshold, is "no trend": then no number of tests is
 given.
 
-A **fleet prior** (:class:`RatePrior`, built by :func:`fleet_prior` from units
-of the same model that have already degraded) is combined with the unit's own
-tests by Bayesian updating of the slope ``b`` (normal prior, the weighted
-least-squares likelihood, a flat prior on the intercept: Gebraeel 2006, and the
-degradation models of MATLAB's Predictive Maintenance Toolbox): after a few
-tests the fleet's rate carries the forecast; after many, the unit's own. With
-no fleet history the prior is vague, the forecast the unit's own, and a note
-says so.
+A **fleet prior**, built from units of the same model that have already
+degraded (:mod:`condmon.monitor.prior`), is combined with the unit's own
+tests by Bayesian updating (Gebraeel 2006, and the degradation models of
+MATLAB's Predictive Maintenance Toolbox, fit such priors on a fleet):
+
+- :class:`RatePrior` (:func:`fleet_prior`): a normal prior on one model's
+  rate, updated with the weighted least-squares likelihood (a flat prior on
+  the other coefficients);
+- :class:`FleetPrior` (:func:`fleet_wear_prior`, what ``condmon forecast``
+  uses): the shape as well. The line's slope is updated as above; the
+  exponential's growth rate ``b`` by its exact posterior on a grid
+  (:func:`~condmon.monitor.degradation.rate_posterior`: for a given ``b``
+  the model is linear, so (α, β) are integrated out in closed form), and the
+  two models are weighted by the fleet's odds of the exponential times the
+  Bayes factor of the unit's tests, in place of Akaike's weights. A unit
+  whose peers wore exponentially is forecast with their curve before its own
+  tests could show it.
+
+After a few tests the fleet carries the forecast; after many, the unit's own
+tests. With no fleet history the prior is vague, the forecast the unit's
+own, and a note says so.
 
 Why by hand: a weighted two-model fit with a crossing distribution is a few
 lines of numpy, and the prognostics libraries (ProgPy, the Predictive
@@ -46,7 +59,7 @@ ensembles, not a change series with its own per-test uncertainty.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -54,14 +67,21 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from condmon.errors import DataError
+from condmon.monitor.degradation import (
+    MIN_TESTS, Fit, RatePosterior, aicc_weights, checked_series, growth, rate_posterior, weights,
+)
+from condmon.monitor.degradation import fits as degradation_fits
+from condmon.monitor.prior import (
+    FleetPrior, Prior, RatePrior, fleet_prior, fleet_wear_prior, prior_from_rates,
+    prior_from_wear, unit_rate, unit_wear, updated,
+)
 
-__all__ = ["Forecast", "forecast_series", "MIN_TESTS", "checked_horizon", "RatePrior", "fleet_prior", "unit_rate",
-           "prior_from_rates"]
+__all__ = ["Forecast", "forecast_series", "MIN_TESTS", "checked_horizon", "RatePrior",
+           "fleet_prior", "unit_rate", "prior_from_rates", "FleetPrior", "fleet_wear_prior",
+           "prior_from_wear", "unit_wear", "Prior"]
 
 FloatArray = NDArray[np.float64]
 
-#: Fewest checks since the baseline that a forecast needs.
-MIN_TESTS = 3
 _DRAWS = 4000
 _BAND_DRAWS = 1000
 _Z90 = 1.6448536269514722
@@ -157,9 +177,9 @@ class Forecast:
         sign = 1.0 if self.threshold > 0 else -1.0
         draws = np.random.default_rng(0).multivariate_normal(coef, cov, size=_BAND_DRAWS,
                                                              method="eigh")
-        paths = np.array([lv + sl * _growth(float(r), t) for lv, sl, r in draws])
+        paths = np.array([lv + sl * growth(float(r), t) for lv, sl, r in draws])
         lo, hi = np.quantile(paths, [0.05, 0.95], axis=0)
-        path = coef[0] + coef[1] * _growth(float(coef[2]), t)
+        path = coef[0] + coef[1] * growth(float(coef[2]), t)
         ends = sign * lo, sign * hi
         return sign * path, np.minimum(*ends), np.maximum(*ends)
 
@@ -176,103 +196,6 @@ class Forecast:
                 "p_within_horizon": self.p_within, "tests": self.n, "notes": list(self.notes)}
 
 
-@dataclass(frozen=True)
-class RatePrior:
-    """The fleet's prior on the degradation rate of one model.
-
-    Attributes
-    ----------
-    model : {"linear", "exponential"}
-        The degradation model whose slope ``b`` it is about.
-    mean : float
-        The rate: for "linear" the change per test (or day) [% per test (or day)];
-        for "exponential" the rate ``b`` of its growing part [1 per test (or day)].
-    sd : float
-        Its standard deviation for a new unit (inf: vague). [as ``mean``]
-    units : int
-        How many units it came from (0: no fleet history).
-    per : str
-        What ``x`` counts, for the description ("test", "day", "h").
-    """
-
-    model: str
-    mean: float
-    sd: float
-    units: int
-    per: str = "test"
-
-    def __post_init__(self) -> None:
-        if self.model not in _MODELS:
-            raise DataError(f"unknown degradation model {self.model!r}: "
-                            f"use one of {', '.join(_MODELS)}")
-        if not (math.isfinite(self.mean) and self.sd > 0):
-            raise DataError(f"a rate prior needs a finite mean and an sd > 0, "
-                            f"not {self.mean:g} ± {self.sd:g}")
-
-    @classmethod
-    def vague(cls, model: str = "linear", per: str = "test") -> RatePrior:
-        """The prior with no fleet history: the unit's own tests decide."""
-        return cls(model, 0.0, math.inf, 0, per)
-
-    @property
-    def informative(self) -> bool:
-        """Whether it carries any fleet knowledge."""
-        return math.isfinite(self.sd)
-
-    def describe(self) -> str:
-        """One line: where the prior comes from and what it says."""
-        if not self.informative:
-            return "no fleet history: vague prior"
-        if self.model == "linear":
-            what = f"slope {self.mean:.3g} ± {self.sd:.2g} %/{self.per}"
-        else:
-            what = f"growth rate {self.mean:.3g} ± {self.sd:.2g} /{self.per}"
-        return f"fleet prior ({self.model}) from {self.units} units: {what}"
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready form (a vague sd as None)."""
-        return {"model": self.model, "mean": self.mean,
-                "sd": self.sd if self.informative else None, "units": self.units,
-                "per": self.per}
-
-
-_MODELS = ("linear", "exponential")
-#: Fewest tests for the exponential (three coefficients, and a residual to judge them by).
-_EXP_MIN_TESTS = 5
-
-
-def _wls(x: FloatArray, y: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray, float]:
-    """Weighted straight line: coefficients (a, b), their covariance, weighted RSS."""
-    X = np.column_stack([np.ones_like(x), x])
-    sw = np.sqrt(w)
-    coef, *_ = np.linalg.lstsq(X * sw[:, None], y * sw, rcond=None)
-    r = (y - X @ coef) * sw
-    rss = float(r @ r)
-    dof = max(len(x) - 2, 1)
-    # the weights give the relative scale; the residuals the absolute one (at
-    # least the weights' own: a series smoother than its stated noise is not
-    # taken as more certain than that)
-    scale = max(rss / dof, 1.0)
-    cov = np.asarray(np.linalg.pinv((X * w[:, None]).T @ X) * scale, dtype=np.float64)
-    return np.asarray(coef, dtype=np.float64), cov, rss
-
-
-def _updated(fit: tuple[FloatArray, FloatArray, float],
-             prior: RatePrior) -> tuple[FloatArray, FloatArray, float]:
-    """The fit's coefficients updated by a normal prior on the slope (flat on
-    the others), in the gain form ``θ + k (m − b)``, ``C − k C_b`` with
-    ``k = C_·b / (C_bb + s²)``: the same as adding precisions, and sound for
-    a prior as tight as the fit is loose (no inverse of a near-singular sum)."""
-    coef, cov, rss = fit
-    if not prior.informative:
-        return fit
-    gain = cov[:, -1] / (cov[-1, -1] + prior.sd ** 2)   # the slope is the last coefficient
-    post_coef = coef + gain * (prior.mean - coef[-1])
-    post_cov = cov - np.outer(gain, cov[-1, :])
-    return (np.asarray(post_coef, dtype=np.float64),
-            np.asarray((post_cov + post_cov.T) / 2.0, dtype=np.float64), rss)
-
-
 def checked_horizon(horizon: float | None) -> None:
     """Refuse a horizon that is not a finite number > 0 (None: no horizon). [tests (or d, h)]"""
     if horizon is not None and not (horizon > 0 and math.isfinite(horizon)):
@@ -280,176 +203,28 @@ def checked_horizon(horizon: float | None) -> None:
                         f"ahead), not {horizon:g}")
 
 
-def _fitted(fit: tuple[FloatArray, FloatArray, float]
+def _fitted(fit: tuple[FloatArray, FloatArray] | Fit
             ) -> tuple[tuple[float, ...], tuple[tuple[float, ...], ...]]:
     """A fit's coefficients and covariance as plain tuples (for :class:`Forecast`)."""
     return (tuple(float(v) for v in fit[0]),
             tuple(tuple(float(v) for v in row) for row in fit[1]))
 
 
-def _growth(b: float, t: FloatArray) -> FloatArray:
-    """``(exp(b·t) − 1) / b``: ``t`` itself as ``b`` → 0."""
-    return np.asarray(t if b == 0 else np.expm1(b * t) / b, dtype=np.float64)
+def _normal_draws(fit: Fit) -> Callable[[np.random.Generator, int], FloatArray]:
+    return lambda rng, size: rng.multivariate_normal(fit[0], fit[1], size=size, method="eigh")
 
 
-def _expfit(x: FloatArray, y: FloatArray,
-            w: FloatArray) -> tuple[FloatArray, FloatArray, float] | None:
-    """Weighted exponential with an offset, written from the last test
-    (``t = x − x_last``) as ``y = α + β·(exp(b·t) − 1)/b``: the level α and
-    slope β at the last test and the growth rate b (a line as b → 0).
-    Coefficients (α, β, b), their covariance (Gauss-Newton), weighted RSS;
-    None where no growing exponential (b above the flat end) fits better."""
-    t = x - x[-1]
-    span = float(x[-1] - x[0])
-    sw = np.sqrt(w)
-
-    def profile(b: float) -> tuple[float, FloatArray]:
-        # for a given rate the model is linear in (α, β)
-        X = np.column_stack([np.ones_like(t), _growth(b, t)])
-        coef, *_ = np.linalg.lstsq(X * sw[:, None], y * sw, rcond=None)
-        r = (y - X @ coef) * sw
-        return float(r @ r), np.asarray(coef, dtype=np.float64)
-
-    grid = np.geomspace(0.01, 30.0, 64) / span
-    rss = [profile(float(b))[0] for b in grid]
-    i = int(np.argmin(rss))
-    if i == 0:                     # flattest rate best: a line, not an exponential
-        return None
-    from scipy.optimize import minimize_scalar  # 0.2 s to import: only when a curve is fitted
-
-    found = minimize_scalar(lambda b: profile(float(b))[0], method="bounded",
-                            bounds=(float(grid[i - 1]), float(grid[min(i + 1, len(grid) - 1)])))
-    b = float(found.x)
-    best, (level, slope) = profile(b)
-    g = _growth(b, t)
-    J = np.column_stack([np.ones_like(t), g, slope * (t * np.exp(b * t) - g) / b])
-    scale = max(best / max(len(x) - 3, 1), 1.0)
-    cov = np.asarray(np.linalg.pinv((J * w[:, None]).T @ J) * scale, dtype=np.float64)
-    return np.array([level, slope, b]), cov, best
-
-
-def _fits(xa: FloatArray, ya: FloatArray, sa: FloatArray, spread: float,
-          sign: float) -> dict[str, tuple[FloatArray, FloatArray, float]]:
-    """Both degradation models' weighted fits, the change taken towards the
-    threshold (the exponential from :data:`_EXP_MIN_TESTS` tests, where it
-    grows). The slope ``b`` is each model's last coefficient."""
-    w = 1.0 / (sa ** 2 + spread ** 2 + 1e-12)
-    fits: dict[str, tuple[FloatArray, FloatArray, float]] = {"linear": _wls(xa, ya, w)}
-    if len(xa) >= _EXP_MIN_TESTS:
-        exp = _expfit(xa, sign * ya, w)
-        if exp is not None:
-            fits["exponential"] = exp
-    return fits
-
-
-def fleet_prior(series: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike, float]],
-                model: str = "linear", per: str = "test") -> RatePrior:
-    """The prior on the degradation rate from units that have already degraded.
-
-    Each unit's own rate is its weighted fit of ``model`` (as in
-    :func:`forecast_series`); the prior is their mean, with the between-unit
-    standard deviation widened for a new unit (``sd·√(1 + 1/n)``, the
-    predictive spread of one more draw).
-
-    Parameters
-    ----------
-    series : sequence of (x, change, se, spread)
-        Each unit's series, the leading arguments of :func:`forecast_series`:
-        the tests' times [test (or d, h)], changes [%], standard errors and
-        baseline spread [% of the baseline mean].
-    model : {"linear", "exponential"}
-        The model whose slope is wanted. A unit that no growing exponential
-        fits has no exponential rate and is left out.
-    per : str
-        What ``x`` counts ("test", "day", "h"), for the description.
-
-    Returns
-    -------
-    RatePrior
-        Vague (``units=0``, sd inf) when fewer than 2 units give a rate.
-
-    Raises
-    ------
-    DataError
-        An unknown model; a series that :func:`forecast_series` would refuse.
-
-    References
-    ----------
-    N. Gebraeel, "Sensory-updated residual life distributions for components
-    with exponential degradation patterns", IEEE Trans. Automation Science
-    and Engineering 3(4), 2006.
-
-    Example
-    -------
-    >>> x = np.arange(1.0, 21.0)                  # three worn units: +1.8, +2.0, +2.2 % a test
-    >>> fleet = [(x, r * x, np.ones(20), 1.0, ) for r in (1.8, 2.0, 2.2)]
-    >>> p = fleet_prior(fleet)
-    >>> p.describe()
-    'fleet prior (linear) from 3 units: slope 2 ± 0.23 %/test'
-    >>> fleet_prior(fleet[:1]).describe()
-    'no fleet history: vague prior'
-    """
-    if model not in _MODELS:
-        raise DataError(f"unknown degradation model {model!r}: use one of {', '.join(_MODELS)}")
-    rates = [found for x, change, se, spread in series
-             if (found := unit_rate(x, change, se, spread, model)) is not None]
-    return prior_from_rates(rates, model, per)
-
-
-def unit_rate(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
-              model: str = "linear") -> tuple[float, float] | None:
-    """One unit's degradation rate under ``model`` and its variance (None: no
-    growing exponential fits the series), as :func:`fleet_prior` reads it.
-    [% per x (linear), 1 per x (exponential); squared]"""
-    xa, ya, sa = _checked(x, change, se, spread)
-    tail = float(np.mean(ya[-MIN_TESTS:]))
-    fit = _fits(xa, ya, sa, spread, 1.0 if tail >= 0 else -1.0).get(model)
-    return None if fit is None else (float(fit[0][-1]), float(fit[1][-1, -1]))
-
-
-def prior_from_rates(rates: Sequence[tuple[float, float]], model: str = "linear",
-                     per: str = "test") -> RatePrior:
-    """The prior from units' rates and their variances (:func:`unit_rate`):
-    their mean, and their spread for a new unit (``sd·√(1 + 1/n)``), never
-    less than the rates' own estimation error; vague with fewer than 2."""
-    if len(rates) < 2:
-        return RatePrior.vague(model, per)
-    r = np.asarray([v for v, _ in rates])
-    # the units' rates scatter by their own estimation error too: never less than that
-    var = max(float(np.var(r, ddof=1)), float(np.mean([e for _, e in rates])))
-    sd = math.sqrt(var * (1.0 + 1.0 / len(r)))
-    return RatePrior(model, float(np.mean(r)), max(sd, 1e-12 * max(1.0, abs(float(np.mean(r))))),
-                     len(r), per)
-
-
-def _checked(x: ArrayLike, change: ArrayLike, se: ArrayLike,
-             spread: float) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """One series as arrays, refused as :func:`forecast_series` says."""
-    xa, ya, sa = (np.asarray(v, dtype=np.float64) for v in (x, change, se))
-    if not (len(xa) == len(ya) == len(sa)):
-        raise DataError("forecast: x, change and se differ in length")
-    if len(xa) < MIN_TESTS:
-        raise DataError(f"not enough tests to forecast: {len(xa)} check(s) since the baseline, "
-                        f"need {MIN_TESTS}")
-    if not (np.all(np.isfinite(xa)) and np.all(np.isfinite(ya)) and np.all(np.isfinite(sa))
-            and math.isfinite(spread)):
-        raise DataError("forecast: the series holds a non-finite value")
-    if np.any(np.diff(xa) <= 0):
-        raise DataError("forecast: the tests' times do not increase")
-    return xa, ya, sa
-
-
-def _left(model: str, fit: tuple[FloatArray, FloatArray, float], n: int, var1: float,
-          threshold: float, last: float, rng: np.random.Generator, size: int) -> FloatArray:
+def _left(model: str, draw: Callable[[np.random.Generator, int], FloatArray], scale: float,
+          var1: float, threshold: float, last: float, rng: np.random.Generator,
+          size: int) -> FloatArray:
     """Draws of the tests (days, hours) left until a check measures ``threshold``:
-    the path's crossing, less that check's own scatter (the fit's residual
-    scale at a typical weight, ``var1`` the typical ``1/w``); inf: never."""
-    coef, cov, rss = fit
+    the path's crossing (``draw``: the model's coefficients), less that
+    check's own scatter (the fit's residual scale at a typical weight,
+    ``var1`` the typical ``1/w``); inf: never."""
     sign = 1.0 if threshold > 0 else -1.0
-    scale = max(rss / max(n - len(coef), 1), 1.0)
     if size == 0:
         return np.empty(0)
-    draws = rng.multivariate_normal(coef, cov, size=size, method="eigh")
+    draws = draw(rng, size)
     reach = abs(threshold) - rng.normal(0.0, math.sqrt(scale * var1), size)
     with np.errstate(all="ignore"):
         if model == "linear":
@@ -466,9 +241,39 @@ def _left(model: str, fit: tuple[FloatArray, FloatArray, float], n: int, var1: f
     return np.asarray(np.where(ok, np.maximum(cross - last, 0.0), np.inf), dtype=np.float64)
 
 
+def _scale(fit: Fit, n: int) -> float:
+    """A fit's residual variance factor, at least the tests' stated one."""
+    return max(fit[2] / max(n - len(fit[0]), 1), 1.0)
+
+
+def _with_shape(prior: FleetPrior, found: dict[str, Fit], xa: FloatArray, ya: FloatArray,
+                w: FloatArray, weight: dict[str, float]
+                ) -> tuple[dict[str, float], RatePosterior | None, str]:
+    """The models' weights under the fleet's shape prior, the exponential's
+    rate posterior (None: no rate prior), and the note on how they were weighed.
+
+    With the fleet's growth rate, the exponential's weight is its posterior
+    probability: the fleet's odds times the Bayes factor of the unit's tests
+    (:func:`~condmon.monitor.degradation.rate_posterior`). Without it, the
+    Akaike weights times the fleet's odds (Burnham and Anderson's prior
+    model probabilities)."""
+    p = prior.p_exponential
+    if prior.exponential.informative:
+        post = rate_posterior(xa, ya, w, prior.exponential.mean, prior.exponential.sd)
+        odds = math.log(p / (1.0 - p)) + post.log_bayes
+        w_exp = 1.0 / (1.0 + math.exp(-odds)) if odds > -700 else 0.0
+        return ({"linear": 1.0 - w_exp, "exponential": w_exp}, post,
+                f"Bayes factor {math.exp(min(post.log_bayes, 700.0)):.3g} of the unit's tests")
+    if "exponential" not in found:
+        return weight, None, "no growing exponential fits the unit's tests"
+    raw = {"linear": (1.0 - p) * weight["linear"], "exponential": p * weight["exponential"]}
+    return ({k: v / sum(raw.values()) for k, v in raw.items()}, None,
+            "Akaike weights of the unit's tests")
+
+
 def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
                     spread: float, threshold: float, horizon: float | None = None,
-                    seed: int = 0, *, prior: RatePrior | None = None) -> Forecast:
+                    seed: int = 0, *, prior: Prior | None = None) -> Forecast:
     """Forecast when a change series crosses ``threshold``.
 
     Parameters
@@ -488,11 +293,15 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
         For the probability of crossing within it. [tests (or d, h)]
     seed : int
         Seed of the predictive draws.
-    prior : RatePrior, optional
-        The fleet's prior on the slope (:func:`fleet_prior`), in the units of
-        ``x``. Its model's slope is updated by the unit's tests (the models
-        still weighted by the unit's evidence); a note names it. None: the
-        unit's own tests alone, no note.
+    prior : RatePrior or FleetPrior, optional
+        The fleet's prior, in the units of ``x``. A :class:`RatePrior`
+        (:func:`fleet_prior`): its model's rate is updated by the unit's tests
+        (the models still weighted by the unit's evidence). A
+        :class:`FleetPrior` (:func:`fleet_wear_prior`): the shape as well:
+        each model's rate updated by the unit's tests (the exponential's
+        growth rate by its exact posterior on a grid), and the models weighted
+        by the fleet's odds times the unit's evidence. A note names it. None:
+        the unit's own tests alone, no note.
 
     Raises
     ------
@@ -514,34 +323,51 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
     >>> round(f.remaining[0]), f.notes[-1]
     (21, 'fleet prior (linear) from 12 units: slope 4 ± 0.2 %/test')
     """
-    xa, ya, sa = _checked(x, change, se, spread)
+    xa, ya, sa = checked_series(x, change, se, spread)
     checked_horizon(horizon)
     if threshold == 0:
         raise DataError("forecast: the no-go threshold is 0 %")
     sign = 1.0 if threshold > 0 else -1.0
-    fits = _fits(xa, ya, sa, spread, sign)
+    shaped = isinstance(prior, FleetPrior) and prior.informative
+    # with the fleet's growth rate the exponential is its exact posterior, not the fit alone
+    fits = degradation_fits(xa, ya, sa, spread, sign, exponential=not (
+        shaped and isinstance(prior, FleetPrior) and prior.exponential.informative))
     notes: list[str] = []
     n = len(xa)
-    weight = {"linear": 1.0}
-    if len(fits) > 1:   # small-sample Akaike (AICc) on the same weighted residuals
-        aic = {k: n * math.log(max(v[2], 1e-300) / n) + 2 * len(v[0])
-               + 2 * len(v[0]) * (len(v[0]) + 1) / (n - len(v[0]) - 1) for k, v in fits.items()}
-        best = min(aic.values())
-        weight = {k: math.exp(-0.5 * (v - best)) for k, v in aic.items()}
-        weight = {k: v / sum(weight.values()) for k, v in weight.items()}
-    model = max(weight, key=lambda k: weight[k])
-    if len(fits) > 1:
-        notes.append(f"{model} chosen by evidence (AICc {aic['linear']:.1f} linear, "
-                     f"{aic['exponential']:.1f} exponential); the forecast averages both, "
-                     f"weighted {weight['linear']:.2f} and {weight['exponential']:.2f}")
-    if prior is not None:
-        if prior.model in fits or not prior.informative:
-            if prior.model in fits:
-                fits[prior.model] = _updated(fits[prior.model], prior)
+    w = weights(sa, spread)
+    aic, weight = aicc_weights(fits, n) if len(fits) > 1 else ({}, {"linear": 1.0})
+    posterior = None
+    if shaped and isinstance(prior, FleetPrior):
+        weight, posterior, how = _with_shape(prior, fits, xa, sign * ya, w, weight)
+        if posterior is not None:
+            mean, cov = posterior.moments()
+            fits["exponential"] = (mean, cov, 0.0)
+        if prior.linear.informative:
+            fits["linear"] = updated(fits["linear"], prior.linear)
+        model = max(weight, key=lambda k: weight[k])
+        if len(weight) > 1:
+            notes.append(f"{model} chosen by the fleet's shape and the unit's evidence "
+                         f"(P(exponential) {prior.p_exponential:.2f} from the fleet, "
+                         f"{weight['exponential']:.2f} with the {how}); the forecast "
+                         f"averages both, weighted {weight['linear']:.2f} and "
+                         f"{weight['exponential']:.2f}")
+        notes.append(prior.describe())
+    else:
+        model = max(weight, key=lambda k: weight[k])
+        if len(fits) > 1:
+            notes.append(f"{model} chosen by evidence (AICc {aic['linear']:.1f} linear, "
+                         f"{aic['exponential']:.1f} exponential); the forecast averages both, "
+                         f"weighted {weight['linear']:.2f} and {weight['exponential']:.2f}")
+        if isinstance(prior, RatePrior):
+            if prior.model in fits or not prior.informative:
+                if prior.model in fits:
+                    fits[prior.model] = updated(fits[prior.model], prior)
+                notes.append(prior.describe())
+            else:
+                notes.append(f"{prior.describe()} not used: no growing {prior.model} "
+                             "fits the series")
+        elif prior is not None:
             notes.append(prior.describe())
-        else:
-            notes.append(f"{prior.describe()} not used: no growing {prior.model} "
-                         "fits the series")
     coef, cov, _ = fits[model]
     last = float(xa[-1])
     if model == "linear":
@@ -558,9 +384,11 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
                         *_fitted(fits["linear"]), last)
     # each model's draws in proportion to its evidence weight (model averaging)
     rng = np.random.default_rng(seed)
-    w = 1.0 / (sa ** 2 + spread ** 2 + 1e-12)
-    lefts = [_left(m, fits[m], n, float(np.median(1.0 / w)), threshold, last, rng,
-                   round(_DRAWS * weight[m])) for m in sorted(weight)]
+    lefts = [_left(m, posterior.draws if m == "exponential" and posterior else
+                   _normal_draws(fits[m]),
+                   posterior.scale if m == "exponential" and posterior else _scale(fits[m], n),
+                   float(np.median(1.0 / w)), threshold, last, rng, round(_DRAWS * weight[m]))
+             for m in sorted(weight)]
     left = np.concatenate(lefts)
     # the order statistics themselves: a draw that never crosses is inf, not interpolated
     med, lo, hi = (float(v) for v in np.quantile(left, [0.5, 0.05, 0.95], method="inverted_cdf"))

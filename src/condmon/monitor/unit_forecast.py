@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 from condmon.errors import DataError
 from condmon.monitor.baseline import Baseline
 from condmon.monitor.forecast import (
-    MIN_TESTS, Forecast, RatePrior, checked_horizon, forecast_series,
+    MIN_TESTS, Forecast, Prior, checked_horizon, forecast_series,
 )
 
 __all__ = ["ParameterForecast", "UnitForecast", "forecast_checks", "forecast_axis", "Axis",
@@ -273,7 +273,7 @@ def parameter_series(checks: pd.DataFrame, baseline: Baseline, key: str, axis: A
 def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
                     r2: Mapping[str, float], rules: Mapping[str, str],
                     units: Mapping[str, str] | None = None, horizon: float | None = None,
-                    seed: int = 0, priors: Mapping[str, RatePrior] | None = None
+                    seed: int = 0, priors: Mapping[str, Prior] | None = None
                     ) -> UnitForecast:
     """Forecast every parameter of a unit to no-go from its checks since the baseline.
 
@@ -299,10 +299,10 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
         For the probability of crossing within it. [tests (or d)]
     seed : int
         Seed of the predictive draws.
-    priors : mapping of str to RatePrior, optional
-        The fleet's prior on each parameter key's degradation rate
-        (:func:`~condmon.monitor.forecast.fleet_prior`); a key without one is
-        forecast from its own tests alone.
+    priors : mapping of str to RatePrior or FleetPrior, optional
+        The fleet's prior on each parameter key's degradation (its rate, or
+        its shape and rates: :func:`~condmon.monitor.prior.fleet_wear_prior`);
+        a key without one is forecast from its own tests alone.
 
     Returns
     -------

@@ -19,7 +19,7 @@ import pandas as pd
 
 from condmon.errors import CondmonError
 from condmon.monitor.baseline import MIN_BASELINE_TESTS, Baseline
-from condmon.monitor.forecast import RatePrior, prior_from_rates, unit_rate
+from condmon.monitor.prior import FleetPrior, UnitWear, prior_from_wear, unit_wear
 from condmon.monitor.unit_forecast import (
     NO_TREND, UnitForecast, forecast_axis, forecast_checks, parameter_series,
 )
@@ -47,17 +47,18 @@ class FleetHistory:
 
     A unit has degraded when one of its accepted checks was advisory or
     no-go; its change series since its current baseline give the prior on
-    the degradation rate of a unit of the same model (and group, when the
-    unit is in one) (:func:`condmon.monitor.forecast.prior_from_rates`), each
-    unit left out of its own prior. The degraded units are found by one
-    query, and each one's rates are fitted once.
+    the degradation of a unit of the same model (and group, when the unit is
+    in one): its shape (how many peers wore exponentially) and each shape's
+    rate (:func:`condmon.monitor.prior.prior_from_wear`), each unit left out
+    of its own prior. The degraded units are found by one query, and each
+    one's wear is fitted once.
     """
 
     def __init__(self, store: HistoryStore) -> None:
         self.store = store
         self._checks: dict[str, tuple[Baseline, pd.DataFrame]] = {}
         self._degraded: dict[str, tuple[str, str | None]] | None = None
-        self._rates: dict[tuple[str, str, str], tuple[float, float] | None] = {}
+        self._wear: dict[tuple[str, str, str], UnitWear | None] = {}
         self._kept: set[str] = set()
         self._marks: dict[str, int] = {}
         self._limit = 0
@@ -85,12 +86,13 @@ class FleetHistory:
             if mark == self._marks.get(p):
                 for k, v in rates.items():
                     by, key = k.split("|", 1)
-                    self._rates[(p, key, by)] = None if v is None else (float(v[0]), float(v[1]))
+                    self._wear[(p, key, by)] = _wear_from(v)
         self._kept.update(fresh)
         return sorted(chosen)
 
-    def rates_of(self, unit: str) -> dict[str, list[float] | None] | None:
-        """``unit``'s own degradation rates, ``{"<by>|<parameter>": [rate, se]}``
+    def rates_of(self, unit: str) -> dict[str, list[Any] | None] | None:
+        """``unit``'s own wear, ``{"<by>|<parameter>": [exponential weight,
+        [slope, variance], [growth rate, variance] or None]}`` (:class:`UnitWear`)
         (None when it has not degraded or has no checks since its baseline):
         what is kept with its forecast for its peers' priors."""
         if not self.degraded(unit):
@@ -102,7 +104,9 @@ class FleetHistory:
         if not len(checks):
             return None
         by = forecast_axis(checks).by
-        return {f"{by}|{key}": None if (r := self._rate(unit, key, by)) is None else list(r)
+        return {f"{by}|{key}": None if (w := self._unit_wear(unit, key, by)) is None else
+                [w.exponential_weight, list(w.linear),
+                 None if w.exponential is None else list(w.exponential)]
                 for key in baseline.parameters}
 
     def checks(self, unit: str) -> tuple[Baseline, pd.DataFrame]:
@@ -133,8 +137,8 @@ class FleetHistory:
         return sorted(u for u, (m, g) in self._degraded.items()
                       if u != unit and m == model and (group is None or g == group))
 
-    def _rate(self, unit: str, key: str, by: str) -> tuple[float, float] | None:
-        if (unit, key, by) not in self._rates:
+    def _unit_wear(self, unit: str, key: str, by: str) -> UnitWear | None:
+        if (unit, key, by) not in self._wear:
             found = None
             try:
                 baseline, checks = self.checks(unit)
@@ -144,19 +148,21 @@ class FleetHistory:
                 axis = forecast_axis(checks)
                 series = parameter_series(checks, baseline, key, axis) \
                     if axis.by == by else None
-                found = None if series is None else unit_rate(*series[0])
-            self._rates[(unit, key, by)] = found
-        return self._rates[(unit, key, by)]
+                found = None if series is None else unit_wear(*series[0])
+            self._wear[(unit, key, by)] = found
+        return self._wear[(unit, key, by)]
 
-    def priors(self, unit: str, keys: Sequence[str], by: str) -> dict[str, RatePrior]:
-        """The linear rate prior of each parameter key for ``unit``, its x
-        counting ``by`` (``tests`` or ``days``; peers counted otherwise are
-        left out); vague ("no fleet history") when fewer than 2 peers have the key."""
+    def priors(self, unit: str, keys: Sequence[str], by: str) -> dict[str, FleetPrior]:
+        """The fleet prior (shape and rates) of each parameter key for
+        ``unit``, its x counting ``by`` (``tests``, ``days`` or ``hours``;
+        peers counted otherwise are left out); vague ("no fleet history")
+        when no peer has the key, and each shape's rate vague when fewer
+        than 2 peers wore that way."""
         peers = self.learning_peers(unit)
         out = {}
         for key in keys:
-            rates = [r for p in peers if (r := self._rate(p, key, by)) is not None]
-            out[key] = prior_from_rates(rates, "linear", by[:-1])
+            wears = [r for p in peers if (r := self._unit_wear(p, key, by)) is not None]
+            out[key] = prior_from_wear(wears, by[:-1] if by != "hours" else "h")
         return out
 
 
@@ -289,6 +295,16 @@ def _kept_row(unit: str, mark: int, peers: int, fields: dict[str, Any], fleet: F
               ) -> tuple[Any, ...]:
     return (unit, mark, peers, fields["forecast"], fields["forecast_reason"],
             fleet.rates_of(unit))
+
+
+def _wear_from(kept: Any) -> UnitWear | None:
+    """A kept :class:`UnitWear` (:meth:`FleetHistory.rates_of`) back."""
+    if kept is None:
+        return None
+    weight, linear, exponential = kept
+    return UnitWear(float(weight), (float(linear[0]), float(linear[1])),
+                    None if exponential is None else (float(exponential[0]),
+                                                      float(exponential[1])))
 
 
 def prior_units() -> int:

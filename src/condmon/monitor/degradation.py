@@ -1,0 +1,244 @@
+"""Degradation models of one change series, fitted test by test.
+
+The fits :mod:`condmon.monitor.forecast` and :mod:`condmon.monitor.prior`
+share: the weighted straight line, the exponential with an offset written from
+the last test (``|change| = α + β·(exp(b·t) − 1)/b``, ``t = x − x_last``), the
+small-sample Akaike weights that compare them, and the exponential's posterior
+over its growth rate ``b`` under a prior on it (:func:`rate_posterior`).
+
+The posterior is exact for this model, not a normal approximation: for a given
+``b`` the model is linear in (α, β), so with a flat prior on them the
+posterior of ``b`` is its prior times ``|XᵀWX|^(−1/2)·exp(−RSS(b)/2σ²)`` (the
+profile likelihood with its Laplace volume), taken on a grid of rates, and
+(α, β) given ``b`` are normal. The straight line is the same model at
+``b = 0`` with the same (α, β), so the ratio of the two marginal likelihoods
+is a Bayes factor with no arbitrary constant: the evidence for the curve that
+a rate prior makes proper (Gebraeel 2006 fits such priors on a fleet).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from condmon.errors import DataError
+
+__all__ = ["MIN_TESTS", "EXP_MIN_TESTS", "Fit", "wls", "growth", "exp_fit", "fits",
+           "checked_series", "aicc_weights", "weights", "RatePosterior", "rate_posterior"]
+
+FloatArray = NDArray[np.float64]
+#: A weighted fit: coefficients, their covariance, the weighted residual sum of squares.
+Fit = tuple[FloatArray, FloatArray, float]
+
+#: Fewest checks since the baseline that a forecast needs.
+MIN_TESTS = 3
+#: Fewest tests for the exponential with no prior on its rate (three
+#: coefficients, and a residual to judge them by).
+EXP_MIN_TESTS = 5
+#: Rates the exponential is fitted over, times the series' span: from barely
+#: curved to a factor e^30 over the span. [-]
+_RATE_SPAN = (0.01, 30.0)
+
+def wls(x: FloatArray, y: FloatArray, w: FloatArray) -> Fit:
+    """Weighted straight line: coefficients (a, b), their covariance, weighted RSS."""
+    X = np.column_stack([np.ones_like(x), x])
+    sw = np.sqrt(w)
+    coef, *_ = np.linalg.lstsq(X * sw[:, None], y * sw, rcond=None)
+    r = (y - X @ coef) * sw
+    rss = float(r @ r)
+    dof = max(len(x) - 2, 1)
+    # the weights give the relative scale; the residuals the absolute one (at
+    # least the weights' own: a series smoother than its stated noise is not
+    # taken as more certain than that)
+    scale = max(rss / dof, 1.0)
+    cov = np.asarray(np.linalg.pinv((X * w[:, None]).T @ X) * scale, dtype=np.float64)
+    return np.asarray(coef, dtype=np.float64), cov, rss
+
+
+def growth(b: float, t: FloatArray) -> FloatArray:
+    """``(exp(b·t) − 1) / b``: ``t`` itself as ``b`` → 0."""
+    return np.asarray(t if b == 0 else np.expm1(b * t) / b, dtype=np.float64)
+
+
+def exp_fit(x: FloatArray, y: FloatArray,
+            w: FloatArray) -> Fit | None:
+    """Weighted exponential with an offset, written from the last test
+    (``t = x − x_last``) as ``y = α + β·(exp(b·t) − 1)/b``: the level α and
+    slope β at the last test and the growth rate b (a line as b → 0).
+    Coefficients (α, β, b), their covariance (Gauss-Newton), weighted RSS;
+    None where no growing exponential (b above the flat end) fits better."""
+    t = x - x[-1]
+    span = float(x[-1] - x[0])
+    sw = np.sqrt(w)
+
+    def profile(b: float) -> tuple[float, FloatArray]:
+        # for a given rate the model is linear in (α, β)
+        X = np.column_stack([np.ones_like(t), growth(b, t)])
+        coef, *_ = np.linalg.lstsq(X * sw[:, None], y * sw, rcond=None)
+        r = (y - X @ coef) * sw
+        return float(r @ r), np.asarray(coef, dtype=np.float64)
+
+    grid = np.geomspace(*_RATE_SPAN, 64) / span
+    rss = [profile(float(b))[0] for b in grid]
+    i = int(np.argmin(rss))
+    if i == 0:                     # flattest rate best: a line, not an exponential
+        return None
+    from scipy.optimize import minimize_scalar  # 0.2 s to import: only when a curve is fitted
+
+    found = minimize_scalar(lambda b: profile(float(b))[0], method="bounded",
+                            bounds=(float(grid[i - 1]), float(grid[min(i + 1, len(grid) - 1)])))
+    b = float(found.x)
+    best, (level, slope) = profile(b)
+    g = growth(b, t)
+    J = np.column_stack([np.ones_like(t), g, slope * (t * np.exp(b * t) - g) / b])
+    scale = max(best / max(len(x) - 3, 1), 1.0)
+    cov = np.asarray(np.linalg.pinv((J * w[:, None]).T @ J) * scale, dtype=np.float64)
+    return np.array([level, slope, b]), cov, best
+
+
+def fits(xa: FloatArray, ya: FloatArray, sa: FloatArray, spread: float,
+          sign: float, exponential: bool = True) -> dict[str, Fit]:
+    """Both degradation models' weighted fits, the change taken towards the
+    threshold (the exponential from :data:`EXP_MIN_TESTS` tests, where it
+    grows; not at all when ``exponential`` is false). The slope ``b`` is
+    each model's last coefficient."""
+    w = weights(sa, spread)
+    fits: dict[str, Fit] = {"linear": wls(xa, ya, w)}
+    if exponential and len(xa) >= EXP_MIN_TESTS:
+        exp = exp_fit(xa, sign * ya, w)
+        if exp is not None:
+            fits["exponential"] = exp
+    return fits
+
+
+def checked_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
+             spread: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """One series as arrays, refused as :func:`~condmon.monitor.forecast.forecast_series` says."""
+    xa, ya, sa = (np.asarray(v, dtype=np.float64) for v in (x, change, se))
+    if not (len(xa) == len(ya) == len(sa)):
+        raise DataError("forecast: x, change and se differ in length")
+    if len(xa) < MIN_TESTS:
+        raise DataError(f"not enough tests to forecast: {len(xa)} check(s) since the baseline, "
+                        f"need {MIN_TESTS}")
+    if not (np.all(np.isfinite(xa)) and np.all(np.isfinite(ya)) and np.all(np.isfinite(sa))
+            and math.isfinite(spread)):
+        raise DataError("forecast: the series holds a non-finite value")
+    if np.any(np.diff(xa) <= 0):
+        raise DataError("forecast: the tests' times do not increase")
+    return xa, ya, sa
+
+
+def weights(se: FloatArray, spread: float) -> FloatArray:
+    """Each test's weight ``1 / (se² + sd²)`` from its standard error and the
+    baseline's spread. [1 / %²]"""
+    return np.asarray(1.0 / (se ** 2 + spread ** 2 + 1e-12), dtype=np.float64)
+
+
+def aicc_weights(found: dict[str, Fit], n: int) -> tuple[dict[str, float], dict[str, float]]:
+    """Each fit's small-sample Akaike criterion (AICc, on its weighted
+    residuals) and its Akaike weight (Burnham and Anderson): the models'
+    relative evidence, summing to 1."""
+    aic = {k: n * math.log(max(v[2], 1e-300) / n) + 2 * len(v[0])
+           + 2 * len(v[0]) * (len(v[0]) + 1) / max(n - len(v[0]) - 1, 1) for k, v in found.items()}
+    best = min(aic.values())
+    w = {k: math.exp(-0.5 * (v - best)) for k, v in aic.items()}
+    return aic, {k: v / sum(w.values()) for k, v in w.items()}
+
+
+@dataclass(frozen=True)
+class RatePosterior:
+    """The exponential's posterior over its growth rate, on a grid.
+
+    Attributes
+    ----------
+    rates : ndarray
+        The grid of rates ``b``. [1 per x]
+    prob : ndarray
+        Each rate's posterior probability (summing to 1). [-]
+    coef : ndarray
+        (α, β) at each rate: level and slope at the last test. [%, % per x]
+    cov : ndarray
+        Their covariance at each rate, shape (grid, 2, 2).
+    log_bayes : float
+        ln of the marginal likelihood over that of the straight line (``b = 0``),
+        both with the same flat prior on (α, β). [-]
+    scale : float
+        The residual variance factor ``σ²`` the likelihood is taken at (at
+        least 1: the tests' stated uncertainty). [-]
+    """
+
+    rates: FloatArray
+    prob: FloatArray
+    coef: FloatArray
+    cov: FloatArray
+    log_bayes: float
+    scale: float
+
+    def draws(self, rng: np.random.Generator, size: int) -> FloatArray:
+        """Draws of (α, β, b) from the posterior, shape (size, 3)."""
+        pick = rng.choice(len(self.prob), size=size, p=self.prob)
+        vals, vecs = np.linalg.eigh(self.cov[pick])     # each draw's (α, β) | b
+        root = vecs * np.sqrt(np.maximum(vals, 0.0))[:, None, :]
+        ab = self.coef[pick] + np.einsum("sij,sj->si", root, rng.standard_normal((size, 2)))
+        return np.column_stack([ab, self.rates[pick]])
+
+    def moments(self) -> tuple[FloatArray, FloatArray]:
+        """The posterior mean of (α, β, b) and its covariance (within and between rates)."""
+        theta = np.column_stack([self.coef, self.rates])
+        mean = self.prob @ theta
+        d = theta - mean
+        cov = np.einsum("j,jk,jl->kl", self.prob, d, d)
+        cov[:2, :2] += np.einsum("j,jkl->kl", self.prob, self.cov)
+        return np.asarray(mean, dtype=np.float64), np.asarray(cov, dtype=np.float64)
+
+
+def rate_posterior(x: FloatArray, y: FloatArray, w: FloatArray, mean: float, sd: float,
+                   grid: int = 200) -> RatePosterior:
+    """The exponential's posterior over its rate under a normal prior on it.
+
+    Parameters
+    ----------
+    x : ndarray
+        The tests' times, increasing. [test (or d, h)]
+    y : ndarray
+        The change towards the threshold (``|change|``'s sign taken). [%]
+    w : ndarray
+        Each test's weight (:func:`weights`). [1 / %²]
+    mean, sd : float
+        The normal prior on the rate ``b`` (truncated to the growing rates
+        of the grid). [1 per x]
+    grid : int
+        Rates on the grid (log-spaced over 0.01–30 per the series' span).
+
+    Returns
+    -------
+    RatePosterior
+        With the Bayes factor over the straight line. ``σ²`` is the residual
+        variance of the best rate on the grid or the line (the most flexible
+        fit's, as Mallows's Cp takes it), at least 1.
+    """
+    t = x - x[-1]
+    span = float(x[-1] - x[0])
+    rates = np.geomspace(*_RATE_SPAN, grid) / span
+    g = np.vstack([t, np.expm1(np.outer(rates, t)) / rates[:, None]])   # b = 0: the line
+    X = np.stack([np.ones_like(g), g], axis=-1)                           # (rate, test, 2)
+    info = np.einsum("gni,n,gnj->gij", X, w, X)
+    coef = np.linalg.solve(info, np.einsum("gni,n->gi", X, w * y)[..., None])[..., 0]
+    r = y - np.einsum("gni,gi->gn", X, coef)
+    rss = np.einsum("gn,n,gn->g", r, w, r)
+    scale = max(float(rss.min()) / max(len(x) - 3, 1), 1.0)
+    logdet = np.linalg.slogdet(info)[1]
+    loglik = -0.5 * (rss - rss[0]) / scale - 0.5 * (logdet - logdet[0])
+    # the prior's mass in each cell of the grid (its density times the cell's
+    # width), truncated to the grid: the rates it can hold
+    logprior = -0.5 * ((rates - mean) / sd) ** 2 + np.log(np.gradient(rates))
+    logprior -= float(logprior.max()) + math.log(float(np.exp(logprior - logprior.max()).sum()))
+    log_post = loglik[1:] + logprior
+    top = float(log_post.max())
+    prob = np.exp(log_post - top)
+    cov = np.asarray(np.linalg.inv(info[1:]) * scale, dtype=np.float64)
+    return RatePosterior(rates, prob / prob.sum(), coef[1:], cov,
+                         top + math.log(float(prob.sum())), scale)

@@ -56,11 +56,6 @@ def building_summary(accepted: int, rejected: str | None = None) -> str:
 class ViewsMixin(StoreBase):
     """History tables (part of :class:`HistoryStore`)."""
 
-    def _latest_evaluation(self, table: sa.Table) -> Any:
-        """Per test, the newest baseline it was evaluated against."""
-        return (sa.select(table.c.test_id, sa.func.max(table.c.baseline_id).label("bid"))
-                .group_by(table.c.test_id).subquery())
-
     def history(self, unit: str) -> pd.DataFrame:
         """One row per test of the unit, oldest first.
 
@@ -79,26 +74,30 @@ class ViewsMixin(StoreBase):
             urow = self._unit_row(c, unit)
             if urow is None:
                 raise self._unknown_unit(c, unit)
-            t, d = S.tests, S.diagnoses
-            ld = self._latest_evaluation(d)
+            t, d, s = S.tests, S.diagnoses, S.symptoms
+            # the evaluation against the newest baseline each test was evaluated
+            # with, looked up per test of this unit (not grouped over the fleet)
+            newest_d, newest_s = d.alias("newest_d"), s.alias("newest_s")
+            bid_d = (sa.select(sa.func.max(newest_d.c.baseline_id))
+                     .where(newest_d.c.test_id == t.c.id).scalar_subquery())
             base = c.execute(
                 sa.select(t.c.id, t.c.created_at, t.c.test_date, t.c.source, t.c.role,
                           t.c.accepted, t.c.excluded, t.c.excluded_reason, t.c.reason,
                           t.c.fit_percent, t.c.fits, t.c.method, d.c.status, d.c.summary,
                           d.c.baseline_id, t.c.regime, t.c.hours)
-                .outerjoin(ld, ld.c.test_id == t.c.id)
-                .outerjoin(d, sa.and_(d.c.test_id == t.c.id, d.c.baseline_id == ld.c.bid))
+                .select_from(t.outerjoin(d, sa.and_(d.c.test_id == t.c.id,
+                                                    d.c.baseline_id == bid_d)))
                 .where(t.c.unit_id == urow.id).order_by(t.c.id)).all()
             est = c.execute(
                 sa.select(S.estimates.c.test_id, S.estimates.c.parameter, S.estimates.c.value,
                           S.estimates.c.std_error)
                 .join(t, t.c.id == S.estimates.c.test_id).where(t.c.unit_id == urow.id)).all()
-            s = S.symptoms
-            ls = self._latest_evaluation(s)
+            bid_s = (sa.select(sa.func.max(newest_s.c.baseline_id))
+                     .where(newest_s.c.test_id == s.c.test_id).scalar_subquery())
             sym = c.execute(
                 sa.select(s.c.test_id, s.c.parameter, s.c.percent_change, s.c.high, s.c.low)
-                .join(ls, sa.and_(ls.c.test_id == s.c.test_id, ls.c.bid == s.c.baseline_id))
-                .join(t, t.c.id == s.c.test_id).where(t.c.unit_id == urow.id)).all()
+                .select_from(s.join(t, t.c.id == s.c.test_id))
+                .where(t.c.unit_id == urow.id, s.c.baseline_id == bid_s)).all()
             return list(base), list(est), list(sym)
 
         base, est, sym = self._read(run)

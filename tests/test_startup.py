@@ -148,6 +148,24 @@ def test_the_check_command_imports_no_fuzzy_library_and_no_plots(
     assert "sqlalchemy" in loaded  # the history: the probe sees what it must
 
 
+def test_the_isolate_command_of_a_plain_csv_imports_neither_pandas_nor_sympy(
+        tmp_path: Path, warm_cache: Path) -> None:
+    """With the plant's compiled model cached (the first run), an isolation of a
+    plain CSV record loads no pandas and no sympy: the solver's scipy only."""
+    from condmon.io.records import write_record
+    from condmon.models.registry import load_plant_model
+    from condmon.simulate.plant import simulate_plant
+
+    path = write_record(simulate_plant(load_plant_model("hst"), ["Rv=+40%@10s"], seed=1),
+                        tmp_path / "hst.csv")
+    code = _command("isolate", "hst", str(path))
+    _loaded(code, warm_cache)  # fills the cache
+    loaded = _loaded(code, warm_cache)
+    assert not loaded & {"pandas", "sympy", "sqlalchemy", "matplotlib", "sklearn", "skfuzzy",
+                         "scipy.signal", "scipy.stats"}
+    assert "scipy" in loaded  # the solver: the probe sees what it must
+
+
 # --- the process pool only when it pays --------------------------------------------
 
 

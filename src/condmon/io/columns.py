@@ -14,7 +14,7 @@ its own words. The numbers are the ones pandas reads (both round correctly).
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -27,7 +27,7 @@ from condmon.io.size import check_record_size
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["Columns", "read_plain_csv", "column_values", "column_names"]
+__all__ = ["Columns", "read_plain_csv", "column_values", "column_matrix"]
 
 FloatArray = NDArray[np.float64]
 
@@ -84,9 +84,12 @@ def column_values(frame: Any, name: str) -> FloatArray:
     return np.asarray(frame[name].to_numpy(dtype=np.float64, na_value=np.nan), dtype=np.float64)
 
 
-def column_names(frame: Any) -> list[str]:
-    """A record's column names (a DataFrame or :class:`Columns`), as text."""
-    return [str(c) for c in frame.columns]
+def column_matrix(frame: Any, names: Sequence[str]) -> FloatArray:
+    """Columns of a record (a DataFrame or :class:`Columns`) side by side as
+    float64, shape (N, len(names))."""
+    if isinstance(frame, Columns):
+        return np.column_stack([frame[n] for n in names])
+    return np.asarray(frame[list(names)].to_numpy(dtype=np.float64), dtype=np.float64)
 
 
 def read_plain_csv(path: str | Path, columns: Mapping[str, str] | None = None

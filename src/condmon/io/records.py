@@ -278,7 +278,9 @@ def _median(x: FloatArray) -> float:
     np.median costs."""
     n = x.size
     part = np.partition(x, [(n - 1) // 2, n // 2])
-    return float((part[(n - 1) // 2] + part[n // 2]) / 2.0)
+    if n % 2:
+        return float(part[n // 2])
+    return float((part[n // 2 - 1] + part[n // 2]) / 2.0)
 
 
 def _distinct(u: FloatArray) -> int:

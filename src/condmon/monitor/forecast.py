@@ -54,6 +54,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from condmon.errors import DataError
+from condmon.monitor.bounded import bounded_minimum
 
 __all__ = ["Forecast", "forecast_series", "MIN_TESTS", "checked_horizon", "RatePrior", "fleet_prior", "unit_rate",
            "prior_from_rates"]
@@ -315,11 +316,8 @@ def _expfit(x: FloatArray, y: FloatArray,
     i = int(np.argmin(rss))
     if i == 0:                     # flattest rate best: a line, not an exponential
         return None
-    from scipy.optimize import minimize_scalar  # 0.2 s to import: only when a curve is fitted
-
-    found = minimize_scalar(lambda b: profile(float(b))[0], method="bounded",
-                            bounds=(float(grid[i - 1]), float(grid[min(i + 1, len(grid) - 1)])))
-    b = float(found.x)
+    b = bounded_minimum(lambda rate: profile(float(rate))[0], float(grid[i - 1]),
+                        float(grid[min(i + 1, len(grid) - 1)]))
     best, (level, slope) = profile(b)
     g = _growth(b, t)
     J = np.column_stack([np.ones_like(t), g, slope * (t * np.exp(b * t) - g) / b])

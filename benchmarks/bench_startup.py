@@ -4,9 +4,12 @@
 
 Each command runs in a fresh process, ``--runs`` times, the commands taking
 turns; the table gives the median wall time and its ratio to the numpy import
-measured in the same run. Targets: ``condmon --help`` <= 3x, ``condmon estimate``
-(a simulated actuator record) <= 8x, ``condmon isolate`` (a simulated HST record
-with a fault) <= 15x. The derived-structure cache is a fresh folder, filled by
+measured in the same run. Targets: ``condmon --help`` <= 2x, ``condmon estimate``
+(a simulated actuator record) <= 5x, ``condmon check`` (one more actuator record
+of a unit whose baseline is in a SQLite history, stored) <= 6x, ``condmon
+isolate`` (a simulated HST record with a fault) <= 8x. The history and its
+baseline are built in the temporary folder before timing; each check is of a
+record not yet in it. The derived-structure cache is a fresh folder, filled by
 one warm-up run (the first run of a declaration, which derives it, is shown
 apart: "cold"). Prints the table and writes results/startup.json.
 """
@@ -25,7 +28,8 @@ from pathlib import Path
 
 from _common import table, write_json
 
-TARGETS = {"condmon --help": 3.0, "condmon estimate": 8.0, "condmon isolate": 15.0}
+TARGETS = {"condmon --help": 2.0, "condmon estimate": 5.0, "condmon check": 6.0,
+           "condmon isolate": 8.0}
 
 
 def _condmon() -> list[str]:
@@ -35,6 +39,16 @@ def _condmon() -> list[str]:
         return [str(script)]
     found = shutil.which("condmon")
     return [found] if found else [sys.executable, "-m", "condmon.cli.main"]
+
+
+def _simulate(condmon: list[str], out: Path, seed: int, env: dict[str, str],
+              *extra: str) -> Path:
+    """Write a simulated record (``simulate actuator`` unless ``extra`` names
+    another test-bed) and return its path."""
+    bed = list(extra) or ["actuator"]
+    subprocess.run([*condmon, "simulate", *bed[:1], "--out", str(out), "--seed", str(seed),
+                    *bed[1:]], env=env, check=True, capture_output=True)
+    return out
 
 
 def _time(cmd: list[str], env: dict[str, str]) -> float:
@@ -56,26 +70,32 @@ def main() -> int:
     with tempfile.TemporaryDirectory(prefix="condmon-startup-") as tmp:
         work = Path(tmp)
         env = {**os.environ, "CONDMON_CACHE_DIR": str(work / "cache")}
-        act, hst = work / "actuator.csv", work / "hst.csv"
-        subprocess.run([*condmon, "simulate", "actuator", "--out", str(act), "--seed", "1"],
-                       env=env, check=True, capture_output=True)
-        subprocess.run([*condmon, "simulate", "hst", "--out", str(hst), "--seed", "1",
-                        "--fault", "Rv=+40%@10s"], env=env, check=True, capture_output=True)
+        act = _simulate(condmon, work / "actuator.csv", 1, env)
+        hst = _simulate(condmon, work / "hst.csv", 1, env, "hst", "--fault", "Rv=+40%@10s")
+        db = work / "history.db"
+        healthy = [_simulate(condmon, work / f"healthy{s}.csv", s, env) for s in (2, 3, 4)]
+        subprocess.run([*condmon, "baseline", "add", *map(str, healthy), "--unit", "u1",
+                        "--db", str(db)], env=env, check=True, capture_output=True)
+        # one record per check: a record already in the history is refused
+        checked = iter([_simulate(condmon, work / f"check{s}.csv", s, env)
+                        for s in range(10, 11 + args.runs)])
         commands = {
-            'python -c "import numpy"': [sys.executable, "-c", "import numpy"],
-            "condmon --help": [*condmon, "--help"],
-            "condmon estimate": [*condmon, "estimate", str(act)],
-            "condmon isolate": [*condmon, "isolate", "hst", str(hst)],
+            'python -c "import numpy"': lambda: [sys.executable, "-c", "import numpy"],
+            "condmon --help": lambda: [*condmon, "--help"],
+            "condmon estimate": lambda: [*condmon, "estimate", str(act)],
+            "condmon check": lambda: [*condmon, "check", str(next(checked)), "--unit", "u1",
+                                      "--db", str(db)],
+            "condmon isolate": lambda: [*condmon, "isolate", "hst", str(hst)],
         }
-        cold = {name: _time(cmd, {**env, "CONDMON_CACHE_DIR": str(work / f"cold{i}")})
-                for i, (name, cmd) in enumerate(commands.items())
-                if name in ("condmon estimate", "condmon isolate")}
+        cold = {name: _time(commands[name](),
+                          {**env, "CONDMON_CACHE_DIR": str(work / f"cold{i}")})
+                for i, name in enumerate(("condmon estimate", "condmon isolate"))}
         for cmd in commands.values():  # warm-up: caches, the OS's file cache
-            _time(cmd, env)
+            _time(cmd(), env)
         times: dict[str, list[float]] = {name: [] for name in commands}
         for _ in range(args.runs):
             for name, cmd in commands.items():
-                times[name].append(_time(cmd, env))
+                times[name].append(_time(cmd(), env))
     base = statistics.median(times['python -c "import numpy"'])
     rows, doc = [], {}
     for name, ts in times.items():

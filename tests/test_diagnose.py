@@ -150,3 +150,36 @@ def test_listed_faults_agree_with_the_status(degree: float, second: float) -> No
     assert not {f.name for f in d.faults} & {f.name for f in d.watch}
     # the rule's own severity is kept
     assert all(f.rule_severity in ("major", "minor") for f in (*d.faults, *d.watch))
+
+
+# --- the status sets and the defuzzification: numpy, the reference's figures ------
+
+
+@pytest.mark.parametrize("points", [
+    (0.0, 0.0, 0.25, 0.5), (0.25, 0.5, 0.75), (0.5, 0.75, 1.0, 1.0), (0.0, 0.0, 0.0),
+    (1.0, 1.0, 1.0), (0.1, 0.1, 0.9), (0.2, 0.2, 0.2, 0.7), (0.0, 0.3, 0.3, 1.0),
+    (0.0, 0.5, 1.0), (0.333, 0.5, 0.5, 0.5),
+])
+def test_status_sets_are_scikit_fuzzys_to_the_bit(points: tuple[float, ...]) -> None:
+    fuzz = pytest.importorskip("skfuzzy")
+    from condmon.diagnose.diagnoser import _UNIVERSE, _mf
+
+    ref = (fuzz.trimf if len(points) == 3 else fuzz.trapmf)(_UNIVERSE, list(points))
+    assert np.array_equal(_mf(points), ref)
+
+
+def test_centroid_is_scikit_fuzzys_to_the_bit() -> None:
+    fuzz = pytest.importorskip("skfuzzy")
+    from condmon.diagnose.diagnoser import _UNIVERSE, _centroid, _mf
+
+    sets = [_mf(p) for p in ((0.0, 0.0, 0.25, 0.5), (0.25, 0.5, 0.75), (0.5, 0.75, 1.0, 1.0))]
+    rng = np.random.default_rng(7)
+    cuts = [(1.0, 0.0, 0.0), (0.0, 0.0, 1.0), (0.0, 1.0, 0.0), (0.3, 0.7, 0.0),
+            *(tuple(rng.uniform(0.0, 1.0, 3)) for _ in range(40))]
+    for go, adv, nogo in cuts:
+        agg = np.maximum.reduce([np.minimum(sets[0], go), np.minimum(sets[1], adv),
+                                 np.minimum(sets[2], nogo)])
+        assert _centroid(_UNIVERSE, agg) == float(fuzz.defuzz(_UNIVERSE, agg, "centroid"))
+    ragged = rng.uniform(0.0, 1.0, _UNIVERSE.size) * (rng.uniform(size=_UNIVERSE.size) > 0.3)
+    assert _centroid(_UNIVERSE, ragged) == float(fuzz.defuzz(_UNIVERSE, ragged, "centroid"))
+

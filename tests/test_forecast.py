@@ -429,3 +429,23 @@ def test_no_history_here_points_at_the_demo_s(tmp_path: Path, monkeypatch: pytes
     assert main(["units"]) == 2
     err = " ".join(capsys.readouterr().err.split())
     assert "`condmon demo` wrote its history to condmon-demo/condmon.db" in err
+
+
+def test_the_bounded_minimum_is_scipys_to_the_bit() -> None:
+    """The exponential's rate is found without importing scipy.optimize, by the
+    same Brent steps as its bounded minimize_scalar."""
+    from scipy.optimize import minimize_scalar
+
+    from condmon.monitor.bounded import bounded_minimum
+
+    rng = np.random.default_rng(11)
+    functions = [lambda x: (x - 0.3) ** 2, lambda x: np.cos(3 * x) + 0.1 * x,
+                 lambda x: abs(x - 0.71), lambda x: np.exp(x) - 2 * x]
+    for f in functions:
+        for _ in range(25):
+            lo = float(rng.uniform(-3, 1))
+            hi = lo + float(rng.uniform(1e-6, 4))
+            ref = float(minimize_scalar(f, method="bounded", bounds=(lo, hi)).x)
+            assert bounded_minimum(lambda v: float(f(v)), lo, hi) == ref
+    with pytest.raises(ValueError, match="bounds"):
+        bounded_minimum(lambda v: v, 1.0, 0.0)

@@ -127,3 +127,17 @@ def test_validate_record_returns_float64_columns(noisy_record: pd.DataFrame) -> 
     rec = validate_record(noisy_record, ("V", "I"))
     assert rec.dt == pytest.approx(1e-3)
     assert rec["V"].dtype == np.float64 and len(rec) == 4000
+
+
+def test_the_median_and_the_level_count_are_numpys() -> None:
+    """The time base's median and the saturation check's level count, computed
+    without np.median / np.unique (which import numpy.ma at start-up)."""
+    from condmon.io.records import _distinct, _median
+
+    rng = np.random.default_rng(3)
+    for n in (1, 2, 3, 4, 7, 100, 101, 4000):
+        x = rng.normal(size=n) * 10.0 ** rng.uniform(-5, 5)
+        assert _median(x) == float(np.median(x))
+        assert _distinct(np.round(x, 1)) == np.unique(np.round(x, 1)).size
+    assert _median(np.array([1e308, 1.5e308, 1.7e308])) == 1.5e308  # no overflow
+    assert _distinct(np.array([0.0, -0.0, 1.0])) == 2

@@ -21,19 +21,31 @@ from condmon.diagnose.suspects import Outcome, SuspectTask, run_suspects
 NEVER = ("sqlalchemy", "matplotlib", "sklearn", "faultdiagnosistoolbox")
 
 
+#: Heavy subpackages reported by name (``numpy.ma``: np.unique and np.median import it).
+SUBPACKAGES = ("scipy.signal", "scipy.stats", "numpy.ma")
+
+
 def _loaded(code: str, cache: Path, *, check: bool = True) -> set[str]:
-    """Top-level packages of NEVER (and scipy, sympy, pandas) imported by ``code``,
-    and the heavy scipy subpackages (``scipy.signal``, ``scipy.stats``)."""
+    """Top-level packages of NEVER (and scipy, sympy, pandas, scikit-fuzzy)
+    imported by ``code``, and the heavy subpackages of SUBPACKAGES."""
     probe = (f"{code}\nimport json, sys\n"
              "print(json.dumps(sorted({m.split('.')[0] for m in sys.modules}\n"
-             "    | {m for m in sys.modules if m in ('scipy.signal', 'scipy.stats')})))")
+             f"    | {{m for m in sys.modules if m in {SUBPACKAGES!r}}})))")
     env = {**os.environ, "CONDMON_CACHE_DIR": str(cache)}
     done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
                           env=env, check=False)
     if check:
         assert done.returncode == 0, done.stderr
     return set(json.loads(done.stdout.strip().splitlines()[-1])) & {
-        *NEVER, "scipy", "sympy", "pandas", "scipy.signal", "scipy.stats"}
+        *NEVER, "scipy", "sympy", "pandas", "skfuzzy", *SUBPACKAGES}
+
+
+def _command(*args: str) -> str:
+    """Code running ``condmon ARGS`` in-process, its output swallowed."""
+    return ("from condmon.cli.main import main\n"
+            "import contextlib, io\n"
+            "with contextlib.redirect_stdout(io.StringIO()):\n"
+            f"    assert main({list(args)!r}) == 0")
 
 
 @pytest.fixture(scope="module")
@@ -90,6 +102,73 @@ def test_the_estimate_command_imports_no_store(record: Path, warm_cache: Path) -
     loaded = _loaded(code, warm_cache)
     assert "sqlalchemy" not in loaded  # no database for an estimate
     assert "scipy.signal" not in loaded and "scipy.stats" not in loaded  # ~1 s of imports
+
+
+def test_the_estimate_command_of_a_plain_csv_imports_neither_pandas_nor_scipy(
+        record: Path, warm_cache: Path) -> None:
+    """A plain CSV record is read with numpy: no pandas (0.3 s of imports), no
+    scipy, not even numpy.ma."""
+    assert _loaded(_command("estimate", str(record)), warm_cache) == set()
+
+
+def test_a_record_pandas_must_read_still_estimates(record: Path, tmp_path: Path,
+                                                   warm_cache: Path) -> None:
+    """A semicolon file with decimal commas takes the pandas reader."""
+    import pandas as pd
+
+    frame = pd.read_csv(record)
+    path = tmp_path / "comma.csv"
+    frame.to_csv(path, sep=";", decimal=",", index=False)
+    assert _loaded(_command("estimate", str(path)), warm_cache) & {"pandas", "scipy"} == {"pandas"}
+
+
+@pytest.fixture(scope="module")
+def history(tmp_path_factory: pytest.TempPathFactory, warm_cache: Path) -> tuple[Path, Path]:
+    """A SQLite history whose unit u1 has a baseline, and a record to check."""
+    from condmon.io.records import write_record
+    from condmon.simulate import simulate_actuator
+
+    folder = tmp_path_factory.mktemp("history")
+    db = folder / "h.db"
+    healthy = [write_record(simulate_actuator(seed=s), folder / f"h{s}.csv") for s in (4, 5, 6)]
+    _loaded(_command("baseline", "add", *map(str, healthy), "--unit", "u1", "--db", str(db)),
+            warm_cache)
+    for s in (8, 9, 10, 11, 12, 13):  # checks enough for an exponential to be fitted
+        path = write_record(simulate_actuator(seed=s), folder / f"c{s}.csv")
+        _loaded(_command("check", str(path), "--unit", "u1", "--db", str(db)), warm_cache)
+    return db, write_record(simulate_actuator(seed=7), folder / "check.csv")
+
+
+def test_the_check_command_imports_neither_scipy_nor_a_fuzzy_library(
+        history: tuple[Path, Path], warm_cache: Path) -> None:
+    """The status sets are evaluated with numpy (no scikit-fuzzy, nor the
+    scipy.linalg and scipy.spatial it imports), the t and F tails and the
+    forecast's bounded minimum in plain Python (no scipy.special, no
+    scipy.optimize): a check loads no scipy at all."""
+    db, record = history
+    loaded = _loaded(_command("check", str(record), "--unit", "u1", "--db", str(db)),
+                     warm_cache)
+    assert not loaded & {"skfuzzy", "scipy", "matplotlib", "sklearn", "faultdiagnosistoolbox",
+                         "sympy"}
+    assert "sqlalchemy" in loaded  # the history: the probe sees what it must
+
+
+def test_the_isolate_command_of_a_plain_csv_imports_neither_pandas_nor_sympy(
+        tmp_path: Path, warm_cache: Path) -> None:
+    """With the plant's compiled model cached (the first run), an isolation of a
+    plain CSV record loads no pandas and no sympy: the solver's scipy only."""
+    from condmon.io.records import write_record
+    from condmon.models.registry import load_plant_model
+    from condmon.simulate.plant import simulate_plant
+
+    path = write_record(simulate_plant(load_plant_model("hst"), ["Rv=+40%@10s"], seed=1),
+                        tmp_path / "hst.csv")
+    code = _command("isolate", "hst", str(path))
+    _loaded(code, warm_cache)  # fills the cache
+    loaded = _loaded(code, warm_cache)
+    assert not loaded & {"pandas", "sympy", "sqlalchemy", "matplotlib", "sklearn", "skfuzzy",
+                         "scipy.signal", "scipy.stats"}
+    assert "scipy" in loaded  # the solver: the probe sees what it must
 
 
 # --- the process pool only when it pays --------------------------------------------

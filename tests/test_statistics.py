@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -218,3 +219,31 @@ def test_a_boolean_is_no_alpha() -> None:
 
     with pytest.raises(DataError, match="must be a number in \\(0, 0.5\\), not True"):
         checked_alpha(True)
+
+
+# --- the t and F tails without scipy: scipy's figures ----------------------------
+
+
+@pytest.mark.parametrize("dof", [0.7, 1.0, 2.0, 2.5, 4.66, 9.0, 30.0, 200.0])
+def test_the_t_distribution_is_scipys(dof: float) -> None:
+    from scipy.special import stdtr
+
+    from condmon.monitor.distributions import t_cdf
+
+    for t in (-1e4, -30.0, -10.0, -3.0, -1.0, -0.25, 0.0, 0.5, 2.0):
+        assert t_cdf(dof, t) == pytest.approx(float(stdtr(dof, t)), rel=1e-12, abs=1e-300)
+    assert t_cdf(dof, -math.inf) == 0.0 and t_cdf(dof, math.inf) == 1.0
+
+
+@pytest.mark.parametrize("dfn", [0.66, 1.0, 1.33, 3.0, 6.0, 29.0])
+def test_the_f_distribution_is_scipys(dfn: float) -> None:
+    from scipy.special import fdtrc
+
+    from condmon.monitor.distributions import f_sf
+
+    x = np.array([0.0, 1e-6, 0.1, 0.5, 1.0, 2.0, 5.0, 30.0, 1e4, 1e8])
+    for dfd in (1.0, 2.5, 5.0, 20.0, 49.0):
+        ours = f_sf(dfn, dfd, x)
+        assert isinstance(ours, np.ndarray) and ours.shape == x.shape
+        np.testing.assert_allclose(ours, fdtrc(dfn, dfd, x), rtol=1e-12, atol=1e-300)
+    assert f_sf(dfn, 4.0, np.inf) == 0.0 and math.isnan(float(f_sf(dfn, 4.0, -1.0)))

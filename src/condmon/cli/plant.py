@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Optional
+from typing import TYPE_CHECKING, Annotated, Any, Optional
 
 import typer
 from rich import box
@@ -68,7 +68,8 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
         from condmon.diagnose.isolation import IsolationSettings, healthy_normalisation, isolate
         from condmon.diagnose.structure import RESIDUAL_KINDS
         from condmon.errors import ConfigError
-        from condmon.io.records import parse_column_map, read_record
+        from condmon.io.columns import column_matrix
+        from condmon.io.records import parse_column_map
         from condmon.models.registry import load_plant_model
         from condmon.models.registry import recognised_records
 
@@ -77,7 +78,7 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
             raise ConfigError(f"unknown --residuals {residuals!r}; allowed: {', '.join(RESIDUAL_KINDS)}")
         plant = load_plant_model(model, params)
         cfg = IsolationSettings.load(settings)
-        rec = read_record(record, mapping)
+        rec = _read(record, mapping)
         if unit is not None:
             from condmon.store.base import check_name
             from condmon.io.dates import parse_date
@@ -88,7 +89,7 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
         with progress() as prog:
             if healthy:
                 task = prog.add_task("learning the normalisation", total=None)
-                norm = healthy_normalisation(plant, [read_record(h, mapping) for h in healthy],
+                norm = healthy_normalisation(plant, [_read(h, mapping) for h in healthy],
                                              residuals, cfg.detection,  # type: ignore[arg-type]
                                              record=cfg.record, limits=cfg.simulation,
                                              sources=[str(h) for h in healthy])
@@ -104,7 +105,7 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
         if plots is not None:
             from condmon.report.isolation_figures import write_isolation_figures
 
-            measured = rec[list(plant.sensor_names)].to_numpy(dtype=float)
+            measured = column_matrix(rec, plant.sensor_names)
             files = write_isolation_figures(res, plant, measured, plots)
             err.print(f"wrote {', '.join(str(f) for f in files)}", highlight=False)
         kept = None
@@ -127,6 +128,15 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
             what = ("already in the history of" if kept.duplicate else "stored in the history of")
             out.print(f"isolation i{kept.isolation_id} {what} {kept.unit!r} ({redact(db)})",
                       highlight=False, markup=False)
+
+
+def _read(path: Path, mapping: dict[str, str] | None) -> Any:
+    """A record file: a plain CSV file without pandas, any other with it."""
+    from condmon.io.columns import read_plain_csv
+    from condmon.io.records import read_record
+
+    plain = read_plain_csv(path, mapping)
+    return plain if plain is not None else read_record(path, mapping)
 
 
 def _simulate(model: str, out_path: Path, fault: list[str] | None, params: Path | None,

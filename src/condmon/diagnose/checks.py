@@ -24,16 +24,19 @@ import math
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 from numpy.typing import NDArray
 
 from condmon.io.records import check_time_base
 from condmon.errors import ConfigError, DataError, DataWarning, MissingColumnsError
+from condmon.io.columns import Columns
 from condmon.io.config import load_default
 from condmon.models.declared import PlantModel
+
+if TYPE_CHECKING:  # pandas only where a DataFrame is made or read: not on import
+    import pandas as pd
 
 __all__ = ["RecordSettings", "validate_plant_record", "check_stream_chunk"]
 
@@ -89,9 +92,11 @@ class RecordSettings:
         return out
 
 
-def validate_plant_record(model: PlantModel, record: pd.DataFrame, source: str = "record",
-                          settings: RecordSettings | None = None) -> pd.DataFrame:
-    """Check a record against a model (see the module's list); the record, reindexed.
+def validate_plant_record(model: PlantModel, record: pd.DataFrame | Columns,
+                          source: str = "record", settings: RecordSettings | None = None
+                          ) -> pd.DataFrame | Columns:
+    """Check a record against a model (see the module's list); the record, reindexed
+    (a DataFrame, or :class:`~condmon.io.columns.Columns` when given them).
 
     Raises
     ------
@@ -119,7 +124,7 @@ def validate_plant_record(model: PlantModel, record: pd.DataFrame, source: str =
     inputs = [u for u in model.inputs if u.name in record.columns]
     values: dict[str, FloatArray] = {}
     for c in ["t", *model.sensor_names, *(u.name for u in inputs)]:
-        v = pd.to_numeric(record[c], errors="coerce").to_numpy(dtype=np.float64)
+        v = record[c] if isinstance(record, Columns) else _numbers(record, c)
         if not np.all(np.isfinite(v)):
             k = int(np.flatnonzero(~np.isfinite(v))[0])
             raise DataError(f"{source}: column {c!r} has a missing or non-numeric value at row {k}")
@@ -150,10 +155,20 @@ def validate_plant_record(model: PlantModel, record: pd.DataFrame, source: str =
         elif np.ptp(y) == 0:
             warnings.warn(f"{source}: column {s.name!r} is constant ({y[0]:g} {s.unit}): a stuck "
                           "sensor or a noise-free record", DataWarning, stacklevel=3)
+    if isinstance(record, Columns):
+        return Columns({**{c: record[c] for c in record.columns}, **values}, record.attrs)
     out = record.reset_index(drop=True).copy()
     for c, v in values.items():
         out[c] = v
     return out
+
+
+def _numbers(record: pd.DataFrame, column: str) -> FloatArray:
+    """A column as float64, what is not a number as NaN."""
+    import pandas as pd
+
+    return np.asarray(pd.to_numeric(record[column], errors="coerce").to_numpy(dtype=np.float64),
+                      dtype=np.float64)
 
 
 def _check_time_base(model: PlantModel, t: FloatArray, source: str, cfg: RecordSettings) -> None:

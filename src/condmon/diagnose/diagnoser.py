@@ -119,12 +119,55 @@ class Diagnosis:
                 "preprocessing_applied": list(self.applied)}
 
 
-def _mf(points: tuple[float, ...]) -> FloatArray:
-    import skfuzzy as fuzz  # with its scipy imports: only when a test is diagnosed
+def _triangle(x: FloatArray, a: float, b: float, c: float) -> FloatArray:
+    """Triangular membership of ``x`` (feet ``a``, ``c``, peak ``b``; ``a <= b <= c``),
+    computed as scikit-fuzzy's ``trimf`` does, to the last bit."""
+    y = np.zeros(x.size)
+    if a != b:
+        left = (a < x) & (x < b)
+        y[left] = (x[left] - a) / float(b - a)
+    if b != c:
+        right = (b < x) & (x < c)
+        y[right] = (c - x[right]) / float(c - b)
+    y[x == b] = 1.0
+    return y
 
+
+def _mf(points: tuple[float, ...]) -> FloatArray:
+    """A status set on the universe: a triangle (3 points) or a trapezoid (4),
+    as scikit-fuzzy's ``trimf`` / ``trapmf`` (the points are validated
+    non-decreasing when the rules are loaded)."""
+    x = _UNIVERSE
     if len(points) == 3:
-        return np.asarray(fuzz.trimf(_UNIVERSE, list(points)), dtype=np.float64)
-    return np.asarray(fuzz.trapmf(_UNIVERSE, list(points)), dtype=np.float64)
+        return _triangle(x, *map(float, points))
+    a, b, c, d = map(float, points)
+    y = np.ones(x.size)
+    low, high = x <= b, x >= c
+    y[low] = _triangle(x[low], a, b, b)
+    y[high] = _triangle(x[high], c, c, d)
+    y[(x < a) | (x > d)] = 0.0
+    return y
+
+
+def _centroid(x: FloatArray, mf: FloatArray) -> float:
+    """Centroid of the piecewise-linear area under ``mf``, as scikit-fuzzy's
+    ``defuzz(x, mf, "centroid")`` computes it (the same terms, summed in the
+    same order, so to the last bit). [same unit as x]"""
+    x1, x2, y1, y2 = x[:-1], x[1:], mf[:-1], mf[1:]
+    width = x2 - x1
+    with np.errstate(invalid="ignore", divide="ignore"):
+        moment = np.select(
+            [y1 == y2, (y1 == 0.0) & (y2 != 0.0), (y2 == 0.0) & (y1 != 0.0)],
+            [0.5 * (x1 + x2), 2.0 / 3.0 * width + x1, 1.0 / 3.0 * width + x1],
+            2.0 / 3.0 * width * (y2 + 0.5 * y1) / (y1 + y2) + x1)
+    area = np.select([y1 == y2, (y1 == 0.0) & (y2 != 0.0), (y2 == 0.0) & (y1 != 0.0)],
+                     [width * y1, 0.5 * width * y2, 0.5 * width * y1],
+                     0.5 * width * (y1 + y2))
+    used = ~(((y1 == 0.0) & (y2 == 0.0)) | (x1 == x2))
+    # cumsum adds left to right, as the reference's loop does (np.sum would not)
+    moments = np.cumsum(np.where(used, moment * area, 0.0))
+    areas = np.cumsum(np.where(used, area, 0.0))
+    return float(moments[-1] / max(float(areas[-1]), float(np.finfo(float).eps)))
 
 
 def _preprocess(high: dict[str, float], low: dict[str, float], rules: RuleBase
@@ -224,11 +267,9 @@ def diagnose(symptoms: Mapping[str, Mapping[str, float]], rules: RuleBase | None
 def _infer(sets: tuple[FloatArray, ...], worst: float, major: float, minor: float
            ) -> tuple[float, str]:
     """Mamdani inference over "condition": (centroid, status)."""
-    import skfuzzy as fuzz
-
     go_mf, adv_mf, nogo_mf = sets
     agg = np.maximum.reduce([np.minimum(go_mf, 1.0 - worst), np.minimum(adv_mf, minor),
                              np.minimum(nogo_mf, major)])
-    condition = float(fuzz.defuzz(_UNIVERSE, agg, "centroid"))
+    condition = _centroid(_UNIVERSE, agg)
     memberships = [float(np.interp(condition, _UNIVERSE, m)) for m in sets]
     return condition, STATUSES[int(np.argmax(memberships))]

@@ -32,10 +32,9 @@ import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 from numpy.typing import NDArray
 
 from condmon._threads import one_blas_thread
@@ -49,6 +48,7 @@ from condmon.diagnose.structure import (
 )
 from condmon.diagnose.suspects import SuspectTask, plausible_range, run_suspects, simulate_suspect
 from condmon.errors import ConfigError, DataError, EstimationError
+from condmon.io.columns import Columns, column_matrix
 from condmon.identify.steady_state import (
     SteadyStateEstimate, SteadyWindow, estimate_steady_state, steady_windows,
 )
@@ -56,6 +56,9 @@ from condmon.models.declared import PlantModel
 from condmon.simulate.plant import (
     SimulationLimits, integrate, operating_segments, simulate_plant,
 )
+
+if TYPE_CHECKING:  # pandas only where a DataFrame is made or read: not on import
+    import pandas as pd
 
 __all__ = ["IsolationSettings", "SuspectTask", "IsolationResult", "simulate_suspect",
            "isolate", "healthy_normalisation"]
@@ -237,7 +240,7 @@ def _finite(value: float | None) -> float | None:
     return None if value is None or not math.isfinite(value) else float(value)
 
 
-def healthy_normalisation(model: PlantModel, healthy: Sequence[pd.DataFrame],
+def healthy_normalisation(model: PlantModel, healthy: Sequence[pd.DataFrame | Columns],
                           kind: ResidualKind = "simulation",
                           settings: DetectionSettings | None = None, *,
                           record: RecordSettings | None = None,
@@ -277,7 +280,7 @@ def healthy_normalisation(model: PlantModel, healthy: Sequence[pd.DataFrame],
 
 
 @one_blas_thread
-def isolate(record: pd.DataFrame, model: PlantModel, *,
+def isolate(record: pd.DataFrame | Columns, model: PlantModel, *,
             normalisation: Normalisation | None = None, kind: ResidualKind = "simulation",
             settings: IsolationSettings | None = None, workers: int | None = None,
             progress: Callable[[int, int, str], None] | None = None,
@@ -363,7 +366,7 @@ def isolate(record: pd.DataFrame, model: PlantModel, *,
         return quiet
     sus = suspects(fsm, det.fired)
     t, u = res.t, res.inputs
-    y = record[list(model.sensor_names)].to_numpy(dtype=np.float64)
+    y = column_matrix(record, model.sensor_names)
     try:
         x_nominal = res.states if res.states is not None else \
             integrate(model.compile(), t, u, limits=settings.simulation)

@@ -15,20 +15,23 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 from numpy.typing import NDArray
 
 from condmon.diagnose.checks import validate_plant_record
 from condmon.errors import ConfigError, DataError
+from condmon.io.columns import Columns, column_values
 from condmon.io.config import load_default, load_toml, merge
 from condmon.models.declared import PlantModel
 from condmon.simulate.plant import (
     ParameterStep, SimulationLimits, input_signals, integrate, operating_segments,
     sensor_readings,
 )
+
+if TYPE_CHECKING:  # pandas only where a DataFrame is made or read: not on import
+    import pandas as pd
 
 __all__ = ["DetectionSettings", "Residuals", "Normalisation", "Detection", "load_settings",
            "validate_plant_record", "compute_residuals", "learn_normalisation",
@@ -214,7 +217,7 @@ class Detection:
     undecidable: str | None = None
 
 
-def compute_residuals(model: PlantModel, record: pd.DataFrame, generators: Sequence[Any],
+def compute_residuals(model: PlantModel, record: pd.DataFrame | Columns, generators: Sequence[Any],
                       steps: Sequence[ParameterStep] = (),
                       params: Mapping[str, float] | None = None,
                       limits: SimulationLimits | None = None, source: str = "record"
@@ -256,7 +259,7 @@ def compute_residuals(model: PlantModel, record: pd.DataFrame, generators: Seque
     """
     compiled = model.compile()
     lim = limits or SimulationLimits.from_config()
-    t = record["t"].to_numpy(dtype=np.float64)
+    t = column_values(record, "t")
     u = input_signals(model, t, record, params)
     values = np.empty((len(t), len(generators)))
     predicted = np.empty_like(values)
@@ -265,7 +268,7 @@ def compute_residuals(model: PlantModel, record: pd.DataFrame, generators: Seque
     for j, g in enumerate(generators):
         key = (g.integrated, g.inputs)
         if key not in runs:
-            measured = {_measured_state(model, s): record[s].to_numpy(dtype=np.float64)
+            measured = {_measured_state(model, s): column_values(record, s)
                         for s in g.inputs}
             x = integrate(compiled, t, u, steps, params, measured, g.integrated, lim)
             runs[key] = sensor_readings(compiled, x, u, steps, t, params)
@@ -274,7 +277,7 @@ def compute_residuals(model: PlantModel, record: pd.DataFrame, generators: Seque
         k = model.sensor_names.index(g.sensor)
         predicted[:, j] = runs[key][:, k]
         with np.errstate(all="ignore"):
-            values[:, j] = record[g.sensor].to_numpy(dtype=np.float64) - predicted[:, j]
+            values[:, j] = column_values(record, g.sensor) - predicted[:, j]
         if not np.all(np.isfinite(values[:, j])):
             k = int(np.flatnonzero(~np.isfinite(values[:, j]))[0])
             raise DataError(f"{source}: residual {g.name!r} of column {g.sensor!r} is not finite "

@@ -12,10 +12,9 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 from numpy.typing import NDArray
 
 from condmon._threads import one_blas_thread
@@ -27,10 +26,14 @@ from condmon.identify.regime_estimate import (
     ESTIMATOR_FUNCTIONS, estimate_regime, has_balances, plan, unusable,
 )
 from condmon.identify.result import EstimateResult
+from condmon.io.columns import Columns
 from condmon.io.records import Record, validate_record
 from condmon.io.rig import RecordSettings, apply_record_settings
 from condmon.models.machine import Machine
 from condmon.models.registry import get_model, recognised_records
+
+if TYPE_CHECKING:  # pandas only where a DataFrame is made or read: not on import
+    import pandas as pd
 
 __all__ = ["EstimateResult", "estimate", "estimate_record", "estimate_joint", "list_estimators",
            "DEFAULT_EXCITATION"]
@@ -42,7 +45,7 @@ IntArray = NDArray[np.intp]
 DEFAULT_EXCITATION = ("yd", "ud")
 
 
-def _excitation_columns(record: pd.DataFrame | Record, machine: Machine,
+def _excitation_columns(record: pd.DataFrame | Columns | Record, machine: Machine,
                         excitation: Sequence[str] | str | None) -> tuple[str, ...]:
     cols = record.columns if isinstance(record, Record) else list(record.columns)
     if excitation == "auto":
@@ -51,11 +54,20 @@ def _excitation_columns(record: pd.DataFrame | Record, machine: Machine,
         if isinstance(record, Record):
             return tuple(found)
         # a recorded but constant excitation (a perturbation switched off) is left out
-        return tuple(c for c in found
-                     if pd.to_numeric(record[c], errors="coerce").nunique(dropna=True) > 1)
+        return tuple(c for c in found if _varies(record, c))
     if excitation is None or isinstance(excitation, str):
         return ()
     return tuple(excitation)
+
+
+def _varies(record: pd.DataFrame | Columns, column: str) -> bool:
+    """Whether a column takes more than one value (missing values not counted)."""
+    if isinstance(record, Columns):  # plain numbers, none missing
+        values = record[column]
+        return bool(values.size and np.any(values != values[0]))
+    import pandas as pd
+
+    return bool(pd.to_numeric(record[column], errors="coerce").nunique(dropna=True) > 1)
 
 
 def _required_columns(machine: Machine, route: str) -> tuple[str, ...]:
@@ -111,18 +123,23 @@ def _split_constants(machine: Machine, constants: Mapping[str, Any]
     return rest, fixed
 
 
-def _record_frame(record: pd.DataFrame, machine: Machine, columns: Mapping[str, str] | None,
-                  settings: RecordSettings | None, source: str | None) -> pd.DataFrame:
+def _record_frame(record: pd.DataFrame | Columns, machine: Machine,
+                  columns: Mapping[str, str] | None, settings: RecordSettings | None,
+                  source: str | None) -> pd.DataFrame | Columns:
     """The record in model columns: the machine's ``[record]`` settings, then
     ``settings``, then ``columns`` (unless the frame says they were applied)."""
-    if record.attrs.get("record_settings") is not None:
-        return record.rename(columns={v: k for k, v in columns.items()}) if columns else record
+    applied = record.attrs.get("record_settings") is not None
     merged = machine.record.merged(settings).merged(RecordSettings(dict(columns or {})))
-    return apply_record_settings(record, merged, source)
+    if (applied and not columns) or (not applied and merged.empty):
+        return record  # nothing to rename or apply
+    frame = record.to_frame() if isinstance(record, Columns) else record
+    if applied:
+        return frame.rename(columns={v: k for k, v in (columns or {}).items()})
+    return apply_record_settings(frame, merged, source)
 
 
 @one_blas_thread
-def estimate(record: pd.DataFrame, model: str | Machine = "dc-motor", *,
+def estimate(record: pd.DataFrame | Columns, model: str | Machine = "dc-motor", *,
              method: str = "sriv", gamma: float | None = None,
              excitation: Sequence[str] | str | None = "auto",
              fit_threshold: float = DEFAULT_FIT_THRESHOLD,
@@ -137,7 +154,7 @@ def estimate(record: pd.DataFrame, model: str | Machine = "dc-motor", *,
 
     Parameters
     ----------
-    record : pandas.DataFrame
+    record : pandas.DataFrame or Columns
         Columns ``t`` [s] and the model's input and sensors (DC motor: ``V`` [V],
         ``I`` [A], ``omega`` [rad/s]); optionally the excitation signals; or
         the rig's own columns, read with the machine's ``[record]`` settings
@@ -227,7 +244,7 @@ def _condition_columns(machine: Machine) -> tuple[str, ...]:
 
 
 @one_blas_thread
-def estimate_joint(records: Sequence[pd.DataFrame], model: str | Machine = "dc-motor", *,
+def estimate_joint(records: Sequence[pd.DataFrame | Columns], model: str | Machine = "dc-motor", *,
                    fit_threshold: float = DEFAULT_FIT_THRESHOLD,
                    columns: Mapping[str, str] | None = None,
                    sources: Sequence[str] | None = None, route: str | None = None,
@@ -246,7 +263,7 @@ def estimate_joint(records: Sequence[pd.DataFrame], model: str | Machine = "dc-m
 
     Parameters
     ----------
-    records : sequence of pandas.DataFrame
+    records : sequence of pandas.DataFrame or Columns
         As for :func:`estimate`.
     model, fit_threshold, columns, route, constants, settings, metadata, hold
         As for :func:`estimate`.

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 from numpy.typing import NDArray
 
 from condmon.identify._common import TFEstimate
@@ -15,6 +14,9 @@ from condmon.identify.fit import FitCheck
 from condmon.identify.identifiability import Identifiability
 from condmon.identify.windows import Window
 from condmon.models.transfer import ContinuousTF
+
+if TYPE_CHECKING:  # pandas only where a DataFrame is made or read: not on import
+    import pandas as pd
 
 __all__ = ["EstimateResult"]
 
@@ -247,6 +249,8 @@ class EstimateResult:
 
     def to_frame(self) -> pd.DataFrame:
         """Parameter table: value, standard error, unit, identified."""
+        import pandas as pd
+
         return pd.DataFrame({"value": self.parameters, "std_error": self.std_errors,
                              "unit": self.units,
                              "identified": {k: k in self.identified for k in self.parameters}})

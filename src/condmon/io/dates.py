@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import re
 from datetime import datetime, timedelta, timezone
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from condmon.errors import DataError
+
+if TYPE_CHECKING:  # pandas only where a DataFrame is made or read: not on import
+    import pandas as pd
 
 __all__ = ["as_utc", "parse_date"]
 
@@ -28,6 +30,8 @@ def as_utc(value: Any) -> datetime | None:
     >>> as_utc("2026-03-01 12:00").isoformat()
     '2026-03-01T12:00:00+00:00'
     """
+    import pandas as pd
+
     if value is None or (isinstance(value, float) and np.isnan(value)):
         return None
     ts = pd.Timestamp(value)
@@ -62,6 +66,8 @@ def parse_date(text: str | datetime | None, what: str = "--date") -> datetime | 
     """
     if text is None:
         return None
+    import pandas as pd
+
     if isinstance(text, datetime):
         return _not_future(as_utc(text), text, what)
     raw = str(text).strip()

@@ -14,9 +14,14 @@ import json
 import math
 from collections.abc import Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
+
+from condmon.io.columns import Columns, column_values
+
+if TYPE_CHECKING:  # pandas only where a DataFrame is made or read: not on import
+    import pandas as pd
 
 __all__ = ["content_hash", "file_hash", "fingerprint", "same_content", "fingerprint_prefix",
            "SIGNIFICANT_BITS", "FINGERPRINT_RTOL"]
@@ -67,18 +72,24 @@ def _quantised(values: np.ndarray) -> np.ndarray:
     return np.asarray(out, dtype="<f8")
 
 
-def _data_columns(df: pd.DataFrame, columns: Iterable[str] | None) -> list[str]:
+def _numeric(dtype: Any) -> bool:
+    import pandas as pd
+
+    return bool(pd.api.types.is_numeric_dtype(dtype))
+
+
+def _data_columns(df: pd.DataFrame | Columns, columns: Iterable[str] | None) -> list[str]:
     """The record's numeric data columns (or those of ``columns`` it has), sorted."""
     if columns is None:
         names = [str(c) for c in df.columns
                  if str(c) not in _INDEX_LIKE and not str(c).startswith("Unnamed: ")
-                 and pd.api.types.is_numeric_dtype(df[c].dtype)]
+                 and (isinstance(df, Columns) or _numeric(df[c].dtype))]
     else:
         names = [str(c) for c in columns if c in df.columns]
     return sorted(set(names))
 
 
-def content_hash(df: pd.DataFrame, columns: Iterable[str] | None = None) -> str:
+def content_hash(df: pd.DataFrame | Columns, columns: Iterable[str] | None = None) -> str:
     """SHA-256 of a record's canonical content (hex).
 
     The numeric columns (or ``columns``), sorted by name, each as its name and
@@ -88,7 +99,7 @@ def content_hash(df: pd.DataFrame, columns: Iterable[str] | None = None) -> str:
 
     Parameters
     ----------
-    df : DataFrame
+    df : DataFrame or Columns
         A parsed record (canonical column names, after any column mapping).
     columns : iterable of str, optional
         Only these columns (the ones a model uses); default every numeric
@@ -96,6 +107,7 @@ def content_hash(df: pd.DataFrame, columns: Iterable[str] | None = None) -> str:
 
     Example
     -------
+    >>> import pandas as pd
     >>> a = pd.DataFrame({"t": [0.0, 0.001], "V": [1.0, 2.0]})
     >>> b = a[["V", "t"]].copy()
     >>> b.loc[0, "V"] = 1.0 + 1e-15         # a parser's last-digit difference
@@ -108,7 +120,7 @@ def content_hash(df: pd.DataFrame, columns: Iterable[str] | None = None) -> str:
     h.update(str(len(df)).encode())
     for name in _data_columns(df, columns):
         h.update(b"\x00" + name.encode("utf-8") + b"\x00")
-        h.update(_quantised(df[name].to_numpy(dtype=np.float64, na_value=np.nan)).tobytes())
+        h.update(_quantised(column_values(df, name)).tobytes())
     return h.hexdigest()
 
 
@@ -118,7 +130,7 @@ def fingerprint_prefix(rows: int) -> str:
     return f'{{"n":{int(rows)},'
 
 
-def fingerprint(df: pd.DataFrame, columns: Iterable[str] | None = None) -> str:
+def fingerprint(df: pd.DataFrame | Columns, columns: Iterable[str] | None = None) -> str:
     """A record's content as a few figures per column (JSON text), for
     recognising a copy whose values were rounded differently (a float32
     Parquet file, a re-export with fewer digits) or that has a column more or
@@ -129,6 +141,7 @@ def fingerprint(df: pd.DataFrame, columns: Iterable[str] | None = None) -> str:
 
     Example
     -------
+    >>> import pandas as pd
     >>> a = pd.DataFrame({"t": [0.0, 0.001, 0.002], "V": [1.0, 2.0, 1.5],
     ...                   "I": [0.1, 0.3, 0.2]})
     >>> b = a.astype("float32").assign(extra=[7, 8, 9])
@@ -138,12 +151,14 @@ def fingerprint(df: pd.DataFrame, columns: Iterable[str] | None = None) -> str:
     False
     """
     n = len(df)
-    idx = np.unique(np.linspace(0, max(n - 1, 0), _SAMPLES).round().astype(np.intp))
+    # sorted(set()), not np.unique: that imports numpy.ma (a start-up cost)
+    idx = np.array(sorted(set(np.linspace(0, max(n - 1, 0), _SAMPLES).round().astype(np.intp)
+                              .tolist())), dtype=np.intp)
     if n == 0:
         idx = idx[:0]
     cols: dict[str, list[float | None]] = {}
     for name in _data_columns(df, columns):
-        x = df[name].to_numpy(dtype=np.float64, na_value=np.nan)
+        x = column_values(df, name)
         finite = x[np.isfinite(x)]
         figures = [float(finite.mean()) if finite.size else math.nan,
                    float(finite.std()) if finite.size else math.nan, *map(float, x[idx])]

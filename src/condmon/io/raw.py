@@ -16,12 +16,14 @@ from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from condmon.errors import DataError, DataWarning
+
+if TYPE_CHECKING:  # pandas only where a DataFrame is made or read: not on import
+    import pandas as pd
 
 __all__ = ["RawRecord", "select_vectors", "time_to_seconds", "describe_shape", "one_line"]
 
@@ -170,6 +172,8 @@ def select_vectors(items: Mapping[str, AnyArray], source: Path | str, what: str 
 
 def _parse_datetimes(values: pd.Series, source: str) -> pd.Series | None:
     """Date-time strings parsed, or None when they are not all date-times."""
+    import pandas as pd
+
     valid = values.dropna()
     if valid.empty:
         return None
@@ -242,11 +246,14 @@ def time_to_seconds(values: pd.Series, source: str = "record") -> tuple[pd.Serie
 
     Example
     -------
+    >>> import pandas as pd
     >>> s, start = time_to_seconds(pd.Series(["2026-11-23 10:00:00.000",
     ...                                       "2026-11-23 10:00:00.250"]))
     >>> s.tolist(), start
     ([0.0, 0.25], '2026-11-23T10:00:00')
     """
+    import pandas as pd
+
     if pd.api.types.is_datetime64_any_dtype(values.dtype):
         stamps: pd.Series | None = values
     elif pd.api.types.is_object_dtype(values.dtype) or pd.api.types.is_string_dtype(values.dtype):

@@ -26,12 +26,14 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from condmon.errors import DataError, MissingColumnsError
 from condmon.io.raw import RawRecord, one_line, time_to_seconds
 from condmon.io.size import check_record_size
+
+if TYPE_CHECKING:  # pandas only where a DataFrame is made or read: not on import
+    import pandas as pd
 
 __all__ = ["READABLE_SUFFIXES", "read_record"]
 
@@ -116,6 +118,8 @@ def read_record(path: str | Path, columns: Mapping[str, str] | None = None) -> p
 
 
 def _read_raw(p: Path, suffix: str, time_column: str | None) -> RawRecord:
+    import pandas as pd
+
     if suffix in (".csv", ".txt", ".tsv"):
         from condmon.io.delimited import read_delimited
 
@@ -132,6 +136,8 @@ def _read_raw(p: Path, suffix: str, time_column: str | None) -> RawRecord:
 
 
 def _is_time_column(values: pd.Series, source: str) -> bool:
+    import pandas as pd
+
     if pd.api.types.is_datetime64_any_dtype(values.dtype):
         return True
     if not (pd.api.types.is_object_dtype(values.dtype)

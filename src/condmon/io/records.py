@@ -15,13 +15,17 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 
 from condmon.errors import DataError, DataWarning, MissingColumnsError
+from condmon.io.columns import Columns
 from condmon.io.readers import read_record
+
+if TYPE_CHECKING:  # pandas only where a DataFrame is made or read: not on import
+    import pandas as pd
 
 __all__ = ["Record", "read_record", "validate_record", "check_time_base", "parse_column_map",
            "write_record"]
@@ -149,7 +153,7 @@ beyond the tolerance, first at row 3 (resample first)
         k = int(np.flatnonzero(~(dts > 0))[0])
         raise DataError(f"{source}: column {column!r} is not increasing at row {k + 1} "
                         f"({float(arr[k]):.9g} then {float(arr[k + 1]):.9g})")
-    dt = float(np.median(dts))
+    dt = _median(dts)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         deviation = np.abs(dts - dt) / dt
     beyond = np.flatnonzero(~(deviation <= tolerance))
@@ -163,7 +167,7 @@ beyond the tolerance, first at row 3 (resample first)
     return dt
 
 
-def validate_record(df: pd.DataFrame, required: Sequence[str],
+def validate_record(df: pd.DataFrame | Columns, required: Sequence[str],
                     optional: Sequence[str] = (), *, input_name: str | None = None,
                     inputs: Sequence[str] = (), min_samples: int = 20,
                     source: str | None = None) -> Record:
@@ -171,7 +175,7 @@ def validate_record(df: pd.DataFrame, required: Sequence[str],
 
     Parameters
     ----------
-    df : pandas.DataFrame
+    df : pandas.DataFrame or Columns
         The record; must hold a time column ``t`` [s].
     required : sequence of str
         Columns that must be present (besides ``t``).
@@ -209,17 +213,7 @@ def validate_record(df: pd.DataFrame, required: Sequence[str],
     n_rows = len(df)
     cols: dict[str, FloatArray] = {}
     for name in names:
-        series = df[name]
-        try:
-            if pd.api.types.is_numeric_dtype(series.dtype) and not pd.api.types.is_bool_dtype(series.dtype):
-                arr = series.to_numpy(dtype=np.float64, na_value=np.nan)
-            else:
-                arr = np.asarray(pd.to_numeric(series, errors="raise"), dtype=np.float64)
-        except (ValueError, TypeError):
-            bad = series[pd.to_numeric(series, errors="coerce").isna() & series.notna()]
-            row = bad.index[0] if len(bad) else "?"
-            raise DataError(f"{src}: column {name!r} is not numeric "
-                            f"(row {row}: {series.loc[row]!r})") from None
+        arr = df[name] if isinstance(df, Columns) else _numeric_column(df, name, src)
         bad_idx = np.flatnonzero(~np.isfinite(arr))
         if bad_idx.size:
             last_good = np.flatnonzero(np.isfinite(arr))
@@ -253,12 +247,46 @@ def validate_record(df: pd.DataFrame, required: Sequence[str],
         at_limit = np.mean((u >= hi - 1e-9 * span) | (u <= lo + 1e-9 * span))
         # A signal that only takes a few levels (a binary PRBS, steps) sits at its
         # extremes by design: saturation is a plateau on an otherwise varying input.
-        levels = np.unique(u[: min(u.size, 20000)]).size
+        levels = _distinct(u[: min(u.size, 20000)])
         if at_limit > SATURATION_SHARE and at_limit < 0.95 and levels > 10:
             warnings.warn(f"{src}: {100 * at_limit:.1f} % of column {input_name!r} sits at "
                           f"its extreme values ({lo:.4g}, {hi:.4g}): the drive saturates "
                           "and the linear model may be biased", DataWarning, stacklevel=2)
     return Record(cols, dt, src)
+
+
+def _numeric_column(df: pd.DataFrame, name: str, src: str) -> FloatArray:
+    """A DataFrame's column as float64, or the DataError naming its first
+    value that is not a number."""
+    import pandas as pd
+
+    series = df[name]
+    try:
+        if pd.api.types.is_numeric_dtype(series.dtype) and not pd.api.types.is_bool_dtype(series.dtype):
+            return np.asarray(series.to_numpy(dtype=np.float64, na_value=np.nan),
+                              dtype=np.float64)
+        return np.asarray(pd.to_numeric(series, errors="raise"), dtype=np.float64)
+    except (ValueError, TypeError):
+        bad = series[pd.to_numeric(series, errors="coerce").isna() & series.notna()]
+        row = bad.index[0] if len(bad) else "?"
+        raise DataError(f"{src}: column {name!r} is not numeric "
+                        f"(row {row}: {series.loc[row]!r})") from None
+
+
+def _median(x: FloatArray) -> float:
+    """``np.median`` of finite values, to the bit, without the numpy.ma import
+    np.median costs."""
+    n = x.size
+    part = np.partition(x, [(n - 1) // 2, n // 2])
+    if n % 2:
+        return float(part[n // 2])
+    return float((part[n // 2 - 1] + part[n // 2]) / 2.0)
+
+
+def _distinct(u: FloatArray) -> int:
+    """How many distinct values a finite signal takes (``np.unique(u).size``
+    without the numpy.ma import that np.unique costs)."""
+    return int(np.count_nonzero(np.diff(np.sort(u)))) + 1 if u.size else 0
 
 
 def _constant(u: FloatArray) -> bool:
@@ -272,10 +300,13 @@ def write_record(df: pd.DataFrame, path: str | Path) -> Path:
     Example
     -------
     >>> import tempfile
+    >>> import pandas as pd
     >>> p = write_record(pd.DataFrame({"t": [0.0, 0.1]}), Path(tempfile.mkdtemp()) / "r.csv")
     >>> p.suffix
     '.csv'
     """
+    import pandas as pd
+
     p = Path(path)
     suffix = p.suffix.lower()
     if suffix == ".csv":

@@ -30,12 +30,14 @@ import math
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from condmon.errors import ConfigError, DataError, DataWarning
+
+if TYPE_CHECKING:  # pandas only where a DataFrame is made or read: not on import
+    import pandas as pd
 
 __all__ = ["RecordSettings", "parse_record_settings", "apply_record_settings", "rig_layout",
            "parse_assignments", "settings_from_options", "RECORD_KEYS"]
@@ -68,6 +70,7 @@ class RecordSettings:
     Example
     -------
     >>> s = RecordSettings(columns={"t": "Time"}, sample_rate=100.0)
+    >>> import pandas as pd
     >>> df = apply_record_settings(pd.DataFrame({"Time": [1, 2, 3]}), s)
     >>> df["t"].tolist()
     [0.0, 0.01, 0.02]
@@ -302,12 +305,15 @@ def apply_record_settings(df: pd.DataFrame, settings: RecordSettings | None,
     -------
     >>> s = RecordSettings(columns={"p": "PG"}, scale={"p": 2.0}, offset={"p": -1.0},
     ...                    sample_rate=4.0, ignore=("junk",))
+    >>> import pandas as pd
     >>> out = apply_record_settings(pd.DataFrame({"PG": [1, 2], "junk": ["a", "b"]}), s)
     >>> out.columns.tolist(), out["p"].tolist(), out["t"].tolist()
     (['p', 't'], [1.0, 3.0], [0.0, 0.25])
     """
     if settings is None or settings.empty:
         return df
+    import pandas as pd
+
     src = source or str(df.attrs.get("source", "record"))
     attrs = dict(df.attrs)
     dropped = [c for c in settings.ignore if c in df.columns]
@@ -358,6 +364,7 @@ def rig_layout(df: pd.DataFrame, settings: RecordSettings | None) -> pd.DataFram
     -------
     >>> s = RecordSettings(columns={"t": "Time", "p": "PG"}, scale={"p": 2.0},
     ...                    offset={"p": -1.0}, sample_rate=4.0)
+    >>> import pandas as pd
     >>> raw = rig_layout(pd.DataFrame({"t": [0.0, 0.25], "p": [1.0, 3.0]}), s)
     >>> raw.columns.tolist(), raw["PG"].tolist(), raw["Time"].tolist()
     (['Time', 'PG'], [1.0, 2.0], [1, 2])
@@ -381,6 +388,8 @@ def rig_layout(df: pd.DataFrame, settings: RecordSettings | None) -> pd.DataFram
 
 def _seconds(df: pd.DataFrame, fs: float, src: str) -> np.ndarray[Any, np.dtype[np.float64]]:
     """``t`` in seconds from a sample counter (or the row number) at ``fs`` [Hz]."""
+    import pandas as pd
+
     n = len(df)
     if "t" not in df.columns:
         return np.arange(n, dtype=np.float64) / fs

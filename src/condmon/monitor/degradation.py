@@ -86,11 +86,10 @@ def exp_fit(x: FloatArray, y: FloatArray,
     i = int(np.argmin(rss))
     if i == 0:                     # flattest rate best: a line, not an exponential
         return None
-    from scipy.optimize import minimize_scalar  # 0.2 s to import: only when a curve is fitted
+    from condmon.monitor.bounded import bounded_minimum  # scipy's bounded steps, no scipy import
 
-    found = minimize_scalar(lambda b: profile(float(b))[0], method="bounded",
-                            bounds=(float(grid[i - 1]), float(grid[min(i + 1, len(grid) - 1)])))
-    b = float(found.x)
+    b = bounded_minimum(lambda rate: profile(float(rate))[0], float(grid[i - 1]),
+                        float(grid[min(i + 1, len(grid) - 1)]))
     best, (level, slope) = profile(b)
     g = growth(b, t)
     J = np.column_stack([np.ones_like(t), g, slope * (t * np.exp(b * t) - g) / b])

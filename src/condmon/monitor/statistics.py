@@ -76,6 +76,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from condmon.errors import DataError
+from condmon.monitor.distributions import f_sf, t_cdf
 
 __all__ = ["StatisticsConfig", "CheckStatistics", "check_statistics", "checked_alpha"]
 
@@ -247,8 +248,6 @@ def _test(z: FloatArray, scatter: FloatArray, factor: float, extra: FloatArray, 
     themselves says nothing of the structure); else the largest |t| with
     Šidák's correction over the ``distinct`` parameters.
     """
-    from scipy.special import fdtrc, stdtr  # the distributions, not scipy.stats (0.35 s)
-
     scale = np.sqrt(np.clip(np.diag(scatter), 1e-300, None))
     w, V = np.linalg.eigh(scatter / np.outer(scale, scale))
     keep = w > _RANK_TOL * max(float(w[-1]), 1e-300)
@@ -257,11 +256,11 @@ def _test(z: FloatArray, scatter: FloatArray, factor: float, extra: FloatArray, 
         W = V[:, keep] / scale[:, None]
         zw = W.T @ z
         t2 = float(zw @ np.linalg.solve(W.T @ (scatter * factor + extra) @ W, zw))
-        return t2, float(fdtrc(r, dof - r + 1, t2 * (dof - r + 1) / (r * dof))), \
+        return t2, float(f_sf(r, dof - r + 1, t2 * (dof - r + 1) / (r * dof))), \
             "hotelling", r
     t = z / np.sqrt(np.clip(np.diag(scatter) * factor + np.diag(extra), 1e-300, None))
     big = float(np.max(np.abs(t)))
-    p1 = min(float(2.0 * stdtr(dof, -big)), 1.0 - 1e-16)
+    p1 = min(2.0 * t_cdf(dof, -big), 1.0 - 1e-16)
     return big, float(min(1.0, -math.expm1(distinct * math.log1p(-p1)))), "max-t", distinct
 
 
@@ -371,13 +370,11 @@ def _scatter_check(earlier: FloatArray, S: FloatArray, n: int, distinct: int
     successive differences' efficiency), at 1 % over the ``distinct``
     parameters (Bonferroni).
     """
-    from scipy.special import fdtrc
-
     k = earlier.shape[0]
     if k < _SCATTER_CHECKS:
         return np.zeros(0), True
     q = np.mean(np.diff(earlier, axis=0) ** 2, axis=0) / 2.0
     ratio = q / np.clip(np.diag(S), 1e-300, None)
     nu = 2.0 * (k - 1) / 3.0
-    p = fdtrc(nu, n - 1, ratio)
+    p = f_sf(nu, n - 1, ratio)
     return ratio, bool(np.min(p) >= _SCATTER_LEVEL / max(distinct, 1))

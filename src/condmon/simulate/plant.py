@@ -22,18 +22,21 @@ import time
 import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
 from condmon.errors import CondmonError, ConfigError, DataError, EstimationError
+from condmon.io.columns import Columns, column_values
 from condmon.io.config import load_default
 from condmon.models.declared import CompiledModel, PlantModel
 from condmon.models.excitation import excitation_signal
 from condmon.simulate.faults import Fault, apply_fault, parse_fault
+
+if TYPE_CHECKING:  # pandas only where a DataFrame is made or read: not on import
+    import pandas as pd
 
 __all__ = ["ParameterStep", "SimulationLimits", "SimulationTimeout", "parameter_steps",
            "input_signals", "operating_segments", "integrate", "sensor_readings",
@@ -130,7 +133,7 @@ def time_grid(model: PlantModel, duration: float | None = None,
     return np.arange(n, dtype=np.float64) / fs
 
 
-def input_signals(model: PlantModel, t: FloatArray, record: pd.DataFrame | None = None,
+def input_signals(model: PlantModel, t: FloatArray, record: pd.DataFrame | Columns | None = None,
                   params: Mapping[str, float] | None = None) -> FloatArray:
     """Known inputs on the grid ``t``, shape (len(t), n_inputs).
 
@@ -149,7 +152,7 @@ def input_signals(model: PlantModel, t: FloatArray, record: pd.DataFrame | None 
     u = np.empty((len(t), len(model.inputs)), dtype=np.float64)
     for j, name in enumerate(model.input_names):
         if record is not None and name in record.columns:
-            u[:, j] = record[name].to_numpy(dtype=np.float64)
+            u[:, j] = column_values(record, name)
             continue
         nominal = model.input_nominal(name, params)
         u[:, j] = nominal
@@ -288,7 +291,7 @@ def integrate(compiled: CompiledModel, t: FloatArray, u: FloatArray,
         if smooth_inputs:
             uk = np.array([np.interp(tt, t, u[:, j]) for j in range(u.shape[1])])
         d: FloatArray = compiled.rhs(xf, uk, p)[idx]
-        if not np.all(np.isfinite(d)):
+        if not np.isfinite(d).all():  # the method: no Python wrapper at every call
             raise _Stop(tt, "non-finite")
         return d
 
@@ -392,6 +395,8 @@ def simulate_plant(model: PlantModel, faults: Iterable[str | Fault] = (), *, see
         cols[s.name] = y[:, j] + (rng.normal(0.0, s.noise, len(t)) if noise else 0.0)
     for j, name in enumerate(model.input_names):
         cols[name] = u[:, j]
+    import pandas as pd
+
     return pd.DataFrame(cols)
 
 

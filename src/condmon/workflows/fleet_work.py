@@ -155,8 +155,10 @@ def process_record(task: RecordTask) -> RecordOutcome:
                                      seconds=time.perf_counter() - started)
             if task.kind == "isolate":
                 from condmon.diagnose.isolation import isolate
+                from condmon.io.columns import Columns
 
-                iso = isolate(df, _plant(task.model), settings=_isolation_settings(),
+                frame = df.to_frame() if isinstance(df, Columns) else df
+                iso = isolate(frame, _plant(task.model), settings=_isolation_settings(),
                               workers=1, source=task.path)
                 return RecordOutcome(task.unit, task.path, key, isolation=iso,
                                      warnings=_texts(caught),

@@ -5,14 +5,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from condmon.diagnose.isolation import IsolationResult
 from condmon.errors import DataError
+from condmon.io.columns import Columns
 from condmon.models.registry import get_model
 from condmon.store.db import DuplicateTestError, HistoryStore
 from condmon.workflows.monitoring import record_key
+
+if TYPE_CHECKING:  # pandas only where a DataFrame is made or read: not on import
+    import pandas as pd
 
 __all__ = ["StoredIsolation", "store_isolation"]
 
@@ -39,7 +42,7 @@ class StoredIsolation:
 
 
 def store_isolation(store: HistoryStore, unit: str, result: IsolationResult,
-                    record: pd.DataFrame, path: str | Path | None, model: str,
+                    record: pd.DataFrame | Columns, path: str | Path | None, model: str,
                     test_date: str | datetime | None = None) -> StoredIsolation:
     """Store one isolation of ``record`` (read from ``path``) for ``unit``.
 

@@ -10,21 +10,25 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Union
 
-import pandas as pd
 
 from condmon.errors import DataError
 from condmon.identify.estimate import EstimateResult, estimate
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD
+from condmon.io.columns import Columns, read_plain_csv
 from condmon.io.dates import parse_date
 from condmon.io.digest import content_hash, file_hash, fingerprint
 from condmon.io.records import read_record
 from condmon.io.rig import RecordSettings, apply_record_settings
 
+if TYPE_CHECKING:  # pandas only where a DataFrame is made or read: not on import
+    import pandas as pd
+
 __all__ = ["EstimateOptions", "RecordKey", "RecordLike", "record_key"]
 
-RecordLike = str | Path | pd.DataFrame
+#: A record file, or a record already read.
+RecordLike = Union[str, Path, "pd.DataFrame", Columns]
 
 
 @dataclass(frozen=True)
@@ -57,7 +61,7 @@ class RecordKey:
     hours: float | None = None
 
 
-def record_key(df: pd.DataFrame, path: str | Path | None = None,
+def record_key(df: pd.DataFrame | Columns, path: str | Path | None = None,
                test_date: str | datetime | None = None,
                metadata: Mapping[str, Any] | None = None) -> RecordKey:
     """The :class:`RecordKey` of a parsed record (``path``: its file, if any;
@@ -135,29 +139,43 @@ class EstimateOptions:
             RecordSettings(dict(self.columns or {}), sources=("--columns",) if self.columns
                            else ()))
 
-    def read(self, record: str | Path) -> pd.DataFrame:
-        """Read a record file and apply the record settings (model columns, SI units)."""
+    def read(self, record: str | Path) -> pd.DataFrame | Columns:
+        """Read a record file and apply the record settings (model columns, SI units).
+
+        A plain CSV file with nothing to convert but names is read without
+        pandas (:func:`condmon.io.columns.read_plain_csv`), as :class:`Columns`."""
         from condmon.models.registry import recognised_records
 
         settings = self.settings()
-        with recognised_records(self.model or "dc-motor"):
-            df = read_record(record, settings.columns)
-        out = apply_record_settings(df, dataclasses.replace(settings, columns={}), str(record))
+        rest = dataclasses.replace(settings, columns={})
+        plain = read_plain_csv(record, settings.columns) if rest.empty else None
+        out: pd.DataFrame | Columns
+        if plain is not None:
+            out = plain
+        else:
+            with recognised_records(self.model or "dc-motor"):
+                df = read_record(record, settings.columns)
+            out = apply_record_settings(df, rest, str(record))
         out.attrs["record_settings"] = settings.describe(len(out.attrs.get("record_ignored", ())))
         return out
 
-    def prepared(self, record: pd.DataFrame) -> pd.DataFrame:
+    def prepared(self, record: pd.DataFrame | Columns) -> pd.DataFrame | Columns:
         """An in-memory record with the record settings applied (once)."""
         if record.attrs.get("record_settings") is not None:
             return record
-        out = apply_record_settings(record, self.settings())
+        settings = self.settings()
+        if settings.empty:
+            record.attrs.setdefault("record_settings", "as written")
+            return record
+        out = apply_record_settings(record.to_frame() if isinstance(record, Columns) else record,
+                                    settings)
         out.attrs.setdefault("record_settings", "as written")
         return out
 
     def run(self, record: RecordLike, test_date: str | datetime | None = None
             ) -> tuple[EstimateResult, RecordKey]:
         """Read (if a path), estimate; returns the result and how the record is known."""
-        if isinstance(record, pd.DataFrame):
+        if not isinstance(record, (str, Path)):
             df = self.prepared(record)
             key = record_key(df, None, test_date, self.metadata)
             source = str(record.attrs.get("source", "record"))
@@ -166,7 +184,7 @@ class EstimateOptions:
             key, source = record_key(df, record, test_date, self.metadata), str(record)
         return self.estimate_parsed(df, source), key
 
-    def estimate_parsed(self, df: pd.DataFrame, source: str, *, mapped: bool = True
+    def estimate_parsed(self, df: pd.DataFrame | Columns, source: str, *, mapped: bool = True
                         ) -> EstimateResult:
         """Estimate a parsed record (``mapped``: the record settings were
         applied, as :meth:`read` does; else they are applied now); ``source``

@@ -78,3 +78,23 @@ def test_units_pages_as_the_api_does(big: str, capsys: pytest.CaptureFixture[str
     assert main(["units", "--db", big, "--per-page", "100", "--page", "4"]) == 2
     err = capsys.readouterr().err.strip()
     assert err == "error: page 4: the 250 matching unit(s) fill 3 page(s) of 100"
+
+
+def test_units_json_of_the_whole_fleet_is_printed_a_chunk_at_a_time_as_the_api_gives_it(
+        big: str, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    import condmon.report.web_data as W
+
+    pages: list[tuple[int, int | None]] = []
+    real = W.fleet_document
+
+    def counted(store: Any, *args: Any, **kw: Any) -> Any:
+        pages.append((kw.get("page", 1), kw.get("per_page")))
+        return real(store, *args, **kw)
+
+    client = create_app(big).test_client()
+    whole = _get(client, "/api/units?per_page=all").get_json()
+    monkeypatch.setattr(W, "fleet_document", counted)
+    capsys.readouterr()
+    assert main(["units", "--db", big, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out) == whole and len(whole["units"]) == 250
+    assert pages == [(1, 1), (1, 500)]   # the counts, then the units 500 at a time

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+from collections.abc import Iterable
 from typing import Any
 
 from rich.console import Console
@@ -11,7 +12,8 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from condmon.io.jsonable import json_safe
 
-__all__ = ["out", "err", "fmt", "write_json", "json_safe", "progress", "status_text"]
+__all__ = ["out", "err", "fmt", "write_json", "write_json_list", "json_safe", "progress",
+           "status_text"]
 
 out = Console()
 err = Console(stderr=True)
@@ -35,6 +37,45 @@ def write_json(doc: Any) -> None:
     (NaN, ±inf) becomes null, numpy scalars and arrays become numbers and lists,
     anything else unknown its text."""
     sys.stdout.write(json.dumps(json_safe(doc), indent=2, allow_nan=False) + "\n")
+
+
+def _dumped(value: Any, indent: str) -> str:
+    """``value`` as :func:`write_json` prints it, its lines after the first indented."""
+    text = json.dumps(json_safe(value), indent=2, allow_nan=False)
+    return text.replace("\n", "\n" + indent)
+
+
+def write_json_list(items: Iterable[Any], key: str | None = None,
+                    after: dict[str, Any] | None = None) -> None:
+    """Print a list as :func:`write_json` would, one item at a time (memory
+    stays flat however long the list): ``items`` alone, or ``{key: items,
+    **after}`` when a key is given.
+
+    Example
+    -------
+    >>> write_json_list(iter([{"a": 1}]), "units", {"page": 1})
+    {
+      "units": [
+        {
+          "a": 1
+        }
+      ],
+      "page": 1
+    }
+    """
+    pad = "    " if key is not None else "  "
+    write = sys.stdout.write
+    write("{\n  " + json.dumps(key) + ": [" if key is not None else "[")
+    first = True
+    for item in items:
+        write(("\n" if first else ",\n") + pad + _dumped(item, pad))
+        first = False
+    write("]" if first else "\n" + pad[:-2] + "]")
+    if key is not None:
+        for k, v in (after or {}).items():
+            write(",\n  " + json.dumps(k) + ": " + _dumped(v, "  "))
+        write("\n}")
+    write("\n")
 
 
 def progress() -> Progress:

@@ -10,7 +10,9 @@ from rich import box
 from rich.markup import escape
 from rich.table import Table
 
-from condmon.cli._console import err, id_runs, out, progress, status_text, write_json
+from condmon.cli._console import (
+    err, id_runs, out, progress, status_text, write_json, write_json_list,
+)
 from condmon.cli.history import print_flags
 
 __all__ = ["register"]
@@ -47,6 +49,9 @@ def register(app: typer.Typer) -> None:
             raise ConfigError(f"--sort {sort!r}: allowed: name, forecast")
         least = load_generic_settings().group_min_units
         with open_store(db, create=False) as store:
+            if as_json and per_page is None and sort != "forecast":
+                _stream_units(store, sort)   # the whole fleet, a chunk at a time
+                return
             doc = fleet_document(store, sort=sort, page=page, per_page=per_page)
             small = {g: len(store.group_baselines(g)) for g in store.groups()}
         small = {g: n for g, n in small.items() if n < least}
@@ -104,6 +109,25 @@ def register(app: typer.Typer) -> None:
                       markup=False, soft_wrap=True)
 
 
+    def _stream_units(store: Any, sort: str) -> None:
+        """``units --json`` of every unit, read and printed 500 units at a time."""
+        from condmon.report.web_data import fleet_document
+
+        head = fleet_document(store, sort=sort, page=1, per_page=1)
+
+        def units() -> Any:
+            page = 1
+            while True:
+                chunk = fleet_document(store, sort=sort, page=page, per_page=500)
+                yield from chunk["units"]
+                if page >= chunk["pages"]:
+                    return
+                page += 1
+
+        write_json_list(units(), "units", {"page": 1, "per_page": None, "pages": 1,
+                                           **{k: head[k] for k in ("matching", "total",
+                                                                   "counts")}})
+
     @app.command("history")
     def history_cmd(
         unit: UnitOpt,
@@ -122,12 +146,13 @@ def register(app: typer.Typer) -> None:
             model = store.unit_model(unit) or "dc-motor"
             baseline = store.latest_baseline(unit)
             names = {b.id: b.name for b in store.baselines(unit)} if len(hist) else {}
-        if as_json:
+        if as_json:   # printed 200 records at a time
             from condmon.io.jsonable import frame_records
 
-            docs = [{"kind": "test", **d} for d in frame_records(hist)]
-            docs += [{"kind": "isolation", **d} for d in frame_records(isos)]
-            write_json(docs)
+            write_json_list({"kind": kind, **d} for kind, frame in (("test", hist),
+                                                                   ("isolation", isos))
+                            for i in range(0, len(frame), 200)
+                            for d in frame_records(frame.iloc[i:i + 200]))
             return
         name = escape(Path(model).name)
         if len(isos):

@@ -98,3 +98,27 @@ def test_units_json_of_the_whole_fleet_is_printed_a_chunk_at_a_time_as_the_api_g
     assert main(["units", "--db", big, "--json"]) == 0
     assert json.loads(capsys.readouterr().out) == whole and len(whole["units"]) == 250
     assert pages == [(1, 1), (1, 500)]   # the counts, then the units 500 at a time
+
+
+def test_a_unit_page_pages_its_tests_the_latest_first(tmp_path: Path) -> None:
+    import sqlalchemy as sa
+
+    db = str(tmp_path / "long.db")
+    with open_store(db) as store:
+        uid = store.unit_id("LONG", create=True)
+        with store.engine.begin() as conn:
+            conn.execute(sa.text(
+                "insert into tests (unit_id, created_at, source, file_hash, role, accepted, "
+                "fits, method, closed_loop, constants, record_hash) values (:u, "
+                "'2026-01-01 00:00:00', :s, :s, 'baseline', 1, '{}', 'ls', 0, '{}', :s)"),
+                [{"u": uid, "s": f"r{k:03d}.csv"} for k in range(450)])
+        ids = [int(i) for i in store.history("LONG").index]
+    client = create_app(db).test_client()
+    html = _get(client, "/units/LONG").get_data(as_text=True)
+    assert html.count('<tr id="t') == 50 and f'id="t{ids[-1]}"' in html
+    assert "50 of 450 tests (page 3 of 3; the figures show them all)" in html
+    assert "450 tests (450 baseline" in html and 'href="?page=2#tests"' in html
+    first = _get(client, "/units/LONG?page=1").get_data(as_text=True)
+    assert first.count('<tr id="t') == 200 and f'id="t{ids[0]}"' in first
+    assert f'id="t{ids[200]}"' not in first
+    assert _get(client, "/units/LONG?page=0", 400).get_data(as_text=True).count("page 0") == 1

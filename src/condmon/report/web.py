@@ -63,7 +63,8 @@ from condmon.report.live import LiveFeed, with_live
 from condmon.report.tables import unit_of
 from condmon.report.trends import error_bar
 from condmon.report.web_data import (
-    PER_PAGE, SORTS, STATUSES, FilterError, UnitData, UnknownUnitError, _History, _page_links,
+    PER_PAGE, SORTS, STATUSES, TESTS_PER_PAGE, FilterError, UnitData, UnknownUnitError, _History,
+    _page_links,
     _statuses, fleet_document, read_unit, readonly_url, unit_document,
 )
 from condmon.report.web_render import (
@@ -254,9 +255,24 @@ def create_app(db: str | Path, *, refresh: float = 30.0, live: LiveFeed | None =
                       "text": str(r["summary"]) if r["accepted"] and
                       isinstance(r["summary"], str) else f"retest: {r['reason']}",
                       "date": _fmt_date(r["date"])}
+        hist = data.history
+        roles = {str(k): int(v) for k, v in hist["role"].value_counts().items()} if len(hist) \
+            else {}
+        counts = {"baseline": int(roles.get("baseline", 0)), "check": int(roles.get("check", 0)),
+                  "excluded": int(hist["excluded"].sum()) if len(hist) else 0}
+        # the tests' table a page at a time (the latest page first); the figures use them all
+        pages = max(1, -(-len(hist) // TESTS_PER_PAGE))
+        at = number("page", pages)
+        if at is None or at < 1:
+            raise FilterError(f"page {at}: a whole number >= 1")
+        at = min(at, pages)
+        shown = hist.iloc[(at - 1) * TESTS_PER_PAGE: at * TESTS_PER_PAGE]
         return render_template("unit.html", d=data, o=data.overview, trends=trends,
-                               figures=_figures(data, trends),
-                               tests=_test_rows(data.history, params), params=params,
+                               figures=_figures(data, trends), counts=counts,
+                               tests=_test_rows(shown, params), params=params,
+                               test_pages=_page_links({"page": at, "pages": pages},
+                                                      request.args),
+                               shown=(len(shown), len(hist), at, pages),
                                suspects=suspects, isolations=iso_rows, latest=latest,
                                advice=advice,
                                api=unit_href(unit, api=True))

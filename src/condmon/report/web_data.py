@@ -30,7 +30,7 @@ if TYPE_CHECKING:
     from condmon.store.baselines import StoredBaseline
     from condmon.store.db import HistoryStore
 
-__all__ = ["readonly_url", "fleet_document", "PER_PAGE", "unit_document", "read_unit", "UnitData",
+__all__ = ["readonly_url", "fleet_document", "PER_PAGE", "TESTS_PER_PAGE", "unit_document", "read_unit", "UnitData",
            "UnknownUnitError", "STATUSES", "SORTS"]
 
 #: Statuses a unit can show (``building``: its baseline is not saved yet; ``none``:
@@ -41,6 +41,8 @@ STATUSES = STATUS_ORDER
 SORTS = ("name", "status", "date", "forecast")
 #: Units a fleet page (and ``/api/units``) shows at once unless asked otherwise.
 PER_PAGE = 100
+#: Tests a unit page's table shows at once (its figures show them all).
+TESTS_PER_PAGE = 200
 
 
 class UnknownUnitError(CondmonError, LookupError):

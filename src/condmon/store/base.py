@@ -18,7 +18,8 @@ from condmon.models.regimes import split_key
 from condmon.store import schema as S
 from condmon.store.engine import SCHEMA_LOCK, actor, redact, run_read, run_write, store_error
 
-__all__ = ["StoreBase", "now", "num", "check_name", "as_utc", "utc_column", "unknown_unit_message"]
+__all__ = ["StoreBase", "now", "num", "check_name", "as_utc", "utc_column", "unknown_unit_message",
+           "model_order", "audit_row"]
 
 T = TypeVar("T")
 
@@ -78,8 +79,11 @@ class StoreBase:
 
     # -- transactions -------------------------------------------------------------------
     def _read(self, fn: Callable[[sa.Connection], T]) -> T:
-        if self._batch is not None:
-            return self._in_batch(fn)
+        if self._batch is not None:  # a read changes nothing: no savepoint of its own
+            try:
+                return fn(self._batch)
+            except sa.exc.SQLAlchemyError as err:
+                raise store_error(err, self.url, self.timeout) from None
         return run_read(self.engine, fn, db=self.url, timeout=self.timeout)
 
     def _write(self, fn: Callable[[sa.Connection], T], lock: str | None) -> T:
@@ -139,10 +143,9 @@ class StoreBase:
              baseline_id: int | None = None, reason: str | None = None,
              detail: dict[str, Any] | None = None) -> None:
         """One audit row, inside the caller's transaction."""
-        conn.execute(sa.insert(S.audit).values(
-            at=now(), actor=actor(), action=action, unit_id=unit_id, test_id=test_id,
-            isolation_id=isolation_id, baseline_id=baseline_id, reason=reason,
-            detail=None if detail is None else json.dumps(detail, default=str)))
+        conn.execute(sa.insert(S.audit).values(audit_row(
+            action, unit_id=unit_id, test_id=test_id, isolation_id=isolation_id,
+            baseline_id=baseline_id, reason=reason, detail=detail)))
 
     # -- units --------------------------------------------------------------------------
     def _copy_of(self, conn: sa.Connection, table: sa.Table, uid: int, record_hash: str,
@@ -219,26 +222,13 @@ class StoreBase:
     def _ordered(self, unit: str, names: list[str], conn: sa.Connection | None = None
                  ) -> list[str]:
         """Parameter names in the unit's model order (unknown ones last, sorted)."""
-        from condmon.errors import ModelError
-        from condmon.models.registry import get_model
-
         if conn is not None:
             row = conn.execute(sa.select(S.units.c.model, S.units.c.model_source)
                                .where(S.units.c.name == unit)).first()
             model = None if row is None else str(row[1] or row[0])
         else:
             model = self.unit_model(unit)
-        try:
-            order = list(get_model(model).spec.report) if model else []
-        except (ModelError, ConfigError):
-            order = []
-        rank = {p: i for i, p in enumerate(order)}
-
-        def key(name: str) -> tuple[int, str, str]:
-            base, regime = split_key(name)  # a regime's parameters by parameter, then regime
-            return (rank.get(base, len(rank)), base if base not in rank else "", regime)
-
-        return sorted(names, key=key)
+        return model_order(model, names)
 
     def parameter_order(self, unit: str, names: list[str]) -> list[str]:
         """``names`` in the order the unit's model reports its parameters."""
@@ -270,6 +260,39 @@ class StoreBase:
         for col in ("test_id", "isolation_id", "baseline_id"):
             frame[col] = frame[col].astype("Int64")  # ids stay integers beside gaps
         return frame.set_index("id")
+
+
+def audit_row(action: str, *, unit_id: Any = None, test_id: Any = None,
+              isolation_id: Any = None, baseline_id: Any = None, reason: str | None = None,
+              detail: Any = None) -> dict[str, Any]:
+    """An ``audit`` row: what was done, by whom, when, to what (``detail``: a
+    JSON-ready dict, or a function giving one once the ids are known)."""
+    doc: Any = None
+    if callable(detail):
+        doc = lambda: json.dumps(detail(), default=str)  # noqa: E731 - written at flush
+    elif detail is not None:
+        doc = json.dumps(detail, default=str)
+    return dict(at=now(), actor=actor(), action=action, unit_id=unit_id, test_id=test_id,
+                isolation_id=isolation_id, baseline_id=baseline_id, reason=reason, detail=doc)
+
+
+def model_order(model: str | None, names: Sequence[str]) -> list[str]:
+    """``names`` in the order ``model`` reports its parameters (a regime's by
+    parameter, then regime; names the model lacks last, sorted)."""
+    from condmon.errors import ModelError
+    from condmon.models.registry import get_model
+
+    try:
+        order = list(get_model(model).spec.report) if model else []
+    except (ModelError, ConfigError):
+        order = []
+    rank = {p: i for i, p in enumerate(order)}
+
+    def key(name: str) -> tuple[int, str, str]:
+        base, regime = split_key(name)  # a regime's parameters by parameter, then regime
+        return (rank.get(base, len(rank)), base if base not in rank else "", regime)
+
+    return sorted(names, key=key)
 
 
 def unknown_unit_message(name: str, known: Sequence[str], where: str) -> str:

@@ -66,6 +66,7 @@ class StoreBase:
         self.url = redact(db)  # the database as messages name it, never with a password
         self.timeout = timeout
         self._batch: sa.Connection | None = None
+        self._reading = False  # the batch connection is a snapshot's (reads only)
 
     def close(self) -> None:
         """Release every pooled connection."""
@@ -88,6 +89,8 @@ class StoreBase:
 
     def _write(self, fn: Callable[[sa.Connection], T], lock: str | None) -> T:
         """One write transaction holding ``lock`` (a unit name; None: the schema)."""
+        if self._reading:
+            raise RuntimeError("no writes inside a snapshot")
         if self._batch is not None:
             return self._in_batch(fn)
         return run_write(self.engine, fn, db=self.url, timeout=self.timeout, lock=lock)
@@ -137,6 +140,29 @@ class StoreBase:
             raise store_error(err, self.url, self.timeout) from None
         finally:
             self._batch = None
+
+    @contextmanager
+    def snapshot(self) -> Iterator[None]:
+        """Every read inside the block on one connection, in one transaction
+        (one consistent view of the history; no writes).
+
+        Example
+        -------
+        >>> from condmon.store import open_store
+        >>> with open_store("sqlite://") as store, store.snapshot():
+        ...     store.units(), store.unit_model("EMA-1")
+        ([], None)
+        """
+        if self._batch is not None:
+            raise RuntimeError("a snapshot is not taken inside a batch")
+        try:
+            with self.engine.connect() as conn, conn.begin():
+                self._batch, self._reading = conn, True
+                yield
+        except sa.exc.SQLAlchemyError as err:
+            raise store_error(err, self.url, self.timeout) from None
+        finally:
+            self._batch, self._reading = None, False
 
     def _log(self, conn: sa.Connection, action: str, *, unit_id: int | None = None,
              test_id: int | None = None, isolation_id: int | None = None,

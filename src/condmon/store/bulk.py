@@ -295,70 +295,111 @@ class BulkWriter:
                                               for a in audits])
 
 
+def _pair(value: Any, se: Any) -> tuple[float, float]:
+    """A stored estimate and its standard error (NULL as NaN)."""
+    return (float("nan") if value is None else float(value),
+            float("nan") if se is None else float(se))
+
+
+class _Prefixed:
+    """The columns of a row named ``prefix + name``, by ``name``."""
+
+    def __init__(self, row: Any, prefix: str) -> None:
+        self._row, self._prefix = row, prefix
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._row, self._prefix + name)
+
+
 class BulkMixin(StoreBase):
     """Reading and writing a batch of records at once (part of :class:`HistoryStore`)."""
 
     def unit_states(self, names: Sequence[str]) -> dict[str, UnitState]:
-        """What the history holds of these units (the ones it has), in four queries."""
+        """What the history holds of these units (the ones it has), in two queries."""
         if not names:
             return {}
 
         def run(c: sa.Connection) -> dict[str, UnitState]:
-            u, b, v, t = S.units, S.baselines, S.baseline_values, S.tests
-            units = c.execute(sa.select(u.c.id, u.c.name, u.c.model, u.c.model_source,
-                                        u.c.baseline_name, u.c.group_name)
-                              .where(u.c.name.in_(sorted(set(names))))).all()
-            if not units:
-                return {}
-            uids = [int(r.id) for r in units]
+            u, b, v, t, e = S.units, S.baselines, S.baseline_values, S.tests, S.estimates
             b2 = b.alias()
             label = sa.func.coalesce(sa.func.nullif(u.c.baseline_name, ""), DEFAULT_BASELINE)
+            newest = sa.and_(b.c.unit_id == u.c.id, b.c.name == label,
+                             b.c.version == sa.select(sa.func.max(b2.c.version))
+                             .where(b2.c.unit_id == u.c.id, b2.c.name == label)
+                             .scalar_subquery())
+            # each unit with its active baseline's latest version and that one's values
             rows = c.execute(
-                sa.select(b, v.c.parameter.label("p"), v.c.mean.label("m"),
-                          v.c.std.label("s"), v.c.n.label("pn"))
-                .join(u, u.c.id == b.c.unit_id).outerjoin(v, v.c.baseline_id == b.c.id)
-                .where(b.c.unit_id.in_(uids), b.c.name == label,
-                       b.c.version == sa.select(sa.func.max(b2.c.version))
-                       .where(b2.c.unit_id == b.c.unit_id, b2.c.name == b.c.name)
-                       .scalar_subquery())).all()
-            latest_rows: dict[int, Any] = {}
+                sa.select(u.c.id.label("uid"), u.c.name.label("unit"), u.c.model,
+                          u.c.model_source, u.c.baseline_name, u.c.group_name,
+                          *[col.label(f"b_{col.name}") for col in b.c],
+                          v.c.parameter.label("p"), v.c.mean.label("m"), v.c.std.label("s"),
+                          v.c.n.label("pn"))
+                .select_from(u).outerjoin(b, newest).outerjoin(v, v.c.baseline_id == b.c.id)
+                .where(u.c.name.in_(sorted(set(names))))).all()
+            if not rows:
+                return {}
+            units = {int(r.uid): r for r in rows}
             values: dict[int, list[tuple[Any, ...]]] = {}
             for r in rows:
-                latest_rows[int(r.unit_id)] = r
                 if r.p is not None:
-                    values.setdefault(int(r.unit_id), []).append((r.p, r.m, r.s, r.pn))
-            usable: dict[int, list[tuple[int, str]]] = {}
-            for tid, uid, role in c.execute(
-                    sa.select(t.c.id, t.c.unit_id, t.c.role)
-                    .where(t.c.unit_id.in_(uids), t.c.accepted.is_(True),
-                           t.c.excluded.is_(False)).order_by(t.c.id)):
-                usable.setdefault(int(uid), []).append((int(tid), str(role)))
-            latest, members = {}, {}
-            for r in units:
-                uid = int(r.id)
-                model = str(r.model_source or r.model)
-                row = latest_rows.get(uid)
-                latest[uid] = (None if row is None else
-                               stored_baseline(r.name, model, row, values.get(uid, [])))
-                members[uid] = members_of(None if latest[uid] is None else latest[uid].test_ids,
-                                         usable.get(uid, []))
-            wanted = sorted({i for ids in members.values() for i in ids})
+                    values.setdefault(int(r.uid), []).append((r.p, r.m, r.s, r.pn))
+            # the usable tests, with the estimates of the healthy ones (a baseline's)
+            usable: dict[int, dict[int, str]] = {}
             est: dict[int, dict[str, tuple[float, float]]] = {}
-            if wanted:
-                e = S.estimates
-                for tid, p, val, se in c.execute(sa.select(e.c.test_id, e.c.parameter, e.c.value,
-                                                           e.c.std_error)
-                                                 .where(e.c.test_id.in_(wanted))):
-                    est.setdefault(int(tid), {})[str(p)] = (
-                        float("nan") if val is None else float(val),
-                        float("nan") if se is None else float(se))
-            return {str(r.name): UnitState(
-                int(r.id), str(r.name), str(r.model), r.model_source,
-                str(r.baseline_name or DEFAULT_BASELINE), r.group_name, latest[int(r.id)],
-                tuple(usable.get(int(r.id), [])),
-                {i: est.get(i, {}) for i in members[int(r.id)]}) for r in units}
+            for tid, uid, role, p, val, se in c.execute(
+                    sa.select(t.c.id, t.c.unit_id, t.c.role, e.c.parameter, e.c.value,
+                              e.c.std_error)
+                    .outerjoin(e, sa.and_(e.c.test_id == t.c.id, t.c.role == "baseline"))
+                    .where(t.c.unit_id.in_(list(units)), t.c.accepted.is_(True),
+                           t.c.excluded.is_(False)).order_by(t.c.id)):
+                usable.setdefault(int(uid), {})[int(tid)] = str(role)
+                if p is not None:
+                    est.setdefault(int(tid), {})[str(p)] = _pair(val, se)
+            latest, members = {}, {}
+            for uid, r in units.items():
+                latest[uid] = None if r.b_id is None else stored_baseline(
+                    r.unit, str(r.model_source or r.model),
+                    _Prefixed(r, "b_"), values.get(uid, []))
+                members[uid] = members_of(None if latest[uid] is None else latest[uid].test_ids,
+                                          list(usable.get(uid, {}).items()))
+            others = sorted({i for uid, ids in members.items() for i in ids
+                             if usable[uid].get(i) != "baseline"})
+            if others:  # a baseline with checks among its tests
+                for tid, p, val, se in c.execute(
+                        sa.select(e.c.test_id, e.c.parameter, e.c.value, e.c.std_error)
+                        .where(e.c.test_id.in_(others))):
+                    est.setdefault(int(tid), {})[str(p)] = _pair(val, se)
+            return {str(r.unit): UnitState(
+                uid, str(r.unit), str(r.model), r.model_source,
+                str(r.baseline_name or DEFAULT_BASELINE), r.group_name, latest[uid],
+                tuple(usable.get(uid, {}).items()),
+                {i: est.get(i, {}) for i in members[uid]}) for uid, r in units.items()}
 
         return self._read(run)
+
+    def record_digests(self, names: Sequence[str]) -> dict[str, dict[str, tuple[str, int]]]:
+        """The content and file hashes of these units' tests and isolations:
+        ``{unit: {hash: (kind, id)}}`` (``kind``: ``test`` or ``isolation``;
+        of two rows with one hash, the older's id)."""
+        if not names:
+            return {}
+        u = S.units
+
+        def of(table: sa.Table, kind: str) -> Any:
+            return (sa.select(u.c.name, table.c.id, table.c.record_hash, table.c.file_hash,
+                              sa.literal(kind).label("kind"))
+                    .join(u, u.c.id == table.c.unit_id).where(u.c.name.in_(sorted(set(names)))))
+
+        both = sa.union_all(of(S.tests, "test"), of(S.isolations, "isolation")).subquery()
+        rows = self._read(lambda c: c.execute(sa.select(both).order_by(
+            both.c.kind.desc(), both.c.id.desc())).all())
+        found: dict[str, dict[str, tuple[str, int]]] = {}
+        for name, rid, content, fdig, kind in rows:
+            known = found.setdefault(str(name), {})
+            for digest in (content, fdig):
+                if digest:
+                    known[digest] = (str(kind), int(rid))
+        return found
 
     def record_rows(self, kind: str, digests: Iterable[str], unit_ids: Iterable[int],
                     prefixes: Iterable[str]) -> list[KnownRow]:

@@ -34,8 +34,8 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Collection, Sequence
-from contextlib import ExitStack
+from collections.abc import Callable, Collection, Iterator, Sequence
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -149,6 +149,11 @@ class FleetResult:
         Wall time of the run. [s]
     engine : str
         ``local`` or the scheduler's address (``none`` when not started).
+    engine_start : float
+        Time to start the local cluster, or to connect to the scheduler (0
+        without an engine). [s]
+    engine_stop : float
+        Time to shut the local cluster down, or to disconnect. [s]
     """
 
     records: tuple[RecordReport, ...]
@@ -156,6 +161,8 @@ class FleetResult:
     workers: int
     seconds: float
     engine: str
+    engine_start: float = 0.0
+    engine_stop: float = 0.0
 
     def count(self, outcome: str) -> int:
         """Number of records with ``outcome`` (one of :data:`OUTCOMES`)."""
@@ -176,40 +183,17 @@ class FleetResult:
     def to_dict(self) -> dict[str, Any]:
         """The ``condmon fleet run --json`` document: ``stored, skipped,
         rejected, refused`` (counts that add up to the records), ``records``,
-        ``units``, ``workers``, ``seconds``, ``engine``."""
+        ``units``, ``workers``, ``seconds``, ``engine``, ``engine_start_seconds``
+        and ``engine_stop_seconds``."""
         return {**{o: self.count(o) for o in OUTCOMES},
                 "records": [r.to_dict() for r in self.records],
                 "units": [u.to_dict() for u in self.units],
-                "workers": self.workers, "seconds": self.seconds, "engine": self.engine}
+                "workers": self.workers, "seconds": self.seconds, "engine": self.engine,
+                "engine_start_seconds": self.engine_start,
+                "engine_stop_seconds": self.engine_stop}
 
 
 # -- a unit's plan --------------------------------------------------------------------
-
-
-def _stored_digests(store: HistoryStore, units: Sequence[str]) -> dict[str, dict[str, tuple[str, int]]]:
-    """Content and file hashes of the units' tests and isolations, with their ids."""
-    import sqlalchemy as sa
-
-    from condmon.store import schema as S
-
-    wanted = set(units)
-
-    def run(c: sa.Connection) -> dict[str, dict[str, tuple[str, int]]]:
-        found: dict[str, dict[str, tuple[str, int]]] = {}
-        for table, kind in ((S.tests, "test"), (S.isolations, "isolation")):
-            rows = c.execute(sa.select(S.units.c.name, table.c.id, table.c.record_hash,
-                                       table.c.file_hash)
-                             .join(S.units, S.units.c.id == table.c.unit_id)
-                             .order_by(table.c.id.desc())).all()
-            for name, tid, content, fdig in rows:
-                if name in wanted:
-                    known = found.setdefault(name, {})
-                    for digest in (content, fdig):
-                        if digest:
-                            known[digest] = (kind, int(tid))
-        return found
-
-    return store._read(run)
 
 
 def _settle_model(state: UnitState | None, plan: _Unit, rec: FleetRecord) -> None:
@@ -342,7 +326,8 @@ def run_fleet(source: str | Path, db: str | Path, *, manifest: bool | None = Non
     except KeyboardInterrupt:
         raise FleetInterrupted(run.written(), len(records)) from None
     ordered = tuple(r for u in sorted(run.reports, key=_natural) for r in run.reports[u])
-    return FleetResult(ordered, units, n_workers, time.perf_counter() - started, engine)
+    return FleetResult(ordered, units, n_workers, time.perf_counter() - started, engine,
+                       *run.engine_seconds)
 
 
 def _new_sqlite(db: str | Path) -> bool:
@@ -366,6 +351,7 @@ class _Run:
     reports: dict[str, list[RecordReport]] = field(default_factory=dict)
     plans: dict[str, _Unit] = field(default_factory=dict)
     done: int = 0
+    engine_seconds: list[float] = field(default_factory=lambda: [0.0, 0.0])  # start, stop [s]
 
     def written(self) -> int:
         """Records written so far (stored, or kept as rejected)."""
@@ -385,7 +371,8 @@ class _Run:
             store = None if _new_sqlite(db) else stack.enter_context(open_store(db))
             tasks = self._plan(store)
             if tasks:
-                client = stack.enter_context(_engine(workers, scheduler))
+                client = stack.enter_context(_timed_engine(workers, scheduler,
+                                                           self.engine_seconds))
                 if store is None:
                     store = stack.enter_context(open_store(db))
                 n_workers = _threads(client)
@@ -399,13 +386,15 @@ class _Run:
         worker reported; the tasks of the others."""
         plans = self.plans
         names = sorted({r.unit for r in self.records if not r.error and not r.skip})
-        states = {} if store is None else store.unit_states(names)
+        states: dict[str, UnitState] = {}
+        digests: dict[str, dict[str, tuple[str, int]]] = {}
+        if store is not None and names:
+            with store.snapshot():
+                states, digests = store.unit_states(names), store.record_digests(names)
         for rec in self.records:
             if rec.unit not in plans and not rec.error and not rec.skip:
                 plans[rec.unit] = _Unit(rec.unit)
                 _settle_model(states.get(rec.unit), plans[rec.unit], rec)
-        digests = ({} if store is None else
-                   _stored_digests(store, [u for u, p in plans.items() if p.error is None]))
         for name, plan in plans.items():
             plan.known = digests.get(name, {})
             plan.digests = frozenset(plan.known)
@@ -467,6 +456,20 @@ class _Run:
             commit()
             raise
         commit()
+
+
+@contextmanager
+def _timed_engine(workers: int | None, scheduler: str | None, times: list[float]
+                  ) -> Iterator[Client]:
+    """The engine; the seconds it took to start (or connect) and to stop in ``times``."""
+    t0 = time.perf_counter()
+    with _engine(workers, scheduler) as client:
+        times[0] = time.perf_counter() - t0
+        try:
+            yield client
+        finally:
+            t0 = time.perf_counter()
+    times[1] = time.perf_counter() - t0
 
 
 def _before_work(rec: FleetRecord, plan: _Unit | None) -> RecordReport | None:

@@ -355,15 +355,17 @@ class BulkMixin(StoreBase):
                 usable.setdefault(int(uid), {})[int(tid)] = str(role)
                 if p is not None:
                     est.setdefault(int(tid), {})[str(p)] = _pair(val, se)
-            latest, members = {}, {}
+            latest: dict[int, StoredBaseline | None] = {}
+            members: dict[int, list[int]] = {}
             for uid, r in units.items():
-                latest[uid] = None if r.b_id is None else stored_baseline(
-                    r.unit, str(r.model_source or r.model),
-                    _Prefixed(r, "b_"), values.get(uid, []))
-                members[uid] = members_of(None if latest[uid] is None else latest[uid].test_ids,
+                version = None if r.b_id is None else stored_baseline(
+                    r.unit, str(r.model_source or r.model), _Prefixed(r, "b_"),
+                    values.get(uid, []))
+                latest[uid] = version
+                members[uid] = members_of(None if version is None else version.test_ids,
                                           list(usable.get(uid, {}).items()))
             others = sorted({i for uid, ids in members.items() for i in ids
-                             if usable[uid].get(i) != "baseline"})
+                             if usable.get(uid, {}).get(i) != "baseline"})
             if others:  # a baseline with checks among its tests
                 for tid, p, val, se in c.execute(
                         sa.select(e.c.test_id, e.c.parameter, e.c.value, e.c.std_error)

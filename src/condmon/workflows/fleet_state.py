@@ -169,9 +169,11 @@ class UnitView:
         assert self.uid is not None
         order = list(ids)
         version = 1 if last is None else last.version + 1
+        # the flags name the tests: made once they are written and have their ids
         bid = writer.add_baseline(
             self.uid, base, members, name=self.label, version=version, reason=reason,
-            flags=lambda: assess_baseline(values, ses, order, base.parameters, cfg.baseline))
+            flags=lambda: assess_baseline(values, ses, [int(i) for i in order],
+                                          base.parameters, cfg.baseline))
         self.latest = Version(bid, self.label, version, members, base)
         return self.latest
 

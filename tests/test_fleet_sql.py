@@ -129,3 +129,28 @@ def test_the_engine_start_is_in_the_summary(inbox: dict[str, list[Path]], cluste
         assert main(["fleet", "run", str(root), "--db", str(tmp_path / "b.db"),
                      "--scheduler", cluster]) == 0
     assert f"connected to {cluster} in " in " ".join(buf.getvalue().split())
+
+
+def test_a_batch_that_cannot_be_written_names_its_record_and_keeps_the_ones_before(
+        store_url: str, rig: Any) -> None:
+    """One test of a batch clashes with a stored one (the same file in the unit):
+    the batch is written record by record, the one at fault is named, the
+    records before it are kept and nothing after it is written."""
+    from condmon.identify import estimate
+    from condmon.simulate import simulate_actuator
+    from condmon.store.bulk import BulkWriteError, BulkWriter
+
+    res = [estimate(simulate_actuator(rig, seed=s), source=f"rec{s}.csv") for s in range(4)]
+    with open_store(store_url) as store:
+        uid = store.unit_id("EMA-1", create=True)
+        store.add_test("EMA-1", res[3], role="baseline", digest="c9", file_digest="f9")
+        writer = BulkWriter()
+        for k, (content, file) in enumerate([("c0", "f0"), ("c1", "f9"), ("c2", "f2")]):
+            writer.record(f"rec{k}.csv")
+            writer.add_test(uid, res[k], role="baseline", digest=content, file_digest=file)
+        with store.batch():
+            with pytest.raises(BulkWriteError, match=r"^rec1\.csv: ") as err:
+                store.write_bulk(writer)
+        assert err.value.written == 1 and "\n" not in str(err.value)
+        assert list(store.history("EMA-1")["source"]) == ["rec3.csv", "rec0.csv"]
+        assert collections.Counter(store.audit()["action"])["test added"] == 2

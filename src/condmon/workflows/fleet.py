@@ -4,10 +4,13 @@ The flow of :func:`run_fleet`::
 
     inbox or manifest -> records per unit -> each unit's model
     -> records already in the history skipped (by file, then by content)
-    -> process_record on the engine's workers (read, estimate or isolate; no database)
+    -> process_record on the engine's workers, a few records per task (read,
+       estimate or isolate; no database)
     -> per unit, in date order (else file-name order): baseline tests while the
        unit has no baseline, checks against it afterwards; isolations for plant models
-    -> written by the client, many results per transaction (``store.batch()``)
+    -> written by the client, many results per transaction (``store.batch()``):
+       the batch's units read in a few queries, its new rows written with one
+       statement per table (:mod:`condmon.store.bulk`)
 
 The engine is dask.distributed: a local cluster of worker processes (one
 thread each, BLAS on one thread) or an existing cluster's scheduler. The unit
@@ -17,7 +20,8 @@ isolation, how the record is known, or the error text), so one record's
 failure never stops the others and a worker never touches the database.
 
 A unit's records are committed once all of them are back from the workers, in
-the order they were run, by the same steps as
+the order they were run, decided in memory (:mod:`condmon.workflows.fleet_state`)
+by the same steps as
 :func:`condmon.workflows.monitoring.add_baseline_tests` (while the unit has no
 baseline) and :func:`condmon.workflows.monitoring.check_test` (afterwards), so
 the fleet gives the answers those give for the same records.
@@ -26,8 +30,8 @@ This module holds :func:`run_fleet` and its results; finding the records is
 :mod:`condmon.workflows.fleet_inbox`, the engine
 :mod:`condmon.workflows.fleet_engine`, the worker's unit of work
 :mod:`condmon.workflows.fleet_work`, and committing a unit's outcomes
-:mod:`condmon.workflows.fleet_commit` (every public name is importable from
-here too).
+:mod:`condmon.workflows.fleet_commit` with :mod:`condmon.workflows.fleet_state`
+(every public name is importable from here too).
 """
 
 from __future__ import annotations

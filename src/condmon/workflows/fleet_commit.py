@@ -8,6 +8,14 @@ write each outcome in date (else file-name) order, the same steps as
 baseline), :func:`condmon.workflows.monitoring.check_test` (afterwards) and
 :func:`condmon.workflows.isolation.store_isolation` (plant models), and
 :class:`RecordReport`, what became of each record.
+
+A batch of units is committed in one transaction: what the history holds of
+them is read at its start (:meth:`~condmon.store.bulk.BulkMixin.unit_states`,
+:meth:`~condmon.store.bulk.BulkMixin.record_rows`), every record is decided
+against that copy kept in memory (:class:`~condmon.workflows.fleet_state.UnitView`),
+and the new rows are written together at its end
+(:meth:`~condmon.store.bulk.BulkMixin.write_bulk`): a handful of statements
+per batch instead of some twenty per record, and no savepoint per record.
 """
 
 from __future__ import annotations

@@ -2,6 +2,7 @@
 engine's cost per record against a plain loop over the same worker function.
 
     python benchmarks/bench_fleet.py [--units 12] [--records 5] [--repeat 3]
+                                     [--sizes 1000,10000] [--backends sqlite,postgresql]
 
 The workload is the estimate of actuator records (4 s at 1 kHz, the built-in
 test), ``units`` x ``records`` of them, the first three of each unit building
@@ -11,7 +12,11 @@ warmed up (its workers have imported condmon and estimated one record), so
 the figure is the steady rate; the cluster's start-up is reported apart.
 The machine's load before each run is recorded: a second core busy with other
 work makes the 2-worker figure meaningless. Prints tables and writes
-results/fleet.json. Target: on the estimate workload (the records through the
+results/fleet.json. Then, for each of ``--sizes`` (records, 5 per unit), whole
+fleet runs on 1 and 2 workers into a new history on each of ``--backends``
+(PostgreSQL: a private server this script starts on a spare port, as
+``.ci/postgres.sh`` does for the tests, and stops), with records/s, the SQL
+statements per record and the engine's start. Target: on the estimate workload (the records through the
 engine), 2 workers >= 1.6 x 1 worker; the whole fleet run's ratio is printed
 beside it with the client's own CPU per record (its writes and, for a local
 cluster, the scheduler), which on a 2-core machine shares the second core with
@@ -31,7 +36,9 @@ import shutil  # noqa: E402
 import statistics  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
+import subprocess  # noqa: E402
 import time  # noqa: E402
+from collections.abc import Iterator  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import psutil  # noqa: E402
@@ -50,6 +57,88 @@ def _load() -> dict[str, float]:
             "idlest_core_percent": min(per_core)}
 
 
+@contextlib.contextmanager
+def private_postgres(port: int) -> Iterator[str]:
+    """A PostgreSQL server of this run alone (``.ci/postgres.sh`` on ``port``);
+    its URL. Stopped, and its folder removed, at the end."""
+    script = Path(__file__).resolve().parent.parent / ".ci" / "postgres.sh"
+    env = {**os.environ, "CONDMON_PGPORT": str(port),
+           "CONDMON_PGDATA": f"/tmp/condmon-bench-pg-{port}"}
+    subprocess.run(["bash", str(script), "start"], env=env, check=True,
+                   stdout=subprocess.DEVNULL)
+    try:
+        yield f"postgresql://postgres@127.0.0.1:{port}/postgres"
+    finally:
+        subprocess.run(["bash", str(script), "stop"], env=env, check=False)
+
+
+def _new_database(server: str, name: str) -> str:
+    """A new, empty database on the server; its URL."""
+    import sqlalchemy as sa
+
+    engine = sa.create_engine(server.replace("postgresql://", "postgresql+psycopg://", 1),
+                              isolation_level="AUTOCOMMIT")
+    with engine.connect() as conn:
+        conn.exec_driver_sql(f"DROP DATABASE IF EXISTS {name}")
+        conn.exec_driver_sql(f"CREATE DATABASE {name}")
+    engine.dispose()
+    return server.rsplit("/", 1)[0] + f"/{name}"
+
+
+@contextlib.contextmanager
+def _statements() -> Iterator[list[int]]:
+    """The SQL statements this process issues meanwhile (an executemany counts once)."""
+    import sqlalchemy as sa
+
+    n = [0]
+
+    def count(*args: object) -> None:
+        n[0] += 1
+
+    sa.event.listen(sa.Engine, "before_cursor_execute", count)
+    try:
+        yield n
+    finally:
+        sa.event.remove(sa.Engine, "before_cursor_execute", count)
+
+
+def scale(work: Path, clients: dict[int, object], sizes: list[int], backends: list[str],
+          port: int) -> list[dict[str, object]]:
+    """Whole fleet runs of ``sizes`` records on 1 and 2 workers into new histories."""
+    rows: list[dict[str, object]] = []
+    with contextlib.ExitStack() as stack:
+        server = (stack.enter_context(private_postgres(port)) if "postgresql" in backends
+                  else None)
+        for size in sizes:
+            t0 = time.perf_counter()
+            inbox = work / f"inbox-{size}"
+            simulated_inbox(inbox, [SimulatedUnit(f"U{i + 1:05d}", records=5,
+                                                  fault="D=*7" if i % 4 == 3 else None)
+                                    for i in range(size // 5)], seed=7000)
+            print(f"{size} records written in {time.perf_counter() - t0:.0f} s")
+            for backend in backends:
+                for workers, client in clients.items():
+                    name = f"w{workers}_{size}"
+                    db = (str(work / f"{name}.db") if backend == "sqlite" else
+                          _new_database(str(server), name))
+                    load = _load()
+                    address = str(client.scheduler.address)  # type: ignore[attr-defined]
+                    with _statements() as n:
+                        t0 = time.perf_counter()
+                        res = run_fleet(inbox, db, scheduler=address)
+                        took = time.perf_counter() - t0
+                    assert res.stored + res.count("rejected") == size, res.to_dict()["stored"]
+                    rows.append({"records": size, "backend": backend, "workers": workers,
+                                 "records/s": size / took, "seconds": took,
+                                 "statements/record": n[0] / size,
+                                 "connect s": res.engine_start,
+                                 "load 1 min": load["loadavg_1min"],
+                                 "idlest core %": load["idlest_core_percent"]})
+                    print(table(rows[-1:], ""))
+            shutil.rmtree(inbox, ignore_errors=True)
+    return rows
+
+
 def _warm(path: str) -> float:
     """Import and estimate once in a worker (the first record pays the imports)."""
     t0 = time.perf_counter()
@@ -62,6 +151,11 @@ def main() -> int:
     ap.add_argument("--units", type=int, default=12)
     ap.add_argument("--records", type=int, default=5, help="records per unit")
     ap.add_argument("--repeat", type=int, default=3, help="timed runs per worker count")
+    ap.add_argument("--sizes", default="1000,10000",
+                    help="records of the whole-run scale study (comma-separated; '' for none)")
+    ap.add_argument("--backends", default="sqlite,postgresql")
+    ap.add_argument("--pg-port", type=int, default=55490,
+                    help="port of the private PostgreSQL server")
     args = ap.parse_args()
     work = Path(tempfile.mkdtemp(prefix="bench-fleet-"))
     units = [SimulatedUnit(f"EMA-{i + 1:02d}", records=args.records,
@@ -109,6 +203,8 @@ def main() -> int:
                 # this process: the client's writes, and the local cluster's scheduler
                 client_cpu[workers].append(time.process_time() - c0)
                 assert res.stored == n, res.to_dict()["stored"]
+        sizes = [int(x) for x in args.sizes.split(",") if x.strip()]
+        scaled = scale(work, clients, sizes, args.backends.split(","), args.pg_port)
     rate = {w: n / min(times[w]) for w in (1, 2)}
     engine_rate = {w: n / min(engine[w]) for w in (1, 2)}
     rows = [{"workers": w, "estimate rec/s": engine_rate[w], "fleet run rec/s": rate[w],
@@ -143,7 +239,17 @@ def main() -> int:
           f"record beside the workers' {1e3 * min(compute[1]) / n:.1f} ms"
           + (f": on {cores} cores the 1-worker run already has the client on the second "
              "core" if cores <= 2 else ""))
-    doc = {"records": n, "units": args.units, "repeat": args.repeat,
+    if scaled:
+        print(table(scaled, "Whole fleet runs into a new history (one run each; 5 records "
+                           "per unit)"))
+        for size in sizes:
+            for backend in args.backends.split(","):
+                got = {r["workers"]: r["records/s"] for r in scaled
+                       if r["records"] == size and r["backend"] == backend}
+                if len(got) == 2:
+                    print(f"{size} records, {backend}: 2 workers / 1 worker "
+                          f"{float(got[2]) / float(got[1]):.2f}")
+    doc = {"records": n, "units": args.units, "repeat": args.repeat, "scale": scaled,
            "plain_loop_seconds": loop_s,
            "runs": {str(w): {"seconds": times[w], "records_per_s": rate[w],
                              "engine_only_seconds": engine[w],

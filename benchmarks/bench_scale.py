@@ -40,7 +40,7 @@ import subprocess
 import tempfile
 import time
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from datetime import timedelta
 from pathlib import Path
 from typing import Any
@@ -233,7 +233,7 @@ def main() -> None:
         rows = template(str(Path(tmp) / "template.db"))
         for backend in args.backends.split(","):
             with (postgres(args.postgres) if backend == "postgresql"
-                  else contextmanager(lambda: iter([""]))()) as server:
+                  else nullcontext("")) as server:
                 if backend == "postgresql":
                     big, small = (_fresh_database(server, "condmon_scale_big"),
                                   _fresh_database(server, "condmon_scale_small"))

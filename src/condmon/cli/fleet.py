@@ -136,6 +136,11 @@ def _print_result(res: FleetResult, source: str) -> None:
     out.print(table)
     rate = (f" ({len(res.records) / res.seconds:.1f} records/s)"
             if res.workers > 0 and res.seconds > 0 else "")
+    if res.workers > 0:
+        how = ("local cluster started" if res.engine == "local" else
+               f"connected to {res.engine}")
+        rate += (f"; {how} in {res.engine_start:.1f} s, stopped in {res.engine_stop:.1f} s"
+                 if res.engine == "local" else f"; {how} in {res.engine_start:.2f} s")
     out.print(f"{len(res.records)} records: {res.count('stored')} stored, "
               f"{res.count('skipped')} skipped, {res.count('rejected')} rejected, "
               f"{res.count('refused')} refused — {len(res.units)} units, "

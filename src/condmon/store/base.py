@@ -18,7 +18,8 @@ from condmon.models.regimes import split_key
 from condmon.store import schema as S
 from condmon.store.engine import SCHEMA_LOCK, actor, redact, run_read, run_write, store_error
 
-__all__ = ["StoreBase", "TOUCHED", "now", "num", "check_name", "as_utc", "utc_column", "unknown_unit_message"]
+__all__ = ["StoreBase", "TOUCHED", "now", "num", "check_name", "as_utc", "utc_column",
+           "unknown_unit_message", "model_order", "audit_row"]
 
 T = TypeVar("T")
 
@@ -68,6 +69,7 @@ class StoreBase:
         self.url = redact(db)  # the database as messages name it, never with a password
         self.timeout = timeout
         self._batch: sa.Connection | None = None
+        self._reading = False  # the batch connection is a snapshot's (reads only)
 
     def close(self) -> None:
         """Release every pooled connection."""
@@ -81,14 +83,19 @@ class StoreBase:
 
     # -- transactions -------------------------------------------------------------------
     def _read(self, fn: Callable[[sa.Connection], T]) -> T:
-        if self._batch is not None:
-            return self._in_batch(fn)
+        if self._batch is not None:  # a read changes nothing: no savepoint of its own
+            try:
+                return fn(self._batch)
+            except sa.exc.SQLAlchemyError as err:
+                raise store_error(err, self.url, self.timeout) from None
         return run_read(self.engine, fn, db=self.url, timeout=self.timeout)
 
     def _write(self, fn: Callable[[sa.Connection], T], lock: str | None) -> T:
         """One write transaction holding ``lock`` (a unit name; None: the schema);
         the units it changed have their state rows worked out again before it
         commits (:meth:`_settle`)."""
+        if self._reading:
+            raise RuntimeError("no writes inside a snapshot")
         if self._batch is not None:
             return self._in_batch(fn)
 
@@ -152,6 +159,29 @@ class StoreBase:
         finally:
             self._batch = None
 
+    @contextmanager
+    def snapshot(self) -> Iterator[None]:
+        """Every read inside the block on one connection, in one transaction
+        (one consistent view of the history; no writes).
+
+        Example
+        -------
+        >>> from condmon.store import open_store
+        >>> with open_store("sqlite://") as store, store.snapshot():
+        ...     store.units(), store.unit_model("EMA-1")
+        ([], None)
+        """
+        if self._batch is not None:
+            raise RuntimeError("a snapshot is not taken inside a batch")
+        try:
+            with self.engine.connect() as conn, conn.begin():
+                self._batch, self._reading = conn, True
+                yield
+        except sa.exc.SQLAlchemyError as err:
+            raise store_error(err, self.url, self.timeout) from None
+        finally:
+            self._batch, self._reading = None, False
+
     def _log(self, conn: sa.Connection, action: str, *, unit_id: int | None = None,
              test_id: int | None = None, isolation_id: int | None = None,
              baseline_id: int | None = None, reason: str | None = None,
@@ -160,10 +190,9 @@ class StoreBase:
         changed (its kept state is worked out again before the commit)."""
         if unit_id is not None:
             conn.info.setdefault(TOUCHED, set()).add(int(unit_id))
-        conn.execute(sa.insert(S.audit).values(
-            at=now(), actor=actor(), action=action, unit_id=unit_id, test_id=test_id,
-            isolation_id=isolation_id, baseline_id=baseline_id, reason=reason,
-            detail=None if detail is None else json.dumps(detail, default=str)))
+        conn.execute(sa.insert(S.audit).values(audit_row(
+            action, unit_id=unit_id, test_id=test_id, isolation_id=isolation_id,
+            baseline_id=baseline_id, reason=reason, detail=detail)))
 
     # -- units --------------------------------------------------------------------------
     def _copy_of(self, conn: sa.Connection, table: sa.Table, uid: int, record_hash: str,
@@ -240,26 +269,13 @@ class StoreBase:
     def _ordered(self, unit: str, names: list[str], conn: sa.Connection | None = None
                  ) -> list[str]:
         """Parameter names in the unit's model order (unknown ones last, sorted)."""
-        from condmon.errors import ModelError
-        from condmon.models.registry import get_model
-
         if conn is not None:
             row = conn.execute(sa.select(S.units.c.model, S.units.c.model_source)
                                .where(S.units.c.name == unit)).first()
             model = None if row is None else str(row[1] or row[0])
         else:
             model = self.unit_model(unit)
-        try:
-            order = list(get_model(model).spec.report) if model else []
-        except (ModelError, ConfigError):
-            order = []
-        rank = {p: i for i, p in enumerate(order)}
-
-        def key(name: str) -> tuple[int, str, str]:
-            base, regime = split_key(name)  # a regime's parameters by parameter, then regime
-            return (rank.get(base, len(rank)), base if base not in rank else "", regime)
-
-        return sorted(names, key=key)
+        return model_order(model, names)
 
     def parameter_order(self, unit: str, names: list[str]) -> list[str]:
         """``names`` in the order the unit's model reports its parameters."""
@@ -291,6 +307,39 @@ class StoreBase:
         for col in ("test_id", "isolation_id", "baseline_id"):
             frame[col] = frame[col].astype("Int64")  # ids stay integers beside gaps
         return frame.set_index("id")
+
+
+def audit_row(action: str, *, unit_id: Any = None, test_id: Any = None,
+              isolation_id: Any = None, baseline_id: Any = None, reason: str | None = None,
+              detail: Any = None) -> dict[str, Any]:
+    """An ``audit`` row: what was done, by whom, when, to what (``detail``: a
+    JSON-ready dict, or a function giving one once the ids are known)."""
+    doc: Any = None
+    if callable(detail):
+        doc = lambda: json.dumps(detail(), default=str)  # noqa: E731 - written at flush
+    elif detail is not None:
+        doc = json.dumps(detail, default=str)
+    return dict(at=now(), actor=actor(), action=action, unit_id=unit_id, test_id=test_id,
+                isolation_id=isolation_id, baseline_id=baseline_id, reason=reason, detail=doc)
+
+
+def model_order(model: str | None, names: Sequence[str]) -> list[str]:
+    """``names`` in the order ``model`` reports its parameters (a regime's by
+    parameter, then regime; names the model lacks last, sorted)."""
+    from condmon.errors import ModelError
+    from condmon.models.registry import get_model
+
+    try:
+        order = list(get_model(model).spec.report) if model else []
+    except (ModelError, ConfigError):
+        order = []
+    rank = {p: i for i, p in enumerate(order)}
+
+    def key(name: str) -> tuple[int, str, str]:
+        base, regime = split_key(name)  # a regime's parameters by parameter, then regime
+        return (rank.get(base, len(rank)), base if base not in rank else "", regime)
+
+    return sorted(names, key=key)
 
 
 def unknown_unit_message(name: str, known: Sequence[str], where: str) -> str:

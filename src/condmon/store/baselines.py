@@ -13,14 +13,14 @@ import sqlalchemy as sa
 from condmon.errors import DataError
 from condmon.monitor.baseline import MIN_BASELINE_TESTS, Baseline, make_baseline
 from condmon.store import schema as S
-from condmon.store.base import StoreBase, as_utc, check_name, now
+from condmon.store.base import StoreBase, as_utc, check_name, model_order, now
 from condmon.store.engine import StoreError
 
 if TYPE_CHECKING:
     from condmon.store.db import HistoryStore
 
 __all__ = ["BaselinesMixin", "StoredBaseline", "DEFAULT_BASELINE", "id_runs", "baseline_members",
-           "current_baseline"]
+           "current_baseline", "stored_baseline", "baseline_value_rows", "members_of", "too_few_tests"]
 
 #: Name of a unit's baseline until another is chosen.
 DEFAULT_BASELINE = "default"
@@ -196,10 +196,7 @@ class BaselinesMixin(StoreBase):
                 unit_id=uid, created_at=now(), n=int(baseline.n), test_ids=doc, name=label,
                 version=version, reason=reason, flags=flag_doc))
             bid = int(res.inserted_primary_key[0])  # type: ignore[index]
-            conn.execute(sa.insert(S.baseline_values), [
-                {"baseline_id": bid, "parameter": p, "mean": m, "std": s, "n": int(c)}
-                for p, m, s, c in zip(baseline.parameters, baseline.mean, baseline.std,
-                                      baseline.count_array)])
+            conn.execute(sa.insert(S.baseline_values), baseline_value_rows(bid, baseline))
             self._log(conn, "baseline saved", unit_id=uid, baseline_id=bid, reason=reason,
                       detail={"name": label, "version": version, "test_ids": ids,
                               "flags": len(flags)})
@@ -211,17 +208,10 @@ class BaselinesMixin(StoreBase):
         vals = conn.execute(sa.select(S.baseline_values.c.parameter, S.baseline_values.c.mean,
                                       S.baseline_values.c.std, S.baseline_values.c.n)
                             .where(S.baseline_values.c.baseline_id == row.id)).all()
-        order = self._ordered(unit, [v[0] for v in vals], conn)
-        by = {v[0]: v for v in vals}
-        counts = tuple(int(row.n) if by[p][3] is None else int(by[p][3]) for p in order)
-        base = Baseline(tuple(order), tuple(float(by[p][1]) for p in order),
-                        tuple(float(by[p][2]) for p in order), int(row.n),
-                        None if all(c == int(row.n) for c in counts) else counts)
-        created = as_utc(row.created_at)
-        assert created is not None
-        return StoredBaseline(int(row.id), unit, str(row.name), int(row.version), created,
-                              tuple(json.loads(row.test_ids)), base, row.reason,
-                              tuple(json.loads(row.flags or "[]")))
+        urow = conn.execute(sa.select(S.units.c.model, S.units.c.model_source)
+                            .where(S.units.c.name == unit)).first()
+        model = None if urow is None else str(urow[1] or urow[0])
+        return stored_baseline(unit, model, row, [tuple(v) for v in vals])
 
     def baselines(self, unit: str) -> list[StoredBaseline]:
         """Every version of every named baseline of the unit, oldest first."""
@@ -271,7 +261,52 @@ class BaselinesMixin(StoreBase):
         return self._read(run)
 
 
+def baseline_value_rows(bid: Any, baseline: Baseline) -> list[dict[str, Any]]:
+    """``baseline_values`` rows of baseline version ``bid``."""
+    return [{"baseline_id": bid, "parameter": p, "mean": m, "std": s, "n": int(c)}
+            for p, m, s, c in zip(baseline.parameters, baseline.mean, baseline.std,
+                                  baseline.count_array)]
+
+
+def stored_baseline(unit: str, model: str | None, row: Any,
+                    values: Sequence[tuple[Any, ...]]) -> StoredBaseline:
+    """A baseline version from its ``baselines`` row and its ``(parameter,
+    mean, std, n)`` values, parameters in ``model``'s order."""
+    order = model_order(model, [v[0] for v in values])
+    by = {v[0]: v for v in values}
+    counts = tuple(int(row.n) if by[p][3] is None else int(by[p][3]) for p in order)
+    base = Baseline(tuple(order), tuple(float(by[p][1]) for p in order),
+                    tuple(float(by[p][2]) for p in order), int(row.n),
+                    None if all(c == int(row.n) for c in counts) else counts)
+    created = as_utc(row.created_at)
+    assert created is not None
+    return StoredBaseline(int(row.id), unit, str(row.name), int(row.version), created,
+                          tuple(json.loads(row.test_ids)), base, row.reason,
+                          tuple(json.loads(row.flags or "[]")))
+
+
 # -- a unit's baseline in use, read from the store ------------------------------------
+def members_of(latest: Sequence[Any] | None, usable: Sequence[tuple[Any, str]]) -> list[Any]:
+    """Tests of a unit's active baseline: its latest version's tests
+    (``latest``) still usable (``usable``: the unit's accepted, not excluded
+    tests as ``(id, role)``, oldest first), or every usable healthy
+    (``baseline``) test while no version exists (``latest`` None)."""
+    if latest is None:
+        return [i for i, role in usable if role == "baseline"]
+    keep = {i for i, _ in usable}
+    return [i for i in latest if i in keep]
+
+
+def too_few_tests(unit: str, n: int, latest: Any) -> DataError:
+    """The error of a unit whose baseline has ``n`` < 3 usable tests
+    (``latest``: its latest version, with a ``name`` and ``version``, or None)."""
+    why = ("" if latest is None else
+           f" (baseline {latest.name!r} v{latest.version} after exclusions)")
+    return DataError(f"unit {unit!r} has {n} accepted healthy test(s){why}; a "
+                     f"baseline needs at least {MIN_BASELINE_TESTS}: add them with "
+                     f"`condmon baseline add REC... --unit {unit}`")
+
+
 def baseline_members(store: HistoryStore, unit: str) -> tuple[list[int], StoredBaseline | None]:
     """Tests of the unit's active baseline (its latest version without the
     tests excluded or rejected since), or every accepted, not excluded healthy
@@ -281,8 +316,7 @@ def baseline_members(store: HistoryStore, unit: str) -> tuple[list[int], StoredB
     latest = store.latest_baseline(unit)
     if latest is None:
         return store.usable_tests(unit, role="baseline"), None
-    keep = set(store.usable_tests(unit))
-    return [i for i in latest.test_ids if i in keep], latest
+    return members_of(latest.test_ids, [(i, "") for i in store.usable_tests(unit)]), latest
 
 
 def _baseline_of(store: HistoryStore, unit: str, ids: Sequence[int]) -> Baseline:
@@ -301,11 +335,7 @@ def current_baseline(store: HistoryStore, unit: str) -> tuple[Baseline, list[int
     """
     ids, latest = baseline_members(store, unit)
     if len(ids) < MIN_BASELINE_TESTS:
-        why = ("" if latest is None else
-               f" (baseline {latest.name!r} v{latest.version} after exclusions)")
-        raise DataError(f"unit {unit!r} has {len(ids)} accepted healthy test(s){why}; a "
-                        f"baseline needs at least {MIN_BASELINE_TESTS}: add them with "
-                        f"`condmon baseline add REC... --unit {unit}`")
+        raise too_few_tests(unit, len(ids), latest)
     if latest is not None and list(latest.test_ids) == ids:
         return latest.baseline, ids
     return _baseline_of(store, unit, ids), ids

@@ -21,6 +21,7 @@ import sqlalchemy as sa
 from condmon.io.digest import content_hash, file_hash
 from condmon.store import schema as S
 from condmon.store.baselines import DEFAULT_BASELINE, StoredBaseline
+from condmon.store.bulk import BulkMixin
 from condmon.store.groups import GroupsMixin
 from condmon.store.engine import (
     StoreBusyError, StoreError, database_url, default_timeout, make_engine, redact,
@@ -41,7 +42,7 @@ def frame_hash(df: pd.DataFrame) -> str:
 
 
 class HistoryStore(TestsMixin, GroupsMixin, IsolationsMixin, StatesMixin, ViewsMixin,
-                   ForecastCacheMixin):
+                   ForecastCacheMixin, BulkMixin):
     """A history database. Open with :func:`open_store`.
 
     Use it as a context manager (or call :meth:`close`) so that its connections

@@ -12,6 +12,7 @@ whose message is one line naming the database: never a driver traceback.
 
 from __future__ import annotations
 
+import functools
 import getpass
 import os
 import re
@@ -127,6 +128,12 @@ def actor() -> str:
     name = os.environ.get("CONDMON_ACTOR")
     if name:
         return name[:200]
+    return _login()
+
+
+@functools.lru_cache(maxsize=1)
+def _login() -> str:
+    """``user@host`` of this process (looked up once: a fleet run audits many rows)."""
     try:
         user = getpass.getuser()
     except Exception:  # noqa: BLE001 - no login name in some containers

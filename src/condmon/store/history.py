@@ -14,7 +14,8 @@ from condmon.errors import CondmonError, ConfigError
 from condmon.store import schema as S
 from condmon.store.base import StoreBase, as_utc, check_name, now, num
 
-__all__ = ["TestsMixin", "DuplicateTestError", "TestInfo"]
+__all__ = ["TestsMixin", "DuplicateTestError", "TestInfo", "test_values", "stored_estimates",
+           "estimate_rows", "evaluation_rows"]
 
 
 class DuplicateTestError(CondmonError, ValueError):
@@ -23,6 +24,67 @@ class DuplicateTestError(CondmonError, ValueError):
     def __init__(self, message: str, test_id: int) -> None:
         super().__init__(message)
         self.test_id = test_id
+
+
+def test_values(result: Any, role: str, digest: str, file_digest: str,
+                test_date: datetime | None, fingerprint: str | None, hours: float | None
+                ) -> dict[str, Any]:
+    """A test's ``tests`` row but its ``unit_id`` (see :meth:`TestsMixin.add_test`)."""
+    usable = bool(getattr(result, "usable", result.accepted))
+    return dict(
+        created_at=now(), source=result.source, file_hash=file_digest, record_hash=digest,
+        test_date=test_date, fingerprint=fingerprint, hours=hours,
+        regime=getattr(result, "regime_label", "") or None,
+        role=role, accepted=usable, reason=None if usable else result.reason,
+        fit_percent=num(result.fit_percent),
+        fits=json.dumps({k: num(v) for k, v in result.fit.fits_percent.items()}),
+        method=result.method, closed_loop=bool(result.closed_loop_instruments),
+        constants=json.dumps({k: num(v) for k, v in
+                              dict(getattr(result, "constants", {})).items()}))
+
+
+def stored_estimates(result: Any) -> dict[str, tuple[Any, Any]]:
+    """The estimate's stored values ``{parameter: (value, standard error)}``.
+
+    Raises
+    ------
+    ConfigError
+        A parameter name the store cannot keep.
+    """
+    stored = (result.stored_values() if hasattr(result, "stored_values") else
+              {p: (v, result.std_errors[p]) for p, v in result.parameters.items()})
+    for p in stored:
+        check_name(p, "parameter name", limit=S.PARAMETER_LENGTH)
+    return dict(stored)
+
+
+def estimate_rows(tid: Any, stored: Mapping[str, tuple[Any, Any]]) -> list[dict[str, Any]]:
+    """``estimates`` rows of test ``tid``."""
+    return [{"test_id": tid, "parameter": p, "value": num(v), "std_error": num(se)}
+            for p, (v, se) in stored.items()]
+
+
+def evaluation_rows(tid: Any, baseline_id: Any, symptoms: Mapping[str, Mapping[str, float]],
+                    diagnosis: Any) -> tuple[list[dict[str, Any]], ...]:
+    """``symptoms``, ``diagnoses`` and ``diagnosis_faults`` rows of a check's
+    evaluation against a baseline version.
+
+    Raises
+    ------
+    ConfigError
+        A fault name the store cannot keep.
+    """
+    sym = [{"test_id": tid, "parameter": p, "baseline_id": baseline_id,
+            "percent_change": float(v["percent_change"]), "high": float(v["high"]),
+            "low": float(v["low"])} for p, v in symptoms.items()]
+    if diagnosis is None:
+        return sym, [], []
+    for f in diagnosis.faults:
+        check_name(f.name, "fault name")
+    return sym, [{"test_id": tid, "baseline_id": baseline_id, "status": diagnosis.status,
+                  "condition": float(diagnosis.condition), "summary": diagnosis.summary}], [
+        {"test_id": tid, "baseline_id": baseline_id, "name": f.name, "degree": float(f.degree),
+         "severity": f.severity, "advice": f.advice} for f in diagnosis.faults]
 
 
 class TestInfo(dict):  # type: ignore[type-arg]
@@ -118,28 +180,15 @@ class TestsMixin(StoreBase):
                 note = " (excluded; `condmon include` restores it)" if dup[1] else ""
                 raise DuplicateTestError(f"{result.source}: already in the history of {unit!r} "
                                          f"(test #{dup[0]}{note}); not added again", int(dup[0]))
-            usable = bool(getattr(result, "usable", result.accepted))
-            res = conn.execute(sa.insert(S.tests).values(
-                unit_id=uid, created_at=now(), source=result.source, file_hash=fdig,
-                record_hash=digest, test_date=when, fingerprint=fingerprint, hours=hours,
-                regime=getattr(result, "regime_label", "") or None,
-                role=role, accepted=usable, reason=None if usable else result.reason,
-                fit_percent=num(result.fit_percent),
-                fits=json.dumps({k: num(v) for k, v in result.fit.fits_percent.items()}),
-                method=result.method, closed_loop=bool(result.closed_loop_instruments),
-                constants=json.dumps({k: num(v) for k, v in
-                                      dict(getattr(result, "constants", {})).items()})))
-            tid = int(res.inserted_primary_key[0])  # type: ignore[index]
-            stored = (result.stored_values() if hasattr(result, "stored_values") else
-                      {p: (v, result.std_errors[p]) for p, v in result.parameters.items()})
-            for p in stored:
-                check_name(p, "parameter name", limit=S.PARAMETER_LENGTH)
+            tid = int(conn.execute(sa.insert(S.tests).values(
+                unit_id=uid, **test_values(result, role, digest, fdig, when, fingerprint, hours))
+                ).inserted_primary_key[0])  # type: ignore[index]
+            stored = stored_estimates(result)
             if stored:
-                conn.execute(sa.insert(S.estimates), [
-                    {"test_id": tid, "parameter": p, "value": num(v), "std_error": num(se)}
-                    for p, (v, se) in stored.items()])
+                conn.execute(sa.insert(S.estimates), estimate_rows(tid, stored))
             if baseline_id is not None and (symptoms is not None or diagnosis is not None):
                 self._insert_evaluation(conn, tid, baseline_id, symptoms or {}, diagnosis)
+            usable = bool(getattr(result, "usable", result.accepted))
             self._log(conn, "test added", unit_id=uid, test_id=tid,
                       reason=None if usable else result.reason,
                       detail={"source": result.source, "role": role, "accepted": usable})
@@ -149,22 +198,10 @@ class TestsMixin(StoreBase):
 
     def _insert_evaluation(self, conn: sa.Connection, tid: int, baseline_id: int,
                            symptoms: Mapping[str, Mapping[str, float]], diagnosis: Any) -> None:
-        if symptoms:
-            conn.execute(sa.insert(S.symptoms), [
-                {"test_id": tid, "parameter": p, "baseline_id": baseline_id,
-                 "percent_change": float(v["percent_change"]), "high": float(v["high"]),
-                 "low": float(v["low"])} for p, v in symptoms.items()])
-        if diagnosis is not None:
-            conn.execute(sa.insert(S.diagnoses).values(
-                test_id=tid, baseline_id=baseline_id, status=diagnosis.status,
-                condition=float(diagnosis.condition), summary=diagnosis.summary))
-            if diagnosis.faults:
-                for f in diagnosis.faults:
-                    check_name(f.name, "fault name")
-                conn.execute(sa.insert(S.diagnosis_faults), [
-                    {"test_id": tid, "baseline_id": baseline_id, "name": f.name,
-                     "degree": float(f.degree), "severity": f.severity, "advice": f.advice}
-                    for f in diagnosis.faults])
+        for table, rows in zip((S.symptoms, S.diagnoses, S.diagnosis_faults),
+                               evaluation_rows(tid, baseline_id, symptoms, diagnosis)):
+            if rows:
+                conn.execute(sa.insert(table), rows)
 
     def save_evaluation(self, unit: str, test_id: int, baseline_id: int,
                         symptoms: Mapping[str, Mapping[str, float]], diagnosis: Any) -> bool:

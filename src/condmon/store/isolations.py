@@ -14,7 +14,7 @@ from condmon.store import schema as S
 from condmon.store.base import StoreBase, as_utc, check_name, now, num, utc_column
 from condmon.store.history import DuplicateTestError
 
-__all__ = ["IsolationsMixin", "isolation_status"]
+__all__ = ["IsolationsMixin", "isolation_status", "isolation_values", "isolation_estimate_rows"]
 
 
 def isolation_status(detected: bool, decided: bool) -> str:
@@ -29,6 +29,27 @@ def isolation_status(detected: bool, decided: bool) -> str:
     if not decided and not detected:
         return "retest"
     return "no-go" if detected else "go"
+
+
+def isolation_values(result: Any, model: str, source: str, digest: str, file_digest: str,
+                     test_date: datetime | None, fingerprint: str | None) -> dict[str, Any]:
+    """An isolation's ``isolations`` row but its ``unit_id`` (see
+    :meth:`IsolationsMixin.add_isolation`)."""
+    return dict(
+        created_at=now(), test_date=as_utc(test_date), source=source, file_hash=file_digest,
+        record_hash=digest, fingerprint=fingerprint, model=model,
+        detected=bool(result.detected), detection_time=num(result.detection_time),
+        decided=bool(result.decided), reason=result.reason, statement=result.statement,
+        suspects=json.dumps(list(result.suspects)), isolated=json.dumps(list(result.isolated)),
+        result=json.dumps(result.to_dict(), default=str))
+
+
+def isolation_estimate_rows(iid: Any, result: Any) -> list[dict[str, Any]]:
+    """``isolation_estimates`` rows of isolation ``iid``."""
+    return [{"isolation_id": iid, "parameter": p, "value": num(e.value),
+             "nominal": num(e.nominal), "change_percent": num(e.change_percent),
+             "error_sigma": num(result.errors.get(p)), "rejected": result.rejected.get(p)}
+            for p, e in result.estimates.items()]
 
 
 class IsolationsMixin(StoreBase):
@@ -69,7 +90,6 @@ class IsolationsMixin(StoreBase):
             The record is already among the unit's isolations.
         """
         check_name(unit)
-        doc = result.to_dict()
         fdig = file_digest or digest
 
         def run(conn: sa.Connection) -> int:
@@ -80,20 +100,10 @@ class IsolationsMixin(StoreBase):
             if dup is not None:
                 raise DuplicateTestError(f"{source}: already in the history of {unit!r} "
                                          f"(isolation #{dup[0]}); not added again", int(dup[0]))
-            res = conn.execute(sa.insert(i).values(
-                unit_id=uid, created_at=now(), test_date=as_utc(test_date), source=source,
-                file_hash=fdig, record_hash=digest, fingerprint=fingerprint, model=model,
-                detected=bool(result.detected), detection_time=num(result.detection_time),
-                decided=bool(result.decided), reason=result.reason, statement=result.statement,
-                suspects=json.dumps(list(result.suspects)),
-                isolated=json.dumps(list(result.isolated)),
-                result=json.dumps(doc, default=str)))
-            iid = int(res.inserted_primary_key[0])  # type: ignore[index]
-            rows = [{"isolation_id": iid, "parameter": p, "value": num(e.value),
-                     "nominal": num(e.nominal), "change_percent": num(e.change_percent),
-                     "error_sigma": num(result.errors.get(p)),
-                     "rejected": result.rejected.get(p)}
-                    for p, e in result.estimates.items()]
+            iid = int(conn.execute(sa.insert(i).values(
+                unit_id=uid, **isolation_values(result, model, source, digest, fdig, test_date,
+                                                fingerprint))).inserted_primary_key[0])  # type: ignore[index]
+            rows = isolation_estimate_rows(iid, result)
             if rows:
                 conn.execute(sa.insert(S.isolation_estimates), rows)
             self._log(conn, "isolation added", unit_id=uid, isolation_id=iid,

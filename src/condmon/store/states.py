@@ -54,15 +54,28 @@ def _state_rows(conn: sa.Connection, uids: list[int] | None) -> list[dict[str, A
     def only(q: Any, col: Any) -> Any:
         return q if uids is None else q.where(col.in_(uids))
 
-    units = conn.execute(only(sa.select(S.units.c.id, S.units.c.baseline_name), S.units.c.id)
-                         ).all()
+    u = S.units
     healthy = sa.and_(t.c.role == "baseline", t.c.accepted.is_(True), t.c.excluded.is_(False))
-    n_tests = {r[0]: (int(r[1]), int(r[2] or 0), r[3]) for r in conn.execute(only(
-        sa.select(t.c.unit_id, sa.func.count(), sa.func.sum(sa.case((healthy, 1), else_=0)),
-                  sa.func.max(t.c.id)), t.c.unit_id).group_by(t.c.unit_id))}
-    n_isos = {r[0]: (int(r[1]), r[2]) for r in conn.execute(only(
-        sa.select(i.c.unit_id, sa.func.count(), sa.func.max(i.c.id)), i.c.unit_id)
-        .group_by(i.c.unit_id))}
+
+    def per_unit(q: Any) -> Any:
+        return q.scalar_subquery()
+
+    # each unit's counts, newest rows, saved baseline and whether it has degraded: one
+    # query (correlated look-ups through the indexes by unit)
+    units = conn.execute(only(sa.select(
+        u.c.id,
+        per_unit(sa.select(sa.func.count()).where(t.c.unit_id == u.c.id)),
+        per_unit(sa.select(sa.func.count()).where(t.c.unit_id == u.c.id, healthy)),
+        per_unit(sa.select(sa.func.max(t.c.id)).where(t.c.unit_id == u.c.id)),
+        per_unit(sa.select(sa.func.count()).where(i.c.unit_id == u.c.id)),
+        per_unit(sa.select(sa.func.max(i.c.id)).where(i.c.unit_id == u.c.id)),
+        sa.exists().where(b.c.unit_id == u.c.id,
+                          b.c.name == sa.func.coalesce(u.c.baseline_name, "default")),
+        per_unit(sa.select(sa.func.max(b.c.id)).where(b.c.unit_id == u.c.id)),
+        sa.exists().where(t.c.unit_id == u.c.id, t.c.role == "check", t.c.accepted.is_(True),
+                          t.c.excluded.is_(False), d.c.test_id == t.c.id,
+                          d.c.status.in_(DEGRADED)),
+        per_unit(sa.select(sa.func.max(a.c.id)).where(a.c.unit_id == u.c.id))), u.c.id)).all()
     t_when = sa.func.coalesce(t.c.test_date, t.c.created_at)
     # a unit's status is its latest check's; baseline tests only without checks
     ranked = only(sa.select(t.c.unit_id, t.c.id, t.c.source, t.c.role, t.c.accepted,
@@ -91,38 +104,27 @@ def _state_rows(conn: sa.Connection, uids: list[int] | None) -> list[dict[str, A
                    .where(i.c.excluded.is_(False)), i.c.unit_id).subquery()
     isos = {r[0]: r[1:] for r in conn.execute(
         sa.select(*[col for col in iranked.c if col.name != "rank"]).where(iranked.c.rank == 1))}
-    saved = {(r[0], r[1]) for r in conn.execute(only(
-        sa.select(b.c.unit_id, b.c.name).distinct(), b.c.unit_id))}
-    last_baseline = dict(conn.execute(only(sa.select(b.c.unit_id, sa.func.max(b.c.id)), b.c.unit_id)
-                                      .group_by(b.c.unit_id)).all())
-    degraded = {r[0] for r in conn.execute(only(
-        sa.select(t.c.unit_id).distinct().select_from(t.join(d, d.c.test_id == t.c.id))
-        .where(t.c.role == "check", t.c.accepted.is_(True), t.c.excluded.is_(False),
-               d.c.status.in_(DEGRADED)), t.c.unit_id))}
-    marks = dict(conn.execute(only(sa.select(a.c.unit_id, sa.func.max(a.c.id)), a.c.unit_id)
-                              .where(a.c.unit_id.is_not(None)).group_by(a.c.unit_id)).all())
     out = []
-    for uid, baseline_name in units:
+    for uid, n, accepted, last_test, n_iso, last_iso, saved, last_baseline, degraded, mark \
+            in units:
         test, iso = last.get(uid), isos.get(uid)
         status, source, when, summary, regime = None, None, None, None, None
-        active = (uid, baseline_name or "default")
-        n, accepted, last_test = n_tests.get(uid, (0, 0, None))
-        n_iso, last_iso = n_isos.get(uid, (0, None))
         if test is not None:
             status = test_status(test[2], bool(test[3]), bool(test[4]), test[5])
             source, when, regime = test[1], test[6], test[9] or None
             summary = test[7] if test[3] else test[8]
-            if status in ("baseline", "rejected") and active not in saved:
+            if status in ("baseline", "rejected") and not saved:
                 status = "building"
-                summary = building_summary(accepted, None if test[3] else test[8])
+                summary = building_summary(int(accepted), None if test[3] else test[8])
         if iso is not None and (when is None or _after(iso[5], when)):
             status = isolation_status(bool(iso[2]), bool(iso[3]))
             source, when, summary, regime = iso[1], iso[5], iso[4], None
-        out.append({"unit_id": uid, "mark": int(marks.get(uid, 0)), "status": status,
+        out.append({"unit_id": uid, "mark": int(mark or 0), "status": status,
                     "latest_source": source, "latest_date": as_utc(when),
-                    "summary": summary, "latest_regime": regime, "tests": n,
-                    "isolations": n_iso, "degraded": uid in degraded, "last_test": last_test,
-                    "last_isolation": last_iso, "last_baseline": last_baseline.get(uid)})
+                    "summary": summary, "latest_regime": regime, "tests": int(n),
+                    "isolations": int(n_iso), "degraded": bool(degraded),
+                    "last_test": last_test, "last_isolation": last_iso,
+                    "last_baseline": last_baseline})
     return out
 
 
@@ -149,12 +151,19 @@ def stale_units(conn: sa.Connection) -> list[int]:
     isolations or baselines added by another tool (not through the store), found from the
     newest ids (a few index look-ups when nothing is stale)."""
     st, u = S.unit_states, S.units
-    found = {r[0] for r in conn.execute(
-        sa.select(u.c.id).where(~sa.exists().where(st.c.unit_id == u.c.id)))}
-    for table, col in ((S.tests, st.c.last_test), (S.isolations, st.c.last_isolation),
-                       (S.baselines, st.c.last_baseline)):
-        seen = conn.execute(sa.select(sa.func.max(col))).scalar()
-        top = conn.execute(sa.select(sa.func.max(table.c.id))).scalar()
+    pairs = ((S.tests, st.c.last_test), (S.isolations, st.c.last_isolation),
+             (S.baselines, st.c.last_baseline))
+    # one look-up when nothing is stale: units without a row, the newest ids seen and stored
+    first = conn.execute(sa.select(
+        sa.exists(sa.select(u.c.id).where(~sa.exists().where(st.c.unit_id == u.c.id))),
+        *[sa.select(sa.func.max(col)).scalar_subquery() for _, col in pairs],
+        *[sa.select(sa.func.max(table.c.id)).scalar_subquery() for table, _ in pairs])).one()
+    found: set[int] = set()
+    if first[0]:
+        found |= {r[0] for r in conn.execute(
+            sa.select(u.c.id).where(~sa.exists().where(st.c.unit_id == u.c.id)))}
+    for k, (table, _) in enumerate(pairs):
+        seen, top = first[1 + k], first[4 + k]
         if top is not None and (seen is None or top > seen):
             found |= {r[0] for r in conn.execute(
                 sa.select(table.c.unit_id).distinct().where(table.c.id > (seen or 0)))}

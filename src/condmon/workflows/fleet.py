@@ -4,10 +4,13 @@ The flow of :func:`run_fleet`::
 
     inbox or manifest -> records per unit -> each unit's model
     -> records already in the history skipped (by file, then by content)
-    -> process_record on the engine's workers (read, estimate or isolate; no database)
+    -> process_record on the engine's workers, a few records per task (read,
+       estimate or isolate; no database)
     -> per unit, in date order (else file-name order): baseline tests while the
        unit has no baseline, checks against it afterwards; isolations for plant models
-    -> written by the client, many results per transaction (``store.batch()``)
+    -> written by the client, many results per transaction (``store.batch()``):
+       the batch's units read in a few queries, its new rows written with one
+       statement per table (:mod:`condmon.store.bulk`)
 
 The engine is dask.distributed: a local cluster of worker processes (one
 thread each, BLAS on one thread) or an existing cluster's scheduler. The unit
@@ -17,7 +20,8 @@ isolation, how the record is known, or the error text), so one record's
 failure never stops the others and a worker never touches the database.
 
 A unit's records are committed once all of them are back from the workers, in
-the order they were run, by the same steps as
+the order they were run, decided in memory (:mod:`condmon.workflows.fleet_state`)
+by the same steps as
 :func:`condmon.workflows.monitoring.add_baseline_tests` (while the unit has no
 baseline) and :func:`condmon.workflows.monitoring.check_test` (afterwards), so
 the fleet gives the answers those give for the same records.
@@ -26,16 +30,16 @@ This module holds :func:`run_fleet` and its results; finding the records is
 :mod:`condmon.workflows.fleet_inbox`, the engine
 :mod:`condmon.workflows.fleet_engine`, the worker's unit of work
 :mod:`condmon.workflows.fleet_work`, and committing a unit's outcomes
-:mod:`condmon.workflows.fleet_commit` (every public name is importable from
-here too).
+:mod:`condmon.workflows.fleet_commit` with :mod:`condmon.workflows.fleet_state`
+(every public name is importable from here too).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Collection, Sequence
-from contextlib import ExitStack
+from collections.abc import Callable, Collection, Iterator, Sequence
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -51,6 +55,7 @@ from condmon.workflows.fleet_engine import (
     _engine, _run_tasks, _sigint_held, _threads, local_cluster,
 )
 from condmon.workflows.fleet_inbox import MANIFEST_COLUMNS as MANIFEST_COLUMNS
+from condmon.workflows.fleet_state import UnitView
 from condmon.workflows.fleet_inbox import UNIT_FILE as UNIT_FILE
 from condmon.workflows.fleet_inbox import (
     FleetRecord, _natural, inbox_records, read_manifest,
@@ -62,6 +67,7 @@ from condmon.workflows.records import EstimateOptions
 if TYPE_CHECKING:
     from distributed import Client
 
+    from condmon.store.bulk import UnitState
     from condmon.store.db import HistoryStore
 
 __all__ = ["EngineError", "FleetInterrupted", "DEFAULT_MODEL", "OUTCOMES", "BLAS_ENV", "FleetRecord", "RecordTask", "RecordOutcome",
@@ -147,6 +153,11 @@ class FleetResult:
         Wall time of the run. [s]
     engine : str
         ``local`` or the scheduler's address (``none`` when not started).
+    engine_start : float
+        Time to start the local cluster, or to connect to the scheduler (0
+        without an engine). [s]
+    engine_stop : float
+        Time to shut the local cluster down, or to disconnect. [s]
     """
 
     records: tuple[RecordReport, ...]
@@ -154,6 +165,8 @@ class FleetResult:
     workers: int
     seconds: float
     engine: str
+    engine_start: float = 0.0
+    engine_stop: float = 0.0
 
     def count(self, outcome: str) -> int:
         """Number of records with ``outcome`` (one of :data:`OUTCOMES`)."""
@@ -174,52 +187,29 @@ class FleetResult:
     def to_dict(self) -> dict[str, Any]:
         """The ``condmon fleet run --json`` document: ``stored, skipped,
         rejected, refused`` (counts that add up to the records), ``records``,
-        ``units``, ``workers``, ``seconds``, ``engine``."""
+        ``units``, ``workers``, ``seconds``, ``engine``, ``engine_start_seconds``
+        and ``engine_stop_seconds``."""
         return {**{o: self.count(o) for o in OUTCOMES},
                 "records": [r.to_dict() for r in self.records],
                 "units": [u.to_dict() for u in self.units],
-                "workers": self.workers, "seconds": self.seconds, "engine": self.engine}
+                "workers": self.workers, "seconds": self.seconds, "engine": self.engine,
+                "engine_start_seconds": self.engine_start,
+                "engine_stop_seconds": self.engine_stop}
 
 
 # -- a unit's plan --------------------------------------------------------------------
 
 
-def _stored_digests(store: HistoryStore, units: Sequence[str]) -> dict[str, dict[str, tuple[str, int]]]:
-    """Content and file hashes of the units' tests and isolations, with their ids."""
-    import sqlalchemy as sa
-
-    from condmon.store import schema as S
-
-    wanted = set(units)
-
-    def run(c: sa.Connection) -> dict[str, dict[str, tuple[str, int]]]:
-        found: dict[str, dict[str, tuple[str, int]]] = {}
-        for table, kind in ((S.tests, "test"), (S.isolations, "isolation")):
-            rows = c.execute(sa.select(S.units.c.name, table.c.id, table.c.record_hash,
-                                       table.c.file_hash)
-                             .join(S.units, S.units.c.id == table.c.unit_id)
-                             .order_by(table.c.id.desc())).all()
-            for name, tid, content, fdig in rows:
-                if name in wanted:
-                    known = found.setdefault(name, {})
-                    for digest in (content, fdig):
-                        if digest:
-                            known[digest] = (kind, int(tid))
-        return found
-
-    return store._read(run)
-
-
-def _settle_model(store: HistoryStore | None, plan: _Unit, rec: FleetRecord) -> None:
-    """The unit's model: the manifest's, else its history's, else ``unit.toml``'s,
-    else :data:`DEFAULT_MODEL`; the kind of processing; or why it is refused
-    (naming the ``unit.toml`` whose model it is)."""
+def _settle_model(state: UnitState | None, plan: _Unit, rec: FleetRecord) -> None:
+    """The unit's model: the manifest's, else its history's (``state``), else
+    ``unit.toml``'s, else :data:`DEFAULT_MODEL`; the kind of processing; or
+    why it is refused (naming the ``unit.toml`` whose model it is)."""
     from condmon.models.registry import get_model
     from condmon.store.base import check_name
 
     try:
         check_name(plan.name)
-        stored = store.unit_model(plan.name) if store is not None else None
+        stored = None if state is None else str(state.model_source or state.model)
         model = rec.model or stored or rec.fallback_model or DEFAULT_MODEL
         try:
             machine = get_model(model)
@@ -236,10 +226,13 @@ def _settle_model(store: HistoryStore | None, plan: _Unit, rec: FleetRecord) -> 
         return
     plan.model = model
     plan.kind = "estimate" if machine.spec.unknowns else "isolate"
-    if plan.kind == "estimate" and store is not None and stored is not None:
-        from condmon.workflows.monitoring import _existing_baseline, _held
+    if plan.kind == "estimate" and state is not None:
+        from condmon.workflows.monitoring import _held
 
-        plan.hold = _held(_existing_baseline(store, plan.name))
+        try:
+            plan.hold = _held(UnitView.of(plan.name, state).current()[0])
+        except DataError:  # fewer than 3 healthy tests
+            plan.hold = None
 
 
 # -- the run --------------------------------------------------------------------------
@@ -337,7 +330,8 @@ def run_fleet(source: str | Path, db: str | Path, *, manifest: bool | None = Non
     except KeyboardInterrupt:
         raise FleetInterrupted(run.written(), len(records)) from None
     ordered = tuple(r for u in sorted(run.reports, key=_natural) for r in run.reports[u])
-    return FleetResult(ordered, units, n_workers, time.perf_counter() - started, engine)
+    return FleetResult(ordered, units, n_workers, time.perf_counter() - started, engine,
+                       *run.engine_seconds)
 
 
 def _new_sqlite(db: str | Path) -> bool:
@@ -361,6 +355,7 @@ class _Run:
     reports: dict[str, list[RecordReport]] = field(default_factory=dict)
     plans: dict[str, _Unit] = field(default_factory=dict)
     done: int = 0
+    engine_seconds: list[float] = field(default_factory=lambda: [0.0, 0.0])  # start, stop [s]
 
     def written(self) -> int:
         """Records written so far (stored, or kept as rejected)."""
@@ -380,7 +375,8 @@ class _Run:
             store = None if _new_sqlite(db) else stack.enter_context(open_store(db))
             tasks = self._plan(store)
             if tasks:
-                client = stack.enter_context(_engine(workers, scheduler))
+                client = stack.enter_context(_timed_engine(workers, scheduler,
+                                                           self.engine_seconds))
                 if store is None:
                     store = stack.enter_context(open_store(db))
                 n_workers = _threads(client)
@@ -393,12 +389,16 @@ class _Run:
         """Each unit's model and known digests; the records settled without a
         worker reported; the tasks of the others."""
         plans = self.plans
+        names = sorted({r.unit for r in self.records if not r.error and not r.skip})
+        states: dict[str, UnitState] = {}
+        digests: dict[str, dict[str, tuple[str, int]]] = {}
+        if store is not None and names:
+            with store.snapshot():
+                states, digests = store.unit_states(names), store.record_digests(names)
         for rec in self.records:
             if rec.unit not in plans and not rec.error and not rec.skip:
                 plans[rec.unit] = _Unit(rec.unit)
-                _settle_model(store, plans[rec.unit], rec)
-        digests = ({} if store is None else
-                   _stored_digests(store, [u for u, p in plans.items() if p.error is None]))
+                _settle_model(states.get(rec.unit), plans[rec.unit], rec)
         for name, plan in plans.items():
             plan.known = digests.get(name, {})
             plan.digests = frozenset(plan.known)
@@ -460,6 +460,20 @@ class _Run:
             commit()
             raise
         commit()
+
+
+@contextmanager
+def _timed_engine(workers: int | None, scheduler: str | None, times: list[float]
+                  ) -> Iterator[Client]:
+    """The engine; the seconds it took to start (or connect) and to stop in ``times``."""
+    t0 = time.perf_counter()
+    with _engine(workers, scheduler) as client:
+        times[0] = time.perf_counter() - t0
+        try:
+            yield client
+        finally:
+            t0 = time.perf_counter()
+    times[1] = time.perf_counter() - t0
 
 
 def _before_work(rec: FleetRecord, plan: _Unit | None) -> RecordReport | None:

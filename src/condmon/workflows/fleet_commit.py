@@ -8,11 +8,20 @@ write each outcome in date (else file-name) order, the same steps as
 baseline), :func:`condmon.workflows.monitoring.check_test` (afterwards) and
 :func:`condmon.workflows.isolation.store_isolation` (plant models), and
 :class:`RecordReport`, what became of each record.
+
+A batch of units is committed in one transaction: what the history holds of
+them is read at its start (:meth:`~condmon.store.bulk.BulkMixin.unit_states`,
+:meth:`~condmon.store.bulk.BulkMixin.record_rows`), every record is decided
+against that copy kept in memory (:class:`~condmon.workflows.fleet_state.UnitView`),
+and the new rows are written together at its end
+(:meth:`~condmon.store.bulk.BulkMixin.write_bulk`): a handful of statements
+per batch instead of some twenty per record, and no savepoint per record.
 """
 
 from __future__ import annotations
 
 import functools
+import json
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -21,7 +30,9 @@ from typing import TYPE_CHECKING, Any
 
 from condmon.errors import CondmonError
 from condmon.io.raw import one_line
+from condmon.store.bulk import BulkWriter, Id, Pending
 from condmon.workflows.fleet_inbox import FleetRecord, _name_key
+from condmon.workflows.fleet_state import Records, UnitView, Version
 from condmon.workflows.fleet_work import Kind, RecordOutcome, _named
 
 if TYPE_CHECKING:
@@ -29,8 +40,8 @@ if TYPE_CHECKING:
     from condmon.identify.estimate import EstimateResult
     from condmon.monitor.baseline import Baseline
     from condmon.monitor.fuzzy import MonitorConfig
-    from condmon.store.baselines import StoredBaseline
     from condmon.store.db import HistoryStore
+    from condmon.workflows.records import RecordKey
 
 __all__ = ["RecordReport"]
 
@@ -98,7 +109,7 @@ class _Unit:
     expected: int = 0
     outcomes: list[tuple[FleetRecord, RecordOutcome]] = field(default_factory=list)
     building: bool = False
-    members: list[int] = field(default_factory=list)  # accepted healthy tests while building
+    members: list[Id] = field(default_factory=list)  # accepted healthy tests while building
     hold: dict[str, float] | None = None  # the baseline's means, for unidentified unknowns
     counts: dict[str, int] = field(default_factory=dict)  # baseline tests per regime
 
@@ -109,8 +120,8 @@ class _Checker:
     the breakpoints and rules checks against it use."""
 
     baseline: Baseline
-    ids: list[int]
-    latest: StoredBaseline | None
+    ids: list[Id]
+    latest: Version | None
     monitor: MonitorConfig
     rules: RuleBase
 
@@ -138,88 +149,149 @@ def _regimes_of(res: EstimateResult) -> set[str]:
     return {split_key(k)[1] for k in res.stored_values()}
 
 
-def _regime_counts(store: HistoryStore, ids: list[int]) -> dict[str, int]:
-    """Accepted healthy tests per regime among ``ids``."""
-    from condmon.models.regimes import split_key
+@dataclass
+class _Draft:
+    """A record's report before its batch is written (ids and warnings that
+    name ids are settled once it is)."""
 
-    if not ids:
-        return {}
-    values, _ = store.estimates_of(ids)
-    counts: dict[str, int] = {}
-    for key in values.columns:
-        regime = split_key(str(key))[1]
-        counts[regime] = max(counts.get(regime, 0), int(values[key].notna().sum()))
-    return counts
+    unit: str
+    file: str
+    kind: str
+    date: datetime | None
+    warnings: tuple[str, ...]
+    record: int  # its rows' record in the batch's writer
+    outcome: str
+    status: str | None = None
+    reason: str | Callable[[], str] | None = None
+    tid: Id | None = None
+    warning: Callable[[], str | None] | None = None
+
+    def report(self) -> RecordReport:
+        reason = self.reason() if callable(self.reason) else self.reason
+        extra = self.warning() if self.warning is not None else None
+        return RecordReport(self.unit, self.file, self.outcome, self.status, reason,
+                            None if self.tid is None else int(self.tid), self.kind, self.date,
+                            (*self.warnings, *([extra] if extra else [])))
 
 
-def _commit_unit(store: HistoryStore, plan: _Unit, baseline_count: int) -> list[RecordReport]:
-    """Write a unit's outcomes in the order its records were run (inside a batch)."""
-    from condmon.store import DuplicateTestError, StoreError
+@dataclass
+class _Batch:
+    """A batch being committed: its writer, the records its units hold, their views."""
 
+    writer: BulkWriter
+    records: Records
+    views: dict[str, UnitView]
+
+
+class _Duplicate(Exception):
+    """The record is already in the unit's history (as DuplicateTestError)."""
+
+    def __init__(self, text: Callable[[], str], rid: Id) -> None:
+        super().__init__()
+        self.text = text
+        self.rid = rid
+
+
+def _commit_unit(batch: _Batch, plan: _Unit, baseline_count: int) -> list[_Draft]:
+    """Decide a unit's outcomes in the order its records were run, their rows
+    added to the batch's writer."""
     items = sorted(plan.outcomes, key=_order)
-    reports = []
+    drafts = []
     seen: dict[str, str] = {}
     checker: list[_Checker | None] = [None]  # loaded at the unit's first check
+    view, w = batch.views[plan.name], batch.writer
     group = next((rec.group for rec, _ in items if rec.group), None)
     if group is not None and plan.model is not None and any(o.error is None for _, o in items):
         from condmon.models.registry import get_model
 
         machine = get_model(plan.model)
-        store.set_group(plan.name, group, model=machine.name, model_source=machine.origin)
+        w.record(f"unit {plan.name!r}")
+        uid = view.ensure(w, machine.name, machine.origin)
+        if view.group != group:
+            w.set_group(uid, plan.name, group, view.group)
+            view.group = group
     if plan.kind == "estimate":
-        from condmon.workflows.monitoring import baseline_members
-
-        ids, latest = baseline_members(store, plan.name)
-        plan.building = latest is None
-        plan.members = list(ids)
-        plan.counts = _regime_counts(store, plan.members)
+        plan.building = view.latest is None
+        plan.members = view.members()
+        plan.counts = view.regime_counts(plan.members)
     for rec, out in items:
         where = str(rec.path)
         date = rec.test_date or (out.key.test_date if out.key is not None else None)
         kind = "isolation" if plan.kind == "isolate" else "test"
+        w.record(where)
 
-        def report(outcome: str, status: str | None = None, reason: str | None = None,
-                   tid: int | None = None, warning: str | None = None) -> RecordReport:
-            return RecordReport(plan.name, where, outcome, status, reason, tid, kind, date,
-                                (*out.warnings, *([warning] if warning else [])))
+        def report(outcome: str, status: str | None = None,
+                   reason: str | Callable[[], str] | None = None, tid: Id | None = None,
+                   warning: Callable[[], str | None] | None = None) -> _Draft:
+            return _Draft(plan.name, where, kind, date, out.warnings, len(w.records) - 1,
+                          outcome, status, reason, tid, warning)
 
         if out.error is not None:
-            reports.append(report("refused", reason=out.error))
+            drafts.append(report("refused", reason=out.error))
             continue
         assert out.key is not None
         if out.known:
             what, tid = plan.known.get(out.key.content, (kind, None))
-            reports.append(report("skipped", reason=f"already in the history of "
-                                  f"{plan.name!r} ({what} #{tid})", tid=tid))
+            drafts.append(report("skipped", reason=f"already in the history of "
+                                 f"{plan.name!r} ({what} #{tid})", tid=tid))
             continue
         if out.key.content in seen:
-            reports.append(report("skipped", reason=f"the same content as {seen[out.key.content]}"
-                                  " in this run"))
+            drafts.append(report("skipped", reason=f"the same content as {seen[out.key.content]}"
+                                 " in this run"))
             continue
         seen[out.key.content] = where
         try:
             if out.isolation is not None:
-                reports.append(_commit_isolation(store, plan, out, report))
+                drafts.append(_commit_isolation(batch, plan, out, report))
             elif _joins_baseline(plan, out, baseline_count):
-                reports.append(_commit_baseline_test(store, plan, out, baseline_count, report))
+                drafts.append(_commit_baseline_test(batch, plan, out, baseline_count, report))
                 if not plan.building:
                     checker[0] = None  # a new baseline version: checks load it again
             else:
-                reports.append(_commit_check(store, plan, out, checker, report))
-        except DuplicateTestError as dup:  # written meanwhile by another process
-            reports.append(report("skipped", reason=one_line(dup, None), tid=dup.test_id))
-        except StoreError:
-            raise
+                drafts.append(_commit_check(batch, plan, out, checker, report))
+        except _Duplicate as dup:  # written meanwhile by another process, or a copy
+            text = dup.text
+            drafts.append(report("skipped", reason=lambda: one_line(text(), None), tid=dup.rid))
         except CondmonError as exc:  # no baseline, a rule base that does not fit, ...
-            reports.append(report("refused", reason=_named(where, str(exc))))
-    return reports
+            drafts.append(report("refused", reason=_named(where, str(exc))))
+    return drafts
 
 
-ReportFn = Callable[..., RecordReport]
+ReportFn = Callable[..., _Draft]
 
 
-def _commit_isolation(store: HistoryStore, plan: _Unit, out: RecordOutcome,
-                      report: ReportFn) -> RecordReport:
+def _check_copy(batch: _Batch, plan: _Unit, kind: str, source: str, key: RecordKey) -> None:
+    """Raise :class:`_Duplicate` when the unit holds the record already (as
+    the store's own check before it adds a test or an isolation)."""
+    dup = batch.records.copy_of(kind, plan.name, key)
+    if dup is None:
+        return
+    note = " (excluded; `condmon include` restores it)" if dup.excluded and kind == "test" else ""
+    unit, rid = plan.name, dup.id
+    raise _Duplicate(lambda: f"{source}: already in the history of {unit!r} ({kind} "
+                     f"#{int(rid)}{note}); not added again", rid)
+
+
+def _add_test(batch: _Batch, plan: _Unit, out: RecordOutcome, role: str,
+              **evaluation: Any) -> tuple[Pending, Callable[[], str | None]]:
+    """A test added to the batch (as :meth:`HistoryStore.add_test`) and the
+    warning of its record filed under another unit too."""
+    res, key = out.estimate, out.key
+    assert res is not None and key is not None
+    _check_copy(batch, plan, "test", res.source, key)
+    view = batch.views[plan.name]
+    uid = view.ensure(batch.writer, res.model, getattr(res, "model_source", None))
+    tid = batch.writer.add_test(uid, res, role=role, digest=key.content,
+                                file_digest=key.file or key.content, test_date=key.test_date,
+                                hours=key.hours, fingerprint=key.fingerprint, **evaluation)
+    view.added_test(tid, res, role)
+    elsewhere = batch.records.elsewhere(plan.name, key)
+    batch.records.add("test", tid, plan.name, key)
+    return tid, elsewhere
+
+
+def _commit_isolation(batch: _Batch, plan: _Unit, out: RecordOutcome,
+                      report: ReportFn) -> _Draft:
     """As :func:`condmon.workflows.isolation.store_isolation`, from the outcome."""
     from condmon.models.registry import get_model
     from condmon.store import isolation_status
@@ -227,10 +299,12 @@ def _commit_isolation(store: HistoryStore, plan: _Unit, out: RecordOutcome,
     iso, key = out.isolation, out.key
     assert iso is not None and key is not None and plan.model is not None
     machine = get_model(plan.model)
-    iid = store.add_isolation(plan.name, iso, model=machine.name, source=out.path,
-                              digest=key.content, file_digest=key.file,
-                              fingerprint=key.fingerprint, test_date=key.test_date,
-                              model_source=machine.origin)
+    _check_copy(batch, plan, "isolation", out.path, key)
+    uid = batch.views[plan.name].ensure(batch.writer, machine.name, machine.origin)
+    iid = batch.writer.add_isolation(uid, iso, model=machine.name, source=out.path,
+                                     digest=key.content, file_digest=key.file or key.content,
+                                     fingerprint=key.fingerprint, test_date=key.test_date)
+    batch.records.add("isolation", iid, plan.name, key)
     return report("stored", isolation_status(iso.detected, iso.decided),
                   iso.statement if iso.decided else (iso.reason or iso.statement), iid)
 
@@ -247,35 +321,29 @@ def _joins_baseline(plan: _Unit, out: RecordOutcome, baseline_count: int) -> boo
     return res.usable and any(plan.counts.get(r, 0) < baseline_count for r in _regimes_of(res))
 
 
-def _commit_baseline_test(store: HistoryStore, plan: _Unit, out: RecordOutcome,
-                          baseline_count: int, report: ReportFn) -> RecordReport:
+def _commit_baseline_test(batch: _Batch, plan: _Unit, out: RecordOutcome,
+                          baseline_count: int, report: ReportFn) -> _Draft:
     """As :func:`condmon.workflows.monitoring.add_baseline_tests` for one record;
     a baseline version is saved once a regime has ``baseline_count`` accepted
     tests (the unit's first, or one with a new regime)."""
     from condmon.errors import DataError
     from condmon.monitor.baseline import MIN_BASELINE_TESTS
-    from condmon.store.baselines import _baseline_of
-    from condmon.workflows.monitoring import (
-        _unit_error, filed_elsewhere, save_current_baseline,
-    )
+    from condmon.workflows.monitoring import _unit_error
 
-    res, key = out.estimate, out.key
-    assert res is not None and key is not None
+    res, view = out.estimate, batch.views[plan.name]
+    assert res is not None
     # while building, the unit has no saved version: its baseline so far is its
     # accepted healthy tests (plan.members, kept as they are written)
     if res.usable and len(plan.members) >= MIN_BASELINE_TESTS:
         try:
-            prior = _baseline_of(store, plan.name, plan.members)
+            prior = view.baseline_of(plan.members)
         except DataError:  # no regime has 3 tests yet
             prior = None
         why = None if prior is None else _unit_error(res, prior)
         if why is not None:
             return report("refused", reason=_named(out.path, f"refused, {why}; nothing was "
                                                    "stored"))
-    tid = store.add_test(plan.name, res, role="baseline", digest=key.content,
-                         file_digest=key.file, fingerprint=key.fingerprint,
-                         test_date=key.test_date, hours=key.hours)
-    elsewhere = filed_elsewhere(store, plan.name, key)
+    tid, elsewhere = _add_test(batch, plan, out, "baseline")
     if not res.usable:
         return report("rejected", "retest", one_line(str(res.reason), None), tid, elsewhere)
     plan.members.append(tid)
@@ -288,9 +356,8 @@ def _commit_baseline_test(store: HistoryStore, plan: _Unit, out: RecordOutcome,
         ids = list(plan.members)
         # a first version (no check exists before it), or one a new regime
         # joined (the checks so far have other regimes): none to re-evaluate
-        stored, _ = save_current_baseline(store, plan.name, ids,
-                                          reason=f"baseline of {len(ids)} tests" + (
-                                              f" ({label} complete)" if label else ""))
+        stored = view.save_baseline(batch.writer, ids, reason=f"baseline of {len(ids)} tests" + (
+            f" ({label} complete)" if label else ""))
         plan.building = False
         return report("stored", "baseline", f"baseline of {plan.name!r} from {len(ids)} "
                       f"accepted healthy tests ({stored.name!r} v{stored.version})"
@@ -300,50 +367,73 @@ def _commit_baseline_test(store: HistoryStore, plan: _Unit, out: RecordOutcome,
                   + (f" ({label})" if label else ""), tid, elsewhere)
 
 
-def _commit_check(store: HistoryStore, plan: _Unit, out: RecordOutcome,
-                  checker: list[_Checker | None], report: ReportFn) -> RecordReport:
+def _commit_check(batch: _Batch, plan: _Unit, out: RecordOutcome,
+                  checker: list[_Checker | None], report: ReportFn) -> _Draft:
     """As :func:`condmon.workflows.monitoring.check_test` for one estimated record."""
-    from condmon.workflows.monitoring import (
-        _unit_error, current_baseline, evaluate, filed_elsewhere, monitoring_of,
-        save_current_baseline,
-    )
+    from condmon.models.registry import get_model
+    from condmon.workflows.monitoring import _unit_error, evaluate, monitoring_of
 
-    res, key = out.estimate, out.key
-    assert res is not None and key is not None and plan.model is not None
+    res, view = out.estimate, batch.views[plan.name]
+    assert res is not None and plan.model is not None
     state = checker[0]
     if state is None:
-        from condmon.models.registry import get_model
-
-        baseline, ids = current_baseline(store, plan.name)
+        baseline, ids = view.current()
         cfg, rb = monitoring_of(get_model(plan.model), baseline, None, _rules(plan.model))
-        state = checker[0] = _Checker(baseline, ids, store.latest_baseline(plan.name), cfg, rb)
+        state = checker[0] = _Checker(baseline, ids, view.latest, cfg, rb)
     cfg, rb = state.monitor, state.rules
     why = _unit_error(res, state.baseline) if res.usable else None
     if why is not None:
         return report("refused", reason=_named(out.path, f"refused, {why}; nothing was stored"))
     if not res.usable:
-        tid = store.add_test(plan.name, res, role="check", digest=key.content,
-                             file_digest=key.file, fingerprint=key.fingerprint,
-                             test_date=key.test_date, hours=key.hours)
-        return report("rejected", "retest", one_line(str(res.reason), None), tid,
-                      filed_elsewhere(store, plan.name, key))
-    from condmon.models.registry import get_model
-
+        tid, elsewhere = _add_test(batch, plan, out, "check")
+        return report("rejected", "retest", one_line(str(res.reason), None), tid, elsewhere)
     row, diag = evaluate(res, state.baseline, cfg, rb, get_model(plan.model).spec.report)
     if state.latest is None or list(state.latest.test_ids) != state.ids:
-        state.latest, _ = save_current_baseline(store, plan.name, state.ids, monitor=cfg,
-                                                reason="baseline of the first check")
-    tid = store.add_test(plan.name, res, role="check", digest=key.content, file_digest=key.file,
-                         fingerprint=key.fingerprint, test_date=key.test_date, hours=key.hours,
-                         symptoms=row, baseline_id=state.latest.id, diagnosis=diag)
-    return report("stored", diag.status, diag.summary, tid,
-                  filed_elsewhere(store, plan.name, key))
+        state.latest = view.save_baseline(batch.writer, state.ids, monitor=cfg,
+                                          reason="baseline of the first check")
+    tid, elsewhere = _add_test(batch, plan, out, "check", symptoms=row,
+                               baseline_id=state.latest.id, diagnosis=diag)
+    return report("stored", diag.status, diag.summary, tid, elsewhere)
 
 
 def _write(store: HistoryStore, ready: list[_Unit], baseline_count: int,
            reports: dict[str, list[RecordReport]]) -> None:
-    """Commit the ready units' outcomes in one transaction."""
+    """Commit the ready units' outcomes in one transaction: what the history
+    holds of them read in a few queries, their new rows written with one
+    statement per table.
+
+    Raises
+    ------
+    StoreError
+        A record cannot be written: it is named, the records before it are kept.
+    """
+    from condmon.io.digest import fingerprint_prefix
+    from condmon.store.bulk import BulkWriteError
+
+    keys = [out.key for plan in ready for _, out in plan.outcomes
+            if out.error is None and not out.known and out.key is not None]
+    hashes = [k.content for k in keys] + [k.file for k in keys if k.file]
+    prefixes = [fingerprint_prefix(int(json.loads(k.fingerprint)["n"]))
+                for k in keys if k.fingerprint]
+    kinds = sorted({"isolation" if p.kind == "isolate" else "test" for p in ready if p.kind})
+    writer = BulkWriter()
+    drafts: list[_Draft] = []
+    failed: BulkWriteError | None = None
     with store.batch():
+        states = store.unit_states([p.name for p in ready])
+        uids = [s.id for s in states.values()]
+        known = {kind: store.record_rows(kind, hashes, uids, prefixes) for kind in kinds}
+        batch = _Batch(writer, Records.of(known),
+                       {p.name: UnitView.of(p.name, states.get(p.name)) for p in ready})
         for plan in ready:
-            reports.setdefault(plan.name, []).extend(_commit_unit(store, plan, baseline_count))
+            drafts.extend(_commit_unit(batch, plan, baseline_count))
             plan.outcomes.clear()
+        try:
+            store.write_bulk(writer)
+        except BulkWriteError as err:  # the records before it are kept
+            failed = err
+    for d in drafts:
+        if failed is None or d.record < failed.written:
+            reports.setdefault(d.unit, []).append(d.report())
+    if failed is not None:
+        raise failed

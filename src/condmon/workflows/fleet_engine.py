@@ -19,12 +19,12 @@ from typing import TYPE_CHECKING, Any
 
 from condmon.errors import CondmonError, ConfigError
 from condmon.io.raw import one_line
-from condmon.workflows.fleet_work import RecordOutcome, RecordTask, _named, process_record
+from condmon.workflows.fleet_work import RecordOutcome, RecordTask, _named, process_records
 
 if TYPE_CHECKING:
     from distributed import Client
 
-__all__ = ["EngineError", "BLAS_ENV", "local_cluster"]
+__all__ = ["EngineError", "BLAS_ENV", "local_cluster", "chunk_size", "MAX_CHUNK"]
 
 #: Environment of a local cluster's workers: one BLAS thread per worker process.
 BLAS_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
@@ -160,34 +160,58 @@ def _threads(client: Client) -> int:
     return sum(client.nthreads().values())  # type: ignore[no-untyped-call]
 
 
-def _run_tasks(client: Client, tasks: Sequence[RecordTask]) -> Iterator[RecordOutcome]:
+#: Records per unit of work at most: enough to share the engine's cost per
+#: task (a few ms of the client's and scheduler's CPU, which on a small
+#: machine is taken from the workers), few enough to balance the workers.
+MAX_CHUNK = 8
+
+
+def chunk_size(records: int, workers: int) -> int:
+    """Records per task: at least 8 tasks per worker, at most :data:`MAX_CHUNK` records each.
+
+    Example
+    -------
+    >>> chunk_size(23, 1), chunk_size(1000, 2), chunk_size(100, 2)
+    (2, 8, 6)
+    """
+    return max(1, min(MAX_CHUNK, records // (8 * max(1, workers))))
+
+
+def _run_tasks(client: Client, tasks: Sequence[RecordTask],
+               chunk: int | None = None) -> Iterator[RecordOutcome]:
     """Outcomes as workers finish them, a bounded number of tasks queued at a
-    time (a unit's records finish close together). The queue holds more work
-    than the client's longest commit takes (a batch of results written while
-    no task is submitted), so the workers never wait on the database."""
+    time (a unit's records finish close together), ``chunk`` records per task
+    (default :func:`chunk_size`). The queue holds more work than the client's
+    longest commit takes (a batch of results written while no task is
+    submitted), so the workers never wait on the database."""
     from distributed import as_completed
 
-    window = max(64, 16 * _threads(client))
-    todo = iter(tasks)
-    by_future: dict[Any, RecordTask] = {}
+    threads = _threads(client)
+    size = chunk or chunk_size(len(tasks), threads)
+    chunks = [tuple(tasks[i:i + size]) for i in range(0, len(tasks), size)]
+    window = max(2, max(64, 16 * threads) // size)
+    todo = iter(chunks)
+    by_future: dict[Any, tuple[RecordTask, ...]] = {}
     running = as_completed(loop=client.loop)  # type: ignore[no-untyped-call]
-    for task in todo:
-        fut = client.submit(process_record, task, pure=False)
-        by_future[fut] = task
+
+    def submit(part: tuple[RecordTask, ...]) -> None:
+        fut = client.submit(process_records, part, pure=False)
+        by_future[fut] = part
         running.add(fut)  # type: ignore[no-untyped-call]
+
+    for part in todo:
+        submit(part)
         if len(by_future) >= window:
             break
     for fut in running:
-        task = by_future.pop(fut)
+        part = by_future.pop(fut)
         try:
-            outcome = fut.result()
+            outcomes = list(fut.result())
         except Exception as exc:  # noqa: BLE001 - a worker lost, a task cancelled
-            outcome = RecordOutcome(task.unit, task.path, error=_named(
-                task.path, f"not processed: {type(exc).__name__}: {exc}"))
+            outcomes = [RecordOutcome(task.unit, task.path, error=_named(
+                task.path, f"not processed: {type(exc).__name__}: {exc}")) for task in part]
         fut.release()
-        yield outcome
         nxt = next(todo, None)
         if nxt is not None:
-            new = client.submit(process_record, nxt, pure=False)
-            by_future[new] = nxt
-            running.add(new)  # type: ignore[no-untyped-call]
+            submit(nxt)
+        yield from outcomes

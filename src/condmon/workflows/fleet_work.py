@@ -27,7 +27,7 @@ if TYPE_CHECKING:
     from condmon.identify.estimate import EstimateResult
     from condmon.models.declared import PlantModel
 
-__all__ = ["RecordTask", "RecordOutcome", "process_record"]
+__all__ = ["RecordTask", "RecordOutcome", "process_record", "process_records"]
 
 Kind = Literal["estimate", "isolate"]
 
@@ -176,6 +176,13 @@ def process_record(task: RecordTask) -> RecordOutcome:
             why = f"{type(exc).__name__}: {exc}"
     return RecordOutcome(task.unit, task.path, key, error=_named(task.path, why),
                          warnings=_texts(caught), seconds=time.perf_counter() - started)
+
+
+def process_records(tasks: tuple[RecordTask, ...]) -> list[RecordOutcome]:
+    """:func:`process_record` of each task, in order: a few records per unit
+    of work shipped to a worker, so the engine's cost per task (scheduling,
+    messages) is shared among them."""
+    return [process_record(task) for task in tasks]
 
 
 def _texts(caught: list[warnings.WarningMessage]) -> tuple[str, ...]:

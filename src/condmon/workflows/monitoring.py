@@ -42,7 +42,7 @@ from condmon.workflows.records import EstimateOptions, RecordKey, RecordLike, re
 __all__ = ["EstimateOptions", "AddedTest", "BaselineAddResult", "RecordKey",
            "add_baseline_tests", "current_baseline", "RecordLike",
            "unit_monitor", "save_current_baseline", "reevaluate", "parse_date", "record_key",
-           "evaluate", "baseline_members", "filed_elsewhere", "monitoring_of", "restricted",
+           "evaluate", "baseline_members", "filed_elsewhere", "elsewhere_warning", "monitoring_of", "restricted",
            "no_baseline_yet"]
 
 Progress = Callable[[int, int, str], None]
@@ -367,7 +367,11 @@ def _regime_counts(baseline: Baseline) -> str:
 def filed_elsewhere(store: HistoryStore, unit: str, key: RecordKey) -> str | None:
     """A warning when the record is also a test of another unit (one test
     record belongs to one machine: a mix-up of serial numbers or folders)."""
-    others = store.copies_elsewhere(unit, key.content)
+    return elsewhere_warning(store.copies_elsewhere(unit, key.content))
+
+
+def elsewhere_warning(others: Sequence[tuple[str, int]]) -> str | None:
+    """The warning of a record that is also these ``(unit, test id)`` (None: none)."""
     if not others:
         return None
     where = ", ".join(f"test #{tid} of {name!r}" for name, tid in others[:3])

@@ -24,6 +24,16 @@ def write_json(name: str, doc: dict[str, Any]) -> Path:
     return path
 
 
+def best_of(fn: Any, repeat: int) -> float:
+    """The shortest of ``repeat`` timed calls of ``fn()``. [s]"""
+    best = float("inf")
+    for _ in range(repeat):
+        start = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
 def table(rows: list[dict[str, Any]], title: str) -> str:
     """Fixed-width text table of a list of dicts (same keys)."""
     keys = list(rows[0])

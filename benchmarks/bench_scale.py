@@ -47,7 +47,7 @@ from typing import Any
 
 import sqlalchemy as sa
 
-from _common import table, write_json
+from _common import best_of, table, write_json
 from condmon.report.web import create_app
 from condmon.simulate import simulate_actuator
 from condmon.store import open_store
@@ -163,15 +163,6 @@ def build(db: str, rows: dict[str, list[dict[str, Any]]], n_units: int, n_tests:
         return took
 
 
-def _best(fn: Any, repeat: int) -> float:
-    best = float("inf")
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t)
-    return best
-
-
 def measure(db: str, n_units: int, repeat: int, seed0: int) -> dict[str, float]:
     """Seconds of a check and of the page's requests (best of ``repeat``)."""
     out = {}
@@ -179,7 +170,7 @@ def measure(db: str, n_units: int, repeat: int, seed0: int) -> dict[str, float]:
     records = [simulate_actuator(seed=next(seeds)) for _ in range(repeat)]
     with open_store(db) as store:
         it = iter(records)
-        out["check"] = _best(lambda: check_test(store, "EMA-00000", next(it)), repeat)
+        out["check"] = best_of(lambda: check_test(store, "EMA-00000", next(it)), repeat)
     client = create_app(db).test_client()
     deep = max(1, n_units // 100 // 2)
     for name, url in (("index", "/"), ("api", "/api/units"),
@@ -191,7 +182,7 @@ def measure(db: str, n_units: int, repeat: int, seed0: int) -> dict[str, float]:
             if resp.status_code != 200:
                 raise SystemExit(f"GET {u}: {resp.status_code} {resp.get_data(as_text=True)}")
         get()   # the first request of a process reads the model files
-        out[name] = _best(get, repeat)
+        out[name] = best_of(get, repeat)
     return out
 
 

@@ -202,7 +202,8 @@ def create_app(db: str | Path, *, refresh: float = 30.0, live: LiveFeed | None =
             return fleet_document(store, request.args.getlist("status"), request.args.get("q"),
                                   request.args.get("sort"), number("page", 1) or 1,
                                   number("per_page", PER_PAGE),
-                                  with_live(store.unit_summaries(), live), clamp)
+                                  None if live is None else with_live(store.unit_summaries(),
+                                                                      live), clamp)
 
     @app.get("/api/events")
     def events() -> Response:

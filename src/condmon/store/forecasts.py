@@ -62,6 +62,7 @@ class FleetHistory:
         self._kept: set[str] = set()
         self._marks: dict[str, int] = {}
         self._limit = 0
+        self._by_model: dict[tuple[str, str | None], list[str]] = {}
 
     def degraded(self, unit: str) -> bool:
         """Whether ``unit`` has degraded (its rates teach its peers)."""
@@ -134,8 +135,21 @@ class FleetHistory:
         assert self._degraded is not None
         if model is None:
             model, group = self.store.unit_model(unit), self.store.unit_group(unit)
-        return sorted(u for u, (m, g) in self._degraded.items()
-                      if u != unit and m == model and (group is None or g == group))
+        return [u for u in self._of(model, group) if u != unit]
+
+    def _of(self, model: str | None, group: str | None) -> list[str]:
+        """The degraded units of ``model`` (and ``group``), by name, listed once."""
+        assert self._degraded is not None
+        key = (str(model), group)
+        if key not in self._by_model:
+            self._by_model[key] = sorted(u for u, (m, g) in self._degraded.items()
+                                         if m == model and (group is None or g == group))
+        return self._by_model[key]
+
+    def peer_count(self, unit: str, model: str | None, group: str | None) -> int:
+        """``len(self.peers(unit, model, group))``, without listing them."""
+        mine = self.degraded(unit)
+        return len(self._of(model, group)) - int(mine)
 
     def _unit_wear(self, unit: str, key: str, by: str) -> UnitWear | None:
         if (unit, key, by) not in self._wear:
@@ -268,7 +282,7 @@ def attach_forecasts(store: HistoryStore, rows: list[dict[str, Any]]) -> list[di
     for r in rows:
         unit = str(r["unit"])
         model, group = models.get(unit, (None, None))
-        peers = len(fleet.peers(unit, model, group))
+        peers = fleet.peer_count(unit, model, group)
         mark, old = marks.get(unit, 0), kept.get(unit)
         if old is not None and old[:2] == (mark, peers):
             r.update({"forecast": None if old[2] is None else json.loads(old[2]),

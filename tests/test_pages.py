@@ -122,3 +122,20 @@ def test_a_unit_page_pages_its_tests_the_latest_first(tmp_path: Path) -> None:
     assert first.count('<tr id="t') == 200 and f'id="t{ids[0]}"' in first
     assert f'id="t{ids[200]}"' not in first
     assert _get(client, "/units/LONG?page=0", 400).get_data(as_text=True).count("page 0") == 1
+
+
+def test_page_numbers_are_checked_alike_everywhere(big: str,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    client = create_app(big).test_client()
+    for url in ("/?page=0", "/api/units?page=0", "/api/units?page=-1"):
+        assert _get(client, url, 400).status_code == 400
+    assert 'value="status">most severe status first' in _get(client, "/").get_data(as_text=True)
+    capsys.readouterr()
+    for args in (["--json", "--page", "0"], ["--page", "0"], ["--json", "--page", "2"]):
+        assert main(["units", "--db", big, *args]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["error: page 0, all a page: both must be >= 1"] * 2 + [
+        "error: page 2: the 250 matching unit(s) fill 1 page (all on one)"]
+    assert main(["units", "--db", big, "--json", "--sort", "status", "--per-page", "5"]) == 0
+    assert json.loads(capsys.readouterr().out) == _get(
+        client, "/api/units?sort=status&per_page=5").get_json()

@@ -28,7 +28,7 @@ def register(app: typer.Typer) -> None:
     def units_cmd(
         db: DbOpt = "condmon.db",
         as_json: Annotated[bool, typer.Option("--json", help="Print the units as JSON records, each with its earliest forecast to no-go.")] = False,
-        sort: Annotated[str, typer.Option("--sort", help="Order: name, or forecast (the unit forecast to turn no-go soonest first).")] = "name",
+        sort: Annotated[str, typer.Option("--sort", help="Order: name; status (the most severe first); date (the latest test first); forecast (the unit forecast to turn no-go soonest first).")] = "name",
         page: Annotated[int, typer.Option("--page", help="Which page of --per-page units (from 1).")] = 1,
         per_page: Annotated[Optional[int], typer.Option("--per-page", help="Units a page (default: all on one).")] = None,
     ) -> None:
@@ -45,11 +45,13 @@ def register(app: typer.Typer) -> None:
         from condmon.monitor.unit_forecast import remaining_text
         from condmon.report.web_data import fleet_document
 
-        if sort not in ("name", "forecast"):
-            raise ConfigError(f"--sort {sort!r}: allowed: name, forecast")
+        from condmon.report.web_data import SORTS
+
+        if sort not in SORTS:
+            raise ConfigError(f"--sort {sort!r}: allowed: {', '.join(SORTS)}")
         least = load_generic_settings().group_min_units
         with open_store(db, create=False) as store:
-            if as_json and per_page is None and sort != "forecast":
+            if as_json and per_page is None and page == 1 and sort != "forecast":
                 _stream_units(store, sort)   # the whole fleet, a chunk at a time
                 return
             doc = fleet_document(store, sort=sort, page=page, per_page=per_page)

@@ -196,11 +196,14 @@ def create_app(db: str | Path, *, refresh: float = 30.0, live: LiveFeed | None =
             raise FilterError(f"{name}={raw!r}: a whole number >= 1"
                               + (" or 'all'" if name == "per_page" else "")) from None
 
+    def _page(n: int | None) -> int:
+        return 1 if n is None else n
+
     def fleet(clamp: bool = False) -> dict[str, Any]:
         """The page of the fleet the request asks for (its live statuses over the history's)."""
         with history.open() as store:
             return fleet_document(store, request.args.getlist("status"), request.args.get("q"),
-                                  request.args.get("sort"), number("page", 1) or 1,
+                                  request.args.get("sort"), _page(number("page", 1)),
                                   number("per_page", PER_PAGE),
                                   None if live is None else with_live(store.unit_summaries(),
                                                                       live), clamp)

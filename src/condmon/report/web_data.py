@@ -185,7 +185,8 @@ def fleet_document(store: HistoryStore, status: Sequence[str] = (),
     wanted, how = _statuses(status), _sort(sort)
     text = (q or "").strip()
     if per_page is not None and per_page < 1 or page < 1:
-        raise FilterError(f"page {page}, {per_page} a page: both must be >= 1")
+        raise FilterError(f"page {page}, {'all' if per_page is None else per_page} a page: "
+                          "both must be >= 1")
     in_sql = (rows is None and how != "forecast" and text.isascii()
               and store.states_current())
     if in_sql:  # the database filters, counts and pages: a page's cost is its own units'
@@ -205,7 +206,7 @@ def fleet_document(store: HistoryStore, status: Sequence[str] = (),
         page = pages
     if page > pages:
         raise FilterError(f"page {page}: the {matching} matching unit(s) fill {pages} "
-                          f"page(s) of {per_page}")
+                          + (f"page(s) of {per_page}" if per_page else "page (all on one)"))
     start = (page - 1) * (per_page or 0)
     if in_sql:
         shown = store.unit_page(sorted(wanted), text, how, start, per_page)

@@ -5,6 +5,7 @@ as the in-memory listing does; on SQLite and PostgreSQL."""
 from __future__ import annotations
 
 import shutil
+from datetime import datetime, timezone
 import sqlite3
 from dataclasses import dataclass
 from pathlib import Path
@@ -162,3 +163,23 @@ def test_a_v7_history_gets_its_states_on_opening(tmp_path: Path, fleet_db: Path)
     with open_store(str(db)) as store:
         assert store.schema_version == schema.SCHEMA_VERSION == 8
         assert store.unit_summaries() == before and _kept(store) == _worked_out(store)
+
+
+def test_an_isolated_unit_says_why_it_has_no_forecast(tmp_path: Path) -> None:
+    from condmon.errors import DataError
+    from condmon.store.forecasts import ISOLATED, read_forecast, try_forecast
+
+    db = str(tmp_path / "iso.db")
+    with open_store(db) as store:
+        uid = store.unit_id("HST-1", create=True, model="hst")
+        with store.engine.begin() as c:
+            c.execute(sa.insert(schema.isolations).values(
+                unit_id=uid, created_at=datetime(2026, 1, 1, tzinfo=timezone.utc),
+                source="i.csv", file_hash="0" * 64, record_hash="0" * 64, model="hst",
+                detected=True, decided=True, statement="Rv", suspects="[]", isolated="[]",
+                result="{}"))
+        assert try_forecast(store, "HST-1") == (None, ISOLATED)
+        with pytest.raises(DataError, match="isolated against a plant model"):
+            read_forecast(store, "HST-1")
+        store.unit_id("EMPTY", create=True)
+        assert try_forecast(store, "EMPTY")[1] == "no baseline yet"

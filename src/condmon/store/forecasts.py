@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import pandas as pd
 
-from condmon.errors import CondmonError
+from condmon.errors import CondmonError, DataError
 from condmon.monitor.baseline import MIN_BASELINE_TESTS, Baseline
 from condmon.monitor.prior import FleetPrior, UnitWear, prior_from_wear, unit_wear
 from condmon.monitor.unit_forecast import (
@@ -211,6 +211,8 @@ def read_forecast(store: HistoryStore, unit: str, horizon: float | None = None,
     from condmon.monitor.generic import machine_monitor
 
     store.unit_id(unit)  # an unknown unit: the close names
+    if _isolated_only(store, unit):
+        raise DataError(f"{unit}: {ISOLATED}")
     fleet = fleet or FleetHistory(store)
     baseline, checks = fleet.checks(unit)
     machine = get_model(store.unit_model(unit) or "dc-motor")
@@ -223,6 +225,16 @@ def read_forecast(store: HistoryStore, unit: str, horizon: float | None = None,
                            rules, machine.units, horizon, seed, priors)
 
 
+#: Why a unit with isolations (a plant model run beside it) and no tests has no forecast.
+ISOLATED = ("its records are isolated against a plant model, not estimated; forecasts "
+            "follow the parameters of estimated tests")
+
+
+def _isolated_only(store: HistoryStore, unit: str) -> bool:
+    row = store.unit_summaries([unit])
+    return bool(row) and not row[0]["tests"] and bool(row[0]["isolations"])
+
+
 def try_forecast(store: HistoryStore, unit: str, fleet: FleetHistory | None = None
                  ) -> tuple[UnitForecast | None, str | None]:
     """:func:`read_forecast`, or why there is none: ``(forecast, None)`` or
@@ -230,6 +242,8 @@ def try_forecast(store: HistoryStore, unit: str, fleet: FleetHistory | None = No
     one, not enough tests to forecast, the model cannot be loaded); never raises a :class:`~condmon.errors.CondmonError`."""
     usable = 0 if store.unit_model(unit) is None else len(baseline_members(store, unit)[0])
     if usable < MIN_BASELINE_TESTS:
+        if not usable and _isolated_only(store, unit):
+            return None, ISOLATED
         return None, NO_BASELINE if not usable else (
             f"no baseline: {usable} usable healthy test(s), a baseline needs "
             f"{MIN_BASELINE_TESTS}")

@@ -331,7 +331,8 @@ def symptom_figure(trends: Sequence[TrendData]) -> Any:
     ids = trends[0].test_ids if trends else ()
     at = np.arange(len(ids), dtype=np.float64)
     every = max(1, int(np.ceil(len(ids) / 30)))  # a readable number of labels
-    labels = [f"#{i}" if j % every == 0 else "" for j, i in enumerate(ids)]
+    ticks = at[::every]   # a tick only where there is a label: ticks cost the figure's time
+    labels = [f"#{i}" for i in list(ids)[::every]]
     for ax, d in zip(axes.ravel(), trends):
         ax.bar(at, np.nan_to_num(d.high), 0.6, color="#ef6c00", align="center")
         ax.bar(at, -np.nan_to_num(d.low), 0.6, color="#1565c0", align="center")
@@ -339,7 +340,7 @@ def symptom_figure(trends: Sequence[TrendData]) -> Any:
         ax.set_ylim(-1.05, 1.05)
         ax.set_yticks([-1.0, 0.0, 1.0])
         ax.set_ylabel(f"{d.parameter} symptom [-]")
-        ax.set_xticks(at)
+        ax.set_xticks(ticks)
         ax.set_xticklabels(labels, fontsize=7)
         ax.set_xlim(-0.6, len(ids) - 0.4)
         ax.grid(alpha=0.3, axis="y")
@@ -347,15 +348,16 @@ def symptom_figure(trends: Sequence[TrendData]) -> Any:
         ax.set_xlabel("test # (in the order of the trend figure)")
     legend_below(fig, ([Patch(color="#ef6c00"), Patch(color="#1565c0")],
                        ["SymH (up): degree of HIGH", "SymL (down): degree of LOW"]), ncol=2)
-    fig.suptitle("Fuzzy symptoms per check and parameter (each bar on its test's tick)",
-                 fontsize=10)
+    fig.suptitle("Fuzzy symptoms per check and parameter (one pair of bars a test, in "
+                 "order" + (")" if every == 1 else f"; every {every}th labelled)"), fontsize=10)
     return fig
 
 
 def plot_symptoms(trends: Sequence[TrendData], path: Target) -> Target:
     """SymH (up) and SymL (down) of each parameter for every trended check.
 
-    One panel per parameter; each test's bars sit on its tick.
+    One panel per parameter; each test's bars in the trend figure's order,
+    about 30 of them labelled with their test's number.
 
     Parameters
     ----------

@@ -236,7 +236,7 @@ def test_units_sort_by_urgency(wearing: tuple[Path, float],
         row(text, u["unit"], "dc-motor", str(u["tests"]), "record", u["latest_date"][:10],
             u["status"], shown)
     assert main(["units", "--db", db, "--sort", "urgency"]) == 2
-    assert "--sort 'urgency': allowed: name, forecast" in capsys.readouterr().err
+    assert "--sort 'urgency': allowed: name, status, date, forecast" in capsys.readouterr().err
 
 
 def test_check_says_the_forecast(wearing: tuple[Path, float], demo_rig, tmp_path: Path,  # type: ignore[no-untyped-def]

@@ -67,8 +67,10 @@ def register(app: typer.Typer) -> None:
             table.add_column(col, justify="left" if col in ("parameter", "no-go at (rule)")
                              else "right", no_wrap=col in ("date", "parameter"))
 
-        def n(v: float) -> str:
-            return f"{v:.3g}" if math.isfinite(v) else "beyond"
+        def n(v: float) -> str:   # 1443, not 1.44e+03
+            if not math.isfinite(v):
+                return "beyond"
+            return f"{v:.0f}" if abs(v) >= 100 else f"{v:.3g}"
 
         for p in res.parameters:
             f = p.forecast

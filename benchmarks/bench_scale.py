@@ -62,30 +62,21 @@ CHUNK = 250   # units a transaction when copying
 
 
 def template(db: str) -> dict[str, list[dict[str, Any]]]:
-    """One real unit ``T`` (3 healthy tests, a baseline, 10 checks); its rows by table."""
+    """One real unit ``T`` (3 healthy tests, a baseline, 10 checks); its rows by
+    table, and by table and test (``"<table>@<test id>"``) for copying."""
     with open_store(db) as store:
         add_baseline_tests(store, "T", [simulate_actuator(seed=s) for s in range(3)])
         for k in range(TEMPLATE_CHECKS):
             check_test(store, "T", simulate_actuator(seed=100 + k),
                        test_date=f"2026-01-{k + 2:02d}")
         with store.engine.connect() as c:
-            return {t.name: [dict(r._mapping) for r in c.execute(sa.select(t))]
+            rows = {t.name: [dict(r._mapping) for r in c.execute(sa.select(t))]
                     for t in (S.tests, S.estimates, S.symptoms, S.diagnoses,
                               S.diagnosis_faults, S.baselines, S.baseline_values)}
-
-
-_BY_TEST: dict[tuple[int, str, int], list[dict[str, Any]]] = {}
-
-
-def _of(rows: dict[str, list[dict[str, Any]]], name: str, test_id: int) -> list[dict[str, Any]]:
-    """The template's rows of table ``name`` for one test (indexed once)."""
-    key = (id(rows), name, test_id)
-    if key not in _BY_TEST:
-        for r in rows[name]:
-            _BY_TEST.setdefault((id(rows), name, r["test_id"]), []).append(r)
+    for name in ("estimates", "symptoms", "diagnoses", "diagnosis_faults"):
         for t in rows["tests"]:
-            _BY_TEST.setdefault((id(rows), name, t["id"]), [])
-    return _BY_TEST[key]
+            rows[f"{name}@{t['id']}"] = [r for r in rows[name] if r["test_id"] == t["id"]]
+    return rows
 
 
 def _unit_rows(rows: dict[str, list[dict[str, Any]]], uid: int, n_tests: int,
@@ -93,7 +84,7 @@ def _unit_rows(rows: dict[str, list[dict[str, Any]]], uid: int, n_tests: int,
     """The template's rows for unit ``uid``: new ids, checks cycled to ``n_tests`` tests."""
     base = [t for t in rows["tests"] if t["role"] == "baseline"]
     checks = [t for t in rows["tests"] if t["role"] == "check"]
-    out: dict[str, list[dict[str, Any]]] = {k: [] for k in (*rows, "audit")}
+    out: dict[str, list[dict[str, Any]]] = {k: [] for k in (*rows, "audit") if "@" not in k}
     remap: dict[int, int] = {}
     for b in rows["baselines"]:
         ids["baseline"] += 1
@@ -111,11 +102,11 @@ def _unit_rows(rows: dict[str, list[dict[str, Any]]], uid: int, n_tests: int,
         ids["audit"] += 1
         out["audit"].append({"id": ids["audit"], "at": t["created_at"], "actor": "bench",
                              "action": "test added", "unit_id": uid, "test_id": new["id"]})
-        for e in _of(rows, "estimates", t["id"]):
+        for e in rows[f"estimates@{t['id']}"]:
             out["estimates"].append({**e, "test_id": new["id"]})
         if t["role"] == "check":
             for name in ("symptoms", "diagnoses", "diagnosis_faults"):
-                for s in _of(rows, name, t["id"]):
+                for s in rows[f"{name}@{t['id']}"]:
                     out[name].append({**s, "test_id": new["id"], "baseline_id": remap_b})
     if status is not None and out["diagnoses"]:
         out["diagnoses"][-1] = {**out["diagnoses"][-1], "status": status}

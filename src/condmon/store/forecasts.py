@@ -211,10 +211,13 @@ def read_forecast(store: HistoryStore, unit: str, horizon: float | None = None,
     from condmon.monitor.generic import machine_monitor
 
     store.unit_id(unit)  # an unknown unit: the close names
-    if _isolated_only(store, unit):
-        raise DataError(f"{unit}: {ISOLATED}")
     fleet = fleet or FleetHistory(store)
-    baseline, checks = fleet.checks(unit)
+    try:
+        baseline, checks = fleet.checks(unit)
+    except DataError:   # no baseline: say why when the unit's records are isolated instead
+        if _isolated_only(store, unit):
+            raise DataError(f"{unit}: {ISOLATED}") from None
+        raise
     machine = get_model(store.unit_model(unit) or "dc-motor")
     rules: dict[str, str] = {}
     for r in machine_rules(machine).faults:  # the first rule of each one-symptom condition

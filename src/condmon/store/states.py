@@ -233,7 +233,7 @@ class StatesMixin(StoreBase):
             return False
         return True
 
-    def _with_group_flags(self, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    def _with_flags(self, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
         """``rows`` with their active baselines' flags (``baseline_flags``: how
         many, one query) and their groups' (``group_flags``), read now: flags
         are kept with the baselines, which may change under the kept rows."""
@@ -284,7 +284,7 @@ class StatesMixin(StoreBase):
                         if r.id in fresh else r for r in rows]
             return self._summaries(rows)
 
-        return self._with_group_flags(self._read(run))
+        return self._with_flags(self._read(run))
 
     def status_counts(self) -> dict[str, int]:
         """Units per latest status (``none``: nothing stored yet), one aggregate query."""
@@ -332,7 +332,7 @@ class StatesMixin(StoreBase):
         q = self._filtered(self._summary_query(), statuses, text).order_by(*order).offset(offset)
         if limit is not None:
             q = q.limit(limit)
-        return self._with_group_flags(self._read(lambda c: self._summaries(c.execute(q))))
+        return self._with_flags(self._read(lambda c: self._summaries(c.execute(q))))
 
     def units_with_status(self, statuses: tuple[str, ...] = DEGRADED
                           ) -> dict[str, tuple[str, str | None]]:

@@ -330,7 +330,8 @@ def symptom_figure(trends: Sequence[TrendData]) -> Any:
     fig, axes = _grid(n, 1.7)
     ids = trends[0].test_ids if trends else ()
     at = np.arange(len(ids), dtype=np.float64)
-    every = max(1, int(np.ceil(len(ids) / 30)))  # a readable number of labels
+    # labels that do not overlap: at most 12 across a panel (half the figure's width)
+    every = max(1, int(np.ceil(len(ids) / 12)))
     ticks = at[::every]   # a tick only where there is a label: ticks cost the figure's time
     labels = [f"#{i}" for i in list(ids)[::every]]
     for ax, d in zip(axes.ravel(), trends):
@@ -357,7 +358,7 @@ def plot_symptoms(trends: Sequence[TrendData], path: Target) -> Target:
     """SymH (up) and SymL (down) of each parameter for every trended check.
 
     One panel per parameter; each test's bars in the trend figure's order,
-    about 30 of them labelled with their test's number.
+    at most 12 of them labelled with their test's number.
 
     Parameters
     ----------

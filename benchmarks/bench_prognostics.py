@@ -10,7 +10,9 @@
    A 3-5 test healthy baseline, then checks (simulate, ``check_test`` into an
    in-memory store) until the *estimated* change crosses r2: that test is the
    unit's end of life. The forecasts are made on the stored series (read as
-   ``forecast_unit`` reads it; checked against it on the full series) cut at
+   ``forecast_unit`` reads it, counted in tests, so in whole checks: the first
+   check whose measured change passes r2; checked against it on the full
+   series) cut at
    λ = 0.5 and 0.75 of each life, and scored by the α-λ accuracy (α = 0.2: the
    share of units whose median RUL is within ±20 % of the true RUL), the
    coverage of the 90 % interval, and the median relative error. Again with the
@@ -103,10 +105,12 @@ def _series(store, unit: str, param: str) -> Series:  # type: ignore[no-untyped-
     return np.arange(1.0, len(rows) + 1.0), change, se, 100.0 * std / abs(mean)
 
 
-def run_to_failure(rig, n_units: int) -> list[dict[str, Any]]:  # type: ignore[no-untyped-def]
-    """Each unit's wear, its stored series of the worn parameter, its life [tests]."""
+def run_to_failure(rig, n_units: int,  # type: ignore[no-untyped-def]
+                   first: int = 0) -> list[dict[str, Any]]:
+    """Each unit's wear, its stored series of the worn parameter, its life [tests]
+    (units ``first`` to ``first + n_units - 1``: each its own seeds)."""
     units = []
-    for u in range(n_units):
+    for u in range(first, first + n_units):
         rng = np.random.default_rng(1000 + u)
         param = "D" if u % 2 == 0 else "R"
         shape = "linear" if (u // 2) % 2 == 0 else "exponential"
@@ -129,7 +133,7 @@ def run_to_failure(rig, n_units: int) -> list[dict[str, Any]]:  # type: ignore[n
             # the route's own reading of the same series gives the same forecast
             full = next(p.forecast for p in forecast_unit(store, "U").parameters
                         if p.parameter == param)
-            own = forecast_series(*series, threshold=R2[param])
+            own = forecast_series(*series, threshold=R2[param], step=1.0)
             assert own.remaining == full.remaining, (own, full)
         units.append({"unit": u, "param": param, "shape": shape, "rate": rate,
                       "true_life": life, "life": len(series[0]) if end else None,
@@ -202,10 +206,10 @@ def prognostics(units: list[dict[str, Any]], peer: bool) -> dict[str, Any]:
             shapes.append(u["shape"])
             s = _cut(u["series"], t)
             thr = _threshold(s[1], u["param"])
-            own = forecast_series(*s, threshold=thr)
+            own = forecast_series(*s, threshold=thr, step=1.0)
             others = [v["series"] for v in done if v is not u and v["param"] == u["param"]]
             prior = fleet_wear_prior(others)
-            post = forecast_series(*s, threshold=thr, prior=prior)
+            post = forecast_series(*s, threshold=thr, prior=prior, step=1.0)
             # what a forecaster who knew the true wear would say: the true
             # parameter's crossing, a point (no interval)
             preds[REFERENCE].append((u["true_life"] - t, math.nan, math.nan))
@@ -335,8 +339,8 @@ def drift_delay(rig, n_units: int, alpha: float) -> dict[str, Any]:  # type: ign
                                      for k, v in firsts.items()}}
 
 
-def _rtf_section(n_units: int, peer: bool) -> dict[str, Any]:
-    units = run_to_failure(demo_rig(), n_units)
+def _rtf_section(n_units: int, peer: bool, first: int = 0) -> dict[str, Any]:
+    units = run_to_failure(demo_rig(), n_units, first)
     lives = [u for u in units if u["life"] is not None]
     fleet = [{"unit": u["unit"], "param": u["param"], "shape": u["shape"],
               "rate": u["rate"], "true_param_life": u["true_life"], "life": u["life"]}
@@ -378,6 +382,8 @@ def _detector_sections(cal_units: int, drift_units: int) -> dict[str, Any]:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--units", type=int, default=30)
+    ap.add_argument("--first", type=int, default=0,
+                    help="the first run-to-failure unit (its seeds): another fleet of as many")
     ap.add_argument("--cal-units", type=int, default=CAL_UNITS)
     ap.add_argument("--drift-units", type=int, default=DRIFT_UNITS)
     ap.add_argument("--only", choices=SECTIONS, action="append",
@@ -396,7 +402,7 @@ def main() -> int:
     doc: dict[str, Any] = {}
     with threadpool_limits(limits=1):
         if "rtf" in only:
-            doc["run_to_failure"] = _rtf_section(args.units, peer)
+            doc["run_to_failure"] = _rtf_section(args.units, peer, args.first)
         if only & {"calibration", "drift"}:
             if _statistics_config() is None:
                 print("\nnote: no calibrated statistical detector (condmon.monitor.statistics) "
@@ -406,6 +412,8 @@ def main() -> int:
     doc["seconds"] = time.perf_counter() - t0
     name = "bench_prognostics" if only == set(SECTIONS) else \
         "bench_prognostics_" + "_".join(k for k in SECTIONS if k in only)
+    if args.first:
+        name += f"_from{args.first}"
     path = write_json(name, doc)
     print(f"\nwrote {path} ({doc['seconds']:.0f} s)")
     return 0

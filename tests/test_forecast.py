@@ -32,6 +32,33 @@ def test_a_linear_rise_is_forecast_within_its_interval() -> None:
     assert np.median(errors) < 0.1
 
 
+def test_in_whole_checks_the_first_check_past_no_go_is_forecast() -> None:
+    """The no-go is a check whose measured change passes the threshold: with
+    the checks' spacing the forecast counts whole checks to the first such
+    check, and its interval holds that check (drawn with the same scatter
+    as the series) at least as often as it says; the path's own crossing
+    misses it more often (a check is noisy, and comes only at whole steps)."""
+    rng = np.random.default_rng(11)
+    sd = np.sqrt(3.0 ** 2 + 2.0 ** 2)
+    hits = {"checks": 0, "crossing": 0}
+    exact = 0
+    for _ in range(200):
+        x = np.arange(1.0, 16.0)
+        y = 3.7 * x + rng.normal(0.0, sd, 15)
+        ahead = np.arange(1.0, 40.0)
+        seen = 3.7 * (15.0 + ahead) + rng.normal(0.0, sd, ahead.size)
+        truth = float(ahead[np.argmax(seen >= 100.0)])      # the first check past no-go
+        whole = forecast_series(x, y, np.full(15, 3.0), 2.0, threshold=100.0, step=1.0)
+        path = forecast_series(x, y, np.full(15, 3.0), 2.0, threshold=100.0)
+        assert whole.remaining is not None and path.remaining is not None
+        assert all(float(v).is_integer() for v in whole.remaining)
+        hits["checks"] += whole.remaining[1] <= truth <= whole.remaining[2]
+        hits["crossing"] += path.remaining[1] <= truth <= path.remaining[2]
+        exact += whole.remaining[0] == truth
+    assert 180 <= hits["checks"] <= 200 and hits["crossing"] < hits["checks"]
+    assert exact >= 40      # the median is the very check more often than chance
+
+
 def test_an_exponential_rise_is_chosen_and_forecast() -> None:
     x = np.arange(1.0, 16.0)
     y = 2.0 * np.exp(0.2 * x) + np.random.default_rng(3).normal(0.0, 0.5, 15)

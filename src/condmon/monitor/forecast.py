@@ -24,7 +24,12 @@ hours). The forecast is the crossing of the no-go change (``r2`` of the
 parameter's breakpoints, in the trend's direction): its predictive distribution
 comes from the fitted coefficients' covariance (4,000 draws, a fixed seed),
 given as a median and a 90 % interval of the tests (days, hours) left, and the
-probability of crossing within a horizon. A slope whose 90 % interval holds 0,
+probability of crossing within a horizon. Counted in tests (``step``), the
+forecast is of the first future check whose *measured* change passes the
+threshold: each drawn path is read at the checks to come, each check with its
+own scatter, so the answer is a whole number of checks, as the no-go itself
+is (a check turns no-go, not the time between two). Its 90 % interval then
+holds at least 90 % (a discrete interval cannot hold exactly 90 %). A slope whose 90 % interval holds 0,
 or points away from the threshold, is "no trend": then no number of tests is
 given.
 
@@ -103,7 +108,8 @@ class Forecast:
     remaining : tuple of float or None
         Tests (or days) from the last one to the crossing: median, then the
         90 % interval (5 % and 95 % points; inf: not within any horizon).
-        None for "no trend". [tests (or days)]
+        Whole checks when forecast with a ``step``. None for "no trend".
+        [tests (or days)]
     p_within : float or None
         Probability of crossing within the horizon (None: no horizon given). [-]
     n : int
@@ -214,31 +220,79 @@ def _normal_draws(fit: Fit) -> Callable[[np.random.Generator, int], FloatArray]:
     return lambda rng, size: rng.multivariate_normal(fit[0], fit[1], size=size, method="eigh")
 
 
-def _left(model: str, draw: Callable[[np.random.Generator, int], FloatArray], scale: float,
-          var1: float, threshold: float, last: float, rng: np.random.Generator,
-          size: int) -> FloatArray:
-    """Draws of the tests (days, hours) left until a check measures ``threshold``:
-    the path's crossing (``draw``: the model's coefficients), less that
-    check's own scatter (the fit's residual scale at a typical weight,
-    ``var1`` the typical ``1/w``); inf: never."""
-    sign = 1.0 if threshold > 0 else -1.0
-    if size == 0:
-        return np.empty(0)
-    draws = draw(rng, size)
-    reach = abs(threshold) - rng.normal(0.0, math.sqrt(scale * var1), size)
+def _level(model: str, draws: FloatArray, t: FloatArray, last: float, sign: float) -> FloatArray:
+    """The drawn paths' change towards the threshold at ``t`` after the last
+    test (rows: draws; columns: ``t``). [%]"""
+    tt = np.asarray(t, dtype=np.float64)[None, :]
+    if model == "linear":
+        return np.asarray(sign * (draws[:, :1] + draws[:, 1:2] * (last + tt)), dtype=np.float64)
+    b = draws[:, 2:3]
+    with np.errstate(all="ignore"):   # a fast draw overflows to inf: past the threshold
+        g = np.where(np.abs(b) < 1e-12, tt, np.expm1(b * tt) / np.where(b == 0, 1.0, b))
+        return np.asarray(draws[:, :1] + draws[:, 1:2] * g, dtype=np.float64)
+
+
+def _crossing(model: str, draws: FloatArray, reach: FloatArray | float, sign: float,
+              last: float) -> FloatArray:
+    """Where each drawn path reaches ``reach`` (towards the threshold), after
+    the last test; inf: never. [test (or d, h)]"""
     with np.errstate(all="ignore"):
         if model == "linear":
             a, b = draws[:, 0], draws[:, 1]
-            cross = (sign * reach - a) / b
+            cross = (sign * reach - a) / b - last
             ok = sign * b > 0
         else:   # from the last test: (exp(b·t) − 1)/b = q, t = q·ln(1 + b·q)/(b·q)
             level, slope, b = draws[:, 0], draws[:, 1], draws[:, 2]
             q = (reach - level) / slope
             z = b * q
             factor = np.where(np.abs(z) < 1e-9, 1.0, np.log1p(np.maximum(z, -1.0)) / z)
-            cross = last + np.where(level >= reach, 0.0, q * factor)
+            cross = np.where(level >= reach, 0.0, q * factor)
             ok = (level >= reach) | ((slope > 0) & (z > -1.0))
-    return np.asarray(np.where(ok, np.maximum(cross - last, 0.0), np.inf), dtype=np.float64)
+    return np.asarray(np.where(ok, np.maximum(cross, 0.0), np.inf), dtype=np.float64)
+
+
+_BLOCK = 32           # future checks looked at a time
+_MAX_CHECKS = 10_000  # past this many future checks, the path's own crossing
+
+
+def _left(model: str, draw: Callable[[np.random.Generator, int], FloatArray], scale: float,
+          var1: float, threshold: float, last: float, rng: np.random.Generator,
+          size: int, step: float | None = None) -> FloatArray:
+    """Draws of the tests (days, hours) left until a check measures ``threshold``;
+    inf: never.
+
+    With ``step`` (the spacing of future checks), the first future check
+    whose measured change passes the threshold: the drawn path at each
+    check plus that check's own scatter (the fit's residual scale at a
+    typical weight, ``var1`` the typical ``1/w``), so a whole number of
+    steps. Without it, the path's crossing less one check's scatter."""
+    sign = 1.0 if threshold > 0 else -1.0
+    if size == 0:
+        return np.empty(0)
+    draws = draw(rng, size)
+    sd = math.sqrt(scale * var1)
+    if step is None:
+        return _crossing(model, draws, abs(threshold) - rng.normal(0.0, sd, size), sign, last)
+    cross = _crossing(model, draws, abs(threshold), sign, last)
+    out = np.full(size, np.inf)
+    todo = np.flatnonzero(np.isfinite(cross))
+    if todo.size == 0:
+        return out
+    limit = min(math.ceil(float(cross[todo].max()) / step) + 4 * _BLOCK, _MAX_CHECKS)
+    k0 = 1
+    while todo.size and k0 <= limit:
+        k = np.arange(k0, k0 + _BLOCK, dtype=np.float64)
+        seen = _level(model, draws[todo], k * step, last, sign) + rng.normal(
+            0.0, sd, (todo.size, _BLOCK))
+        hit = seen >= abs(threshold)
+        first = np.argmax(hit, axis=1)
+        got = hit[np.arange(todo.size), first]
+        out[todo[got]] = (k0 + first[got]) * step
+        todo = todo[~got]
+        k0 += _BLOCK
+    # past the limit: the first check at or after the path's crossing
+    out[todo] = np.ceil(cross[todo] / step) * step
+    return out
 
 
 def _scale(fit: Fit, n: int) -> float:
@@ -273,7 +327,8 @@ def _with_shape(prior: FleetPrior, found: dict[str, Fit], xa: FloatArray, ya: Fl
 
 def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
                     spread: float, threshold: float, horizon: float | None = None,
-                    seed: int = 0, *, prior: Prior | None = None) -> Forecast:
+                    seed: int = 0, *, prior: Prior | None = None,
+                    step: float | None = None) -> Forecast:
     """Forecast when a change series crosses ``threshold``.
 
     Parameters
@@ -293,6 +348,11 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
         For the probability of crossing within it. [tests (or d, h)]
     seed : int
         Seed of the predictive draws.
+    step : float, optional
+        The spacing of the checks to come: the forecast is then of the first
+        check that measures past the threshold (its own scatter drawn), a
+        whole number of steps. None: the path's crossing, less one check's
+        scatter. [test (or d, h)]
     prior : RatePrior or FleetPrior, optional
         The fleet's prior, in the units of ``x``. A :class:`RatePrior`
         (:func:`fleet_prior`): its model's rate is updated by the unit's tests
@@ -315,6 +375,9 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
     >>> f = forecast_series(x, 4.0 * x, np.full(15, 1.0), 2.0, threshold=100.0)
     >>> f.model, round(f.remaining[0], 1)             # 100 % at test 25: 10 tests left
     ('linear', 10.0)
+    >>> f = forecast_series(x, 4.0 * x, np.full(15, 1.0), 2.0, threshold=100.0, step=1.0)
+    >>> f.remaining                                   # the check that turns no-go, in checks
+    (10.0, 9.0, 12.0)
 
     Four tests of a unit whose fleet wore +4.0 ± 0.2 % a test:
 
@@ -387,7 +450,8 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
     lefts = [_left(m, posterior.draws if m == "exponential" and posterior else
                    _normal_draws(fits[m]),
                    posterior.scale if m == "exponential" and posterior else _scale(fits[m], n),
-                   float(np.median(1.0 / w)), threshold, last, rng, round(_DRAWS * weight[m]))
+                   float(np.median(1.0 / w)), threshold, last, rng, round(_DRAWS * weight[m]),
+                   step)
              for m in sorted(weight)]
     left = np.concatenate(lefts)
     # the order statistics themselves: a draw that never crosses is inf, not interpolated

@@ -328,8 +328,11 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
         rising = float(np.nanmean(change[-MIN_TESTS:])) >= 0.0
         threshold = r2[name] if rising else -r2[name]
         rule = rules.get(f"{'high' if rising else 'low'}({name})", "")
+        # counted in tests, the no-go is a check: whole checks (days and
+        # hours have no cadence to come: the crossing itself)
         f = forecast_series(x, change, se, spread, threshold, horizon, seed,
-                            prior=(priors or {}).get(key))
+                            prior=(priors or {}).get(key),
+                            step=1.0 if axis.by == "tests" else None)
         when = None if f.remaining is None else axis.date_after(rows[-1], f.remaining[0])
         at = (float(axis.hours[rows[-1]] + f.remaining[0])
               if axis.by == "hours" and f.remaining is not None

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import sys
 from collections.abc import Iterable
 from typing import Any
@@ -13,10 +14,31 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from condmon.io.jsonable import json_safe
 
 __all__ = ["out", "err", "fmt", "write_json", "write_json_list", "json_safe", "progress",
-           "status_text"]
+           "status_text", "fit_to_output", "PIPED_WIDTH"]
 
 out = Console()
 err = Console(stderr=True)
+
+#: Columns of a table printed into a pipe or a file: wide enough that a
+#: plant's or a fleet's table is not folded (80, rich's default there, folded
+#: them, and wrapped a line in the middle of a unit).
+PIPED_WIDTH = 200
+
+
+def fit_to_output() -> None:
+    """Size the consoles for where they print: a terminal's own width; a pipe
+    or a file (and no ``COLUMNS`` set) gets lines that are not wrapped and
+    tables up to :data:`PIPED_WIDTH` columns."""
+    for console, stream in ((out, sys.stdout), (err, sys.stderr)):
+        try:
+            terminal = stream.isatty()
+        except (AttributeError, ValueError):   # a closed or replaced stream
+            terminal = False
+        columns = os.environ.get("COLUMNS", "")
+        piped = not terminal and not columns
+        console.soft_wrap = piped
+        console.width = PIPED_WIDTH if piped else (  # type: ignore[assignment]
+            int(columns) if columns.isdigit() else None)
 
 
 def fmt(value: float) -> str:

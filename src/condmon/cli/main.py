@@ -16,7 +16,9 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from condmon.cli._console import err, fmt, out, progress, status_text, write_json
+from condmon.cli._console import (
+    err, fit_to_output, fmt, out, progress, status_text, write_json,
+)
 from condmon.cli.check import register as register_check_command
 from condmon.cli.estimation import (
     ColOpt, ConstOpt, DateOpt, DbOpt, ExcOpt, FitOpt, GammaOpt, GroupOpt, IgnoreOpt, MetaOpt,
@@ -328,6 +330,7 @@ def _show_warning(message: Warning | str, category: type[Warning], filename: str
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``condmon`` console script; returns the exit status."""
     warnings.showwarning = _show_warning
+    fit_to_output()
     try:
         from condmon._threads import small_blas
 

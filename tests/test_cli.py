@@ -112,6 +112,23 @@ def test_simulate_then_estimate_json(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert doc["closed_loop_instruments"] is False and doc["method"] == "iv"
 
 
+def test_output_into_a_pipe_is_not_folded(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """Into a pipe (no terminal, no COLUMNS) a line is whole and a wide table
+    keeps its rows on one line each; COLUMNS still sets the width."""
+    monkeypatch.delenv("COLUMNS", raising=False)
+    rec = tmp_path / "r.csv"
+    assert main(["simulate", "actuator", "--out", str(rec), "--seed", "2"]) == 0
+    line = capsys.readouterr().err.strip()      # the note goes to stderr
+    assert "\n" not in line and line.endswith("D=0.0001 N m s/rad)"), line
+    assert main(["estimate", str(rec)]) == 0
+    rows = [v for v in capsys.readouterr().out.splitlines() if v.startswith("│ Kt ")]
+    assert len(rows) == 1 and "N m/A" in rows[0]
+    monkeypatch.setenv("COLUMNS", "40")
+    assert main(["simulate", "actuator", "--out", str(rec), "--seed", "3"]) == 0
+    assert max(len(v) for v in capsys.readouterr().err.splitlines()) <= 40
+
+
 def test_parquet_and_column_mapping(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     rec = tmp_path / "r.parquet"
     simulate_actuator(seed=1).rename(columns={"V": "volts"}).to_parquet(rec)

@@ -14,7 +14,7 @@ __all__ = ["metadata", "units", "tests", "estimates", "baselines", "baseline_val
            "PARAMETER_LENGTH"]
 
 #: Version of the schema this code writes.
-SCHEMA_VERSION = 8
+SCHEMA_VERSION = 9
 
 #: Longest unit, fault or baseline name the store keeps (the same on every back-end).
 NAME_LENGTH = 200
@@ -107,6 +107,9 @@ tests = sa.Table(
     sa.Column("hours", TolerantFloat(), nullable=True),       # v6: operating hours at the test [h]
     sa.UniqueConstraint("unit_id", "file_hash", name="uq_test_file"),
     sa.Index("uq_test_record", "unit_id", "record_hash", unique=True),
+    # v9: a record filed under another unit is looked up by its hash at every
+    # check (the index above leads with the unit: that look-up read every test)
+    sa.Index("ix_tests_record_hash", "record_hash"),
 )
 
 estimates = sa.Table(
@@ -389,7 +392,15 @@ def _v7_to_v8(conn: sa.Connection) -> None:
         conn.execute(sa.text("ALTER TABLE forecasts ADD COLUMN rates TEXT"))
 
 
+def _v8_to_v9(conn: sa.Connection) -> None:
+    """The tests' content hash indexed alone: a check looks up copies of its
+    record under other units by it."""
+    for index in tests.indexes:
+        if index.name == "ix_tests_record_hash":
+            index.create(conn, checkfirst=True)
+
+
 MIGRATIONS: dict[int, Callable[[sa.Connection], None]] = {1: _v1_to_v2, 2: _v2_to_v3,
                                                           3: _v3_to_v4, 4: _v4_to_v5,
                                                           5: _v5_to_v6, 6: _v6_to_v7,
-                                                          7: _v7_to_v8}
+                                                          7: _v7_to_v8, 8: _v8_to_v9}

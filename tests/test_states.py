@@ -86,6 +86,44 @@ def test_the_kept_state_follows_every_write(store_url: str, results: list[Any]) 
         assert store.history_marks(["EMA-0"]) == {"EMA-0": marks["EMA-0"]}
 
 
+def test_a_unit_write_waits_for_a_batch_over_the_same_unit(store_url: str,
+                                                            results: list[Any]) -> None:
+    """A fleet's batch and a single write of the same unit do not overlap (on
+    PostgreSQL the unit's lock is taken under the schema's, held shared), so
+    neither works the unit's kept state out from a snapshot that misses the
+    other's test."""
+    import threading
+    import time
+
+    with open_store(store_url) as store:
+        ids = [store.add_test("EMA-1", r, role="baseline", digest=f"b{i}")
+               for i, r in enumerate(results[:3])]
+        bid = store.save_baseline("EMA-1", _baseline(results[:3]), ids)
+    held, ended = threading.Event(), {}
+
+    def single() -> None:
+        held.wait(10)
+        with open_store(store_url) as other:
+            other.add_test("EMA-1", results[3], role="check", digest="c-single",
+                           baseline_id=bid, symptoms={}, diagnosis=_Diagnosis("go"))
+        ended["single"] = time.monotonic()
+
+    thread = threading.Thread(target=single)
+    thread.start()
+    with open_store(store_url) as store:
+        with store.batch():
+            store.add_test("EMA-1", results[3], role="check", digest="c-batch",
+                           baseline_id=bid, symptoms={}, diagnosis=_Diagnosis("advisory"))
+            held.set()
+            time.sleep(0.5)         # the single write is waiting, not writing
+            ended["batch"] = time.monotonic()
+        thread.join(20)
+        assert ended["single"] > ended["batch"]
+        assert _kept(store) == _worked_out(store)
+        row = next(r for r in store.unit_summaries() if r["unit"] == "EMA-1")
+        assert (row["tests"], row["status"]) == (5, "go")
+
+
 def _fleet(store: Any, results: list[Any]) -> None:
     """24 units: building, baseline, and checks at go / advisory / no-go, dated."""
     from datetime import datetime, timedelta, timezone

@@ -195,7 +195,11 @@ def run_write(engine: sa.Engine, fn: Callable[[sa.Connection], T], *, db: str,
     """Run ``fn(conn)`` in one write transaction; retried on a lost race.
 
     ``lock`` names what the transaction must hold alone on PostgreSQL (a unit's
-    name, or None for the whole schema's lock). A unique-key race (two
+    name, or None for the whole schema's lock). A unit's lock is taken under
+    the schema's lock held shared: writes of different units run together,
+    and a schema-wide write (a fleet's batch) waits for them, and they for it,
+    so no two transactions work out the same unit's kept state from
+    snapshots that miss each other's rows. A unique-key race (two
     processes adding the same thing) or a busy database is retried until
     ``timeout`` [s]; ``fn`` must therefore only touch the database. Errors of
     ``fn`` that are not database errors pass through unchanged.
@@ -210,8 +214,13 @@ def run_write(engine: sa.Engine, fn: Callable[[sa.Connection], T], *, db: str,
                 with conn.begin():
                     if conn.dialect.name == "postgresql":
                         conn.exec_driver_sql(f"SET LOCAL lock_timeout = {int(timeout * 1000)}")
-                        key = SCHEMA_LOCK if lock is None else zlib.crc32(lock.encode()) + (1 << 40)
-                        conn.execute(sa.select(sa.func.pg_advisory_xact_lock(key)))
+                        if lock is None:
+                            conn.execute(sa.select(sa.func.pg_advisory_xact_lock(SCHEMA_LOCK)))
+                        else:   # the schema shared first, then the unit: one order, no deadlock
+                            conn.execute(sa.select(
+                                sa.func.pg_advisory_xact_lock_shared(SCHEMA_LOCK)))
+                            conn.execute(sa.select(sa.func.pg_advisory_xact_lock(
+                                zlib.crc32(lock.encode()) + (1 << 40))))
                     return fn(conn)
         except sa.exc.SQLAlchemyError as err:
             # a unique-key race resolves on the next attempt (the re-check sees the

@@ -144,6 +144,56 @@ def test_a_unit_whose_friction_rises_is_forecast_by_date(
     assert "(friction increase)" in " ".join(text.replace("│", " ").split())
 
 
+def test_a_past_no_go_date_says_the_unit_is_due_a_check(
+        wearing: tuple[Path, float], capsys: pytest.CaptureFixture[str]) -> None:
+    """The checks end on 2026-01-16: read then, the forecast has no note; read
+    in November, its median no-go date is past, and a note says so."""
+    import pandas as pd
+
+    from condmon.monitor.unit_forecast import forecast_checks
+    from condmon.store.forecasts import FleetHistory
+
+    with open_store(str(wearing[0])) as store:
+        baseline, checks = FleetHistory(store).checks("WEAR")
+    read = {when: forecast_checks("WEAR", checks, baseline, {"D": 600.0}, {},
+                                  now=pd.Timestamp(when, tz="UTC"))
+            for when in ("2026-01-17", "2026-11-01")}
+    assert not any("is past" in n for n in read["2026-01-17"].notes)
+    late = read["2026-11-01"]
+    assert late.by == "days" and late.parameters[0].parameter == "D"
+    date = late.parameters[0].date
+    assert date is not None and date < "2026-11-01"
+    assert late.notes == (f"D's median no-go date {date[:10]} is past: the last check is "
+                          "289 d old; check the unit again",)
+    capsys.readouterr()
+    assert main(["forecast", "--unit", "WEAR", "--db", str(wearing[0])]) == 0
+    assert "is past" in " ".join(capsys.readouterr().out.split())
+
+
+def test_checks_stored_out_of_date_order_are_forecast_in_date_order(
+        wearing: tuple[Path, float], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Two checks whose dates are swapped in the history (as when records are
+    checked late): the forecast still counts days, in the order tested."""
+    import shutil
+    import sqlite3
+
+    db = tmp_path / "late.db"
+    shutil.copy(wearing[0], db)
+    with sqlite3.connect(db) as c:
+        rows = c.execute("SELECT t.id, t.test_date FROM tests t JOIN units u ON u.id = "
+                         "t.unit_id WHERE u.name = 'WEAR' AND t.role = 'check' "
+                         "ORDER BY t.id").fetchall()
+        (a, da), (b, db_) = rows[4], rows[8]
+        c.execute("UPDATE tests SET test_date = ? WHERE id = ?", (db_, a))
+        c.execute("UPDATE tests SET test_date = ? WHERE id = ?", (da, b))
+    capsys.readouterr()
+    assert main(["forecast", "--unit", "WEAR", "--db", str(db), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["by"] == "days" and not any("counted in tests" in n for n in doc["notes"])
+    d = next(p for p in doc["parameters"] if p["parameter"] == "D")
+    assert d["remaining"]["median"] == pytest.approx(wearing[1], rel=0.2)
+
+
 def test_a_stable_unit_has_no_trend(wearing: tuple[Path, float],
                                     capsys: pytest.CaptureFixture[str]) -> None:
     capsys.readouterr()

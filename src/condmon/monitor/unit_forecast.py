@@ -32,6 +32,7 @@ from condmon.monitor.forecast import (
 )
 
 __all__ = ["ParameterForecast", "UnitForecast", "forecast_checks", "forecast_axis", "Axis",
+           "in_test_order",
            "remaining_text", "NO_TREND", "parameter_series", "Series"]
 
 #: One parameter's change series: x [test (or d)], change [%], each test's
@@ -195,6 +196,26 @@ class Axis:
         return str((self.dates[row] + pd.Timedelta(days=days)).isoformat())
 
 
+def in_test_order(checks: pd.DataFrame) -> pd.DataFrame:
+    """The checks in the order they were tested: by test date when every check
+    carries one (a record checked late goes where it was tested; checks of
+    one date keep the order they were stored in), else as stored.
+
+    Example
+    -------
+    >>> c = pd.DataFrame({"test_date": ["2026-09-10", "2026-09-30", "2026-09-20"]},
+    ...                  index=[5, 6, 7])
+    >>> list(in_test_order(c).index), list(in_test_order(c.iloc[:2]).index)
+    ([5, 7, 6], [5, 6])
+    """
+    if "test_date" not in checks or len(checks) < 2:
+        return checks
+    dates = pd.to_datetime(checks["test_date"], utc=True, errors="coerce")
+    if bool(dates.isna().any()) or bool(dates.is_monotonic_increasing):
+        return checks
+    return checks.iloc[np.argsort(dates.to_numpy(), kind="stable")]
+
+
 def _increasing(values: pd.Series) -> bool:
     return bool(values.notna().all()) and bool(values.is_monotonic_increasing) \
         and values.nunique() == len(values)
@@ -273,8 +294,8 @@ def parameter_series(checks: pd.DataFrame, baseline: Baseline, key: str, axis: A
 def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
                     r2: Mapping[str, float], rules: Mapping[str, str],
                     units: Mapping[str, str] | None = None, horizon: float | None = None,
-                    seed: int = 0, priors: Mapping[str, Prior] | None = None
-                    ) -> UnitForecast:
+                    seed: int = 0, priors: Mapping[str, Prior] | None = None,
+                    now: pd.Timestamp | None = None) -> UnitForecast:
     """Forecast every parameter of a unit to no-go from its checks since the baseline.
 
     Parameters
@@ -303,6 +324,9 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
         The fleet's prior on each parameter key's degradation (its rate, or
         its shape and rates: :func:`~condmon.monitor.prior.fleet_wear_prior`);
         a key without one is forecast from its own tests alone.
+    now : Timestamp, optional
+        The time a dated forecast is read at (default: the clock): a median
+        no-go date already past gets a note that the unit is due a check.
 
     Returns
     -------
@@ -317,6 +341,7 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
     if len(checks) < MIN_TESTS:
         raise DataError(f"not enough tests to forecast: unit {unit!r} has {len(checks)} "
                         f"check(s) since its baseline, need {MIN_TESTS}")
+    checks = in_test_order(checks)
     axis = forecast_axis(checks)
     out = []
     for key in baseline.parameters:
@@ -341,8 +366,27 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
                                      tuple(int(i) for i in rows), float(x[-1] - x[0]), at))
     out.sort(key=lambda p: (p.forecast.remaining is None,
                             p.forecast.remaining[0] if p.forecast.remaining else 0.0))
-    return UnitForecast(unit, axis.by, len(checks), tuple(out),
-                        (axis.note,) if axis.note else ())
+    notes = [axis.note] if axis.note else []
+    late = _overdue(out, axis, now)
+    if late:
+        notes.append(late)
+    return UnitForecast(unit, axis.by, len(checks), tuple(out), tuple(notes))
+
+
+def _overdue(out: list[ParameterForecast], axis: Axis, now: pd.Timestamp | None) -> str | None:
+    """A note when the earliest median no-go date is already past: the
+    forecast is of the checks stored, and the unit is due one."""
+    dated = [p for p in out if p.date is not None]
+    if not dated or not axis.dated:
+        return None
+    now = pd.Timestamp.now(tz="UTC") if now is None else pd.Timestamp(now)
+    now = now.tz_localize("UTC") if now.tzinfo is None else now
+    first = dated[0]
+    if pd.Timestamp(first.date) >= now:
+        return None
+    age = (now - axis.dates.max()).total_seconds() / 86400.0
+    return (f"{first.parameter}'s median no-go date {first.date[:10]} is past: the last "
+            f"check is {age:.0f} d old; check the unit again")
 
 
 def remaining_text(f: dict[str, Any] | None, reason: str | None = None) -> str:

@@ -21,7 +21,7 @@ from condmon.errors import CondmonError, DataError
 from condmon.monitor.baseline import MIN_BASELINE_TESTS, Baseline
 from condmon.monitor.prior import FleetPrior, UnitWear, prior_from_wear, unit_wear
 from condmon.monitor.unit_forecast import (
-    NO_TREND, UnitForecast, forecast_axis, forecast_checks, parameter_series,
+    NO_TREND, UnitForecast, forecast_axis, forecast_checks, in_test_order, parameter_series,
 )
 from condmon.store.baselines import baseline_members, current_baseline
 from condmon.store.states import DEGRADED
@@ -123,7 +123,8 @@ class FleetHistory:
             hist = self.store.history(unit)
             checks = hist[(hist["role"] == "check") & hist["accepted"].astype(bool)
                           & ~hist["excluded"].astype(bool)]
-            self._checks[unit] = (baseline, checks[[i not in ids for i in checks.index]])
+            self._checks[unit] = (baseline, in_test_order(
+                checks[[i not in ids for i in checks.index]]))
         return self._checks[unit]
 
     def peers(self, unit: str, model: str | None = None, group: str | None = None

@@ -34,6 +34,7 @@ from condmon.monitor.group import GroupBaseline, group_baseline
 from condmon.monitor.statistics import (
     CheckStatistics, StatisticsConfig, check_statistics, checked_alpha,
 )
+from condmon.monitor.unit_forecast import in_test_order
 from condmon.store.db import HistoryStore
 from condmon.store.forecasts import keep_forecast
 from condmon.workflows.monitoring import (
@@ -387,7 +388,7 @@ def unit_statistics(store: HistoryStore, unit: str, ids: list[int], baseline: Ba
         return None
     usable = (hist["role"] == "check") & hist["accepted"].astype(bool) \
         & ~hist["excluded"].astype(bool)
-    since = hist[usable & (hist.index > max(ids))]
+    since = in_test_order(hist[usable & (hist.index > max(ids))])   # as they were tested
     series, _ = changes(since)
     now = np.array([stored[k][0] for k in keys]) - mean
     now_se = np.array([stored[k][1] for k in keys]) * scale

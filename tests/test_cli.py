@@ -129,6 +129,32 @@ def test_output_into_a_pipe_is_not_folded(tmp_path: Path, capsys: pytest.Capture
     assert max(len(v) for v in capsys.readouterr().err.splitlines()) <= 40
 
 
+def test_units_fits_a_narrow_terminal(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """At 60 columns the units table keeps every line within them, its counts,
+    dates and statuses whole; the long record name is cut, the unit's name
+    folded (never cut)."""
+    from condmon.store import open_store
+    from condmon.workflows.monitoring import add_baseline_tests
+
+    db = str(tmp_path / "h.db")
+    name = "a-rather-long-unit-name-on-line-A-042"
+    with open_store(db) as store:
+        recs = [simulate_actuator(seed=k) for k in (1, 2, 3)]
+        for k, r in enumerate(recs):
+            r.attrs["source"] = f"a_long_record_file_name_from_the_test_stand_{k}.csv"
+        add_baseline_tests(store, name, recs, group="line-A")
+    monkeypatch.setenv("COLUMNS", "60")
+    assert main(["units", "--db", db]) == 0
+    text = capsys.readouterr().out
+    assert max(len(v.rstrip()) for v in text.splitlines()) <= 60
+    first = next(v for v in text.splitlines() if " a_lo" in v)
+    assert " 3 " in first and "baseline" in first and "a_lo" in first and "…" in first
+    lines = text.splitlines()
+    body = lines[next(k for k, v in enumerate(lines) if "───" in v) + 1:]
+    assert "".join(v.split()[0] for v in body if v.strip()) == name
+
+
 def test_parquet_and_column_mapping(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     rec = tmp_path / "r.parquet"
     simulate_actuator(seed=1).rename(columns={"V": "volts"}).to_parquet(rec)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import os
 import sys
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 from rich.console import Console
@@ -14,7 +14,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from condmon.io.jsonable import json_safe
 
 __all__ = ["out", "err", "fmt", "write_json", "write_json_list", "json_safe", "progress",
-           "status_text", "fit_to_output", "PIPED_WIDTH"]
+           "status_text", "fit_to_output", "PIPED_WIDTH", "fitted_widths"]
 
 out = Console()
 err = Console(stderr=True)
@@ -39,6 +39,41 @@ def fit_to_output() -> None:
         console.soft_wrap = piped
         console.width = PIPED_WIDTH if piped else (  # type: ignore[assignment]
             int(columns) if columns.isdigit() else None)
+
+
+def fitted_widths(columns: Sequence[str], rows: Sequence[Sequence[str]], width: int,
+                  give: Sequence[tuple[str, int]], least: Mapping[str, int] | None = None,
+                  gap: int = 2, edges: int = 2) -> dict[str, int]:
+    """The widths columns may take so that a table of ``rows`` (rich markup)
+    fits ``width`` terminal columns: each ``(column, floor)`` of ``give`` in
+    turn gives up what it has beyond ``floor`` until the table fits (a
+    column may come twice, with a lower floor the second time); the others
+    keep their own width (their widest cell or heading, at least ``least``;
+    ``gap`` between two columns and ``edges`` in all, as a table with
+    ``pad_edge=False, collapse_padding=True`` takes them).
+
+    Example
+    -------
+    >>> fitted_widths(("unit", "latest", "status"),
+    ...               [("EMA-1", "a-long-record-file-name.csv", "[green]go[/]")], 30,
+    ...               [("latest", 6)])
+    {'latest': 13}
+    """
+    from rich.text import Text
+
+    now = {c: max([len(c), (least or {}).get(c, 0),
+                   *(Text.from_markup(r[k]).cell_len for r in rows)])
+           for k, c in enumerate(columns)}
+    excess = sum(now.values()) + gap * (len(columns) - 1) + edges - width
+    out: dict[str, int] = {}
+    for c, floor in give:
+        if excess <= 0:
+            break
+        if c in now and now[c] > floor:
+            cut = min(excess, now[c] - floor)
+            now[c] = out[c] = now[c] - cut
+            excess -= cut
+    return out
 
 
 def fmt(value: float) -> str:

@@ -11,7 +11,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from condmon.cli._console import (
-    err, id_runs, out, progress, status_text, write_json, write_json_list,
+    err, fitted_widths, id_runs, out, progress, status_text, write_json, write_json_list,
 )
 from condmon.cli.history import print_flags
 
@@ -63,15 +63,13 @@ def register(app: typer.Typer) -> None:
             return
         grouped = any(r["group"] for r in rows)
         regimes = any(r["latest_regime"] for r in rows)
-        table = Table(title=escape(f"Units in {redact(db)}"), box=box.SIMPLE_HEAD)
+        table = Table(title=escape(f"Units in {redact(db)}"), box=box.SIMPLE_HEAD,
+                      pad_edge=False, collapse_padding=True)
         ahead = sort == "forecast" or any(r["forecast"] for r in rows)
         cols = ("unit", "model", *(("group",) if grouped else ()), "tests", "latest",
                 *(("regime",) if regimes else ()), "date", "status",
                 *(("no-go in",) if ahead else ()))
-        for col in cols:  # names are folded, never cut: EMA-1… could be EMA-10 or EMA-11
-            table.add_column(col, justify="right" if col == "tests" else "left",
-                             no_wrap=col in ("date", "status", "no-go in"), overflow="fold")
-        flagged = []
+        flagged, cells = [], []
         for r in rows:
             model = Path(str(r["model"])).name
             count = str(r["tests"]) if not r["isolations"] else f"{r['isolations']} iso"
@@ -80,15 +78,31 @@ def register(app: typer.Typer) -> None:
                 status += " [yellow]⚠[/]"
             if r["group_flags"]:
                 status += " [yellow]⚑[/]"
-            table.add_row(escape(str(r["unit"])), escape(model),
+            cells.append((escape(str(r["unit"])), escape(model),
                           *((escape(str(r["group"] or "—")),) if grouped else ()), count,
                           escape(Path(str(r["latest_source"] or "—")).name),
                           *((escape(str(r["latest_regime"] or "—")),) if regimes else ()),
                           str(r["latest_date"] or "—")[:10], status,
                           *((remaining_text(r["forecast"], r["forecast_reason"]),)
-                            if ahead else ()))
+                            if ahead else ())))
             if r["baseline_flags"]:
                 flagged.append(str(r["unit"]))
+        # a narrow terminal cuts the latest record's file name (the history shows it
+        # whole), then folds a long unit name (never cut: EMA-1… could be EMA-10), the
+        # model, the regime, the group, each at a few characters, not at one
+        kept = {"unit": min(8, max([4, *(len(str(r["unit"])) for r in rows)])), "status": 6,
+                "date": 10}
+        widths = fitted_widths(cols, cells, out.width, [
+            ("latest", 12), ("unit", 12), ("model", 8), ("regime", 8), ("group", 8),
+            ("latest", 6), ("unit", 8), ("model", 6), ("regime", 6), ("group", 6),
+            ("unit", 6), ("model", 4), ("regime", 4), ("group", 4)], kept)
+        for col in cols:
+            folds = col in ("unit", "model", "regime", "group")
+            table.add_column(col, justify="right" if col == "tests" else "left",
+                             no_wrap=not folds, overflow="fold" if folds else "ellipsis",
+                             min_width=kept.get(col), max_width=widths.get(col))
+        for row in cells:
+            table.add_row(*row)
         out.print(table)
         if doc["pages"] > 1:
             out.print(f"page {doc['page']} of {doc['pages']} ({doc['per_page']} units a page, "

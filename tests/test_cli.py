@@ -129,6 +129,21 @@ def test_output_into_a_pipe_is_not_folded(tmp_path: Path, capsys: pytest.Capture
     assert max(len(v) for v in capsys.readouterr().err.splitlines()) <= 40
 
 
+def test_a_relative_fault_on_an_effect_that_is_off_is_refused(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The default rig has no Coulomb friction: ``*1.5`` of it would silently do
+    nothing, so it is refused; given a value, the note shows it."""
+    rec = tmp_path / "r.csv"
+    assert main(["simulate", "actuator", "--out", str(rec), "--fault",
+                 "coulomb_friction=*1.5"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: fault coulomb_friction=*1.5: coulomb_friction is 0 on this "
+                          "rig (off)") and err.count("\n") == 1 and not rec.exists()
+    assert main(["simulate", "actuator", "--out", str(rec), "--fault",
+                 "coulomb_friction=0.002"]) == 0
+    assert capsys.readouterr().err.rstrip().endswith("coulomb_friction=0.002 N m)")
+
+
 def test_units_fits_a_narrow_terminal(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                       monkeypatch: pytest.MonkeyPatch) -> None:
     """At 60 columns the units table keeps every line within them, its counts,

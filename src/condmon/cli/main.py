@@ -154,6 +154,8 @@ def simulate_actuator_cmd(
     units = get_model("dc-motor").units
     truth = ", ".join(f"{k}={fmt(v)} {units.get(k, '')}".rstrip()
                       for k, v in rig.physical().items())
+    if rig.coulomb_friction:   # a nonlinear effect the six parameters do not show
+        truth += f", coulomb_friction={fmt(rig.coulomb_friction)} N m"
     err.print(f"wrote {len(rec)} samples to {out_path} ({truth})", markup=False)
 
 

@@ -157,6 +157,10 @@ class ActuatorRig:
                 raise ConfigError(f"fault {fault}: step times are not supported for the "
                                   "actuator test (a test is 4 s; use separate tests)")
             current = changes.get(fault.name, getattr(self, fault.name))
+            if current == 0 and fault.kind in ("relative", "factor"):
+                raise ConfigError(f"fault {fault}: {fault.name} is 0 on this rig (off), and a "
+                                  f"change relative to 0 leaves it 0; give its value "
+                                  f"({fault.name}=<value>) or a step (+<value>)")
             changes[fault.name] = fault.apply(current)
         return dataclasses.replace(self, **changes)
 

@@ -138,6 +138,7 @@ def test_a_unit_whose_friction_rises_is_forecast_by_date(
     assert d["remaining"]["median"] == pytest.approx(truth, rel=0.2)
     assert d["remaining"]["low"] <= truth <= d["remaining"]["high"]
     assert d["date"].startswith("2026-01-") and d["p_within_horizon"] > 0.9
+    assert doc["horizon"] == 20.0
     assert main(["forecast", "--unit", "WEAR", "--db", str(db)]) == 0
     text = capsys.readouterr().out
     assert "earliest: D in" in text and "days left" in " ".join(text.split())

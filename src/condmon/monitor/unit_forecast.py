@@ -99,6 +99,9 @@ class UnitForecast:
         Earliest median crossing first; "no trend" last.
     notes : tuple of str
         What to know of the whole forecast (why it counts days, not hours).
+    horizon : float or None
+        The horizon of each ``p_within_horizon`` (None: none asked).
+        [tests (or d, h)]
     """
 
     unit: str
@@ -106,6 +109,7 @@ class UnitForecast:
     checks: int
     parameters: tuple[ParameterForecast, ...]
     notes: tuple[str, ...] = ()
+    horizon: float | None = None
 
     @property
     def earliest(self) -> ParameterForecast | None:
@@ -116,6 +120,7 @@ class UnitForecast:
     def to_dict(self) -> dict[str, Any]:
         e = self.earliest
         return {"unit": self.unit, "by": self.by, "checks": self.checks,
+                "horizon": self.horizon,
                 "earliest": None if e is None else e.parameter, "notes": list(self.notes),
                 "parameters": [p.to_dict() for p in self.parameters]}
 
@@ -370,7 +375,7 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
     late = _overdue(out, axis, now)
     if late:
         notes.append(late)
-    return UnitForecast(unit, axis.by, len(checks), tuple(out), tuple(notes))
+    return UnitForecast(unit, axis.by, len(checks), tuple(out), tuple(notes), horizon)
 
 
 def _overdue(out: list[ParameterForecast], axis: Axis, now: pd.Timestamp | None) -> str | None:

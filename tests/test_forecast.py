@@ -208,6 +208,7 @@ def test_a_stable_unit_has_no_trend(wearing: tuple[Path, float],
     (["--unit", "WEAR", "--horizon", "0"], "--horizon must be a finite number > 0"),
     (["--unit", "WEAR", "--horizon", "inf"], "--horizon must be a finite number > 0"),
     (["--unit", "WEARR"], "did you mean 'WEAR'?"),
+    (["--unit", "WAER"], "did you mean 'WEAR'?"),      # two letters swapped: one edit
 ])
 def test_forecast_refusals_are_one_line(wearing: tuple[Path, float], args: list[str],
                                         message: str,

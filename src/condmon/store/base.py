@@ -363,10 +363,22 @@ def unknown_unit_message(name: str, known: Sequence[str], where: str) -> str:
 
 
 def _edits(a: str, b: str) -> int:
-    """Levenshtein distance: insertions, deletions and substitutions from a to b."""
+    """Edits from a to b: insertions, deletions, substitutions and swaps of two
+    neighbours (the optimal string alignment distance: ``WAER`` is one edit
+    from ``WEAR``).
+
+    Example
+    -------
+    >>> _edits("waer", "wear"), _edits("ema-l", "ema-1"), _edits("ab", "ba")
+    (1, 1, 1)
+    """
+    before: list[int] = []
     row = list(range(len(b) + 1))
     for i, ca in enumerate(a, 1):
-        prev, row[0] = row[0], i
+        prev_row, row = row, [i] + [0] * len(b)
         for j, cb in enumerate(b, 1):
-            prev, row[j] = row[j], min(row[j] + 1, row[j - 1] + 1, prev + (ca != cb))
+            row[j] = min(prev_row[j] + 1, row[j - 1] + 1, prev_row[j - 1] + (ca != cb))
+            if i > 1 and j > 1 and ca == b[j - 2] and a[i - 2] == cb:
+                row[j] = min(row[j], before[j - 2] + 1)
+        before = prev_row
     return row[-1]

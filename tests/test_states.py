@@ -221,3 +221,20 @@ def test_an_isolated_unit_says_why_it_has_no_forecast(tmp_path: Path) -> None:
             read_forecast(store, "HST-1")
         store.unit_id("EMPTY", create=True)
         assert try_forecast(store, "EMPTY")[1] == "no baseline yet"
+
+
+def test_the_degraded_units_are_read_by_aggregate_and_by_the_few_needed(fleet_db: Path) -> None:
+    """What a fleet prior reads of the degraded units, from the kept states:
+    their counts by model and group, whether given units degraded, and the
+    most recently changed few, as the whole list and their marks say."""
+    with open_store(str(fleet_db)) as store:
+        every = store.units_with_status()
+        assert len(every) == 8
+        assert store.degraded_counts() == {("dc-motor", None): 8}
+        assert store.degraded_among(store.units()) == set(every)
+        assert store.degraded_among([]) == set()
+        marks = store.history_marks(list(every))
+        newest = sorted(every, key=lambda u: (-marks.get(u, 0), u))
+        assert store.recent_degraded("dc-motor", None, 3) == newest[:3]
+        assert store.recent_degraded("dc-motor", "line-z", 3) == []
+        assert store.recent_degraded("hst", None, 3) == []

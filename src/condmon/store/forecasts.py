@@ -50,44 +50,57 @@ class FleetHistory:
     the degradation of a unit of the same model (and group, when the unit is
     in one): its shape (how many peers wore exponentially) and each shape's
     rate (:func:`condmon.monitor.prior.prior_from_wear`), each unit left out
-    of its own prior. The degraded units are found by one query, and each
-    one's wear is fitted once.
+    of its own prior. What is read of them does not grow with the fleet: their
+    counts by model and group (one aggregate), whether the units at hand
+    have degraded, and the most recently changed peers a prior learns from
+    (``[forecast] prior_units``), each one's wear fitted once, or read back
+    from its kept forecast.
     """
 
     def __init__(self, store: HistoryStore) -> None:
         self.store = store
         self._checks: dict[str, tuple[Baseline, pd.DataFrame]] = {}
-        self._degraded: dict[str, tuple[str, str | None]] | None = None
+        self._flags: dict[str, bool] = {}
+        self._counts: dict[tuple[str, str | None], int] | None = None
         self._wear: dict[tuple[str, str, str], UnitWear | None] = {}
         self._kept: set[str] = set()
-        self._marks: dict[str, int] = {}
         self._limit = 0
-        self._by_model: dict[tuple[str, str | None], list[str]] = {}
+        self._recent: dict[tuple[str, str | None], list[str]] = {}
+
+    def know(self, units: Sequence[str]) -> None:
+        """Read whether each of ``units`` has degraded, in one query (a page's
+        units, before each is asked :meth:`degraded`)."""
+        todo = [u for u in dict.fromkeys(units) if u not in self._flags]
+        if todo:
+            found = self.store.degraded_among(todo)
+            self._flags.update({u: u in found for u in todo})
 
     def degraded(self, unit: str) -> bool:
         """Whether ``unit`` has degraded (its rates teach its peers)."""
-        if self._degraded is None:
-            self._degraded = self.store.units_with_status(DEGRADED)
-        return unit in self._degraded
+        if unit not in self._flags:
+            self.know([unit])
+        return self._flags[unit]
 
     def learning_peers(self, unit: str) -> list[str]:
-        """The peers (:meth:`peers`) the prior learns from: the most recently
-        changed ``[forecast] prior_units`` of them (``generic-monitor.toml``),
-        so a forecast's cost does not grow with the fleet; their kept rates
+        """The peers the prior learns from: the most recently changed
+        ``[forecast] prior_units`` of the degraded units of ``unit``'s model
+        (and group), ``unit`` left out (``generic-monitor.toml``), so a
+        forecast's cost does not grow with the fleet; their kept rates
         (:meth:`rates_of`, kept with their forecasts) are read in one query."""
-        peers = self.peers(unit)
-        unread = [p for p in peers if p not in self._marks]
-        if unread:
-            self._marks.update({p: 0 for p in unread})
-            self._marks.update(self.store.history_marks(unread))
+        model, group = self.store.unit_model(unit), self.store.unit_group(unit)
         self._limit = self._limit or prior_units()
-        chosen = sorted(peers, key=lambda p: (-self._marks[p], p))[:self._limit]
+        key = (str(model), group)
+        if key not in self._recent:   # one more: the unit itself may be among them
+            self._recent[key] = self.store.recent_degraded(str(model), group, self._limit + 1)
+        chosen = [p for p in self._recent[key] if p != unit][:self._limit]
         fresh = [p for p in chosen if p not in self._kept]
-        for p, (mark, rates) in self.store.kept_rates(fresh).items() if fresh else ():
-            if mark == self._marks.get(p):
-                for k, v in rates.items():
-                    by, key = k.split("|", 1)
-                    self._wear[(p, key, by)] = _wear_from(v)
+        if fresh:
+            marks = self.store.history_marks(fresh)
+            for p, (mark, rates) in self.store.kept_rates(fresh).items():
+                if mark == marks.get(p, 0):
+                    for k, v in rates.items():
+                        by, name = k.split("|", 1)
+                        self._wear[(p, name, by)] = _wear_from(v)
         self._kept.update(fresh)
         return sorted(chosen)
 
@@ -127,30 +140,17 @@ class FleetHistory:
                 checks[[i not in ids for i in checks.index]]))
         return self._checks[unit]
 
-    def peers(self, unit: str, model: str | None = None, group: str | None = None
-              ) -> list[str]:
-        """Units of ``unit``'s model (and group) that have degraded, ``unit``
-        left out (``model`` and ``group``: the unit's, when known; its model's
-        stored name, not a declaration's file)."""
-        self.degraded(unit)
-        assert self._degraded is not None
+    def peer_count(self, unit: str, model: str | None = None, group: str | None = None) -> int:
+        """How many units of ``unit``'s model (and group) have degraded,
+        ``unit`` left out (``model`` and ``group``: the unit's, when known;
+        its model's stored name, not a declaration's file)."""
         if model is None:
             model, group = self.store.unit_model(unit), self.store.unit_group(unit)
-        return [u for u in self._of(model, group) if u != unit]
-
-    def _of(self, model: str | None, group: str | None) -> list[str]:
-        """The degraded units of ``model`` (and ``group``), by name, listed once."""
-        assert self._degraded is not None
-        key = (str(model), group)
-        if key not in self._by_model:
-            self._by_model[key] = sorted(u for u, (m, g) in self._degraded.items()
-                                         if m == model and (group is None or g == group))
-        return self._by_model[key]
-
-    def peer_count(self, unit: str, model: str | None, group: str | None) -> int:
-        """``len(self.peers(unit, model, group))``, without listing them."""
-        mine = self.degraded(unit)
-        return len(self._of(model, group)) - int(mine)
+        if self._counts is None:
+            self._counts = self.store.degraded_counts()
+        n = sum(k for (m, g), k in self._counts.items()
+                if m == str(model) and (group is None or g == group))
+        return n - int(self.degraded(unit))
 
     def _unit_wear(self, unit: str, key: str, by: str) -> UnitWear | None:
         if (unit, key, by) not in self._wear:
@@ -295,6 +295,7 @@ def attach_forecasts(store: HistoryStore, rows: list[dict[str, Any]]) -> list[di
     names = [str(r["unit"]) for r in rows]
     marks, kept = store.history_marks(names), store.kept_forecasts(names)
     fleet = FleetHistory(store)
+    fleet.know(names)
     models = {u: (m, g) for u, m, g in store.unit_models(names)}
     fresh = []
     for r in rows:
@@ -358,7 +359,7 @@ def keep_forecast(store: HistoryStore, unit: str) -> dict[str, Any]:
     fleet = FleetHistory(store)
     fields = forecast_fields(*try_forecast(store, unit, fleet))
     store.keep_forecasts([_kept_row(unit, store.history_marks([unit]).get(unit, 0),
-                                    len(fleet.peers(unit)), fields, fleet)])
+                                    fleet.peer_count(unit), fields, fleet)])
     return fields
 
 

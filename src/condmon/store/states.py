@@ -347,6 +347,35 @@ class StatesMixin(StoreBase):
         return self._read(lambda c: {str(r[0]): (str(r[1]), None if r[2] is None else str(r[2]))
                                      for r in c.execute(q)})
 
+    def _degraded_rows(self, *columns: Any) -> Any:
+        u, st = S.units, S.unit_states
+        return (sa.select(*columns).select_from(u.join(st, st.c.unit_id == u.c.id))
+                .where(st.c.degraded.is_(True)))
+
+    def degraded_counts(self) -> dict[tuple[str, str | None], int]:
+        """How many units have degraded, by model and group: one aggregate over
+        the kept state rows (a few rows, whatever the fleet's size)."""
+        u = S.units
+        q = self._degraded_rows(u.c.model, u.c.group_name, sa.func.count()) \
+            .group_by(u.c.model, u.c.group_name)
+        return self._read(lambda c: {(str(r[0]), None if r[1] is None else str(r[1])): int(r[2])
+                                     for r in c.execute(q)})
+
+    def degraded_among(self, units: Sequence[str]) -> set[str]:
+        """Those of ``units`` that have degraded."""
+        q = self._degraded_rows(S.units.c.name).where(S.units.c.name.in_(list(units)))
+        return self._read(lambda c: {str(r[0]) for r in c.execute(q)}) if units else set()
+
+    def recent_degraded(self, model: str, group: str | None, limit: int) -> list[str]:
+        """The ``limit`` degraded units of ``model`` (and ``group``; None: any)
+        whose history changed last (their latest audit row), newest first."""
+        u, st = S.units, S.unit_states
+        q = self._degraded_rows(u.c.name).where(u.c.model == model)
+        if group is not None:
+            q = q.where(u.c.group_name == group)
+        q = q.order_by(sa.func.coalesce(st.c.mark, 0).desc(), u.c.name).limit(limit)
+        return self._read(lambda c: [str(r[0]) for r in c.execute(q)])
+
     def history_marks(self, units: Sequence[str] | None = None) -> dict[str, int]:
         """Each unit's latest audit row (or ``units``' alone; a name: that unit's): it
         changes whenever the unit's history does."""

@@ -381,16 +381,16 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
 def _overdue(out: list[ParameterForecast], axis: Axis, now: pd.Timestamp | None) -> str | None:
     """A note when the earliest median no-go date is already past: the
     forecast is of the checks stored, and the unit is due one."""
-    dated = [p for p in out if p.date is not None]
+    dated = [(p.parameter, p.date) for p in out if p.date is not None]
     if not dated or not axis.dated:
         return None
     now = pd.Timestamp.now(tz="UTC") if now is None else pd.Timestamp(now)
     now = now.tz_localize("UTC") if now.tzinfo is None else now
-    first = dated[0]
-    if pd.Timestamp(first.date) >= now:
+    parameter, date = dated[0]
+    if pd.Timestamp(date) >= now:
         return None
     age = (now - axis.dates.max()).total_seconds() / 86400.0
-    return (f"{first.parameter}'s median no-go date {first.date[:10]} is past: the last "
+    return (f"{parameter}'s median no-go date {date[:10]} is past: the last "
             f"check is {age:.0f} d old; check the unit again")
 
 

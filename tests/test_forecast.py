@@ -393,6 +393,20 @@ def test_the_fleet_teaches_a_new_unit_its_rate(tmp_path: Path, demo_rig,  # type
     assert d["model"] == "exponential" and 0.5 < d["remaining"]["median"] < 2.5
     assert main(["forecast", "--unit", "ELSE", "--db", db]) == 0
     assert "prior: no fleet history: vague prior" in capsys.readouterr().out
+    # a unit of the group counted in tests (its checks undated): the worn units,
+    # counted in days, teach it nothing, and their kept rates say so without a
+    # read of their histories
+    with open_store(db) as store:
+        from condmon.store.forecasts import FleetHistory
+
+        fleet = FleetHistory(store)
+        read: list[str] = []
+        real_history = store.history
+        store.history = lambda u: read.append(u) or real_history(u)  # type: ignore[method-assign]
+        assert fleet.learning_peers("NEW") == ["OLD1", "OLD2"]
+        assert fleet._unit_wear("OLD1", "D", "tests") is None and read == []
+        store.history = real_history  # type: ignore[method-assign]
+        assert FleetHistory(store)._unit_wear("OLD1", "D", "tests") is None   # read: the same
 
 
 def test_a_listing_forecasts_only_what_changed(wearing: tuple[Path, float],

@@ -64,6 +64,7 @@ class FleetHistory:
         self._counts: dict[tuple[str, str | None], int] | None = None
         self._wear: dict[tuple[str, str, str], UnitWear | None] = {}
         self._kept: set[str] = set()
+        self._current: set[str] = set()   # peers whose kept rates are up to date
         self._limit = 0
         self._recent: dict[tuple[str, str | None], list[str]] = {}
 
@@ -97,7 +98,8 @@ class FleetHistory:
         if fresh:
             marks = self.store.history_marks(fresh)
             for p, (mark, rates) in self.store.kept_rates(fresh).items():
-                if mark == marks.get(p, 0):
+                if mark == marks.get(p, 0):   # unchanged since: its wear, whatever is asked
+                    self._current.add(p)
                     for k, v in rates.items():
                         by, name = k.split("|", 1)
                         self._wear[(p, name, by)] = _wear_from(v)
@@ -153,6 +155,8 @@ class FleetHistory:
         return n - int(self.degraded(unit))
 
     def _unit_wear(self, unit: str, key: str, by: str) -> UnitWear | None:
+        if unit in self._current:   # its kept rates are all it has: another axis, none
+            return self._wear.get((unit, key, by))
         if (unit, key, by) not in self._wear:
             found = None
             try:

@@ -542,3 +542,27 @@ def test_the_bounded_minimum_is_scipys_to_the_bit() -> None:
             assert bounded_minimum(lambda v: float(f(v)), lo, hi) == ref
     with pytest.raises(ValueError, match="bounds"):
         bounded_minimum(lambda v: v, 1.0, 0.0)
+
+
+def test_the_first_check_past_no_go_is_searched_from_where_it_can_pass() -> None:
+    """A slow path (0.2 %/test, a check's scatter 1 %, no-go 100 % about 500
+    tests on): the search starts where a check could pass (8 scatters short
+    of no-go), and its distribution is the one of reading every check."""
+    import math
+
+    from condmon.monitor.forecast import _left
+
+    coef = np.array([0.0, 0.2])
+
+    def fixed(rng: np.random.Generator, size: int) -> np.ndarray:
+        return np.tile(coef, (size, 1))
+
+    fast = _left("linear", fixed, 1.0, 1.0, 100.0, 0.0, np.random.default_rng(1), 2000, step=1.0)
+    rng = np.random.default_rng(2)
+    k = np.arange(1.0, 701.0)
+    seen = 0.2 * k[None, :] + rng.normal(0.0, 1.0, (2000, k.size))
+    every = k[np.argmax(seen >= 100.0, axis=1)]
+    assert all(float(v).is_integer() for v in fast)
+    for q in (0.05, 0.5, 0.95):
+        assert abs(np.quantile(fast, q) - np.quantile(every, q)) <= 1.0
+    assert math.isclose(np.mean(fast), np.mean(every), abs_tol=0.5)

@@ -222,8 +222,9 @@ def _normal_draws(fit: Fit) -> Callable[[np.random.Generator, int], FloatArray]:
 
 def _level(model: str, draws: FloatArray, t: FloatArray, last: float, sign: float) -> FloatArray:
     """The drawn paths' change towards the threshold at ``t`` after the last
-    test (rows: draws; columns: ``t``). [%]"""
-    tt = np.asarray(t, dtype=np.float64)[None, :]
+    test (rows: draws; columns: ``t``, one row of times for all, or one a draw). [%]"""
+    tt = np.asarray(t, dtype=np.float64)
+    tt = tt[None, :] if tt.ndim == 1 else tt
     if model == "linear":
         return np.asarray(sign * (draws[:, :1] + draws[:, 1:2] * (last + tt)), dtype=np.float64)
     b = draws[:, 2:3]
@@ -252,7 +253,8 @@ def _crossing(model: str, draws: FloatArray, reach: FloatArray | float, sign: fl
 
 
 _BLOCK = 32           # future checks looked at a time
-_MAX_CHECKS = 10_000  # past this many future checks, the path's own crossing
+_MAX_BLOCKS = 64      # past this many blocks, the first check after the path's crossing
+_FAR = 8.0            # a check whose path is this many of its sd short cannot pass (P < 1e-15)
 
 
 def _left(model: str, draw: Callable[[np.random.Generator, int], FloatArray], scale: float,
@@ -278,18 +280,22 @@ def _left(model: str, draw: Callable[[np.random.Generator, int], FloatArray], sc
     todo = np.flatnonzero(np.isfinite(cross))
     if todo.size == 0:
         return out
-    limit = min(math.ceil(float(cross[todo].max()) / step) + 4 * _BLOCK, _MAX_CHECKS)
-    k0 = 1
-    while todo.size and k0 <= limit:
-        k = np.arange(k0, k0 + _BLOCK, dtype=np.float64)
+    # each path only rises towards the threshold: a check cannot pass while the path
+    # is _FAR of its scatter short, so each draw's search starts where it comes near
+    near = _crossing(model, draws[todo], abs(threshold) - _FAR * sd, sign, last)
+    first = np.maximum(np.ceil(np.where(np.isfinite(near), near, 0.0) / step), 1.0)
+    ahead = np.arange(_BLOCK, dtype=np.float64)
+    for block in range(_MAX_BLOCKS):
+        if todo.size == 0:
+            break
+        k = first[:, None] + (block * _BLOCK + ahead)[None, :]
         seen = _level(model, draws[todo], k * step, last, sign) + rng.normal(
             0.0, sd, (todo.size, _BLOCK))
         hit = seen >= abs(threshold)
-        first = np.argmax(hit, axis=1)
-        got = hit[np.arange(todo.size), first]
-        out[todo[got]] = (k0 + first[got]) * step
-        todo = todo[~got]
-        k0 += _BLOCK
+        at = np.argmax(hit, axis=1)
+        got = hit[np.arange(todo.size), at]
+        out[todo[got]] = k[np.arange(todo.size), at][got] * step
+        todo, first = todo[~got], first[~got]
     # past the limit: the first check at or after the path's crossing
     out[todo] = np.ceil(cross[todo] / step) * step
     return out

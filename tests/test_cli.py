@@ -146,9 +146,10 @@ def test_a_relative_fault_on_an_effect_that_is_off_is_refused(
 
 def test_units_fits_a_narrow_terminal(tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                       monkeypatch: pytest.MonkeyPatch) -> None:
-    """At 60 columns the units table keeps every line within them, its counts,
+    """At 70 columns the units table keeps every line within them, its counts,
     dates and statuses whole; the long record name is cut, the unit's name
-    folded (never cut)."""
+    folded (never cut). At 60 the record's column is left out, and a line says
+    so."""
     from condmon.store import open_store
     from condmon.workflows.monitoring import add_baseline_tests
 
@@ -159,15 +160,47 @@ def test_units_fits_a_narrow_terminal(tmp_path: Path, capsys: pytest.CaptureFixt
         for k, r in enumerate(recs):
             r.attrs["source"] = f"a_long_record_file_name_from_the_test_stand_{k}.csv"
         add_baseline_tests(store, name, recs, group="line-A")
-    monkeypatch.setenv("COLUMNS", "60")
-    assert main(["units", "--db", db]) == 0
+    for width in (70, 60):
+        monkeypatch.setenv("COLUMNS", str(width))
+        assert main(["units", "--db", db]) == 0
+        text = capsys.readouterr().out
+        lines = text.splitlines()
+        assert max(len(v.rstrip()) for v in lines) <= width
+        body = lines[next(k for k, v in enumerate(lines) if "───" in v) + 1:]
+        first = body[0]
+        assert " 3 " in first and "baseline" in first and "2026-" in first
+        assert "".join(v.split()[0] for v in body if v.strip() and not v.startswith("latest"))\
+            .startswith(name)
+        if width == 70:
+            assert "a_lo" in first and "…" in first and "left out" not in text
+        else:
+            assert "a_lo" not in text and " ".join(text.split()).count(
+                "latest: left out, the terminal is 60 columns wide") == 1
+
+
+def test_history_in_a_narrow_terminal_says_which_parameters_it_leaves_out(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+        ) -> None:
+    """At 50 columns the history leaves out the parameters that moved least,
+    keeps the one that moved (friction), and names those it left out."""
+    from condmon.store import open_store
+    from condmon.workflows.checks import check_test
+    from condmon.workflows.monitoring import add_baseline_tests
+
+    db = str(tmp_path / "h.db")
+    with open_store(db) as store:
+        add_baseline_tests(store, "U", [simulate_actuator(seed=k) for k in (1, 2, 3)])
+        check_test(store, "U", simulate_actuator(load_actuator_rig(faults=["D=*3"]), seed=9))
+    monkeypatch.setenv("COLUMNS", "50")
+    assert main(["history", "--unit", "U", "--db", db]) == 0
     text = capsys.readouterr().out
-    assert max(len(v.rstrip()) for v in text.splitlines()) <= 60
-    first = next(v for v in text.splitlines() if " a_lo" in v)
-    assert " 3 " in first and "baseline" in first and "a_lo" in first and "…" in first
     lines = text.splitlines()
-    body = lines[next(k for k, v in enumerate(lines) if "───" in v) + 1:]
-    assert "".join(v.split()[0] for v in body if v.strip()) == name
+    assert max(len(v.rstrip()) for v in lines) <= 50
+    header = next(v for v in lines if v.strip().startswith("#")).split()
+    gone = next(v for v in lines if ": left out (they moved least)" in v).split(":")[0]
+    assert header[-1] == "D" and gone and not set(gone.split(", ")) & set(header)
+    assert set(gone.split(", ")) | (set(header) - {"#", "source", "fit", "%", "status"}) \
+        == {"R", "L", "Kt", "J", "D"}
 
 
 def test_parquet_and_column_mapping(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

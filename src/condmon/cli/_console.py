@@ -43,21 +43,27 @@ def fit_to_output() -> None:
 
 def fitted_widths(columns: Sequence[str], rows: Sequence[Sequence[str]], width: int,
                   give: Sequence[tuple[str, int]], least: Mapping[str, int] | None = None,
-                  gap: int = 2, edges: int = 2) -> dict[str, int]:
-    """The widths columns may take so that a table of ``rows`` (rich markup)
-    fits ``width`` terminal columns: each ``(column, floor)`` of ``give`` in
-    turn gives up what it has beyond ``floor`` until the table fits (a
-    column may come twice, with a lower floor the second time); the others
-    keep their own width (their widest cell or heading, at least ``least``;
-    ``gap`` between two columns and ``edges`` in all, as a table with
-    ``pad_edge=False, collapse_padding=True`` takes them).
+                  drop: Sequence[str] = (), gap: int = 2, edges: int = 2
+                  ) -> tuple[dict[str, int], list[str]]:
+    """How a table of ``rows`` (rich markup) fits ``width`` terminal columns:
+    the widths columns may take, and the columns left out.
+
+    Each ``(column, floor)`` of ``give`` in turn gives up what it has beyond
+    ``floor`` until the table fits (a column may come twice, with a lower
+    floor the second time); the others keep their own width (their widest
+    cell or heading, at least ``least``; ``gap`` between two columns and
+    ``edges`` in all, as a table with ``pad_edge=False,
+    collapse_padding=True`` takes them). When it still does not fit, the
+    columns of ``drop`` are left out, in that order, until it does: the
+    caller says so (a terminal too narrow must not lose a column silently).
 
     Example
     -------
-    >>> fitted_widths(("unit", "latest", "status"),
-    ...               [("EMA-1", "a-long-record-file-name.csv", "[green]go[/]")], 30,
-    ...               [("latest", 6)])
-    {'latest': 13}
+    >>> rows = [("EMA-1", "a-long-record-file-name.csv", "[green]go[/]")]
+    >>> fitted_widths(("unit", "latest", "status"), rows, 30, [("latest", 6)])
+    ({'latest': 13}, [])
+    >>> fitted_widths(("unit", "latest", "status"), rows, 14, [("latest", 6)], drop=["latest"])
+    ({}, ['latest'])
     """
     from rich.text import Text
 
@@ -73,7 +79,18 @@ def fitted_widths(columns: Sequence[str], rows: Sequence[Sequence[str]], width: 
             cut = min(excess, now[c] - floor)
             now[c] = out[c] = now[c] - cut
             excess -= cut
-    return out
+    hidden = []
+    for c in drop:
+        if excess <= 0:
+            break
+        if c in now:
+            hidden.append(c)
+            excess -= now[c] + gap
+    if hidden:   # the others again, with the room the left-out ones had
+        keep = [k for k, c in enumerate(columns) if c not in hidden]
+        out, _ = fitted_widths([columns[k] for k in keep], [[r[k] for k in keep] for r in rows],
+                               width, give, least, (), gap, edges)
+    return out, hidden
 
 
 def fmt(value: float) -> str:

@@ -89,21 +89,29 @@ def register(app: typer.Typer) -> None:
                 flagged.append(str(r["unit"]))
         # a narrow terminal cuts the latest record's file name (the history shows it
         # whole), then folds a long unit name (never cut: EMA-1… could be EMA-10), the
-        # model, the regime, the group, each at a few characters, not at one
+        # model, the regime, the group, each at a few characters, not at one; then
+        # leaves out the latest record, the model, the regime (and says so)
         kept = {"unit": min(8, max([4, *(len(str(r["unit"])) for r in rows)])), "status": 6,
-                "date": 10}
-        widths = fitted_widths(cols, cells, out.width, [
+                "date": 10, "tests": 5,
+                "no-go in": max([8, *(len(c[-1]) for c in cells)]) if ahead else 0}
+        widths, hidden = fitted_widths(cols, cells, out.width, [
             ("latest", 12), ("unit", 12), ("model", 8), ("regime", 8), ("group", 8),
             ("latest", 6), ("unit", 8), ("model", 6), ("regime", 6), ("group", 6),
-            ("unit", 6), ("model", 4), ("regime", 4), ("group", 4)], kept)
-        for col in cols:
+            ("unit", 6)], kept, drop=("latest", "model", "regime", "group"))
+        visible = [k for k, col in enumerate(cols) if col not in hidden]
+        for k in visible:
+            col = cols[k]
             folds = col in ("unit", "model", "regime", "group")
             table.add_column(col, justify="right" if col == "tests" else "left",
                              no_wrap=not folds, overflow="fold" if folds else "ellipsis",
-                             min_width=kept.get(col), max_width=widths.get(col))
+                             min_width=kept.get(col) or None, max_width=widths.get(col))
         for row in cells:
-            table.add_row(*row)
+            table.add_row(*(row[k] for k in visible))
         out.print(table)
+        if hidden:
+            out.print(f"{', '.join(hidden)}: left out, the terminal is {out.width} columns wide "
+                      "(a wider one, COLUMNS=120, or --json shows them)", markup=False,
+                      highlight=False)
         if doc["pages"] > 1:
             out.print(f"page {doc['page']} of {doc['pages']} ({doc['per_page']} units a page, "
                       f"{doc['total']} in all); --page N for another", markup=False,
@@ -186,18 +194,9 @@ def register(app: typer.Typer) -> None:
                   if any(split_key(c)[0] == p for c in keyed)]
         regimes = bool(hist["regime"].notna().any())
         dated = hist["test_date"].notna().any()
-        table = Table(title=escape(f"History of {unit} ({Path(model).name}): change against the "
-                                   "baseline [%]"), box=box.SIMPLE_HEAD, padding=(0, 1),
-                      pad_edge=False, collapse_padding=True)
-        # fits 80 columns with a date and five parameters
-        widths = {"#": 3, "fit %": 5, "status": 8, "date": 10, "source": 8}
-        for col in ("#", *(("date",) if dated else ()), "source", *(("regime",) if regimes else ()),
-                    "fit %", "status", *params):
-            table.add_column(col, justify="left" if col in ("source", "status", "date", "regime")
-                             else "right",
-                             no_wrap=True, overflow="ellipsis", min_width=widths.get(col, 5),
-                             max_width={"source": max(10 if dated else 14, out.width - 70),
-                                        "date": 10}.get(col))
+        cols = ("#", *(("date",) if dated else ()), "source", *(("regime",) if regimes else ()),
+                "fit %", "status", *params)
+        cells = []
         notes = []
         for tid, r in hist.iterrows():
             status = r["status"]
@@ -216,9 +215,9 @@ def register(app: typer.Typer) -> None:
             fit = f"{r['fit_percent']:.1f}" if pd.notna(r["fit_percent"]) else "—"
             when = ((f"{r['test_date']:%Y-%m-%d}" if pd.notna(r["test_date"]) else "—",)
                     if dated else ())
-            table.add_row(str(tid), *when, escape(Path(str(r["source"])).name),
+            cells.append((str(tid), *when, escape(Path(str(r["source"])).name),
                           *((escape(label or "—"),) if regimes else ()), fit, shown,
-                          *changes)
+                          *changes))
             if status == "excluded":
                 notes.append(f"#{tid} excluded: {r['excluded_reason']}")
             elif isinstance(r["summary"], str) and r["role"] == "check":
@@ -228,7 +227,34 @@ def register(app: typer.Typer) -> None:
                 notes.append(f"#{tid} {r['summary']}{against}")
             elif not r["accepted"]:
                 notes.append(f"#{tid} rejected: {r['reason']}")
+        # fits 80 columns with a date and five parameters; a narrower terminal cuts the
+        # record's name, then leaves out the parameters that moved least, and says which
+        least = {"#": 3, "fit %": 5, "status": 8, "date": 10, "source": 8,
+                 **{p: 5 for p in params}}
+        first = len(cols) - len(params)
+        moved = {p: max([0.0, *(abs(float(c[first + j])) for c in cells if c[first + j])])
+                 for j, p in enumerate(params)}
+        room, hidden = fitted_widths(cols, cells, out.width, [("source", 8)], least,
+                                     drop=sorted(params, key=lambda p: moved[p]))
+        table = Table(box=box.SIMPLE_HEAD, padding=(0, 1), pad_edge=False, collapse_padding=True)
+        visible = [k for k, col in enumerate(cols) if col not in hidden]
+        for k in visible:
+            col = cols[k]
+            table.add_column(col, justify="left" if col in ("source", "status", "date", "regime")
+                             else "right", no_wrap=True, overflow="ellipsis",
+                             min_width=least.get(col),
+                             max_width={"source": min(room.get("source", 10**6),
+                                                      max(10 if dated else 14, out.width - 70)),
+                                        "date": 10}.get(col))
+        for row in cells:
+            table.add_row(*(row[k] for k in visible))
+        out.print(f"History of {escape(unit)} ({escape(Path(model).name)}): change against the "
+                  "baseline [%]", highlight=False)
         out.print(table)
+        if hidden:
+            out.print(f"{', '.join(hidden)}: left out (they moved least), the terminal is "
+                      f"{out.width} columns wide (a wider one, COLUMNS=120, or --json shows "
+                      "them)", markup=False, highlight=False)
         for line in notes:
             out.print(line, highlight=False, markup=False)
         if baseline is not None:

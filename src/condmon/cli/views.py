@@ -197,6 +197,7 @@ def register(app: typer.Typer) -> None:
         cols = ("#", *(("date",) if dated else ()), "source", *(("regime",) if regimes else ()),
                 "fit %", "status", *params)
         cells = []
+        moved = dict.fromkeys(params, 0.0)   # each parameter's largest change shown [%]
         notes = []
         for tid, r in hist.iterrows():
             status = r["status"]
@@ -211,6 +212,8 @@ def register(app: typer.Typer) -> None:
                          if f"{regime_key(p, g)}_change" in r
                          and pd.notna(r[f"{regime_key(p, g)}_change"])]
                 changes.append(f"{found[0]:+.1f}" if found else "")
+                if found:
+                    moved[p] = max(moved[p], abs(float(found[0])))
             changes += [""] * (len(params) - len(changes))
             fit = f"{r['fit_percent']:.1f}" if pd.notna(r["fit_percent"]) else "—"
             when = ((f"{r['test_date']:%Y-%m-%d}" if pd.notna(r["test_date"]) else "—",)
@@ -231,9 +234,6 @@ def register(app: typer.Typer) -> None:
         # record's name, then leaves out the parameters that moved least, and says which
         least = {"#": 3, "fit %": 5, "status": 8, "date": 10, "source": 8,
                  **{p: 5 for p in params}}
-        first = len(cols) - len(params)
-        moved = {p: max([0.0, *(abs(float(c[first + j])) for c in cells if c[first + j])])
-                 for j, p in enumerate(params)}
         room, hidden = fitted_widths(cols, cells, out.width, [("source", 8)], least,
                                      drop=sorted(params, key=lambda p: moved[p]))
         table = Table(box=box.SIMPLE_HEAD, padding=(0, 1), pad_edge=False, collapse_padding=True)

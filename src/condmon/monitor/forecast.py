@@ -183,8 +183,8 @@ class Forecast:
         sign = 1.0 if self.threshold > 0 else -1.0
         draws = np.random.default_rng(0).multivariate_normal(coef, cov, size=_BAND_DRAWS,
                                                              method="eigh")
-        paths = np.array([lv + sl * growth(float(r), t) for lv, sl, r in draws])
-        lo, hi = np.quantile(paths, [0.05, 0.95], axis=0)
+        paths = _level("exponential", draws, t.reshape(-1), self.last, sign)
+        lo, hi = (q.reshape(t.shape) for q in np.quantile(paths, [0.05, 0.95], axis=0))
         path = coef[0] + coef[1] * growth(float(coef[2]), t)
         ends = sign * lo, sign * hi
         return sign * path, np.minimum(*ends), np.maximum(*ends)

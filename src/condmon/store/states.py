@@ -341,9 +341,8 @@ class StatesMixin(StoreBase):
         from the kept state rows in one query."""
         if tuple(statuses) != DEGRADED:
             raise ValueError(f"only the degraded statuses {DEGRADED} are kept per unit")
-        u, st = S.units, S.unit_states
-        q = (sa.select(u.c.name, u.c.model, u.c.group_name)
-             .select_from(u.join(st, st.c.unit_id == u.c.id)).where(st.c.degraded.is_(True)))
+        u = S.units
+        q = self._degraded_rows(u.c.name, u.c.model, u.c.group_name)
         return self._read(lambda c: {str(r[0]): (str(r[1]), None if r[2] is None else str(r[2]))
                                      for r in c.execute(q)})
 

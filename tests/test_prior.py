@@ -4,6 +4,7 @@ and spread are recovered, and the refusals."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -11,7 +12,8 @@ import pytest
 
 from condmon.errors import DataError
 from condmon.monitor.forecast import (
-    FleetPrior, RatePrior, fleet_prior, fleet_wear_prior, forecast_series,
+    FleetPrior, RatePrior, fleet_prior, fleet_wear_prior, forecast_series, prior_from_wear,
+    unit_wear,
 )
 
 # the truth: +2 % a test, no-go at +60 %: crossed at test 30
@@ -195,3 +197,82 @@ def test_a_shape_prior_without_peers_is_vague_and_said() -> None:
     assert f.remaining == own.remaining and f.notes[-1] == "no fleet history: vague prior"
     with pytest.raises(DataError, match=r"in \(0, 1\)"):
         FleetPrior(1.0, RatePrior.vague(), RatePrior.vague("exponential"), 3)
+
+
+def _mixed_fleet() -> FleetPrior:
+    """8 units that wore exponentially (+10·(e^(b·k) − 1) %, b ≈ 0.15) and 8
+    that wore linearly (≈ +13 %/test: the same life to +300 %), 30 tests each."""
+    rng = np.random.default_rng(5)
+    x = np.arange(1.0, 31.0)
+    fleet = [(*_exp_unit(r, 100 + i, 30), np.full(30, 2.0), 1.0)
+             for i, r in enumerate(rng.normal(0.15, 0.015, 8))]
+    fleet += [(x, s * x + rng.normal(0.0, 2.0, 30), np.full(30, 2.0), 1.0)
+              for s in rng.normal(13.0, 2.0, 8)]
+    return fleet_wear_prior(fleet)
+
+
+def test_the_fleets_amplitude_pins_a_curve_that_still_looks_straight() -> None:
+    """Six tests into a life of 23, an exponential unit has risen +8 %, far
+    slower than the fleet's lines (+13 %/test) and not yet visibly bent. With
+    the fleet's amplitude and slope priors the Bayes factor weighs the
+    fleet's line against the fleet's curve, and the forecast is the curve's,
+    on time and tight; with the rate prior alone (the line's slope flat) the
+    intervals run to 5-9 times the truth."""
+    prior = _mixed_fleet()
+    assert prior.exponential.units == 8 and prior.linear.units == 8
+    assert prior.amplitude is not None and prior.amplitude.mean == pytest.approx(10.0, rel=0.1)
+    assert "amplitude 9.9" in prior.describe() and prior.to_dict()["amplitude"]["units"] == 8
+    rate_only = dataclasses.replace(prior, amplitude=None)
+    truth = math.log(31.0) / 0.15 - 6.0
+    for seed in range(10):
+        x, y = _exp_unit(0.15, seed, 6)
+        f = forecast_series(x, y, np.full(6, 2.0), 1.0, 300.0, prior=prior)
+        old = forecast_series(x, y, np.full(6, 2.0), 1.0, 300.0, prior=rate_only)
+        assert f.remaining is not None and old.remaining is not None
+        assert f.model == "exponential" and "against the fleet's line" in f.notes[0]
+        assert abs(f.remaining[0] - truth) <= 0.2 * truth
+        assert f.remaining[1] <= truth <= f.remaining[2] < 1.5 * truth
+        assert old.remaining[2] > 5.0 * truth
+
+
+def test_a_barely_bent_peer_teaches_its_slope() -> None:
+    """A peer whose fitted curve's slope grew less than e-fold over its series
+    (b·span < 1) wore as a line: it teaches its slope, not a near-flat rate
+    with an amplitude of thousands of %; a clearly bent one teaches its curve."""
+    x = np.arange(1.0, 21.0)
+    gentle = unit_wear(x, 2000.0 * np.expm1(0.02 * x), np.full(20, 1.0), 1.0)
+    assert gentle.exponential is not None and gentle.exponential_weight > 0.5
+    assert gentle.exponential[0] * (gentle.span or 0.0) < 1.0 and gentle.shape == "linear"
+    bent = unit_wear(x, 10.0 * np.expm1(0.2 * x), np.full(20, 1.0), 1.0)
+    assert bent.shape == "exponential" and bent.amplitude is not None
+    assert bent.amplitude[0] == pytest.approx(10.0, rel=0.02)
+    assert bent.exponential is not None and bent.exponential[0] == pytest.approx(0.2, rel=0.01)
+    prior = prior_from_wear([gentle, gentle, bent])
+    assert prior.linear.units == 2 and prior.p_exponential == pytest.approx(2.0 / 5.0)
+
+
+def test_the_evidence_is_the_integral_it_stands_for() -> None:
+    """The closed-form marginal likelihood of ``y = c + k·g`` (c flat, k
+    normal) and its posterior mean of k, against numerical integration."""
+    from scipy.integrate import dblquad
+
+    from condmon.monitor.degradation import _normal_evidence
+
+    x = np.arange(1.0, 7.0)
+    y = np.array([1.0, 3.5, 4.0, 7.5, 8.0, 11.0])
+    w = np.array([1.0, 0.5, 1.0, 2.0, 1.0, 0.8])
+    g = np.expm1(0.2 * x)
+    mean, sd, scale = 5.0, 2.0, 1.3
+    log_e, ck, _, _ = _normal_evidence(g[None, :], y, w, mean, sd, scale)
+
+    def joint(k: float, c: float) -> float:
+        r = y - c - k * g
+        return math.exp(-0.5 * float(w @ r ** 2) / scale) * math.exp(
+            -0.5 * ((k - mean) / sd) ** 2) / (sd * math.sqrt(2.0 * math.pi))
+
+    total, _ = dblquad(joint, -20.0, 20.0, 0.0, 10.0, epsabs=1e-14)
+    first, _ = dblquad(lambda k, c: k * joint(k, c), -20.0, 20.0, 0.0, 10.0, epsabs=1e-14)
+    # the shared ½·ln(2πσ²/Σw) of the flat level is left out of the closed form
+    shared = 0.5 * math.log(2.0 * math.pi * scale / float(w.sum()))
+    assert float(log_e[0]) + shared == pytest.approx(math.log(total), abs=1e-6)
+    assert float(ck[0, 1]) == pytest.approx(first / total, rel=1e-6)

@@ -14,6 +14,11 @@ profile likelihood with its Laplace volume), taken on a grid of rates, and
 ``b = 0`` with the same (α, β), so the ratio of the two marginal likelihoods
 is a Bayes factor with no arbitrary constant: the evidence for the curve that
 a rate prior makes proper (Gebraeel 2006 fits such priors on a fleet).
+
+With the fleet's priors on the line's slope and the exponential's amplitude
+as well (:func:`anchored_posterior`), both models are written from the
+series' origin and carry proper priors on all but the shared level, so the
+Bayes factor weighs the fleet's line against the fleet's curve.
 """
 
 from __future__ import annotations
@@ -27,7 +32,8 @@ from numpy.typing import ArrayLike, NDArray
 from condmon.errors import DataError
 
 __all__ = ["MIN_TESTS", "EXP_MIN_TESTS", "Fit", "wls", "growth", "exp_fit", "fits",
-           "checked_series", "aicc_weights", "weights", "RatePosterior", "rate_posterior"]
+           "checked_series", "aicc_weights", "weights", "RatePosterior", "rate_posterior",
+           "anchored_posterior"]
 
 FloatArray = NDArray[np.float64]
 #: A weighted fit: coefficients, their covariance, the weighted residual sum of squares.
@@ -241,3 +247,105 @@ def rate_posterior(x: FloatArray, y: FloatArray, w: FloatArray, mean: float, sd:
     cov = np.asarray(np.linalg.inv(info[1:]) * scale, dtype=np.float64)
     return RatePosterior(rates, prob / prob.sum(), coef[1:], cov,
                          top + math.log(float(prob.sum())), scale)
+
+
+def _normal_evidence(g: FloatArray, y: FloatArray, w: FloatArray, mean: float, sd: float,
+                     scale: float) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """``y = c + k·g`` with c flat and ``k ~ N(mean, sd²)``, for each row of
+    ``g`` (one shape a row): ln of the marginal likelihood (less the shared
+    ``½·ln(2πσ²/Σw)`` of c), and the posterior mean and covariance of (c, k),
+    as (log evidence, mean (rows, 2), covariance (rows, 2, 2), weighted residual
+    sum of squares of the free fit)."""
+    W = float(w.sum())
+    ybar = float(w @ y) / W
+    gbar = g @ w / W
+    dg = g - gbar[:, None]
+    sgg = np.maximum(np.einsum("gn,n,gn->g", dg, w, dg), 1e-300)
+    sgy = dg @ (w * (y - ybar))
+    syy = float(w @ (y - ybar) ** 2)
+    k_hat = sgy / sgg
+    rss = np.maximum(syy - sgy * k_hat, 0.0)
+    like_var = scale / sgg                     # k's variance from the tests alone
+    pred_var = sd ** 2 + like_var
+    log_e = (-0.5 * rss / scale + 0.5 * np.log(2.0 * math.pi * like_var)
+             - 0.5 * (k_hat - mean) ** 2 / pred_var - 0.5 * np.log(2.0 * math.pi * pred_var))
+    var_k = 1.0 / (1.0 / like_var + 1.0 / sd ** 2)
+    k = var_k * (k_hat / like_var + mean / sd ** 2)
+    c = ybar - k * gbar
+    cov = np.empty((len(g), 2, 2))
+    cov[:, 0, 0] = scale / W + gbar ** 2 * var_k
+    cov[:, 0, 1] = cov[:, 1, 0] = -gbar * var_k
+    cov[:, 1, 1] = var_k
+    return log_e, np.column_stack([c, k]), cov, rss
+
+
+def anchored_posterior(x: FloatArray, y: FloatArray, w: FloatArray,
+                       rate: tuple[float, float], amplitude: tuple[float, float],
+                       slope: tuple[float, float], grid: int = 200) -> RatePosterior:
+    """The exponential's posterior under the fleet's priors on its rate and
+    amplitude, and its Bayes factor over the line under the fleet's prior on
+    the slope.
+
+    Both models are written from the series' origin (``x = 0``: the baseline
+    when tests are counted, the first check when days or hours are): the
+    line ``y = c + s·x`` and the exponential ``y = c + A·(exp(b·x) − 1)``
+    (Gebraeel 2006 puts his priors on the same amplitude and rate). The level
+    c has the same flat prior in both, so it cancels from the Bayes factor;
+    the slope ``s``, the amplitude ``A`` and the rate ``b`` have the fleet's
+    normal priors, so both marginal likelihoods are proper and their ratio
+    weighs a unit that wears unlike the fleet's line (a slope far from the
+    peers' slopes) against the fleet's curve as well. For a given ``b`` the
+    model is linear in (c, A), so both are integrated in closed form and
+    ``b`` is taken on a grid.
+
+    Parameters
+    ----------
+    x, y, w : ndarray
+        The tests' times [test (or d, h)], the change towards the threshold
+        [%] and each test's weight [1 / %²] (:func:`weights`).
+    rate, amplitude, slope : tuple of float
+        The fleet's (mean, sd) of the exponential's rate ``b`` [1 per x], its
+        amplitude ``A`` [%] and the line's slope ``s`` [% per x].
+    grid : int
+        Rates on the grid (log-spaced over 0.01–30 per the series' span).
+
+    Returns
+    -------
+    RatePosterior
+        The rate's posterior, (α, β) at the last test given each rate, and
+        ``log_bayes`` over the line with its slope prior. ``σ²`` as
+        :func:`rate_posterior` takes it.
+
+    Example
+    -------
+    >>> x = np.arange(1.0, 9.0)                     # a curve whose start looks straight
+    >>> y = 10.0 * np.expm1(0.25 * x)
+    >>> p = anchored_posterior(x, y, np.ones(8), (0.25, 0.05), (10.0, 2.0), (40.0, 10.0))
+    >>> p.log_bayes > 5, abs(float(p.prob @ p.rates) - 0.25) < 0.01
+    (True, True)
+    """
+    span = float(x[-1] - x[0])
+    rates = np.geomspace(*_RATE_SPAN, grid) / span
+    with np.errstate(over="ignore"):
+        g = np.expm1(np.outer(rates, x))
+    ok = np.all(np.isfinite(g), axis=1)
+    rates, g = rates[ok], g[ok]
+    # the scale: the most flexible free fit's residual variance, at least 1
+    free = _normal_evidence(np.vstack([x, g]), y, w, 0.0, math.inf, 1.0)[3]
+    scale = max(float(free.min()) / max(len(x) - 3, 1), 1.0)
+    line = float(_normal_evidence(x[None, :], y, w, slope[0], slope[1], scale)[0][0])
+    log_e, ck, ck_cov, _ = _normal_evidence(g, y, w, amplitude[0], amplitude[1], scale)
+    logprior = -0.5 * ((rates - rate[0]) / rate[1]) ** 2 + np.log(np.gradient(rates))
+    logprior -= float(logprior.max()) + math.log(float(np.exp(logprior - logprior.max()).sum()))
+    log_post = log_e + logprior
+    top = float(log_post.max())
+    prob = np.exp(log_post - top)
+    # (c, A) at the origin to (α, β) at the last test: α = c + A·g(x_last), β = A·b·exp(b·x_last)
+    J = np.zeros((len(rates), 2, 2))
+    J[:, 0, 0] = 1.0
+    J[:, 0, 1] = g[:, -1]
+    J[:, 1, 1] = rates * np.exp(rates * x[-1])
+    coef = np.einsum("gij,gj->gi", J, ck)
+    cov = np.einsum("gij,gjk,glk->gil", J, ck_cov, J)
+    return RatePosterior(rates, prob / prob.sum(), coef, (cov + cov.transpose(0, 2, 1)) / 2.0,
+                         top + math.log(float(prob.sum())) - line, scale)

@@ -43,13 +43,16 @@ MATLAB's Predictive Maintenance Toolbox, fit such priors on a fleet):
   the other coefficients);
 - :class:`FleetPrior` (:func:`fleet_wear_prior`, what ``condmon forecast``
   uses): the shape as well. The line's slope is updated as above; the
-  exponential's growth rate ``b`` by its exact posterior on a grid
-  (:func:`~condmon.monitor.degradation.rate_posterior`: for a given ``b``
-  the model is linear, so (α, β) are integrated out in closed form), and the
-  two models are weighted by the fleet's odds of the exponential times the
-  Bayes factor of the unit's tests, in place of Akaike's weights. A unit
-  whose peers wore exponentially is forecast with their curve before its own
-  tests could show it.
+  exponential's growth rate ``b`` and amplitude ``A`` (of ``c + A·(exp(b·x)
+  − 1)``, Gebraeel's two priors) by their exact posterior, ``b`` on a grid
+  (:func:`~condmon.monitor.degradation.anchored_posterior`: for a given
+  ``b`` the model is linear, so the level and ``A`` are integrated out in
+  closed form), and the two models are weighted by the fleet's odds of the
+  exponential times the Bayes factor of the unit's tests, in place of
+  Akaike's weights. Both models then carry the fleet's proper priors, so the
+  factor weighs the fleet's line against the fleet's curve: a unit whose
+  first half looks straight, but far slower than its peers' lines, is
+  forecast with their curve before its own tests could show it.
 
 After a few tests the fleet carries the forecast; after many, the unit's own
 tests. With no fleet history the prior is vague, the forecast the unit's
@@ -73,7 +76,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from condmon.errors import DataError
 from condmon.monitor.degradation import (
-    MIN_TESTS, Fit, RatePosterior, aicc_weights, checked_series, growth, rate_posterior, weights,
+    MIN_TESTS, Fit, RatePosterior, aicc_weights, anchored_posterior, checked_series, growth, rate_posterior, weights,
 )
 from condmon.monitor.degradation import fits as degradation_fits
 from condmon.monitor.prior import (
@@ -313,17 +316,29 @@ def _with_shape(prior: FleetPrior, found: dict[str, Fit], xa: FloatArray, ya: Fl
     rate posterior (None: no rate prior), and the note on how they were weighed.
 
     With the fleet's growth rate, the exponential's weight is its posterior
-    probability: the fleet's odds times the Bayes factor of the unit's tests
-    (:func:`~condmon.monitor.degradation.rate_posterior`). Without it, the
-    Akaike weights times the fleet's odds (Burnham and Anderson's prior
-    model probabilities)."""
+    probability: the fleet's odds times the Bayes factor of the unit's tests.
+    With the fleet's slope and amplitude as well, both models carry proper
+    priors and the Bayes factor is between the fleet's line and the fleet's
+    curve (:func:`~condmon.monitor.degradation.anchored_posterior`): a unit
+    whose start looks straight but far slower than the peers' lines is
+    weighed against their curve too. With the rate alone, against the line
+    with a flat slope (:func:`~condmon.monitor.degradation.rate_posterior`).
+    Without a rate, the Akaike weights times the fleet's odds (Burnham and
+    Anderson's prior model probabilities)."""
     p = prior.p_exponential
+    amp = prior.amplitude
     if prior.exponential.informative:
-        post = rate_posterior(xa, ya, w, prior.exponential.mean, prior.exponential.sd)
+        both = prior.linear.informative and amp is not None and amp.informative
+        post = anchored_posterior(
+            xa, ya, w, (prior.exponential.mean, prior.exponential.sd),
+            (amp.mean, amp.sd), (prior.linear.mean, prior.linear.sd)
+        ) if both and amp is not None else rate_posterior(
+            xa, ya, w, prior.exponential.mean, prior.exponential.sd)
         odds = math.log(p / (1.0 - p)) + post.log_bayes
         w_exp = 1.0 / (1.0 + math.exp(-odds)) if odds > -700 else 0.0
         return ({"linear": 1.0 - w_exp, "exponential": w_exp}, post,
-                f"Bayes factor {math.exp(min(post.log_bayes, 700.0)):.3g} of the unit's tests")
+                f"Bayes factor {math.exp(min(post.log_bayes, 700.0)):.3g} of the unit's tests"
+                + (" against the fleet's line" if both else ""))
     if "exponential" not in found:
         return weight, None, "no growing exponential fits the unit's tests"
     raw = {"linear": (1.0 - p) * weight["linear"], "exponential": p * weight["exponential"]}

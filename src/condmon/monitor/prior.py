@@ -9,11 +9,13 @@ Maintenance Toolbox, fit their priors on such an ensemble):
   spread for one more unit;
 - :class:`FleetPrior`: the shape as well: how likely the unit is to wear
   exponentially (the share of peers whose own evidence chose the
-  exponential, by Laplace's rule: ``(k + 1) / (n + 2)``), the slope prior
-  of the peers that wore linearly and the growth-rate prior of those that
-  wore exponentially. A unit whose peers wore exponentially is forecast
-  with that shape and rate (:func:`condmon.monitor.forecast.forecast_series`
-  weighs the models by that prior and the unit's own evidence).
+  exponential, by Laplace's rule: ``(k + 1) / (n + 2)``; a curve whose slope
+  grew less than e-fold over its series counts as a line), the slope prior
+  of the peers that wore linearly, and the growth-rate and amplitude priors
+  of those that wore exponentially (Gebraeel's two priors). A unit whose
+  peers wore exponentially is forecast with that shape, rate and amplitude
+  (:func:`condmon.monitor.forecast.forecast_series` weighs the models by
+  that prior and the unit's own evidence).
 
 :func:`unit_wear` reads one peer's series once; :func:`prior_from_wear`
 builds the prior from the peers' readings (so a store reads each peer once
@@ -209,16 +211,27 @@ class UnitWear:
         The linear slope and its variance. [% per x; squared]
     exponential : tuple of float or None
         The exponential's growth rate and its variance (None: none fits). [1 per x; squared]
+    amplitude : tuple of float or None
+        The exponential's amplitude ``A`` of ``c + A·(exp(b·x) − 1)`` from the
+        series' origin, and its variance (None: none fits, or kept before it
+        was). [%; %²]
     """
 
     exponential_weight: float
     linear: tuple[float, float]
     exponential: tuple[float, float] | None
+    amplitude: tuple[float, float] | None = None
+    span: float | None = None
 
     @property
     def shape(self) -> str:
-        """The model its own evidence chose: "exponential" or "linear"."""
-        return "exponential" if self.exponential_weight > 0.5 else "linear"
+        """The model its own evidence chose: "exponential" or "linear" (a
+        curve whose slope grew less than e-fold over the series, ``b·span <
+        1``, wore as a line: its slope, not its barely bent curve, is what a
+        new unit learns from it)."""
+        bent = self.exponential is None or self.span is None or \
+            self.exponential[0] * self.span >= 1.0
+        return "exponential" if self.exponential_weight > 0.5 and bent else "linear"
 
 
 def unit_wear(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float) -> UnitWear:
@@ -236,11 +249,22 @@ def unit_wear(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float) -> 
     lin = found["linear"]
     exp = found.get("exponential")
     weight = aicc_weights(found, len(xa))[1].get("exponential", 0.0)
-    return UnitWear(weight, _rate_of(lin), None if exp is None else _rate_of(exp))
+    return UnitWear(weight, _rate_of(lin), None if exp is None else _rate_of(exp),
+                    None if exp is None else _amplitude_of(exp, float(xa[-1])),
+                    float(xa[-1] - xa[0]))
 
 
 def _rate_of(fit: Fit) -> tuple[float, float]:
     return float(fit[0][-1]), float(fit[1][-1, -1])
+
+
+def _amplitude_of(fit: Fit, last: float) -> tuple[float, float]:
+    """The exponential's amplitude at the origin, ``A = β·exp(−b·x_last)/b``
+    from its (α, β, b) at the last test, and its variance (delta method)."""
+    (_, beta, b), cov = fit[0], fit[1]
+    amp = beta * math.exp(-b * last) / b
+    grad = np.array([0.0, math.exp(-b * last) / b, -amp * (last + 1.0 / b)])
+    return float(amp), float(grad @ cov @ grad)
 
 
 @dataclass(frozen=True)
@@ -259,12 +283,17 @@ class FleetPrior:
         The growth rate ``b``, from the peers that wore exponentially. [1 per x]
     units : int
         How many peers it came from (0: no fleet history).
+    amplitude : RatePrior or None
+        The exponential's amplitude ``A`` (:class:`UnitWear`), from the peers
+        that wore exponentially (its ``mean`` and ``sd`` in %; None: not
+        known). [%]
     """
 
     p_exponential: float
     linear: RatePrior
     exponential: RatePrior
     units: int
+    amplitude: RatePrior | None = None
 
     def __post_init__(self) -> None:
         if not 0.0 < self.p_exponential < 1.0:
@@ -289,14 +318,20 @@ class FleetPrior:
         for p in (self.linear, self.exponential):
             if p.informative:
                 what.append(p.describe().split(": ", 1)[1])
+        if self.amplitude is not None and self.amplitude.informative:
+            what.append(f"amplitude {self.amplitude.mean:.3g} ± {self.amplitude.sd:.2g} %")
         k = self.exponential.units
         return (f"fleet prior from {self.units} units ({k} wore exponentially): "
                 + "; ".join(what))
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form."""
+        amp = self.amplitude
         return {"p_exponential": self.p_exponential, "units": self.units,
-                "linear": self.linear.to_dict(), "exponential": self.exponential.to_dict()}
+                "linear": self.linear.to_dict(), "exponential": self.exponential.to_dict(),
+                "amplitude": None if amp is None else
+                {"mean": amp.mean, "sd": amp.sd if amp.informative else None,
+                 "units": amp.units}}
 
 
 #: A prior :func:`~condmon.monitor.forecast.forecast_series` takes.
@@ -310,11 +345,15 @@ def prior_from_wear(wears: Sequence[UnitWear], per: str = "test") -> FleetPrior:
     vague from fewer than 2 units); vague with no units."""
     if not wears:
         return FleetPrior.vague(per)
-    curved = [w.exponential for w in wears if w.shape == "exponential" and w.exponential]
+    bent = [w for w in wears if w.shape == "exponential" and w.exponential]
     straight = [w.linear for w in wears if not (w.shape == "exponential" and w.exponential)]
-    return FleetPrior((len(curved) + 1.0) / (len(wears) + 2.0),
+    amplitudes = [w.amplitude for w in bent if w.amplitude]
+    return FleetPrior((len(bent) + 1.0) / (len(wears) + 2.0),
                       prior_from_rates(straight, "linear", per),
-                      prior_from_rates(curved, "exponential", per), len(wears))
+                      prior_from_rates([w.exponential for w in bent if w.exponential],
+                                       "exponential", per), len(wears),
+                      prior_from_rates(amplitudes, "exponential", per)
+                      if len(amplitudes) == len(bent) else None)
 
 
 def fleet_wear_prior(series: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike, float]],

@@ -275,8 +275,8 @@ class FleetPrior:
     ----------
     p_exponential : float
         The prior probability that the unit wears exponentially: the share of
-        peers whose evidence chose the exponential, ``(k + 1) / (n + 2)``
-        (Laplace's rule; 0.5 with no peers). [-]
+        peers whose evidence chose the exponential (:attr:`UnitWear.shape`),
+        ``(k + 1) / (n + 2)`` (Laplace's rule; 0.5 with no peers). [-]
     linear : RatePrior
         The slope, from the peers that wore linearly. [% per x]
     exponential : RatePrior

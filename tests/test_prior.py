@@ -276,3 +276,54 @@ def test_the_evidence_is_the_integral_it_stands_for() -> None:
     shared = 0.5 * math.log(2.0 * math.pi * scale / float(w.sum()))
     assert float(log_e[0]) + shared == pytest.approx(math.log(total), abs=1e-6)
     assert float(ck[0, 1]) == pytest.approx(first / total, rel=1e-6)
+
+
+def _bent_unit(slope: float, bend: float, seed: int, tests: int) -> tuple[np.ndarray, np.ndarray]:
+    """A line that bends up a little: +slope·(e^(b·k) − 1)/b %, ±2 % per test."""
+    x = np.arange(1.0, tests + 1.0)
+    return x, slope * np.expm1(bend * x) / bend + np.random.default_rng(seed).normal(
+        0.0, 2.0, tests)
+
+
+def test_a_fleet_whose_lines_bent_teaches_the_bend() -> None:
+    """Lines that bent a little (b·span 0.9: slope +5 %/test rising to +12),
+    beside peers that wore exponentially: the fleet's bend is recovered, and a
+    unit on the lines' path is forecast on time (within 1.5 tests), where
+    the fleet's line taken straight is 3.5-7 tests late."""
+    rng = np.random.default_rng(11)
+    x = np.arange(1.0, 31.0)
+    fleet = [(*_bent_unit(s, 0.03, 100 + i, 30), np.full(30, 2.0), 1.0)
+             for i, s in enumerate(rng.normal(5.0, 0.5, 8))]
+    fleet += [(x, 10.0 * np.expm1(r * x) + rng.normal(0.0, 2.0, 30), np.full(30, 2.0), 1.0)
+              for r in rng.normal(0.12, 0.01, 8)]
+    prior = fleet_wear_prior(fleet)
+    assert prior.bend is not None and prior.bend.mean == pytest.approx(0.03, abs=0.003)
+    assert "the lines' bend 0.03" in prior.describe()
+    straight = dataclasses.replace(prior, bend=None)
+    life = math.log1p(200.0 * 0.03 / 5.0) / 0.03          # +200 % at test 26.3
+    for tests in (12, 18):
+        truth = life - tests
+        for seed in range(10):
+            xs, y = _bent_unit(5.0, 0.03, seed, tests)
+            f = forecast_series(xs, y, np.full(tests, 2.0), 1.0, 200.0, prior=prior)
+            line = forecast_series(xs, y, np.full(tests, 2.0), 1.0, 200.0, prior=straight)
+            assert f.remaining is not None and line.remaining is not None
+            assert f.model == "linear" and len(f.coef) == 3      # drawn bent
+            assert abs(f.remaining[0] - truth) < 1.5
+            assert line.remaining[0] - truth > 3.0
+            mid, lo, hi = f.band([0.0, f.remaining[0]])
+            assert lo[1] < 200.0 < hi[1]                          # the band meets no-go
+
+
+def test_the_bent_line_is_recovered_both_ways() -> None:
+    """The bent line's slope at the origin and its bend, up and down, and a
+    straight line's bend of 0 within its error."""
+    from condmon.monitor.degradation import bent_fit
+
+    x = np.arange(1.0, 21.0)
+    for b in (-0.04, 0.0, 0.05):
+        y = 3.0 + (4.0 * (np.expm1(b * x) / b if b else x))
+        coef, cov, _ = bent_fit(x, y + np.random.default_rng(1).normal(0.0, 0.1, 20),
+                                np.full(20, 100.0))
+        assert coef[1] == pytest.approx(4.0, rel=0.02)
+        assert abs(coef[2] - b) < 3.0 * math.sqrt(cov[2, 2]) + 1e-3

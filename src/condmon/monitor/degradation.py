@@ -16,15 +16,16 @@ is a Bayes factor with no arbitrary constant: the evidence for the curve that
 a rate prior makes proper (Gebraeel 2006 fits such priors on a fleet).
 
 With the fleet's priors on the line's slope and the exponential's amplitude
-as well (:func:`anchored_posterior`), both models are written from the
-series' origin and carry proper priors on all but the shared level, so the
-Bayes factor weighs the fleet's line against the fleet's curve.
+and the bend of its lines as well (:func:`fleet_posteriors`), both models
+are written from the series' origin and carry proper priors on all but the
+shared level, so the Bayes factor weighs the fleet's line against the
+fleet's curve.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -33,7 +34,7 @@ from condmon.errors import DataError
 
 __all__ = ["MIN_TESTS", "EXP_MIN_TESTS", "Fit", "wls", "growth", "exp_fit", "fits",
            "checked_series", "aicc_weights", "weights", "RatePosterior", "rate_posterior",
-           "anchored_posterior"]
+           "ShapePosteriors", "fleet_posteriors", "bent_fit"]
 
 FloatArray = NDArray[np.float64]
 #: A weighted fit: coefficients, their covariance, the weighted residual sum of squares.
@@ -104,6 +105,41 @@ def exp_fit(x: FloatArray, y: FloatArray,
     return np.array([level, slope, b]), cov, best
 
 
+def _bent(b: float, x: FloatArray) -> FloatArray:
+    """``(exp(b·x) − 1)/b``, ``x`` at ``b = 0``."""
+    return np.asarray(x if b == 0.0 else np.expm1(b * x) / b, dtype=np.float64)
+
+
+def bent_fit(x: FloatArray, y: FloatArray, w: FloatArray) -> Fit:
+    """Weighted bent line ``y = c + s·(exp(b·x) − 1)/b`` from the series'
+    origin: its level c and slope s at ``x = 0`` and its bend b, signed (below
+    0 a line that bows down; a straight line at 0), taken within a slope that
+    grows or falls e^3-fold over the span. Coefficients (c, s, b), their
+    covariance (Gauss-Newton), weighted RSS."""
+    span = float(x[-1] - x[0])
+    sw = np.sqrt(w)
+
+    def profile(b: float) -> tuple[float, FloatArray]:
+        X = np.column_stack([np.ones_like(x), _bent(b, x)])
+        coef, *_ = np.linalg.lstsq(X * sw[:, None], y * sw, rcond=None)
+        r = (y - X @ coef) * sw
+        return float(r @ r), np.asarray(coef, dtype=np.float64)
+
+    grid = np.linspace(-3.0, 3.0, 121) / span
+    i = int(np.argmin([profile(float(b))[0] for b in grid]))
+    from condmon.monitor.bounded import bounded_minimum  # scipy's bounded steps, no scipy import
+
+    b = bounded_minimum(lambda v: profile(float(v))[0], float(grid[max(i - 1, 0)]),
+                        float(grid[min(i + 1, len(grid) - 1)]), xatol=1e-6 / span)
+    best, (level, slope) = profile(b)
+    g = _bent(b, x)
+    dg = x * x / 2.0 if b == 0.0 else (x * np.exp(b * x) - g) / b
+    J = np.column_stack([np.ones_like(x), g, slope * dg])
+    scale = max(best / max(len(x) - 3, 1), 1.0)
+    cov = np.asarray(np.linalg.pinv((J * w[:, None]).T @ J) * scale, dtype=np.float64)
+    return np.array([level, slope, b]), cov, best
+
+
 def fits(xa: FloatArray, ya: FloatArray, sa: FloatArray, spread: float,
           sign: float, exponential: bool = True) -> dict[str, Fit]:
     """Both degradation models' weighted fits, the change taken towards the
@@ -168,8 +204,9 @@ class RatePosterior:
     cov : ndarray
         Their covariance at each rate, shape (grid, 2, 2).
     log_bayes : float
-        ln of the marginal likelihood over that of the straight line (``b = 0``),
-        both with the same flat prior on (α, β). [-]
+        ln of the marginal likelihood over that of the other shape: the
+        straight line (``b = 0``) with the same flat prior on (α, β)
+        (:func:`rate_posterior`), or the fleet's line (:func:`fleet_posteriors`). [-]
     scale : float
         The residual variance factor ``σ²`` the likelihood is taken at (at
         least 1: the tests' stated uncertainty). [-]
@@ -279,73 +316,128 @@ def _normal_evidence(g: FloatArray, y: FloatArray, w: FloatArray, mean: float, s
     return log_e, np.column_stack([c, k]), cov, rss
 
 
-def anchored_posterior(x: FloatArray, y: FloatArray, w: FloatArray,
-                       rate: tuple[float, float], amplitude: tuple[float, float],
-                       slope: tuple[float, float], grid: int = 200) -> RatePosterior:
-    """The exponential's posterior under the fleet's priors on its rate and
-    amplitude, and its Bayes factor over the line under the fleet's prior on
-    the slope.
+@dataclass(frozen=True)
+class ShapePosteriors:
+    """Both shapes' posteriors under the fleet's priors (:func:`fleet_posteriors`).
 
-    Both models are written from the series' origin (``x = 0``: the baseline
-    when tests are counted, the first check when days or hours are): the
-    line ``y = c + s·x`` and the exponential ``y = c + A·(exp(b·x) − 1)``
-    (Gebraeel 2006 puts his priors on the same amplitude and rate). The level
-    c has the same flat prior in both, so it cancels from the Bayes factor;
-    the slope ``s``, the amplitude ``A`` and the rate ``b`` have the fleet's
-    normal priors, so both marginal likelihoods are proper and their ratio
-    weighs a unit that wears unlike the fleet's line (a slope far from the
-    peers' slopes) against the fleet's curve as well. For a given ``b`` the
-    model is linear in (c, A), so both are integrated in closed form and
-    ``b`` is taken on a grid.
+    Attributes
+    ----------
+    linear : RatePosterior
+        The line, bent as the fleet's lines were (``c + s·(exp(b·x) − 1)/b``:
+        ``s`` its slope at the origin, ``b`` near 0 its bend).
+    exponential : RatePosterior
+        The exponential ``c + A·(exp(b·x) − 1)``.
+    log_bayes : float
+        ln of the exponential's marginal likelihood over the line's. [-]
+    """
+
+    linear: RatePosterior
+    exponential: RatePosterior
+    log_bayes: float
+
+
+def _curve(x: FloatArray, y: FloatArray, w: FloatArray, rates: FloatArray,
+           rate: tuple[float, float], coef: tuple[float, float], amplitude: bool,
+           scale: float) -> RatePosterior:
+    """One shape's posterior on a grid of ``rates``: ``y = c + k·g_b(x)`` with
+    ``g_b = exp(b·x) − 1`` (``k`` the amplitude) or ``(exp(b·x) − 1)/b``
+    (``k`` the slope at the origin; ``x`` itself at ``b = 0``), c flat, ``k``
+    and ``b`` normal; ``log_bayes`` its log marginal likelihood (less the
+    level's shared term)."""
+    with np.errstate(over="ignore"):
+        e = np.expm1(np.outer(rates, x))
+    flat = rates == 0.0
+    g = e if amplitude else np.where(flat[:, None], x[None, :],
+                                     e / np.where(flat, 1.0, rates)[:, None])
+    ok = np.all(np.isfinite(g), axis=1)
+    rates, g = rates[ok], g[ok]
+    log_e, ck, ck_cov, _ = _normal_evidence(g, y, w, coef[0], coef[1], scale)
+    width = np.gradient(rates) if len(rates) > 1 else np.ones(1)
+    logprior = -0.5 * ((rates - rate[0]) / rate[1]) ** 2 + np.log(width)
+    logprior -= float(logprior.max()) + math.log(float(np.exp(logprior - logprior.max()).sum()))
+    log_post = log_e + logprior
+    top = float(log_post.max())
+    prob = np.exp(log_post - top)
+    # (c, k) at the origin to (α, β) at the last test: α = c + k·g(x_last), β = k·g'(x_last)
+    J = np.zeros((len(rates), 2, 2))
+    J[:, 0, 0] = 1.0
+    J[:, 0, 1] = g[:, -1]
+    J[:, 1, 1] = (rates if amplitude else 1.0) * np.exp(rates * x[-1])
+    mean = np.einsum("gij,gj->gi", J, ck)
+    cov = np.einsum("gij,gjk,glk->gil", J, ck_cov, J)
+    return RatePosterior(rates, prob / prob.sum(), mean, (cov + cov.transpose(0, 2, 1)) / 2.0,
+                         top + math.log(float(prob.sum())), scale)
+
+
+def fleet_posteriors(x: FloatArray, y: FloatArray, w: FloatArray,
+                     bend: tuple[float, float], slope: tuple[float, float],
+                     rate: tuple[float, float], amplitude: tuple[float, float],
+                     grid: int = 200) -> ShapePosteriors:
+    """Both shapes' posteriors under the fleet's priors, and the Bayes factor
+    between them.
+
+    Both shapes are written from the series' origin (``x = 0``: the baseline
+    when tests are counted, the first check when days or hours are):
+
+    - the **line** as its peers wore it, ``y = c + s·(exp(b·x) − 1)/b``: the
+      slope ``s`` at the origin and a bend ``b`` near 0 (a straight line as
+      ``b`` → 0), so a fleet whose measured wear curves up a little teaches
+      that too;
+    - the **exponential**, ``y = c + A·(exp(b·x) − 1)``: Gebraeel (2006) puts
+      his fleet's priors on the same amplitude ``A`` and rate ``b``.
+
+    The level c has the same flat prior in both, so it cancels from the
+    Bayes factor; every other coefficient has the fleet's normal prior, so
+    both marginal likelihoods are proper and their ratio weighs the fleet's
+    line against the fleet's curve: a unit whose start looks straight but far
+    slower than the peers' lines is weighed against their curve too. For a
+    given ``b`` each shape is linear in (c, s) or (c, A), integrated in closed
+    form; ``b`` is taken on a grid.
 
     Parameters
     ----------
     x, y, w : ndarray
         The tests' times [test (or d, h)], the change towards the threshold
         [%] and each test's weight [1 / %²] (:func:`weights`).
-    rate, amplitude, slope : tuple of float
-        The fleet's (mean, sd) of the exponential's rate ``b`` [1 per x], its
-        amplitude ``A`` [%] and the line's slope ``s`` [% per x].
+    bend, slope : tuple of float
+        The fleet's (mean, sd) of the line's bend ``b`` (signed: below 0 a
+        line that bows down) [1 per x] and its slope at the origin ``s`` [%
+        per x].
+    rate, amplitude : tuple of float
+        The fleet's (mean, sd) of the exponential's rate ``b`` [1 per x] and
+        amplitude ``A`` [%].
     grid : int
-        Rates on the grid (log-spaced over 0.01–30 per the series' span).
+        Rates on each grid: the exponential's log-spaced over 0.01–30 per
+        the series' span, the line's bends evenly over the fleet's ± 6 sd.
 
     Returns
     -------
-    RatePosterior
-        The rate's posterior, (α, β) at the last test given each rate, and
-        ``log_bayes`` over the line with its slope prior. ``σ²`` as
-        :func:`rate_posterior` takes it.
+    ShapePosteriors
+        Each posterior's ``log_bayes`` is over the other shape; ``σ²`` is the
+        most flexible free fit's residual variance, at least 1, for both.
 
     Example
     -------
     >>> x = np.arange(1.0, 9.0)                     # a curve whose start looks straight
     >>> y = 10.0 * np.expm1(0.25 * x)
-    >>> p = anchored_posterior(x, y, np.ones(8), (0.25, 0.05), (10.0, 2.0), (40.0, 10.0))
-    >>> p.log_bayes > 5, abs(float(p.prob @ p.rates) - 0.25) < 0.01
+    >>> p = fleet_posteriors(x, y, np.ones(8), (0.01, 0.01), (40.0, 10.0), (0.25, 0.05),
+    ...                      (10.0, 2.0))
+    >>> p.log_bayes > 5, abs(float(p.exponential.prob @ p.exponential.rates) - 0.25) < 0.01
     (True, True)
     """
     span = float(x[-1] - x[0])
-    rates = np.geomspace(*_RATE_SPAN, grid) / span
     with np.errstate(over="ignore"):
-        g = np.expm1(np.outer(rates, x))
-    ok = np.all(np.isfinite(g), axis=1)
-    rates, g = rates[ok], g[ok]
+        g = np.expm1(np.outer(np.geomspace(*_RATE_SPAN, grid) / span, x))
+    g = g[np.all(np.isfinite(g), axis=1)]
     # the scale: the most flexible free fit's residual variance, at least 1
     free = _normal_evidence(np.vstack([x, g]), y, w, 0.0, math.inf, 1.0)[3]
     scale = max(float(free.min()) / max(len(x) - 3, 1), 1.0)
-    line = float(_normal_evidence(x[None, :], y, w, slope[0], slope[1], scale)[0][0])
-    log_e, ck, ck_cov, _ = _normal_evidence(g, y, w, amplitude[0], amplitude[1], scale)
-    logprior = -0.5 * ((rates - rate[0]) / rate[1]) ** 2 + np.log(np.gradient(rates))
-    logprior -= float(logprior.max()) + math.log(float(np.exp(logprior - logprior.max()).sum()))
-    log_post = log_e + logprior
-    top = float(log_post.max())
-    prob = np.exp(log_post - top)
-    # (c, A) at the origin to (α, β) at the last test: α = c + A·g(x_last), β = A·b·exp(b·x_last)
-    J = np.zeros((len(rates), 2, 2))
-    J[:, 0, 0] = 1.0
-    J[:, 0, 1] = g[:, -1]
-    J[:, 1, 1] = rates * np.exp(rates * x[-1])
-    coef = np.einsum("gij,gj->gi", J, ck)
-    cov = np.einsum("gij,gjk,glk->gil", J, ck_cov, J)
-    return RatePosterior(rates, prob / prob.sum(), coef, (cov + cov.transpose(0, 2, 1)) / 2.0,
-                         top + math.log(float(prob.sum())) - line, scale)
+    # the bend's grid: the fleet's bends ± 6 sd, within a slope that grows or
+    # falls e^3-fold over the span, evenly spaced (it crosses 0: a straight line)
+    half = max(6.0 * bend[1], 0.01 / span)
+    bends = np.linspace(max(bend[0] - half, -3.0 / span), min(bend[0] + half, 3.0 / span), grid)
+    line = _curve(x, y, w, bends, bend, slope, False, scale)
+    curve = _curve(x, y, w, np.geomspace(*_RATE_SPAN, grid) / span, rate, amplitude, True, scale)
+    log_bayes = curve.log_bayes - line.log_bayes
+    return ShapePosteriors(replace(line, log_bayes=-log_bayes),
+                           replace(curve, log_bayes=log_bayes), log_bayes)

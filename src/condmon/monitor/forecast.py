@@ -42,17 +42,22 @@ MATLAB's Predictive Maintenance Toolbox, fit such priors on a fleet):
   rate, updated with the weighted least-squares likelihood (a flat prior on
   the other coefficients);
 - :class:`FleetPrior` (:func:`fleet_wear_prior`, what ``condmon forecast``
-  uses): the shape as well. The line's slope is updated as above; the
-  exponential's growth rate ``b`` and amplitude ``A`` (of ``c + A·(exp(b·x)
-  − 1)``, Gebraeel's two priors) by their exact posterior, ``b`` on a grid
-  (:func:`~condmon.monitor.degradation.anchored_posterior`: for a given
-  ``b`` the model is linear, so the level and ``A`` are integrated out in
-  closed form), and the two models are weighted by the fleet's odds of the
-  exponential times the Bayes factor of the unit's tests, in place of
-  Akaike's weights. Both models then carry the fleet's proper priors, so the
-  factor weighs the fleet's line against the fleet's curve: a unit whose
-  first half looks straight, but far slower than its peers' lines, is
-  forecast with their curve before its own tests could show it.
+  uses): the shape as well. The exponential's growth rate ``b`` and
+  amplitude ``A`` (of ``c + A·(exp(b·x) − 1)``, Gebraeel's two priors), and
+  the line's slope ``s`` and bend ``b`` (of ``c + s·(exp(b·x) − 1)/b``, ``b``
+  near 0: the fleet's lines may bend a little) by their exact posteriors,
+  ``b`` on a grid (:func:`~condmon.monitor.degradation.fleet_posteriors`:
+  for a given ``b`` each shape is linear, so the level and ``A`` or ``s``
+  are integrated out in closed form), and the two shapes weighted by the
+  fleet's odds of the exponential times the Bayes factor of the unit's
+  tests, in place of Akaike's weights. Both carry the fleet's proper priors,
+  so the factor weighs the fleet's line against the fleet's curve: a unit
+  whose first half looks straight, but far slower than its peers' lines, is
+  forecast with their curve before its own tests could show it. Without the
+  line's bend or the curve's amplitude (fewer than 2 peers give them), the
+  line's slope is updated alone and the exponential's rate is weighed
+  against a line with a flat slope
+  (:func:`~condmon.monitor.degradation.rate_posterior`).
 
 After a few tests the fleet carries the forecast; after many, the unit's own
 tests. With no fleet history the prior is vague, the forecast the unit's
@@ -76,7 +81,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from condmon.errors import DataError
 from condmon.monitor.degradation import (
-    MIN_TESTS, Fit, RatePosterior, aicc_weights, anchored_posterior, checked_series, growth, rate_posterior, weights,
+    MIN_TESTS, Fit, RatePosterior, aicc_weights, checked_series, fleet_posteriors, growth,
+    rate_posterior, weights,
 )
 from condmon.monitor.degradation import fits as degradation_fits
 from condmon.monitor.prior import (
@@ -121,8 +127,9 @@ class Forecast:
     coef : tuple of float
         The chosen model's fitted coefficients: ``(a, b)`` of ``change = a +
         b·x`` (linear; also for "no trend"), or ``(α, β, r)`` of ``|change| =
-        α + β·(exp(r·t) − 1)/r`` with ``t = x − last`` (exponential). [%, % per
-        x (linear); %, % per x, 1 per x (exponential)]
+        α + β·(exp(r·t) − 1)/r`` with ``t = x − last`` (exponential, and a
+        line bent as its fleet's lines were). [%, % per x (linear); %, % per
+        x, 1 per x (exponential)]
     cov : tuple of tuple of float
         Their covariance matrix.
     last : float
@@ -175,7 +182,7 @@ class Forecast:
         t = np.asarray(ahead, dtype=np.float64)
         coef = np.asarray(self.coef, dtype=np.float64)
         cov = np.asarray(self.cov, dtype=np.float64)
-        if self.model != "exponential":
+        if len(coef) == 2:   # the straight line (a line bent as its fleet's has three)
             x = self.last + t
             a, b = coef
             mid = a + b * x
@@ -311,38 +318,47 @@ def _scale(fit: Fit, n: int) -> float:
 
 def _with_shape(prior: FleetPrior, found: dict[str, Fit], xa: FloatArray, ya: FloatArray,
                 w: FloatArray, weight: dict[str, float]
-                ) -> tuple[dict[str, float], RatePosterior | None, str]:
-    """The models' weights under the fleet's shape prior, the exponential's
-    rate posterior (None: no rate prior), and the note on how they were weighed.
+                ) -> tuple[dict[str, float], dict[str, RatePosterior], str]:
+    """The models' weights under the fleet's shape prior, the posteriors the
+    forecast draws from in place of a model's normal fit (none: no rate
+    prior), and the note on how they were weighed.
 
-    With the fleet's growth rate, the exponential's weight is its posterior
-    probability: the fleet's odds times the Bayes factor of the unit's tests.
-    With the fleet's slope and amplitude as well, both models carry proper
-    priors and the Bayes factor is between the fleet's line and the fleet's
-    curve (:func:`~condmon.monitor.degradation.anchored_posterior`): a unit
-    whose start looks straight but far slower than the peers' lines is
-    weighed against their curve too. With the rate alone, against the line
-    with a flat slope (:func:`~condmon.monitor.degradation.rate_posterior`).
-    Without a rate, the Akaike weights times the fleet's odds (Burnham and
-    Anderson's prior model probabilities)."""
+    With the fleet's priors on every coefficient of both shapes (the line's
+    slope and bend, the exponential's rate and amplitude), the exponential's
+    weight is its posterior probability: the fleet's odds times the Bayes
+    factor of the unit's tests between the fleet's line and the fleet's
+    curve (:func:`~condmon.monitor.degradation.fleet_posteriors`), and both
+    are drawn from their posteriors: a unit whose start looks straight but
+    far slower than the peers' lines is weighed against their curve too.
+    With the growth rate alone, the factor is against the line with a flat
+    slope (:func:`~condmon.monitor.degradation.rate_posterior`). Without it,
+    the Akaike weights times the fleet's odds (Burnham and Anderson's prior
+    model probabilities)."""
     p = prior.p_exponential
-    amp = prior.amplitude
     if prior.exponential.informative:
-        both = prior.linear.informative and amp is not None and amp.informative
-        post = anchored_posterior(
-            xa, ya, w, (prior.exponential.mean, prior.exponential.sd),
-            (amp.mean, amp.sd), (prior.linear.mean, prior.linear.sd)
-        ) if both and amp is not None else rate_posterior(
-            xa, ya, w, prior.exponential.mean, prior.exponential.sd)
-        odds = math.log(p / (1.0 - p)) + post.log_bayes
+        pieces = (prior.bend, prior.start, prior.amplitude)
+        known = [q for q in pieces if q is not None and q.informative]
+        if prior.linear.informative and len(known) == len(pieces):
+            bend, start, amp = known
+            both = fleet_posteriors(xa, ya, w, (bend.mean, bend.sd), (start.mean, start.sd),
+                                    (prior.exponential.mean, prior.exponential.sd),
+                                    (amp.mean, amp.sd))
+            posts = {"linear": both.linear, "exponential": both.exponential}
+            against = " against the fleet's line"
+        else:
+            posts = {"exponential": rate_posterior(xa, ya, w, prior.exponential.mean,
+                                                   prior.exponential.sd)}
+            against = ""
+        log_bayes = posts["exponential"].log_bayes
+        odds = math.log(p / (1.0 - p)) + log_bayes
         w_exp = 1.0 / (1.0 + math.exp(-odds)) if odds > -700 else 0.0
-        return ({"linear": 1.0 - w_exp, "exponential": w_exp}, post,
-                f"Bayes factor {math.exp(min(post.log_bayes, 700.0)):.3g} of the unit's tests"
-                + (" against the fleet's line" if both else ""))
+        return ({"linear": 1.0 - w_exp, "exponential": w_exp}, posts,
+                f"Bayes factor {math.exp(min(log_bayes, 700.0)):.3g} of the unit's tests"
+                + against)
     if "exponential" not in found:
-        return weight, None, "no growing exponential fits the unit's tests"
+        return weight, {}, "no growing exponential fits the unit's tests"
     raw = {"linear": (1.0 - p) * weight["linear"], "exponential": p * weight["exponential"]}
-    return ({k: v / sum(raw.values()) for k, v in raw.items()}, None,
+    return ({k: v / sum(raw.values()) for k, v in raw.items()}, {},
             "Akaike weights of the unit's tests")
 
 
@@ -420,14 +436,15 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
     n = len(xa)
     w = weights(sa, spread)
     aic, weight = aicc_weights(fits, n) if len(fits) > 1 else ({}, {"linear": 1.0})
-    posterior = None
+    posts: dict[str, RatePosterior] = {}
+    straight: Fit | None = None   # the line's own fit, for "no trend", when a posterior bends it
     if shaped and isinstance(prior, FleetPrior):
-        weight, posterior, how = _with_shape(prior, fits, xa, sign * ya, w, weight)
-        if posterior is not None:
-            mean, cov = posterior.moments()
-            fits["exponential"] = (mean, cov, 0.0)
+        weight, posts, how = _with_shape(prior, fits, xa, sign * ya, w, weight)
         if prior.linear.informative:
             fits["linear"] = updated(fits["linear"], prior.linear)
+        straight = fits["linear"]
+        for m, post in posts.items():   # (α, β, b) from the last test, towards the threshold
+            fits[m] = (*post.moments(), 0.0)
         model = max(weight, key=lambda k: weight[k])
         if len(weight) > 1:
             notes.append(f"{model} chosen by the fleet's shape and the unit's evidence "
@@ -454,10 +471,9 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
             notes.append(prior.describe())
     coef, cov, _ = fits[model]
     last = float(xa[-1])
-    if model == "linear":
-        slope, slope_sd = float(coef[1]), math.sqrt(max(cov[1, 1], 0.0))
-    else:  # d|y|/dx at the last test: β, towards the threshold
-        slope, slope_sd = sign * float(coef[1]), math.sqrt(max(cov[1, 1], 0.0))
+    slope, slope_sd = float(coef[1]), math.sqrt(max(cov[1, 1], 0.0))
+    if model in posts or model == "exponential":   # β at the last test, towards the threshold
+        slope *= sign
     interval = (slope - _Z90 * slope_sd, slope + _Z90 * slope_sd)
     towards = interval[0] > 0 if sign > 0 else interval[1] < 0
     if not towards:   # 0, or the wrong direction, inside the interval
@@ -465,12 +481,13 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
                      "holds no steady move towards the threshold")
         return Forecast("no trend", threshold, slope, interval, None,
                         0.0 if horizon is not None else None, n, tuple(notes),
-                        *_fitted(fits["linear"]), last)
-    # each model's draws in proportion to its evidence weight (model averaging)
+                        *_fitted(straight or fits["linear"]), last)
+    # each model's draws in proportion to its evidence weight (model averaging);
+    # a posterior's draws are (α, β, b) from the last test, drawn as the exponential's
     rng = np.random.default_rng(seed)
-    lefts = [_left(m, posterior.draws if m == "exponential" and posterior else
-                   _normal_draws(fits[m]),
-                   posterior.scale if m == "exponential" and posterior else _scale(fits[m], n),
+    lefts = [_left("exponential" if m in posts else m,
+                   posts[m].draws if m in posts else _normal_draws(fits[m]),
+                   posts[m].scale if m in posts else _scale(fits[m], n),
                    float(np.median(1.0 / w)), threshold, last, rng, round(_DRAWS * weight[m]),
                    step)
              for m in sorted(weight)]

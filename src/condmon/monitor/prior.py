@@ -34,7 +34,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from condmon.errors import DataError
-from condmon.monitor.degradation import MIN_TESTS, Fit, aicc_weights, checked_series, fits
+from condmon.monitor.degradation import (
+    MIN_TESTS, Fit, FloatArray, aicc_weights, bent_fit, checked_series, fits, weights,
+)
 
 __all__ = ["RatePrior", "FleetPrior", "UnitWear", "fleet_prior", "fleet_wear_prior", "unit_rate",
            "unit_wear", "prior_from_rates", "prior_from_wear", "updated", "Prior"]
@@ -215,12 +217,22 @@ class UnitWear:
         The exponential's amplitude ``A`` of ``c + A·(exp(b·x) − 1)`` from the
         series' origin, and its variance (None: none fits, or kept before it
         was). [%; %²]
+    start, bend : tuple of float or None
+        The series as a bent line ``c + s·(exp(b·x) − 1)/b``, towards the side
+        it moved to: its slope ``s`` at the origin [% per x] and its bend
+        ``b`` [1 per x], signed (a line that bows down bends below 0), each
+        with its variance (:func:`~condmon.monitor.degradation.bent_fit`;
+        None: it did not move).
+    span : float or None
+        ``x`` of the last test less that of the first. [test (or d, h)]
     """
 
     exponential_weight: float
     linear: tuple[float, float]
     exponential: tuple[float, float] | None
     amplitude: tuple[float, float] | None = None
+    start: tuple[float, float] | None = None
+    bend: tuple[float, float] | None = None
     span: float | None = None
 
     @property
@@ -244,14 +256,29 @@ def unit_wear(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float) -> 
         A series :func:`~condmon.monitor.forecast.forecast_series` would refuse.
     """
     xa, ya, sa = checked_series(x, change, se, spread)
-    tail = float(np.mean(ya[-MIN_TESTS:]))
-    found = fits(xa, ya, sa, spread, 1.0 if tail >= 0 else -1.0)
+    sign = 1.0 if float(np.mean(ya[-MIN_TESTS:])) >= 0 else -1.0
+    found = fits(xa, ya, sa, spread, sign)
     lin = found["linear"]
     exp = found.get("exponential")
     weight = aicc_weights(found, len(xa))[1].get("exponential", 0.0)
+    start, bend = _bent_line(xa, sign * ya, weights(sa, spread))
     return UnitWear(weight, _rate_of(lin), None if exp is None else _rate_of(exp),
-                    None if exp is None else _amplitude_of(exp, float(xa[-1])),
+                    None if exp is None else _amplitude_of(exp, float(xa[-1])), start, bend,
                     float(xa[-1] - xa[0]))
+
+
+def _bent_line(x: FloatArray, y: FloatArray, w: FloatArray
+               ) -> tuple[tuple[float, float] | None, tuple[float, float] | None]:
+    """The slope at the origin and the bend of the bent line
+    (:func:`~condmon.monitor.degradation.bent_fit`), each with its variance;
+    None for both where the series has fewer than 4 tests or does not rise
+    (its slope not above its own error)."""
+    if len(x) < 4:
+        return None, None
+    coef, cov, _ = bent_fit(x, y, w)
+    if not coef[1] > math.sqrt(max(float(cov[1, 1]), 0.0)):
+        return None, None
+    return (float(coef[1]), float(cov[1, 1])), (float(coef[2]), float(cov[2, 2]))
 
 
 def _rate_of(fit: Fit) -> tuple[float, float]:
@@ -287,6 +314,11 @@ class FleetPrior:
         The exponential's amplitude ``A`` (:class:`UnitWear`), from the peers
         that wore exponentially (its ``mean`` and ``sd`` in %; None: not
         known). [%]
+    bend, start : RatePrior or None
+        How the peers that wore linearly bent: the bend ``b`` of their line
+        ``c + s·(exp(b·x) − 1)/b`` (:class:`UnitWear`) [1 per x], and its
+        slope ``s`` at the origin [% per x], towards the threshold (None: not
+        known).
     """
 
     p_exponential: float
@@ -294,6 +326,8 @@ class FleetPrior:
     exponential: RatePrior
     units: int
     amplitude: RatePrior | None = None
+    bend: RatePrior | None = None
+    start: RatePrior | None = None
 
     def __post_init__(self) -> None:
         if not 0.0 < self.p_exponential < 1.0:
@@ -318,20 +352,24 @@ class FleetPrior:
         for p in (self.linear, self.exponential):
             if p.informative:
                 what.append(p.describe().split(": ", 1)[1])
-        if self.amplitude is not None and self.amplitude.informative:
-            what.append(f"amplitude {self.amplitude.mean:.3g} ± {self.amplitude.sd:.2g} %")
+        for label, q, unit in (("amplitude", self.amplitude, " %"),
+                               ("the lines' bend", self.bend, f" /{self.linear.per}")):
+            if q is not None and q.informative:
+                what.append(f"{label} {q.mean:.3g} ± {q.sd:.2g}{unit}")
         k = self.exponential.units
         return (f"fleet prior from {self.units} units ({k} wore exponentially): "
                 + "; ".join(what))
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form."""
-        amp = self.amplitude
+        def plain(p: RatePrior | None) -> dict[str, Any] | None:
+            return None if p is None else {"mean": p.mean, "sd": p.sd if p.informative else None,
+                                           "units": p.units}
+
         return {"p_exponential": self.p_exponential, "units": self.units,
                 "linear": self.linear.to_dict(), "exponential": self.exponential.to_dict(),
-                "amplitude": None if amp is None else
-                {"mean": amp.mean, "sd": amp.sd if amp.informative else None,
-                 "units": amp.units}}
+                "amplitude": plain(self.amplitude), "bend": plain(self.bend),
+                "start": plain(self.start)}
 
 
 #: A prior :func:`~condmon.monitor.forecast.forecast_series` takes.
@@ -341,19 +379,25 @@ Prior = RatePrior | FleetPrior
 def prior_from_wear(wears: Sequence[UnitWear], per: str = "test") -> FleetPrior:
     """The fleet's prior (:class:`FleetPrior`) from its units' wear
     (:func:`unit_wear`): the shape by the share that wore exponentially, the
-    slope from those that wore linearly, the growth rate from the others (each
-    vague from fewer than 2 units); vague with no units."""
+    slope and bend from those that wore linearly, the growth rate and
+    amplitude from the others (each vague from fewer than 2 units that give
+    it); vague with no units."""
     if not wears:
         return FleetPrior.vague(per)
-    bent = [w for w in wears if w.shape == "exponential" and w.exponential]
-    straight = [w.linear for w in wears if not (w.shape == "exponential" and w.exponential)]
-    amplitudes = [w.amplitude for w in bent if w.amplitude]
-    return FleetPrior((len(bent) + 1.0) / (len(wears) + 2.0),
-                      prior_from_rates(straight, "linear", per),
-                      prior_from_rates([w.exponential for w in bent if w.exponential],
-                                       "exponential", per), len(wears),
-                      prior_from_rates(amplitudes, "exponential", per)
-                      if len(amplitudes) == len(bent) else None)
+    curved = [w for w in wears if w.shape == "exponential" and w.exponential]
+    straight = [w for w in wears if not (w.shape == "exponential" and w.exponential)]
+
+    def among(values: list[tuple[float, float] | None], model: str) -> RatePrior:
+        # a peer that did not rise has no bend: the others teach it
+        return prior_from_rates([v for v in values if v is not None], model, per)
+
+    return FleetPrior(
+        (len(curved) + 1.0) / (len(wears) + 2.0),
+        prior_from_rates([w.linear for w in straight], "linear", per),
+        prior_from_rates([w.exponential for w in curved if w.exponential], "exponential", per),
+        len(wears), among([w.amplitude for w in curved], "exponential"),
+        among([w.bend for w in straight], "exponential"),
+        among([w.start for w in straight], "linear"))
 
 
 def fleet_wear_prior(series: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike, float]],

@@ -98,9 +98,9 @@ class FleetHistory:
         if fresh:
             marks = self.store.history_marks(fresh)
             for p, (mark, rates) in self.store.kept_rates(fresh).items():
-                # unchanged since, and kept whole (rates kept before the exponential's
-                # amplitude was are read again): its wear, whatever is asked
-                if mark == marks.get(p, 0) and all(v is None or len(v) >= 5
+                # unchanged since, and kept whole (rates kept before the curves' origin
+                # was are read again): its wear, whatever is asked
+                if mark == marks.get(p, 0) and all(v is None or len(v) >= 7
                                                    for v in rates.values()):
                     self._current.add(p)
                     for k, v in rates.items():
@@ -112,7 +112,9 @@ class FleetHistory:
     def rates_of(self, unit: str) -> dict[str, list[Any] | None] | None:
         """``unit``'s own wear, ``{"<by>|<parameter>": [exponential weight,
         [slope, variance], [growth rate, variance] or None, [amplitude,
-        variance] or None, span]}`` (:class:`UnitWear`)
+        variance] or None, [slope at the origin, variance] or None, [bend,
+        variance] or None, span]}``
+        (:class:`UnitWear`)
         (None when it has not degraded or has no checks since its baseline):
         what is kept with its forecast for its peers' priors."""
         if not self.degraded(unit):
@@ -127,7 +129,9 @@ class FleetHistory:
         return {f"{by}|{key}": None if (w := self._unit_wear(unit, key, by)) is None else
                 [w.exponential_weight, list(w.linear),
                  None if w.exponential is None else list(w.exponential),
-                 None if w.amplitude is None else list(w.amplitude), w.span]
+                 None if w.amplitude is None else list(w.amplitude),
+                 None if w.start is None else list(w.start),
+                 None if w.bend is None else list(w.bend), w.span]
                 for key in baseline.parameters}
 
     def checks(self, unit: str) -> tuple[Baseline, pd.DataFrame]:
@@ -343,13 +347,14 @@ def _wear_from(kept: Any) -> UnitWear | None:
     """A kept :class:`UnitWear` (:meth:`FleetHistory.rates_of`) back."""
     if kept is None:
         return None
-    weight, linear, exponential, amplitude, span = kept
+    weight, linear, exponential, amplitude, start, bend, span = kept
 
     def pair(v: Any) -> tuple[float, float] | None:
         return None if v is None else (float(v[0]), float(v[1]))
 
     return UnitWear(float(weight), (float(linear[0]), float(linear[1])), pair(exponential),
-                    pair(amplitude), None if span is None else float(span))
+                    pair(amplitude), pair(start), pair(bend),
+                    None if span is None else float(span))
 
 
 def prior_units() -> int:

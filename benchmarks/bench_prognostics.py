@@ -1,6 +1,7 @@
 """Prognostics on simulated fleets with known truth (the actuator, nonlinear effects on).
 
-    python benchmarks/bench_prognostics.py [--units 30] [--only rtf|calibration|drift]
+    python benchmarks/bench_prognostics.py [--units 30] [--first 0] [--fleets 1]
+                                           [--only rtf|calibration|drift]
     pip install exponential-degradation-model   # the peer (optional; skipped with a note)
 
 1. Run to failure. Each unit wears one parameter (friction D with the Coulomb
@@ -28,7 +29,10 @@
    a forecaster who knew each unit's wear exactly would say, against the
    check whose noisy estimate first crossed; its misses show how much of
    the ±20 % the estimates' scatter and bias and the checks' spacing take
-   (a forecast of the estimates, bias and all, can do better).
+   (a forecast of the estimates, bias and all, can do better). ``--fleets
+   K`` runs K fleets, each with seeds of its own, and scores each and all
+   of them pooled: the fleets after the first are held out from whatever
+   the method was tuned on.
 
 2. Calibration. Healthy units (each its own 10-test baseline, then 20
    checks) at alpha = 0.01: the observed false-alarm rate of the statistical
@@ -360,6 +364,26 @@ def _rtf_section(n_units: int, peer: bool, first: int = 0) -> dict[str, Any]:
             "per_unit": res["per_unit"], "peer": peer}
 
 
+def _fleets_summary(fleets: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Each fleet's and the pooled α-λ and coverage, per method and λ."""
+    rows = []
+    methods = [m for m in ("condmon, no prior", "condmon, fleet prior (leave-one-out)",
+                           "peer (Gebraeel 2006)") if any(m in r for f in fleets
+                                                           for r in f["per_unit"])]
+    for lam in LAMBDAS:
+        for name in methods:
+            for f in fleets + [None]:   # None: all of them
+                per = ([r for g in fleets for r in g["per_unit"]] if f is None
+                       else f["per_unit"])
+                pick = [r for r in per if r["lambda"] == lam and name in r]
+                sc = _score([tuple(r[name]) if r[name] is not None else None for r in pick],
+                            [r["true_rul"] for r in pick])
+                rows.append({"lambda": lam, "method": name,
+                             "fleet": "pooled" if f is None else f"from {f['first']}",
+                             "units": len(pick), **sc})
+    return rows
+
+
 def _detector_sections(cal_units: int, drift_units: int) -> dict[str, Any]:
     cal = calibration(demo_rig(), cal_units)
     print()
@@ -384,6 +408,9 @@ def main() -> int:
     ap.add_argument("--units", type=int, default=30)
     ap.add_argument("--first", type=int, default=0,
                     help="the first run-to-failure unit (its seeds): another fleet of as many")
+    ap.add_argument("--fleets", type=int, default=1,
+                    help="run-to-failure fleets, each of --units with seeds of its own "
+                         "(from --first on), scored each and pooled")
     ap.add_argument("--cal-units", type=int, default=CAL_UNITS)
     ap.add_argument("--drift-units", type=int, default=DRIFT_UNITS)
     ap.add_argument("--only", choices=SECTIONS, action="append",
@@ -402,7 +429,19 @@ def main() -> int:
     doc: dict[str, Any] = {}
     with threadpool_limits(limits=1):
         if "rtf" in only:
-            doc["run_to_failure"] = _rtf_section(args.units, peer, args.first)
+            fleets = []
+            for k in range(args.fleets):
+                first = args.first + k * args.units
+                if args.fleets > 1:
+                    print(f"\n== fleet of units {first}-{first + args.units - 1}")
+                fleets.append({"first": first, **_rtf_section(args.units, peer, first)})
+            doc["run_to_failure"] = fleets[0] if len(fleets) == 1 else {"fleets": fleets}
+            if len(fleets) > 1:
+                summary = _fleets_summary(fleets)
+                doc["run_to_failure"]["summary"] = summary
+                print()
+                print(table(summary, f"{len(fleets)} fleets of {args.units} units: α-λ and "
+                                     "90 % interval coverage, each and pooled"))
         if only & {"calibration", "drift"}:
             if _statistics_config() is None:
                 print("\nnote: no calibrated statistical detector (condmon.monitor.statistics) "
@@ -414,6 +453,8 @@ def main() -> int:
         "bench_prognostics_" + "_".join(k for k in SECTIONS if k in only)
     if args.first:
         name += f"_from{args.first}"
+    if args.fleets > 1:
+        name += f"_x{args.fleets}"
     path = write_json(name, doc)
     print(f"\nwrote {path} ({doc['seconds']:.0f} s)")
     return 0

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -70,6 +71,37 @@ def growth(b: float, t: FloatArray) -> FloatArray:
     return np.asarray(t if b == 0 else np.expm1(b * t) / b, dtype=np.float64)
 
 
+def _rate_fit(t: FloatArray, y: FloatArray, w: FloatArray, grid: FloatArray,
+              flat_is_line: bool, xatol: float) -> Fit | None:
+    """``y = level + slope·growth(b, t)`` weighted: for a given rate the model
+    is linear in (level, slope), so the rate is taken on ``grid`` and refined
+    between its neighbours. Coefficients (level, slope, b), their covariance
+    (Gauss-Newton), weighted RSS; None where ``flat_is_line`` and the grid's
+    first (flattest) rate fits best. ``xatol``: the rate's tolerance. [1 per x]"""
+    sw = np.sqrt(w)
+
+    def profile(b: float) -> tuple[float, FloatArray]:
+        X = np.column_stack([np.ones_like(t), growth(b, t)])
+        coef, *_ = np.linalg.lstsq(X * sw[:, None], y * sw, rcond=None)
+        r = (y - X @ coef) * sw
+        return float(r @ r), np.asarray(coef, dtype=np.float64)
+
+    i = int(np.argmin([profile(float(b))[0] for b in grid]))
+    if flat_is_line and i == 0:    # flattest rate best: a line, not an exponential
+        return None
+    from condmon.monitor.bounded import bounded_minimum  # scipy's bounded steps, no scipy import
+
+    b = bounded_minimum(lambda rate: profile(float(rate))[0], float(grid[max(i - 1, 0)]),
+                        float(grid[min(i + 1, len(grid) - 1)]), xatol=xatol)
+    best, (level, slope) = profile(b)
+    g = growth(b, t)
+    dg = t * t / 2.0 if b == 0.0 else (t * np.exp(b * t) - g) / b
+    J = np.column_stack([np.ones_like(t), g, slope * dg])
+    scale = max(best / max(len(t) - 3, 1), 1.0)
+    cov = np.asarray(np.linalg.pinv((J * w[:, None]).T @ J) * scale, dtype=np.float64)
+    return np.array([level, slope, b]), cov, best
+
+
 def exp_fit(x: FloatArray, y: FloatArray,
             w: FloatArray) -> Fit | None:
     """Weighted exponential with an offset, written from the last test
@@ -77,37 +109,8 @@ def exp_fit(x: FloatArray, y: FloatArray,
     slope β at the last test and the growth rate b (a line as b → 0).
     Coefficients (α, β, b), their covariance (Gauss-Newton), weighted RSS;
     None where no growing exponential (b above the flat end) fits better."""
-    t = x - x[-1]
-    span = float(x[-1] - x[0])
-    sw = np.sqrt(w)
-
-    def profile(b: float) -> tuple[float, FloatArray]:
-        # for a given rate the model is linear in (α, β)
-        X = np.column_stack([np.ones_like(t), growth(b, t)])
-        coef, *_ = np.linalg.lstsq(X * sw[:, None], y * sw, rcond=None)
-        r = (y - X @ coef) * sw
-        return float(r @ r), np.asarray(coef, dtype=np.float64)
-
-    grid = np.geomspace(*_RATE_SPAN, 64) / span
-    rss = [profile(float(b))[0] for b in grid]
-    i = int(np.argmin(rss))
-    if i == 0:                     # flattest rate best: a line, not an exponential
-        return None
-    from condmon.monitor.bounded import bounded_minimum  # scipy's bounded steps, no scipy import
-
-    b = bounded_minimum(lambda rate: profile(float(rate))[0], float(grid[i - 1]),
-                        float(grid[min(i + 1, len(grid) - 1)]))
-    best, (level, slope) = profile(b)
-    g = growth(b, t)
-    J = np.column_stack([np.ones_like(t), g, slope * (t * np.exp(b * t) - g) / b])
-    scale = max(best / max(len(x) - 3, 1), 1.0)
-    cov = np.asarray(np.linalg.pinv((J * w[:, None]).T @ J) * scale, dtype=np.float64)
-    return np.array([level, slope, b]), cov, best
-
-
-def _bent(b: float, x: FloatArray) -> FloatArray:
-    """``(exp(b·x) − 1)/b``, ``x`` at ``b = 0``."""
-    return np.asarray(x if b == 0.0 else np.expm1(b * x) / b, dtype=np.float64)
+    return _rate_fit(x - x[-1], y, w, np.geomspace(*_RATE_SPAN, 64) / float(x[-1] - x[0]),
+                     True, 1e-5)
 
 
 def bent_fit(x: FloatArray, y: FloatArray, w: FloatArray) -> Fit:
@@ -117,27 +120,8 @@ def bent_fit(x: FloatArray, y: FloatArray, w: FloatArray) -> Fit:
     grows or falls e^3-fold over the span. Coefficients (c, s, b), their
     covariance (Gauss-Newton), weighted RSS."""
     span = float(x[-1] - x[0])
-    sw = np.sqrt(w)
-
-    def profile(b: float) -> tuple[float, FloatArray]:
-        X = np.column_stack([np.ones_like(x), _bent(b, x)])
-        coef, *_ = np.linalg.lstsq(X * sw[:, None], y * sw, rcond=None)
-        r = (y - X @ coef) * sw
-        return float(r @ r), np.asarray(coef, dtype=np.float64)
-
-    grid = np.linspace(-3.0, 3.0, 121) / span
-    i = int(np.argmin([profile(float(b))[0] for b in grid]))
-    from condmon.monitor.bounded import bounded_minimum  # scipy's bounded steps, no scipy import
-
-    b = bounded_minimum(lambda v: profile(float(v))[0], float(grid[max(i - 1, 0)]),
-                        float(grid[min(i + 1, len(grid) - 1)]), xatol=1e-6 / span)
-    best, (level, slope) = profile(b)
-    g = _bent(b, x)
-    dg = x * x / 2.0 if b == 0.0 else (x * np.exp(b * x) - g) / b
-    J = np.column_stack([np.ones_like(x), g, slope * dg])
-    scale = max(best / max(len(x) - 3, 1), 1.0)
-    cov = np.asarray(np.linalg.pinv((J * w[:, None]).T @ J) * scale, dtype=np.float64)
-    return np.array([level, slope, b]), cov, best
+    # never None: the flattest bend is kept like any other
+    return cast(Fit, _rate_fit(x, y, w, np.linspace(-3.0, 3.0, 121) / span, False, 1e-6 / span))
 
 
 def fits(xa: FloatArray, ya: FloatArray, sa: FloatArray, spread: float,

@@ -86,7 +86,12 @@ def _rate_fit(t: FloatArray, y: FloatArray, w: FloatArray, grid: FloatArray,
         r = (y - X @ coef) * sw
         return float(r @ r), np.asarray(coef, dtype=np.float64)
 
-    i = int(np.argmin([profile(float(b))[0] for b in grid]))
+    flat = grid == 0.0
+    with np.errstate(over="ignore", invalid="ignore"):
+        shapes = np.where(flat[:, None], t[None, :],
+                          np.expm1(np.outer(grid, t)) / np.where(flat, 1.0, grid)[:, None])
+    rss = _normal_evidence(shapes, y, w, 0.0, math.inf, 1.0)[3]   # each rate's free fit
+    i = int(np.argmin(np.where(np.isfinite(rss), rss, np.inf)))
     if flat_is_line and i == 0:    # flattest rate best: a line, not an exponential
         return None
     from condmon.monitor.bounded import bounded_minimum  # scipy's bounded steps, no scipy import

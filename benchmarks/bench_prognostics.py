@@ -7,13 +7,14 @@
 1. Run to failure. Each unit wears one parameter (friction D with the Coulomb
    friction alike, or the winding resistance R), linearly (``1 + r·k``) or
    exponentially (``1 + 0.1·(exp(r·k) − 1)``), at a rate drawn so that the true
-   parameter reaches its no-go change (r2: R +40 %, D +600 %) after 12-30 tests.
+   parameter reaches r2 (R +40 %, D +600 %) after 12-30 tests.
    A 3-5 test healthy baseline, then checks (simulate, ``check_test`` into an
-   in-memory store) until the *estimated* change crosses r2: that test is the
-   unit's end of life. The forecasts are made on the stored series (read as
-   ``forecast_unit`` reads it, counted in tests, so in whole checks: the first
-   check whose measured change passes r2; checked against it on the full
-   series) cut at
+   in-memory store) until a check turns no-go: that test is the unit's end of
+   life (short of r2: where the worn parameter's symptom reaches the
+   diagnoser's no-go degree, ``NoGo``). The forecasts are made on the stored
+   series (read as ``forecast_unit`` reads it, to the no-go change it takes,
+   counted in tests, so in whole checks: the first check whose measured
+   change passes it; checked against it on the full series) cut at
    λ = 0.5 and 0.75 of each life, and scored by the α-λ accuracy (α = 0.2: the
    share of units whose median RUL is within ±20 % of the true RUL), the
    coverage of the 90 % interval, and the median relative error. An interval
@@ -75,8 +76,11 @@ from threadpoolctl import threadpool_limits
 
 from _common import table, write_json
 from condmon.monitor.forecast import MIN_TESTS, fleet_wear_prior, forecast_series
+from condmon.models.registry import get_model
+from condmon.monitor.unit_forecast import NoGo
 from condmon.simulate import load_actuator_rig, simulate_actuator
 from condmon.store import open_store
+from condmon.store.forecasts import machine_nogo
 from condmon.workflows.checks import check_test
 from condmon.workflows.demo import load_demo_config
 from condmon.workflows.forecasting import forecast_unit
@@ -135,18 +139,23 @@ def run_to_failure(rig, n_units: int,  # type: ignore[no-untyped-def]
                 f = 1.0 + rate * k if shape == "linear" else 1.0 + EXP_A * math.expm1(rate * k)
                 res = check_test(store, "U", simulate_actuator(
                     rig.with_faults([f"{n}=*{f}" for n in names]), seed=10_000 * u + 100 + k))
-                if res.status != "retest" and res.percent_change[param] >= R2[param]:
+                if res.status == "no-go":        # the check that turned no-go ends its life
                     end = k
                     break
             series = _series(store, "U", param)
+            nogo = machine_nogo(get_model(store.unit_model("U") or "dc-motor"),
+                                current_baseline(store, "U")[0])[0][param]
             # the route's own reading of the same series gives the same forecast
             full = next(p.forecast for p in forecast_unit(store, "U").parameters
                         if p.parameter == param)
-            own = forecast_series(*series, threshold=R2[param], step=1.0)
+            own = forecast_series(*series, threshold=nogo.threshold(*series[1:])[0], step=1.0)
             assert own.remaining == full.remaining, (own, full)
+        # the true parameter's crossing of the change its checks turn no-go at
+        at = abs(nogo.threshold(*series[1:])[0]) / 100.0
+        true_life = at / rate if shape == "linear" else math.log1p(at / EXP_A) / rate
         units.append({"unit": u, "param": param, "shape": shape, "rate": rate,
-                      "true_life": life, "life": len(series[0]) if end else None,
-                      "series": series})
+                      "true_life": true_life, "life": len(series[0]) if end else None,
+                      "series": series, "nogo": nogo})
     return units
 
 
@@ -155,9 +164,9 @@ def _cut(series: Series, t: int) -> Series:
     return x[:t], y[:t], se[:t], spread
 
 
-def _threshold(change: np.ndarray, param: str) -> float:
-    rising = float(np.mean(change[-MIN_TESTS:])) >= 0.0     # as forecast_unit decides
-    return R2[param] if rising else -R2[param]
+def _threshold(series: Series, nogo: NoGo) -> float:
+    """The no-go change the series heads for, as ``forecast_unit`` takes it. [%]"""
+    return nogo.threshold(*series[1:])[0]
 
 
 def _pit(series: Series, threshold: float, prior: Any, truth: float) -> tuple[float, float]:
@@ -203,12 +212,13 @@ def _score(preds: list[tuple[float, ...] | None], truths: list[float]) -> dict[s
             "no_forecast": sum(p is None for p in preds)}
 
 
-def _peer(series: Series, t: int, param: str) -> tuple[float, float, float] | None:
-    """The peer's median RUL and 90 % interval on the first ``t`` tests."""
+def _peer(series: Series, t: int, thr: float) -> tuple[float, float, float] | None:
+    """The peer's median RUL and 90 % interval on the first ``t`` tests, to
+    the no-go change ``thr`` [%]."""
     from exponential_degradation import ExponentialDegradationModel
 
     x, y, _, _ = _cut(series, t)
-    threshold = 1.0 + R2[param] / 100.0
+    threshold = 1.0 + thr / 100.0
     model = ExponentialDegradationModel(threshold=threshold)
     signal = np.maximum(1.0 + y / 100.0, 1e-6)
     try:
@@ -240,7 +250,7 @@ def prognostics(units: list[dict[str, Any]], peer: bool) -> dict[str, Any]:
             truths.append(truth)
             shapes.append(u["shape"])
             s = _cut(u["series"], t)
-            thr = _threshold(s[1], u["param"])
+            thr = _threshold(s, u["nogo"])
             own = forecast_series(*s, threshold=thr, step=1.0)
             others = [v["series"] for v in done if v is not u and v["param"] == u["param"]]
             prior = fleet_wear_prior(others)
@@ -253,7 +263,7 @@ def prognostics(units: list[dict[str, Any]], peer: bool) -> dict[str, Any]:
                 preds[name].append(None if f.remaining is None else
                                    (*f.remaining, *_pit(s, thr, pr, truth)))
             if peer:
-                preds["peer (Gebraeel 2006)"].append(_peer(u["series"], t, u["param"]))
+                preds["peer (Gebraeel 2006)"].append(_peer(u["series"], t, thr))
             per_unit.append({"unit": u["unit"], "lambda": lam, "true_rul": truth,
                              **{k: v[-1] for k, v in preds.items() if v},
                              "model": own.model, "model_with_prior": post.model,

@@ -113,15 +113,15 @@ def wearing(tmp_path_factory: pytest.TempPathFactory, demo_rig) -> tuple[Path, f
                        test_date=f"2026-01-{1 + k:02d}")
             check_test(store, "STABLE", simulate_actuator(demo_rig, seed=200 + k),
                        test_date=f"2026-01-{1 + k:02d}")
-        # the truth: the day the unit's check measures +600 % (dry runs, nothing stored)
+        # the truth: the day the unit's check turns no-go (dry runs, nothing stored)
         for k in range(16, 46):
             f = 1.0 + 0.2 * k
             rig = demo_rig.with_faults([f"D=*{f}", f"coulomb_friction=*{f}"])
             later = check_test(store, "WEAR", simulate_actuator(rig, seed=100 + k),
                                dry_run=True)
-            if later.percent_change["D"] >= 600.0:
+            if later.status == "no-go":
                 return db, float(k - 15)
-    raise AssertionError("friction never reached +600 %")
+    raise AssertionError("the unit never turned no-go")
 
 
 def test_a_unit_whose_friction_rises_is_forecast_by_date(
@@ -134,7 +134,9 @@ def test_a_unit_whose_friction_rises_is_forecast_by_date(
     assert doc["by"] == "days" and doc["earliest"] == "D" and doc["checks"] == 15
     d = next(p for p in doc["parameters"] if p["parameter"] == "D")
     assert d["model"] in ("linear", "exponential") and d["rule"] == "friction increase"
-    assert d["threshold_percent"] == 600.0
+    # a check turns no-go short of r2 = +600 %: where the friction symptom's
+    # degree reaches the diagnoser's no-go degree, its band taken in
+    assert 450.0 < d["threshold_percent"] < 600.0
     assert d["remaining"]["median"] == pytest.approx(truth, rel=0.2)
     assert d["remaining"]["low"] <= truth <= d["remaining"]["high"]
     assert d["date"].startswith("2026-01-") and d["p_within_horizon"] > 0.9
@@ -361,6 +363,9 @@ def test_the_fleet_teaches_a_new_unit_its_rate(tmp_path: Path, demo_rig,  # type
                 check_test(store, unit, simulate_actuator(rig, seed=300 + 10 * k + i),
                            test_date=f"2026-01-{1 + k:02d}", group=group)
         assert {str(s) for s in store.history("OLD1")["status"].dropna()} & {"advisory", "no-go"}
+        # the day each worn unit's checks first turned no-go (the 5th for both)
+        first_nogo = {u: int(store.history(u).query("status == 'no-go'")["test_date"].min().day) - 1
+                      for u in ("OLD1", "OLD2")}
         # the worn units' wear was kept by their own checks: a prior reads it, not
         # their histories, and it is the wear their histories give
         from condmon.store.forecasts import FleetHistory
@@ -401,9 +406,11 @@ def test_the_fleet_teaches_a_new_unit_its_rate(tmp_path: Path, demo_rig,  # type
     assert "(0 wore exponentially)" in prior
     slope = float(prior.split("slope ")[1].split(" ±")[0])
     assert slope == pytest.approx(125.0, rel=0.15)        # [%/day]
-    # both crossed +600 % between their 5th and 6th day; the new unit, on the
-    # same path, is due between 4.5 and 6.5 (its 4th day was its last check)
-    assert d["model"] == "linear" and 0.5 < d["remaining"]["median"] < 2.5
+    # both turned no-go at their 5th day's check (+510 %, short of r2 = +600 %:
+    # where the symptom's degree reaches no-go); the new unit, on the same path,
+    # is due before its 5th day (its 4th day was its last check)
+    assert first_nogo == {"OLD1": 5, "OLD2": 5}
+    assert d["model"] == "linear" and 0.0 < d["remaining"]["median"] < 1.0
     assert main(["forecast", "--unit", "ELSE", "--db", db]) == 0
     assert "prior: no fleet history: vague prior" in capsys.readouterr().out
     # a unit of the group counted in tests (its checks undated): the worn units,
@@ -474,11 +481,11 @@ def test_a_unit_with_operating_hours_is_forecast_in_hours(tmp_path: Path, demo_r
                        EstimateOptions(metadata={"hours": f"{h:.3f}"}),
                        test_date=f"2026-01-{2 + k:02d}")
         assert store.history("H")["hours"].dropna().to_numpy() == pytest.approx(hours, abs=1e-3)
-        # the truth: the hours at which a check measures +600 % (dry runs)
+        # the truth: the hours at which a check turns no-go (dry runs)
         at = next(h for h in np.arange(hours[-1], 2000.0, 5.0)
                   if check_test(store, "H", simulate_actuator(demo_rig.with_faults(
                       [f"D=*{1 + 0.02 * h}", f"coulomb_friction=*{1 + 0.02 * h}"]),
-                      seed=int(h)), dry_run=True).percent_change["D"] >= 600.0)
+                      seed=int(h)), dry_run=True).status == "no-go")
     capsys.readouterr()
     assert main(["forecast", "--unit", "H", "--db", db, "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
@@ -487,7 +494,7 @@ def test_a_unit_with_operating_hours_is_forecast_in_hours(tmp_path: Path, demo_r
     # the truth is one check's crossing (its own scatter: about ±20 h here)
     assert d["remaining"]["median"] == pytest.approx(at - hours[-1], rel=0.4)
     assert d["remaining"]["low"] <= at - hours[-1] <= d["remaining"]["high"]
-    assert d["at_hours"] == pytest.approx(hours[-1] + d["remaining"]["median"])
+    assert d["at_hours"] == pytest.approx(hours[-1] + d["remaining"]["median"], abs=1e-3)
     assert d["at_hours"] == pytest.approx(at, rel=0.1) and d["date"].startswith("2026-01-1")
     assert main(["units", "--db", db, "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["units"][0]["forecast"]["by"] == "hours"
@@ -579,3 +586,74 @@ def test_the_first_check_past_no_go_is_searched_from_where_it_can_pass() -> None
     for q in (0.05, 0.5, 0.95):
         assert abs(np.quantile(fast, q) - np.quantile(every, q)) <= 1.0
     assert math.isclose(np.mean(fast), np.mean(every), abs_tol=0.5)
+
+
+def _falling(key_change: list[float]) -> tuple[object, object]:
+    """Five dated checks of D falling as given [%], and a baseline of D = 2.0 N m s ± 0.05."""
+    import pandas as pd
+
+    from condmon.monitor.baseline import Baseline
+
+    n = len(key_change)
+    checks = pd.DataFrame({"test_date": pd.date_range("2026-03-01", periods=n, freq="D"),
+                           "D_change": key_change, "D_se": np.full(n, 0.02)},
+                          index=range(10, 10 + n))
+    return checks, Baseline(("D",), (2.0,), (0.05,), 5)
+
+
+def test_no_go_that_cannot_come_is_no_trend() -> None:
+    """A friction falling -20 %/day cannot reach -600 % (it is >= 0: -100 % at
+    most), and with no major rule on its fall it cannot turn a check no-go
+    at all: both are "no trend" with the reason, never a date; a rise of a
+    parameter whose own rule is minor (advisory at most) likewise."""
+    from condmon.monitor.unit_forecast import NoGo, forecast_checks
+
+    checks, baseline = _falling([-20.0, -40.0, -60.0, -80.0, -95.0])
+    cases = {"past its plausible values": (NoGo(300.0, 600.0, lower=0.0), "end at -100 %"),
+             "no rule": (NoGo(300.0, 600.0, fall=float("inf")), "no major fault rule names a fall")}
+    for nogo, said in cases.values():
+        f = forecast_checks("U", checks, baseline, {"D": nogo}, {}).parameters[0]
+        assert f.forecast.model == "no trend" and f.forecast.remaining is None and f.date is None
+        assert said in " ".join(f.forecast.notes)
+    plain = forecast_checks("U", checks, baseline, {"D": 600.0}, {}).parameters[0]
+    assert plain.forecast.remaining is not None and plain.forecast.threshold == -600.0
+
+
+def test_the_machine_says_where_each_parameter_turns_a_check_no_go() -> None:
+    """The actuator's rules: a friction or resistance rise names a major fault
+    (no-go at the diagnoser's degree), an inertia rise a minor one (never
+    no-go alone), no fall names a fault; friction and resistance are >= 0."""
+    from condmon.diagnose.diagnoser import nogo_degree
+    from condmon.models.registry import get_model
+    from condmon.store.forecasts import machine_nogo
+
+    nogo, rules = machine_nogo(get_model("dc-motor"))
+    degree = nogo_degree()
+    assert 0.6 < degree < 0.8
+    assert nogo["D"].rise == degree and nogo["R"].rise == degree
+    assert nogo["J"].rise == float("inf") and nogo["D"].fall == float("inf")
+    assert nogo["D"].lower == 0.0 and nogo["R"].lower == 0.0
+    assert rules["high(D)"] == "friction increase"
+    assert rules["high(R)"] == "winding resistance increase"   # "high(R) and not high(L)"
+    # where a D check turns no-go: its degree reached at a 20 % half-width
+    assert nogo["D"].change(20.0, True) == pytest.approx(300.0 + degree * 320.0 - 20.0)
+
+
+def test_a_peer_that_wore_another_way_teaches_nothing() -> None:
+    """Peers whose friction rose teach a rising unit; one whose friction fell,
+    or did not move (it degraded on another parameter), is left out."""
+    from condmon.monitor.prior import prior_from_wear, unit_wear
+
+    x = np.arange(1.0, 21.0)
+    rng = np.random.default_rng(3)
+
+    def wear(slope: float) -> object:
+        return unit_wear(x, slope * x + rng.normal(0.0, 1.0, 20), np.full(20, 1.0), 1.0)
+
+    rose = [wear(s) for s in (4.0, 4.4, 3.6)]
+    fell, flat = wear(-3.0), wear(0.0)
+    assert [w.direction for w in (*rose, fell, flat)] == [1.0, 1.0, 1.0, -1.0, 0.0]
+    prior = prior_from_wear([*rose, fell, flat], direction=1.0)
+    assert prior.units == 3 and prior.linear.mean == pytest.approx(4.0, abs=0.3)
+    mixed = prior_from_wear([*rose, fell, flat])
+    assert mixed.units == 5 and mixed.linear.mean < 3.0

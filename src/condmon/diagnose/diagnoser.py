@@ -8,6 +8,7 @@ centroid defuzzification -> go / advisory / no-go, and each fault's degree.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -18,7 +19,8 @@ from numpy.typing import NDArray
 from condmon.diagnose.rules import RuleBase, evaluate, load_rules
 from condmon.models.regimes import split_key
 
-__all__ = ["FaultDegree", "Diagnosis", "diagnose", "STATUSES", "WATCH_DEGREE", "LEVEL_NOTE"]
+__all__ = ["FaultDegree", "Diagnosis", "diagnose", "STATUSES", "WATCH_DEGREE", "LEVEL_NOTE",
+           "nogo_degree", "single_faults"]
 
 FloatArray = NDArray[np.float64]
 STATUSES = ("go", "advisory", "no-go")
@@ -273,3 +275,58 @@ def _infer(sets: tuple[FloatArray, ...], worst: float, major: float, minor: floa
     condition = _centroid(_UNIVERSE, agg)
     memberships = [float(np.interp(condition, _UNIVERSE, m)) for m in sets]
     return condition, STATUSES[int(np.argmax(memberships))]
+
+
+def nogo_degree(rules: RuleBase | None = None) -> float:
+    """The smallest degree of a single major fault at which a check turns
+    no-go: where the status sets' inference (centroid of go, advisory and
+    no-go) first gives no-go, found by bisection (inf: none does). [-]
+
+    A parameter whose own symptom names a major fault turns a check no-go at
+    this degree of its symptom, short of ``r2`` where the degree is 1
+    (:class:`condmon.monitor.unit_forecast.NoGo`).
+
+    Example
+    -------
+    >>> 0.6 < nogo_degree() < 0.8
+    True
+    """
+    rb = rules or load_rules()
+    sets = tuple(_mf(p) for p in (rb.status.go, rb.status.advisory, rb.status.no_go))
+    if _infer(sets, 1.0, 1.0, 0.0)[1] != "no-go":
+        return math.inf
+    lo, hi = 0.0, 1.0
+    for _ in range(40):          # to 1e-12
+        mid = 0.5 * (lo + hi)
+        if _infer(sets, mid, mid, 0.0)[1] == "no-go":
+            hi = mid
+        else:
+            lo = mid
+    return hi
+
+
+def single_faults(rules: RuleBase | None = None) -> dict[str, FaultDegree]:
+    """The fault each parameter's symptom names on its own: ``{"high(D)":
+    friction increase, "low(R)": ...}``, the first rule (a major one before a
+    minor) that a degree of 1 on that symptom alone, every other 0, fires in
+    full (``high(R) and not high(L)`` counts for ``high(R)``), after the
+    rule base's preprocessing, as :func:`diagnose` takes it.
+
+    Example
+    -------
+    >>> single_faults()["high(D)"].name, single_faults()["high(R)"].name
+    ('friction increase', 'winding resistance increase')
+    """
+    rb = rules or load_rules()
+    out: dict[str, FaultDegree] = {}
+    for p in sorted(rb.parameters()):
+        for kind in ("high", "low"):
+            high = {q: 0.0 for q in rb.parameters()}
+            low = dict(high)
+            (high if kind == "high" else low)[p] = 1.0
+            high, low, _ = _preprocess(high, low, rb)
+            fired = [FaultDegree(r.name, 1.0, r.severity, r.advice, r.severity)
+                     for r in rb.faults if float(evaluate(r.condition, high, low)) >= 1.0 - 1e-12]
+            if fired:
+                out[f"{kind}({p})"] = min(fired, key=lambda f: f.severity != "major")
+    return out

@@ -365,7 +365,7 @@ def _with_shape(prior: FleetPrior, found: dict[str, Fit], xa: FloatArray, ya: Fl
 def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
                     spread: float, threshold: float, horizon: float | None = None,
                     seed: int = 0, *, prior: Prior | None = None,
-                    step: float | None = None) -> Forecast:
+                    step: float | None = None, unreachable: str | None = None) -> Forecast:
     """Forecast when a change series crosses ``threshold``.
 
     Parameters
@@ -399,6 +399,10 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
         growth rate by its exact posterior on a grid), and the models weighted
         by the fleet's odds times the unit's evidence. A note names it. None:
         the unit's own tests alone, no note.
+    unreachable : str, optional
+        Why a check cannot turn no-go this way (a fall past the parameter's
+        plausible values; no rule names the symptom alone): the forecast is
+        then "no trend", with it as a note.
 
     Raises
     ------
@@ -476,9 +480,12 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
         slope *= sign
     interval = (slope - _Z90 * slope_sd, slope + _Z90 * slope_sd)
     towards = interval[0] > 0 if sign > 0 else interval[1] < 0
-    if not towards:   # 0, or the wrong direction, inside the interval
+    if unreachable:
+        notes.append(unreachable)
+    elif not towards:   # 0, or the wrong direction, inside the interval
         notes.append(f"the slope's 90 % interval [{interval[0]:.3g}, {interval[1]:.3g}] "
                      "holds no steady move towards the threshold")
+    if unreachable or not towards:
         return Forecast("no trend", threshold, slope, interval, None,
                         0.0 if horizon is not None else None, n, tuple(notes),
                         *_fitted(straight or fits["linear"]), last)

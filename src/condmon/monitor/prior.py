@@ -225,6 +225,10 @@ class UnitWear:
         None: it did not move).
     span : float or None
         ``x`` of the last test less that of the first. [test (or d, h)]
+    direction : float
+        The way it wore: +1.0 a rise, -1.0 a fall (the line's 90 % slope
+        interval on that side of 0), 0.0 neither (a peer that degraded on
+        another parameter). [-]
     """
 
     exponential_weight: float
@@ -234,6 +238,7 @@ class UnitWear:
     start: tuple[float, float] | None = None
     bend: tuple[float, float] | None = None
     span: float | None = None
+    direction: float = 0.0
 
     @property
     def shape(self) -> str:
@@ -262,9 +267,12 @@ def unit_wear(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float) -> 
     exp = found.get("exponential")
     weight = aicc_weights(found, len(xa))[1].get("exponential", 0.0)
     start, bend = _bent_line(xa, sign * ya, weights(sa, spread))
-    return UnitWear(weight, _rate_of(lin), None if exp is None else _rate_of(exp),
+    slope, var = _rate_of(lin)
+    half = _Z90 * math.sqrt(max(var, 0.0))
+    way = 1.0 if slope - half > 0 else -1.0 if slope + half < 0 else 0.0
+    return UnitWear(weight, (slope, var), None if exp is None else _rate_of(exp),
                     None if exp is None else _amplitude_of(exp, float(xa[-1])), start, bend,
-                    float(xa[-1] - xa[0]))
+                    float(xa[-1] - xa[0]), way)
 
 
 def _bent_line(x: FloatArray, y: FloatArray, w: FloatArray
@@ -279,6 +287,9 @@ def _bent_line(x: FloatArray, y: FloatArray, w: FloatArray
     if not coef[1] > math.sqrt(max(float(cov[1, 1]), 0.0)):
         return None, None
     return (float(coef[1]), float(cov[1, 1])), (float(coef[2]), float(cov[2, 2]))
+
+
+_Z90 = 1.6448536269514722
 
 
 def _rate_of(fit: Fit) -> tuple[float, float]:
@@ -376,12 +387,18 @@ class FleetPrior:
 Prior = RatePrior | FleetPrior
 
 
-def prior_from_wear(wears: Sequence[UnitWear], per: str = "test") -> FleetPrior:
+def prior_from_wear(wears: Sequence[UnitWear], per: str = "test",
+                    direction: float | None = None) -> FleetPrior:
     """The fleet's prior (:class:`FleetPrior`) from its units' wear
     (:func:`unit_wear`): the shape by the share that wore exponentially, the
     slope and bend from those that wore linearly, the growth rate and
     amplitude from the others (each vague from fewer than 2 units that give
-    it); vague with no units."""
+    it); vague with no units. With a ``direction`` (+1.0 a rise, -1.0 a
+    fall), only the units that wore that way: a peer that degraded on
+    another parameter, or whose parameter went the other way, teaches
+    nothing of this one's wear."""
+    if direction is not None:
+        wears = [w for w in wears if w.direction == direction]
     if not wears:
         return FleetPrior.vague(per)
     curved = [w for w in wears if w.shape == "exponential" and w.exponential]
@@ -401,7 +418,7 @@ def prior_from_wear(wears: Sequence[UnitWear], per: str = "test") -> FleetPrior:
 
 
 def fleet_wear_prior(series: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike, float]],
-                     per: str = "test") -> FleetPrior:
+                     per: str = "test", direction: float | None = None) -> FleetPrior:
     """The fleet's prior on shape and rate from units that have already degraded.
 
     Parameters
@@ -410,6 +427,8 @@ def fleet_wear_prior(series: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike, flo
         Each unit's series, as :func:`fleet_prior` takes them.
     per : str
         What ``x`` counts ("test", "day", "h"), for the description.
+    direction : float, optional
+        Only the units that wore this way (+1.0 a rise, -1.0 a fall).
 
     Example
     -------
@@ -419,4 +438,4 @@ def fleet_wear_prior(series: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike, flo
     >>> round(p.p_exponential, 2), round(p.exponential.mean, 2), p.linear.informative
     (0.8, 0.15, False)
     """
-    return prior_from_wear([unit_wear(*s) for s in series], per)
+    return prior_from_wear([unit_wear(*s) for s in series], per, direction)

@@ -31,7 +31,7 @@ from condmon.monitor.forecast import (
     MIN_TESTS, Forecast, Prior, checked_horizon, forecast_series,
 )
 
-__all__ = ["ParameterForecast", "UnitForecast", "forecast_checks", "forecast_axis", "Axis",
+__all__ = ["ParameterForecast", "UnitForecast", "forecast_checks", "forecast_axis", "Axis", "NoGo",
            "in_test_order",
            "remaining_text", "NO_TREND", "parameter_series", "Series"]
 
@@ -44,6 +44,84 @@ _MAX_DAYS = 36525.0
 
 #: Why a unit with enough checks has no forecast.
 NO_TREND = "no trend towards no-go"
+
+
+@dataclass(frozen=True)
+class NoGo:
+    """Where one parameter's change turns a check no-go on its own.
+
+    The fuzzy monitor blurs a measured change into a symptom set of
+    half-width ``w = k·max(σ, SE)/|θ̄|·100`` and its HIGH degree rises from 0
+    at ``r1`` to 1 at ``r2`` (:func:`~condmon.monitor.fuzzy.symptom_degree`;
+    LOW mirrors it); a check turns no-go once a major fault rule on that
+    symptom alone reaches the diagnoser's no-go degree, so at the change
+    ``r1 + degree·(w + r2 − r1) − w``, short of ``r2``.
+
+    Attributes
+    ----------
+    r1, r2 : float
+        The parameter's breakpoints. [%]
+    k : float
+        The symptom set's half-width in standard deviations (0: a crisp
+        change). [-]
+    rise, fall : float
+        The symptom degree at which a rise (a fall) turns a check no-go (1:
+        at ``r2``; inf: never, no major rule names it alone). [-]
+    lower, upper : float
+        The parameter's plausible values (a friction is ≥ 0): a no-go past
+        them cannot come. [the parameter's unit]
+
+    Example
+    -------
+    >>> NoGo(300.0, 600.0, 2.0, 0.7).change(20.0, rising=True)   # 300 + 0.7·320 − 20
+    504.0
+    >>> NoGo(20.0, 40.0).change(5.0, rising=False)               # degree 1: r2 itself
+    40.0
+    """
+
+    r1: float
+    r2: float
+    k: float = 0.0
+    rise: float = 1.0
+    fall: float = 1.0
+    lower: float = -math.inf
+    upper: float = math.inf
+
+    def change(self, width: float, rising: bool) -> float:
+        """How far the change goes before a check turns no-go, for a
+        symptom half-width (inf: never). [%]"""
+        degree = self.rise if rising else self.fall
+        if not math.isfinite(degree):
+            return math.inf
+        return max(self.r1 + degree * (width + self.r2 - self.r1) - width, 1e-9)
+
+    def threshold(self, change: NDArray[np.float64], se: NDArray[np.float64],
+                  spread: float) -> tuple[float, str | None]:
+        """The signed no-go change a series heads for (in the direction of
+        its last 3 checks, at a typical check's half-width: ``k`` times the
+        larger of the baseline spread and the checks' median standard
+        error) [%], and why a check cannot turn no-go that way (None: it can).
+        ``r2`` in that direction stands in when it cannot."""
+        rising = float(np.nanmean(change[-MIN_TESTS:])) >= 0.0
+        sign = 1.0 if rising else -1.0
+        width = self.k * max(spread, float(np.median(se)) if len(se) else 0.0)
+        at = self.change(width, rising)
+        if not math.isfinite(at):
+            return sign * self.r2, (f"no major fault rule names a {'rise' if rising else 'fall'}"
+                                    " of this parameter alone: it cannot make a check no-go")
+        return sign * at, None
+
+    def beyond(self, threshold: float, mean: float) -> str | None:
+        """Why ``threshold`` [%] cannot come for a baseline ``mean`` (past
+        the plausible values), or None."""
+        bound = self.upper if threshold > 0 else self.lower
+        if not (mean and math.isfinite(bound)):
+            return None
+        reach = 100.0 * (bound - mean) / abs(mean)
+        if (threshold > reach) if threshold > 0 else (threshold < reach):
+            return (f"no-go at {threshold:+.3g} % cannot come: the parameter's plausible "
+                    f"values end at {reach:+.3g} %")
+        return None
 
 
 @dataclass(frozen=True)
@@ -297,9 +375,10 @@ def parameter_series(checks: pd.DataFrame, baseline: Baseline, key: str, axis: A
 
 
 def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
-                    r2: Mapping[str, float], rules: Mapping[str, str],
+                    r2: Mapping[str, float | NoGo], rules: Mapping[str, str],
                     units: Mapping[str, str] | None = None, horizon: float | None = None,
-                    seed: int = 0, priors: Mapping[str, Prior] | None = None,
+                    seed: int = 0,
+                    priors: Mapping[str | tuple[str, float], Prior] | None = None,
                     now: pd.Timestamp | None = None) -> UnitForecast:
     """Forecast every parameter of a unit to no-go from its checks since the baseline.
 
@@ -314,8 +393,11 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
         parameter key (``Tc@forward`` for a regime's).
     baseline : Baseline
         The current baseline (its mean and spread per key).
-    r2 : mapping of str to float
-        The no-go change of each parameter (by name, without regime). [%]
+    r2 : mapping of str to float or NoGo
+        Where each parameter (by name, without regime) turns a check no-go:
+        its change ``r2`` [%], or how its breakpoints, symptom width and the
+        diagnoser's no-go degree place it, with its plausible values
+        (:class:`NoGo`: a no-go beyond them is "no trend").
     rules : mapping of str to str
         Fault rule names by their one-symptom condition (``"high(D)"``): the
         rule a single parameter's no-go change fires.
@@ -325,10 +407,12 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
         For the probability of crossing within it. [tests (or d)]
     seed : int
         Seed of the predictive draws.
-    priors : mapping of str to RatePrior or FleetPrior, optional
+    priors : mapping of str (or (str, ±1.0)) to RatePrior or FleetPrior, optional
         The fleet's prior on each parameter key's degradation (its rate, or
-        its shape and rates: :func:`~condmon.monitor.prior.fleet_wear_prior`);
-        a key without one is forecast from its own tests alone.
+        its shape and rates: :func:`~condmon.monitor.prior.fleet_wear_prior`),
+        by key, or by key and the direction the series heads (+1.0 rising,
+        -1.0 falling: peers that wore the other way teach nothing); a key
+        without one is forecast from its own tests alone.
     now : Timestamp, optional
         The time a dated forecast is read at (default: the clock): a median
         no-go date already past gets a note that the unit is due a check.
@@ -355,14 +439,18 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
         if found is None:
             continue
         (x, change, se, spread), rows = found
-        rising = float(np.nanmean(change[-MIN_TESTS:])) >= 0.0
-        threshold = r2[name] if rising else -r2[name]
+        limit = r2[name]
+        nogo = limit if isinstance(limit, NoGo) else NoGo(float(limit), float(limit))
+        threshold, never = nogo.threshold(change, se, spread)
+        never = never or nogo.beyond(threshold, float(baseline.mean[
+            baseline.parameters.index(key)]))
+        rising = threshold > 0
         rule = rules.get(f"{'high' if rising else 'low'}({name})", "")
+        prior = (priors or {}).get((key, 1.0 if rising else -1.0), (priors or {}).get(key))
         # counted in tests, the no-go is a check: whole checks (days and
         # hours have no cadence to come: the crossing itself)
-        f = forecast_series(x, change, se, spread, threshold, horizon, seed,
-                            prior=(priors or {}).get(key),
-                            step=1.0 if axis.by == "tests" else None)
+        f = forecast_series(x, change, se, spread, threshold, horizon, seed, prior=prior,
+                            step=1.0 if axis.by == "tests" else None, unreachable=never)
         when = None if f.remaining is None else axis.date_after(rows[-1], f.remaining[0])
         at = (float(axis.hours[rows[-1]] + f.remaining[0])
               if axis.by == "hours" and f.remaining is not None

@@ -187,7 +187,7 @@ def _forecast(ax: Any, d: TrendData, band: ForecastBand) -> bool:
                     label=FORECAST_LABEL, zorder=1)
     ax.plot(xs, band.median, "--", color="#5e35b1", lw=1.0, zorder=2,
             label="forecast: the fitted trend continued")
-    ax.axhline(band.threshold, color="#b71c1c", ls=":", lw=1.2, zorder=2, label="no-go (r2)")
+    ax.axhline(band.threshold, color="#b71c1c", ls=":", lw=1.2, zorder=2, label="no-go change")
     return True
 
 
@@ -248,7 +248,7 @@ def trend_figure(trends: Sequence[TrendData], bands: Sequence[ForecastBand] = ()
             seen[FORECAST_LABEL] = Patch(color="#7e57c2", alpha=0.4, lw=0)
             seen["forecast: the fitted trend continued"] = Line2D([], [], ls="--",
                                                                   color="#5e35b1", lw=1.0)
-            seen["no-go (r2)"] = Line2D([], [], ls=":", color="#b71c1c", lw=1.2)
+            seen["no-go change"] = Line2D([], [], ls=":", color="#b71c1c", lw=1.2)
         legend_below(fig, (list(seen.values()), list(seen)), ncol=5)
     fig.suptitle("Change against the healthy baseline (excluded and rejected tests not "
                  f"drawn)\nerror bars: {error_bar(k)}, the symptom half-width (σ: baseline "

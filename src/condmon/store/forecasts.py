@@ -12,6 +12,7 @@ through it. :func:`fleet_summaries` is every unit's listing (``condmon units
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -21,15 +22,17 @@ from condmon.errors import CondmonError, DataError
 from condmon.monitor.baseline import MIN_BASELINE_TESTS, Baseline
 from condmon.monitor.prior import FleetPrior, UnitWear, prior_from_wear, unit_wear
 from condmon.monitor.unit_forecast import (
-    NO_TREND, UnitForecast, forecast_axis, forecast_checks, in_test_order, parameter_series,
+    NO_TREND, NoGo, UnitForecast, forecast_axis, forecast_checks, in_test_order,
+    parameter_series,
 )
 from condmon.store.baselines import baseline_members, current_baseline
 from condmon.store.states import DEGRADED
 
 if TYPE_CHECKING:
+    from condmon.models.machine import Machine
     from condmon.store.db import HistoryStore
 
-__all__ = ["read_forecast", "try_forecast", "forecast_fields", "fleet_summaries",
+__all__ = ["read_forecast", "try_forecast", "forecast_fields", "fleet_summaries", "machine_nogo",
            "by_urgency", "NO_BASELINE", "FleetHistory", "DEGRADED", "keep_forecast",
            "attach_forecasts", "prior_units"]
 
@@ -100,7 +103,7 @@ class FleetHistory:
             for p, (mark, rates) in self.store.kept_rates(fresh).items():
                 # unchanged since, and kept whole (rates kept before the curves' origin
                 # was are read again): its wear, whatever is asked
-                if mark == marks.get(p, 0) and all(v is None or len(v) >= 7
+                if mark == marks.get(p, 0) and all(v is None or len(v) >= 8
                                                    for v in rates.values()):
                     self._current.add(p)
                     for k, v in rates.items():
@@ -113,7 +116,7 @@ class FleetHistory:
         """``unit``'s own wear, ``{"<by>|<parameter>": [exponential weight,
         [slope, variance], [growth rate, variance] or None, [amplitude,
         variance] or None, [slope at the origin, variance] or None, [bend,
-        variance] or None, span]}``
+        variance] or None, span, direction]}``
         (:class:`UnitWear`)
         (None when it has not degraded or has no checks since its baseline):
         what is kept with its forecast for its peers' priors."""
@@ -131,7 +134,7 @@ class FleetHistory:
                  None if w.exponential is None else list(w.exponential),
                  None if w.amplitude is None else list(w.amplitude),
                  None if w.start is None else list(w.start),
-                 None if w.bend is None else list(w.bend), w.span]
+                 None if w.bend is None else list(w.bend), w.span, w.direction]
                 for key in baseline.parameters}
 
     def checks(self, unit: str) -> tuple[Baseline, pd.DataFrame]:
@@ -180,17 +183,21 @@ class FleetHistory:
             self._wear[(unit, key, by)] = found
         return self._wear[(unit, key, by)]
 
-    def priors(self, unit: str, keys: Sequence[str], by: str) -> dict[str, FleetPrior]:
+    def priors(self, unit: str, keys: Sequence[str], by: str
+               ) -> dict[str | tuple[str, float], FleetPrior]:
         """The fleet prior (shape and rates) of each parameter key for
-        ``unit``, its x counting ``by`` (``tests``, ``days`` or ``hours``;
-        peers counted otherwise are left out); vague ("no fleet history")
-        when no peer has the key, and each shape's rate vague when fewer
-        than 2 peers wore that way."""
+        ``unit`` and each way it may head, ``{(key, +1.0): the peers whose
+        key rose, (key, -1.0): those whose key fell}``, its x counting ``by``
+        (``tests``, ``days`` or ``hours``; peers counted otherwise are left
+        out); vague ("no fleet history") when no peer's key wore that way,
+        and each shape's rate vague when fewer than 2 peers wore that way."""
         peers = self.learning_peers(unit)
-        out = {}
+        out: dict[str | tuple[str, float], FleetPrior] = {}
+        per = by[:-1] if by != "hours" else "h"
         for key in keys:
             wears = [r for p in peers if (r := self._unit_wear(p, key, by)) is not None]
-            out[key] = prior_from_wear(wears, by[:-1] if by != "hours" else "h")
+            for way in (1.0, -1.0):
+                out[(key, way)] = prior_from_wear(wears, per, way)
         return out
 
 
@@ -220,9 +227,7 @@ def read_forecast(store: HistoryStore, unit: str, horizon: float | None = None,
     ConfigError
         An unknown unit (the message names the close ones).
     """
-    from condmon.diagnose.rules import machine_rules
     from condmon.models.registry import get_model
-    from condmon.monitor.generic import machine_monitor
 
     store.unit_id(unit)  # an unknown unit: the close names
     fleet = fleet or FleetHistory(store)
@@ -233,13 +238,41 @@ def read_forecast(store: HistoryStore, unit: str, horizon: float | None = None,
             raise DataError(f"{unit}: {ISOLATED}") from None
         raise
     machine = get_model(store.unit_model(unit) or "dc-motor")
-    rules: dict[str, str] = {}
-    for r in machine_rules(machine).faults:  # the first rule of each one-symptom condition
-        rules.setdefault(r.text.strip(), r.name)
     priors = (fleet.priors(unit, baseline.parameters, forecast_axis(checks).by)
               if len(checks) else {})
-    return forecast_checks(unit, checks, baseline, machine_monitor(machine, baseline).r2,
-                           rules, machine.units, horizon, seed, priors)
+    nogo, rules = machine_nogo(machine, baseline)
+    return forecast_checks(unit, checks, baseline, nogo, rules, machine.units, horizon, seed,
+                           priors)
+
+
+def machine_nogo(machine: Machine, baseline: Baseline | None = None
+                 ) -> tuple[dict[str, NoGo], dict[str, str]]:
+    """Where each of a machine's parameters turns a check no-go on its own
+    (:class:`~condmon.monitor.unit_forecast.NoGo`: its breakpoints and symptom
+    width from its monitor, the diagnoser's no-go degree when a major rule
+    names its rise or fall alone, its plausible values), and the rule each
+    one-symptom condition names (``{"high(D)": "friction increase"}``)."""
+    from condmon.diagnose.diagnoser import nogo_degree, single_faults
+    from condmon.diagnose.rules import machine_rules
+    from condmon.monitor.generic import machine_monitor
+
+    rb = machine_rules(machine)
+    named = single_faults(rb)
+    degree = nogo_degree(rb)
+    cfg = machine_monitor(machine, baseline)
+    bounds = machine.spec.plausibility.bounds
+    out = {}
+    for name, r2 in cfg.r2.items():
+        sides = [degree if (f := named.get(f"{kind}({name})")) and f.severity == "major"
+                 else math.inf for kind in ("high", "low")]
+        lower, upper = -math.inf, math.inf
+        for op, value in (bounds[name].limits if name in bounds else ()):
+            if op in ("gt", "ge"):
+                lower = max(lower, value)
+            else:
+                upper = min(upper, value)
+        out[name] = NoGo(cfg.r1[name], r2, cfg.k, sides[0], sides[1], lower, upper)
+    return out, {k: f.name for k, f in named.items()}
 
 
 #: Why a unit with isolations (a plant model run beside it) and no tests has no forecast.
@@ -347,14 +380,14 @@ def _wear_from(kept: Any) -> UnitWear | None:
     """A kept :class:`UnitWear` (:meth:`FleetHistory.rates_of`) back."""
     if kept is None:
         return None
-    weight, linear, exponential, amplitude, start, bend, span = kept
+    weight, linear, exponential, amplitude, start, bend, span, direction = kept
 
     def pair(v: Any) -> tuple[float, float] | None:
         return None if v is None else (float(v[0]), float(v[1]))
 
     return UnitWear(float(weight), (float(linear[0]), float(linear[1])), pair(exponential),
                     pair(amplitude), pair(start), pair(bend),
-                    None if span is None else float(span))
+                    None if span is None else float(span), float(direction))
 
 
 def prior_units() -> int:

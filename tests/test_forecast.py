@@ -140,6 +140,7 @@ def test_a_unit_whose_friction_rises_is_forecast_by_date(
     assert d["remaining"]["median"] == pytest.approx(truth, rel=0.2)
     assert d["remaining"]["low"] <= truth <= d["remaining"]["high"]
     assert d["date"].startswith("2026-01-") and d["p_within_horizon"] > 0.9
+    assert "." not in d["date"]          # to the second
     assert doc["horizon"] == 20.0
     assert main(["forecast", "--unit", "WEAR", "--db", str(db)]) == 0
     text = capsys.readouterr().out
@@ -425,6 +426,8 @@ def test_the_fleet_teaches_a_new_unit_its_rate(tmp_path: Path, demo_rig,  # type
         store.history = lambda u: read.append(u) or real_history(u)  # type: ignore[method-assign]
         assert fleet.learning_peers("NEW") == ["OLD1", "OLD2"]
         assert fleet._unit_wear("OLD1", "D", "tests") is None and read == []
+        assert fleet.priors("NEW", ["D"], "tests")[("D", 1.0)].describe() == (
+            "none of 2 degraded peer(s) has D counted in tests: vague prior")
         store.history = real_history  # type: ignore[method-assign]
         assert FleetHistory(store)._unit_wear("OLD1", "D", "tests") is None   # read: the same
 
@@ -657,3 +660,5 @@ def test_a_peer_that_wore_another_way_teaches_nothing() -> None:
     assert prior.units == 3 and prior.linear.mean == pytest.approx(4.0, abs=0.3)
     mixed = prior_from_wear([*rose, fell, flat])
     assert mixed.units == 5 and mixed.linear.mean < 3.0
+    assert prior_from_wear([fell, flat], direction=1.0).describe() == (
+        "none of 2 degraded peer(s) wore this way (a rise): vague prior")

@@ -330,6 +330,9 @@ class FleetPrior:
         ``c + s·(exp(b·x) − 1)/b`` (:class:`UnitWear`) [1 per x], and its
         slope ``s`` at the origin [% per x], towards the threshold (None: not
         known).
+    why : str
+        Why a vague prior learnt nothing from peers that exist ("": there
+        are none: no fleet history).
     """
 
     p_exponential: float
@@ -339,6 +342,7 @@ class FleetPrior:
     amplitude: RatePrior | None = None
     bend: RatePrior | None = None
     start: RatePrior | None = None
+    why: str = ""
 
     def __post_init__(self) -> None:
         if not 0.0 < self.p_exponential < 1.0:
@@ -346,9 +350,11 @@ class FleetPrior:
                             f"not {self.p_exponential:g}")
 
     @classmethod
-    def vague(cls, per: str = "test") -> FleetPrior:
-        """The prior with no fleet history: the unit's own tests decide."""
-        return cls(0.5, RatePrior.vague("linear", per), RatePrior.vague("exponential", per), 0)
+    def vague(cls, per: str = "test", why: str = "") -> FleetPrior:
+        """The prior with no fleet history (or none that teaches: ``why``):
+        the unit's own tests decide."""
+        return cls(0.5, RatePrior.vague("linear", per), RatePrior.vague("exponential", per), 0,
+                   why=why)
 
     @property
     def informative(self) -> bool:
@@ -358,7 +364,7 @@ class FleetPrior:
     def describe(self) -> str:
         """One line: where the prior comes from and what it says."""
         if not self.informative:
-            return RatePrior.vague().describe()
+            return f"{self.why}: vague prior" if self.why else RatePrior.vague().describe()
         what = [f"P(exponential) {self.p_exponential:.2f}"]
         for p in (self.linear, self.exponential):
             if p.informative:
@@ -397,8 +403,12 @@ def prior_from_wear(wears: Sequence[UnitWear], per: str = "test",
     fall), only the units that wore that way: a peer that degraded on
     another parameter, or whose parameter went the other way, teaches
     nothing of this one's wear."""
-    if direction is not None:
+    if direction is not None and wears:
+        n = len(wears)
         wears = [w for w in wears if w.direction == direction]
+        if not wears:
+            return FleetPrior.vague(per, f"none of {n} degraded peer(s) wore this way "
+                                         f"({'a rise' if direction > 0 else 'a fall'})")
     if not wears:
         return FleetPrior.vague(per)
     curved = [w for w in wears if w.shape == "exponential" and w.exponential]

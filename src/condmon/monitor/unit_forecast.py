@@ -276,7 +276,7 @@ class Axis:
             days = ahead * span_d / span_h
         if days >= _MAX_DAYS:   # a crossing beyond a century is no date (nor a timestamp)
             return None
-        return str((self.dates[row] + pd.Timedelta(days=days)).isoformat())
+        return str((self.dates[row] + pd.Timedelta(days=days)).round("s").isoformat())
 
 
 def in_test_order(checks: pd.DataFrame) -> pd.DataFrame:

@@ -197,7 +197,9 @@ class FleetHistory:
         for key in keys:
             wears = [r for p in peers if (r := self._unit_wear(p, key, by)) is not None]
             for way in (1.0, -1.0):
-                out[(key, way)] = prior_from_wear(wears, per, way)
+                out[(key, way)] = prior_from_wear(wears, per, way) if wears or not peers else \
+                    FleetPrior.vague(per, f"none of {len(peers)} degraded peer(s) has {key} "
+                                          f"counted in {by}")
         return out
 
 

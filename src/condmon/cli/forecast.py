@@ -79,8 +79,9 @@ def register(app: typer.Typer) -> None:
                    f"{n(f.remaining[0])} ({n(f.remaining[1])}–{n(f.remaining[2])})"
                    + (" exp." if f.model == "exponential" else ""))
             # no trend: the threshold either way (its sign would follow noise)
-            at = (f"±{abs(f.threshold):g} %" if f.remaining is None else
-                  f"{f.threshold:+g} %" + (f" ({p.rule})" if p.rule else ""))
+            at = ("none alone (see --json)" if f.unreachable else
+                  f"±{abs(f.threshold):.3g} %" if f.remaining is None else
+                  f"{f.threshold:+.3g} %" + (f" ({p.rule})" if p.rule else ""))
             table.add_row(p.parameter, slope_text(f.slope), rem, (p.date or "—")[:10],
                           *([n(p.hours) if p.hours is not None else "—"] if hours else []),
                           *([f"{f.p_within:.2f}" if f.p_within is not None else "—"]

@@ -134,6 +134,8 @@ class Forecast:
         Their covariance matrix.
     last : float
         ``x`` of the last test. [test (or d, h)]
+    unreachable : str
+        Why no check can turn no-go this way ("": it can), for a "no trend".
     """
 
     model: str
@@ -147,6 +149,7 @@ class Forecast:
     coef: tuple[float, ...] = ()
     cov: tuple[tuple[float, ...], ...] = ()
     last: float = math.nan
+    unreachable: str = ""
 
     @property
     def trend(self) -> bool:
@@ -209,7 +212,8 @@ class Forecast:
                 "remaining": None if self.remaining is None else {
                     "median": num(self.remaining[0]), "low": num(self.remaining[1]),
                     "high": num(self.remaining[2])},
-                "p_within_horizon": self.p_within, "tests": self.n, "notes": list(self.notes)}
+                "p_within_horizon": self.p_within, "tests": self.n, "notes": list(self.notes),
+                "unreachable": self.unreachable or None}
 
 
 def checked_horizon(horizon: float | None) -> None:
@@ -401,8 +405,8 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
         the unit's own tests alone, no note.
     unreachable : str, optional
         Why a check cannot turn no-go this way (a fall past the parameter's
-        plausible values; no rule names the symptom alone): the forecast is
-        then "no trend", with it as a note.
+        plausible values; no rule names the symptom alone): a series that
+        moves towards the threshold is then "no trend", with it as a note.
 
     Raises
     ------
@@ -480,15 +484,16 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
         slope *= sign
     interval = (slope - _Z90 * slope_sd, slope + _Z90 * slope_sd)
     towards = interval[0] > 0 if sign > 0 else interval[1] < 0
-    if unreachable:
-        notes.append(unreachable)
-    elif not towards:   # 0, or the wrong direction, inside the interval
+    if not towards:   # 0, or the wrong direction, inside the interval
         notes.append(f"the slope's 90 % interval [{interval[0]:.3g}, {interval[1]:.3g}] "
                      "holds no steady move towards the threshold")
+        unreachable = None   # no move: which way it cannot come is noise
+    elif unreachable:   # a move towards a no-go that cannot come
+        notes.append(unreachable)
     if unreachable or not towards:
         return Forecast("no trend", threshold, slope, interval, None,
                         0.0 if horizon is not None else None, n, tuple(notes),
-                        *_fitted(straight or fits["linear"]), last)
+                        *_fitted(straight or fits["linear"]), last, unreachable or "")
     # each model's draws in proportion to its evidence weight (model averaging);
     # a posterior's draws are (α, β, b) from the last test, drawn as the exponential's
     rng = np.random.default_rng(seed)

@@ -110,8 +110,9 @@ def fleet_prior(series: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike, float]],
 
     Each unit's own rate is its weighted fit of ``model`` (as in
     :func:`~condmon.monitor.forecast.forecast_series`); the prior is their
-    mean, with the between-unit standard deviation widened for a new unit (``sd·√(1 + 1/n)``, the
-    predictive spread of one more draw).
+    mean, with the spread of a new unit's true rate about it
+    (:func:`prior_from_rates`: the units' differences, their estimation error
+    taken out, plus the mean's own error).
 
     Parameters
     ----------
@@ -148,7 +149,7 @@ def fleet_prior(series: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike, float]],
     >>> fleet = [(x, r * x, np.ones(20), 1.0, ) for r in (1.8, 2.0, 2.2)]
     >>> p = fleet_prior(fleet)
     >>> p.describe()
-    'fleet prior (linear) from 3 units: slope 2 ± 0.23 %/test'
+    'fleet prior (linear) from 3 units: slope 2 ± 0.22 %/test'
     >>> fleet_prior(fleet[:1]).describe()
     'no fleet history: vague prior'
     """
@@ -173,14 +174,20 @@ def unit_rate(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
 def prior_from_rates(rates: Sequence[tuple[float, float]], model: str = "linear",
                      per: str = "test") -> RatePrior:
     """The prior from units' rates and their variances (:func:`unit_rate`):
-    their mean, and their spread for a new unit (``sd·√(1 + 1/n)``), never
-    less than the rates' own estimation error; vague with fewer than 2."""
+    their mean, and the spread of a new unit's true rate about it: the
+    units' own differences (the rates' variance less their mean estimation
+    variance, at least 0) plus the mean's error (``τ² + (τ² + ē)/n``); vague
+    with fewer than 2."""
     if len(rates) < 2:
         return RatePrior.vague(model, per)
     r = np.asarray([v for v, _ in rates])
-    # the units' rates scatter by their own estimation error too: never less than that
-    var = max(float(np.var(r, ddof=1)), float(np.mean([e for _, e in rates])))
-    sd = math.sqrt(var * (1.0 + 1.0 / len(r)))
+    # the rates scatter by the units' differences and by their own estimation
+    # error: the units' differences are what is left of the one after the other
+    # (the moment estimate of a random-effects spread, DerSimonian and Laird);
+    # a new unit's true rate then spreads by them and by the mean's own error
+    error = float(np.mean([e for _, e in rates]))
+    between = max(float(np.var(r, ddof=1)) - error, 0.0)
+    sd = math.sqrt(between + (between + error) / len(r))
     return RatePrior(model, float(np.mean(r)), max(sd, 1e-12 * max(1.0, abs(float(np.mean(r))))),
                      len(r), per)
 

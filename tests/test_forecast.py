@@ -662,3 +662,31 @@ def test_a_peer_that_wore_another_way_teaches_nothing() -> None:
     assert mixed.units == 5 and mixed.linear.mean < 3.0
     assert prior_from_wear([fell, flat], direction=1.0).describe() == (
         "none of 2 degraded peer(s) wore this way (a rise): vague prior")
+
+
+def test_forecasts_kept_by_an_older_method_are_made_again(
+        wearing: tuple[Path, float], tmp_path: Path) -> None:
+    """A history whose kept forecasts another forecast method made (one whose
+    no-go was r2) has them dropped and made again when a listing reads it."""
+    import shutil
+
+    import sqlalchemy as sa
+
+    from condmon.store import forecasts as kept
+    from condmon.store import schema as S
+
+    db = tmp_path / "h.db"
+    shutil.copy(wearing[0], db)
+    with open_store(str(db)) as store:
+        good = {r["unit"]: r["forecast"] for r in kept.fleet_summaries(store)}["WEAR"]
+        assert store.forecast_method() == kept.FORECAST_METHOD
+        stale = {**good, "median": 999.0}
+        store.keep_forecasts([("WEAR", store.history_marks(["WEAR"])["WEAR"], 0, stale, None)])
+        store._write(lambda c: c.execute(sa.update(S.meta).where(
+            S.meta.c.key == "forecast_method").values(value="1")), lock=None)
+        assert {r["unit"]: r["forecast"] for r in kept.fleet_summaries(store)}["WEAR"][
+            "median"] == 999.0                 # this process already knew it current
+        kept._CURRENT.discard(store.url)
+        again = {r["unit"]: r["forecast"] for r in kept.fleet_summaries(store)}["WEAR"]
+        assert again["median"] == pytest.approx(good["median"])
+        assert store.forecast_method() == kept.FORECAST_METHOD

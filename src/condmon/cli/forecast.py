@@ -79,7 +79,7 @@ def register(app: typer.Typer) -> None:
                    f"{n(f.remaining[0])} ({n(f.remaining[1])}–{n(f.remaining[2])})"
                    + (" exp." if f.model == "exponential" else ""))
             # no trend: the threshold either way (its sign would follow noise)
-            at = ("none alone (see --json)" if f.unreachable else
+            at = ("none this way (see --json)" if f.unreachable else
                   f"±{abs(f.threshold):.3g} %" if f.remaining is None else
                   f"{f.threshold:+.3g} %" + (f" ({p.rule})" if p.rule else ""))
             table.add_row(p.parameter, slope_text(f.slope), rem, (p.date or "—")[:10],
@@ -89,7 +89,8 @@ def register(app: typer.Typer) -> None:
         out.print(table)
         out.print(f"slope: the trend at the last check, {per} of the baseline mean; "
                   f"{left}: median and 90 % interval (exp.: an exponential trend); no trend: "
-                  "the slope's 90 % interval holds 0 (see --json)", markup=False,
+                  "the slope's 90 % interval holds 0, or no-go cannot come the way it moves "
+                  "(see --json)", markup=False,
                   highlight=False, soft_wrap=True)
         e = res.earliest
         r = None if e is None else e.forecast.remaining

@@ -16,6 +16,7 @@ all forecast through it).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -103,6 +104,11 @@ class NoGo:
         error) [%], and why a check cannot turn no-go that way (None: it can).
         ``r2`` in that direction stands in when it cannot."""
         rising = float(np.nanmean(change[-MIN_TESTS:])) >= 0.0
+        return self.towards(rising, se, spread)
+
+    def towards(self, rising: bool, se: NDArray[np.float64], spread: float
+                ) -> tuple[float, str | None]:
+        """:meth:`threshold` for a rise (``rising``) or a fall."""
         sign = 1.0 if rising else -1.0
         width = self.k * max(spread, float(np.median(se)) if len(se) else 0.0)
         at = self.change(width, rising)
@@ -451,6 +457,11 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
         # hours have no cadence to come: the crossing itself)
         f = forecast_series(x, change, se, spread, threshold, horizon, seed, prior=prior,
                             step=1.0 if axis.by == "tests" else None, unreachable=never)
+        if never and not f.trend and not f.unreachable:
+            # no move, and its noise pointed the way no-go cannot come: the other way's
+            other, cannot = nogo.towards(not rising, se, spread)
+            if not cannot:
+                f = dataclasses.replace(f, threshold=other)
         when = None if f.remaining is None else axis.date_after(rows[-1], f.remaining[0])
         at = (float(axis.hours[rows[-1]] + f.remaining[0])
               if axis.by == "hours" and f.remaining is not None

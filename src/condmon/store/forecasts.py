@@ -341,7 +341,8 @@ def attach_forecasts(store: HistoryStore, rows: list[dict[str, Any]]) -> list[di
     if not rows:
         return rows
     names = [str(r["unit"]) for r in rows]
-    marks, kept = store.history_marks(names), store.kept_forecasts(names)
+    marks = store.history_marks(names)
+    kept = store.kept_forecasts(names) if current_method(store) else {}
     fleet = FleetHistory(store)
     fleet.know(names)
     models = {u: (m, g) for u, m, g in store.unit_models(names)}
@@ -405,9 +406,33 @@ def prior_units() -> int:
     return raw
 
 
+#: What a kept forecast means: raised when forecasts change their meaning
+#: (2: to the change at which a check turns no-go, the fleet's priors by
+#: direction), so the forecasts and wear kept by an older method are made again.
+FORECAST_METHOD = 2
+
+_CURRENT: set[str] = set()   # histories whose kept forecasts are the current method's
+
+
+def current_method(store: HistoryStore) -> bool:
+    """Whether ``store``'s kept forecasts are the current method's
+    (:data:`FORECAST_METHOD`): if not, they are dropped and the method
+    recorded (a history that cannot be written: False, so none is reused)."""
+    if store.url in _CURRENT:
+        return True
+    if store.forecast_method() != FORECAST_METHOD:
+        try:
+            store.renew_forecasts(FORECAST_METHOD)
+        except CondmonError:   # read-only or busy: forecast afresh, keep nothing
+            return False
+    _CURRENT.add(store.url)
+    return True
+
+
 def keep_forecast(store: HistoryStore, unit: str) -> dict[str, Any]:
     """Forecast ``unit`` (:func:`try_forecast`), keep it for the fleet
     listings, and return its :func:`forecast_fields` (after a stored check)."""
+    current_method(store)
     fleet = FleetHistory(store)
     fields = forecast_fields(*try_forecast(store, unit, fleet))
     store.keep_forecasts([_kept_row(unit, store.history_marks([unit]).get(unit, 0),

@@ -165,6 +165,23 @@ class ForecastCacheMixin(StoreBase):
         return self._read(lambda c: {str(r[0]): (int(r[1]), json.loads(r[2]))
                                      for r in c.execute(q)})
 
+    def forecast_method(self) -> int:
+        """The forecast method the kept forecasts were made by (0: none
+        recorded: made before methods were)."""
+        raw = self._read(lambda c: c.execute(sa.select(S.meta.c.value).where(
+            S.meta.c.key == "forecast_method")).scalar())
+        return int(raw) if raw and str(raw).isdigit() else 0
+
+    def renew_forecasts(self, method: int) -> None:
+        """Drop every kept forecast and kept wear (another method made them)
+        and record ``method`` as the one kept forecasts are made by."""
+        def run(c: sa.Connection) -> None:
+            c.execute(sa.delete(S.forecasts))
+            c.execute(sa.delete(S.meta).where(S.meta.c.key == "forecast_method"))
+            c.execute(sa.insert(S.meta).values(key="forecast_method", value=str(method)))
+
+        self._write(run, lock=None)
+
     def keep_forecasts(self, rows: Sequence[tuple[Any, ...]]) -> None:
         """Keep ``(unit, audit_id, peers, summary, reason[, rates])`` rows (the
         summary and the unit's degradation rates kept as JSON), replacing the

@@ -661,12 +661,12 @@ def test_figures_in_a_browser(fleet: dict[str, Any], browser_page: tuple[Any, st
 def wearing_page(tmp_path_factory: pytest.TempPathFactory, demo_rig: ActuatorRig,
                  browser_page: tuple[Any, str]) -> Iterator[tuple[Any, str]]:
     """The browser's page and a second server, over a history of three units with
-    8 dated checks: friction (viscous and Coulomb) rising fast (WEAR-FAST, +50 %
+    8 dated checks: friction (viscous and Coulomb) rising fast (WEAR-FAST, +40 %
     of healthy a day), slowly (WEAR-SLOW, +20 % a day) and not at all (STABLE)."""
     db = str(tmp_path_factory.mktemp("wear") / "wear.db")
     with open_store(db) as store:
         for n, (unit, pace) in enumerate((("WEAR-SLOW", 0.2), ("STABLE", 0.0),
-                                          ("WEAR-FAST", 0.5))):
+                                          ("WEAR-FAST", 0.4))):
             add_baseline_tests(store, unit,
                                _records(demo_rig, [], range(10 * n, 10 * n + 3), "h"),
                                test_date="2026-03-01")

@@ -690,3 +690,21 @@ def test_forecasts_kept_by_an_older_method_are_made_again(
         again = {r["unit"]: r["forecast"] for r in kept.fleet_summaries(store)}["WEAR"]
         assert again["median"] == pytest.approx(good["median"])
         assert store.forecast_method() == kept.FORECAST_METHOD
+
+
+def test_no_go_the_way_the_last_checks_point_cannot_come_so_the_other_way_is_forecast() -> None:
+    """A change that climbs from -30 % at +4 %/day, its last three checks still
+    below 0: a fall of it names no rule, so the rise's no-go is forecast; a
+    parameter whose rise and fall both name none says so."""
+    from condmon.monitor.unit_forecast import NoGo, forecast_checks
+
+    checks, baseline = _falling([-30.0, -26.0, -22.0, -18.0, -14.0, -10.0, -6.0, -2.0])
+    f = forecast_checks("U", checks, baseline, {"D": NoGo(20.0, 40.0, fall=float("inf"))},
+                        {"high(D)": "friction increase"}).parameters[0]
+    assert f.forecast.trend and f.forecast.threshold == 40.0 and f.rule == "friction increase"
+    assert f.forecast.remaining is not None
+    assert f.forecast.remaining[0] == pytest.approx(10.5, abs=1.0)     # (40 + 2) / 4
+    flat, _ = _falling([1.0, -1.0, 0.5, -0.5, 0.2, -0.3])
+    never = NoGo(20.0, 40.0, rise=float("inf"), fall=float("inf"))
+    g = forecast_checks("U", flat, baseline, {"D": never}, {}).parameters[0].forecast
+    assert not g.trend and "nor the other way" in g.unreachable

@@ -139,7 +139,9 @@ def _print_forecast(ahead: dict[str, Any]) -> None:
 
     f = ahead.get("forecast")
     if f:
-        out.print(f"forecast: {f['parameter']} no-go in {remaining_text(f)}"
+        when = remaining_text(f)
+        out.print(f"forecast: {f['parameter']} " + (when if when == "at no-go now" else
+                                                    f"no-go in {when}")
                   + (f", about {f['date'][:10]}" if f["date"] else "")
                   + (f" ({f['rule']})" if f["rule"] else "")
                   + "; median (90 % interval), `condmon forecast` for more", highlight=False,

@@ -42,8 +42,9 @@ def register(app: typer.Typer) -> None:
 
         Each parameter's change series is fitted (linear or exponential, chosen by
         evidence, each test weighted by its standard error and the baseline's spread)
-        and its crossing of the no-go change (r2) forecast: the tests (days, hours) left
-        as a median and a 90 % interval; "no trend" when the slope's interval holds 0."""
+        and its crossing of the no-go change (where a check turns no-go on it, short of
+        r2) forecast: the tests (days, hours) left as a median and a 90 % interval; "no
+        trend" when the slope's interval holds 0, or no-go cannot come the way it moves."""
         from rich.table import Table
 
         from condmon.store.db import open_store
@@ -78,10 +79,10 @@ def register(app: typer.Typer) -> None:
                    "at no-go now" if f.remaining[2] == 0 else
                    f"{n(f.remaining[0])} ({n(f.remaining[1])}–{n(f.remaining[2])})"
                    + (" exp." if f.model == "exponential" else ""))
-            # no trend: the threshold either way (its sign would follow noise)
-            at = ("none this way (see --json)" if f.unreachable else
-                  f"±{abs(f.threshold):.3g} %" if f.remaining is None else
-                  f"{f.threshold:+.3g} %" + (f" ({p.rule})" if p.rule else ""))
+            # no trend: the no-go change of the way it can come (its sign follows noise
+            # where both can)
+            at = ("none (see --json)" if f.unreachable else
+                  f"{f.threshold:+.3g} %" + (f" ({p.rule})" if p.rule and f.trend else ""))
             table.add_row(p.parameter, slope_text(f.slope), rem, (p.date or "—")[:10],
                           *([n(p.hours) if p.hours is not None else "—"] if hours else []),
                           *([f"{f.p_within:.2f}" if f.p_within is not None else "—"]
@@ -101,7 +102,7 @@ def register(app: typer.Typer) -> None:
         for note in res.notes:
             out.print(f"note: {note}", markup=False, highlight=False, soft_wrap=True)
         priors = sorted({f"{p.parameter}: {note}" if not note.startswith("no fleet") else note
-                         for p in res.parameters for note in p.forecast.notes
-                         if note.startswith(("fleet prior", "no fleet history"))})
+                         for p in res.parameters if p.forecast.trend for note in p.forecast.notes
+                         if note.startswith("fleet prior") or note.endswith("vague prior")})
         for line in priors:
             out.print(f"prior: {line}", markup=False, highlight=False, soft_wrap=True)

@@ -95,7 +95,8 @@ class RatePrior:
             what = f"slope {self.mean:.3g} ± {self.sd:.2g} %/{self.per}"
         else:
             what = f"growth rate {self.mean:.3g} ± {self.sd:.2g} /{self.per}"
-        return f"fleet prior ({self.model}) from {self.units} units: {what}"
+        units = f"{self.units} unit{'s' * (self.units != 1)}"
+        return f"fleet prior ({self.model}) from {units}: {what}"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (a vague sd as None)."""
@@ -381,7 +382,8 @@ class FleetPrior:
             if q is not None and q.informative:
                 what.append(f"{label} {q.mean:.3g} ± {q.sd:.2g}{unit}")
         k = self.exponential.units
-        return (f"fleet prior from {self.units} units ({k} wore exponentially): "
+        return (f"fleet prior from {self.units} unit{'s' * (self.units != 1)} "
+                f"({k} wore exponentially): "
                 + "; ".join(what))
 
     def to_dict(self) -> dict[str, Any]:

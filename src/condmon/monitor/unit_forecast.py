@@ -458,10 +458,20 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
         f = forecast_series(x, change, se, spread, threshold, horizon, seed, prior=prior,
                             step=1.0 if axis.by == "tests" else None, unreachable=never)
         if never and not f.trend and not f.unreachable:
-            # no move, and its noise pointed the way no-go cannot come: the other way's
+            # no steady move the way its last checks pointed, where no-go cannot come:
+            # the other way, if no-go can come there (a steady move that way is forecast)
             other, cannot = nogo.towards(not rising, se, spread)
-            if not cannot:
-                f = dataclasses.replace(f, threshold=other)
+            cannot = cannot or nogo.beyond(other, float(baseline.mean[
+                baseline.parameters.index(key)]))
+            if cannot:
+                f = dataclasses.replace(f, unreachable=f"{never}; nor the other way: {cannot}")
+            else:
+                rising = not rising
+                rule = rules.get(f"{'high' if rising else 'low'}({name})", "")
+                f = forecast_series(x, change, se, spread, other, horizon, seed,
+                                    prior=(priors or {}).get((key, 1.0 if rising else -1.0),
+                                                             (priors or {}).get(key)),
+                                    step=1.0 if axis.by == "tests" else None)
         when = None if f.remaining is None else axis.date_after(rows[-1], f.remaining[0])
         at = (float(axis.hours[rows[-1]] + f.remaining[0])
               if axis.by == "hours" and f.remaining is not None
@@ -481,8 +491,8 @@ def _overdue(out: list[ParameterForecast], axis: Axis, now: pd.Timestamp | None)
     """A note when the earliest median no-go date is already past: the
     forecast is of the checks stored, and the unit is due one."""
     dated = [(p.parameter, p.date) for p in out if p.date is not None]
-    if not dated or not axis.dated:
-        return None
+    if not dated or not axis.dated or (out[0].forecast.remaining or (1.0,))[0] == 0:
+        return None   # (due at its last check: that check's status says it)
     now = pd.Timestamp.now(tz="UTC") if now is None else pd.Timestamp(now)
     now = now.tz_localize("UTC") if now.tzinfo is None else now
     parameter, date = dated[0]

@@ -8,6 +8,7 @@ centroid defuzzification -> go / advisory / no-go, and each fault's degree.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -292,7 +293,13 @@ def nogo_degree(rules: RuleBase | None = None) -> float:
     True
     """
     rb = rules or load_rules()
-    sets = tuple(_mf(p) for p in (rb.status.go, rb.status.advisory, rb.status.no_go))
+    return _nogo_degree(tuple(rb.status.go), tuple(rb.status.advisory), tuple(rb.status.no_go))
+
+
+@functools.lru_cache(maxsize=32)
+def _nogo_degree(*points: tuple[float, ...]) -> float:
+    """:func:`nogo_degree` of the status sets' points (each forecast asks it)."""
+    sets = tuple(_mf(p) for p in points)
     if _infer(sets, 1.0, 1.0, 0.0)[1] != "no-go":
         return math.inf
     lo, hi = 0.0, 1.0

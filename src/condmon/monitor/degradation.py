@@ -35,12 +35,14 @@ from condmon.errors import DataError
 
 __all__ = ["MIN_TESTS", "EXP_MIN_TESTS", "Fit", "wls", "growth", "exp_fit", "fits",
            "checked_series", "aicc_weights", "weights", "RatePosterior", "rate_posterior",
-           "ShapePosteriors", "fleet_posteriors", "bent_fit"]
+           "ShapePosteriors", "fleet_posteriors", "bent_fit", "Z90"]
 
 FloatArray = NDArray[np.float64]
 #: A weighted fit: coefficients, their covariance, the weighted residual sum of squares.
 Fit = tuple[FloatArray, FloatArray, float]
 
+#: The standard normal's 95 % point: a 90 % interval is ± this many sd. [-]
+Z90 = 1.6448536269514722
 #: Fewest checks since the baseline that a forecast needs.
 MIN_TESTS = 3
 #: Fewest tests for the exponential with no prior on its rate (three
@@ -90,7 +92,7 @@ def _rate_fit(t: FloatArray, y: FloatArray, w: FloatArray, grid: FloatArray,
     with np.errstate(over="ignore", invalid="ignore"):
         shapes = np.where(flat[:, None], t[None, :],
                           np.expm1(np.outer(grid, t)) / np.where(flat, 1.0, grid)[:, None])
-    rss = _normal_evidence(shapes, y, w, 0.0, math.inf, 1.0)[3]   # each rate's free fit
+    rss = _line_fits(shapes, y, w)[-1]   # each rate's free fit
     i = int(np.argmin(np.where(np.isfinite(rss), rss, np.inf)))
     if flat_is_line and i == 0:    # flattest rate best: a line, not an exponential
         return None
@@ -275,6 +277,22 @@ def rate_posterior(x: FloatArray, y: FloatArray, w: FloatArray, mean: float, sd:
                          top + math.log(float(prob.sum())), scale)
 
 
+def _line_fits(g: FloatArray, y: FloatArray, w: FloatArray
+               ) -> tuple[float, float, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The weighted straight fit ``y = c + k·g`` for each row of ``g``, in
+    centred sums: Σw, the weighted means of y and of each row, each row's
+    centred Σw·g², its slope k and its weighted residual sum of squares."""
+    W = float(w.sum())
+    ybar = float(w @ y) / W
+    gbar = g @ w / W
+    dg = g - gbar[:, None]
+    sgg = np.maximum(np.einsum("gn,n,gn->g", dg, w, dg), 1e-300)
+    sgy = dg @ (w * (y - ybar))
+    k_hat = sgy / sgg
+    rss = np.maximum(float(w @ (y - ybar) ** 2) - sgy * k_hat, 0.0)
+    return W, ybar, gbar, sgg, k_hat, rss
+
+
 def _normal_evidence(g: FloatArray, y: FloatArray, w: FloatArray, mean: float, sd: float,
                      scale: float) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """``y = c + k·g`` with c flat and ``k ~ N(mean, sd²)``, for each row of
@@ -282,15 +300,7 @@ def _normal_evidence(g: FloatArray, y: FloatArray, w: FloatArray, mean: float, s
     ``½·ln(2πσ²/Σw)`` of c), and the posterior mean and covariance of (c, k),
     as (log evidence, mean (rows, 2), covariance (rows, 2, 2), weighted residual
     sum of squares of the free fit)."""
-    W = float(w.sum())
-    ybar = float(w @ y) / W
-    gbar = g @ w / W
-    dg = g - gbar[:, None]
-    sgg = np.maximum(np.einsum("gn,n,gn->g", dg, w, dg), 1e-300)
-    sgy = dg @ (w * (y - ybar))
-    syy = float(w @ (y - ybar) ** 2)
-    k_hat = sgy / sgg
-    rss = np.maximum(syy - sgy * k_hat, 0.0)
+    W, ybar, gbar, sgg, k_hat, rss = _line_fits(g, y, w)
     like_var = scale / sgg                     # k's variance from the tests alone
     pred_var = sd ** 2 + like_var
     log_e = (-0.5 * rss / scale + 0.5 * np.log(2.0 * math.pi * like_var)
@@ -419,7 +429,7 @@ def fleet_posteriors(x: FloatArray, y: FloatArray, w: FloatArray,
         g = np.expm1(np.outer(np.geomspace(*_RATE_SPAN, grid) / span, x))
     g = g[np.all(np.isfinite(g), axis=1)]
     # the scale: the most flexible free fit's residual variance, at least 1
-    free = _normal_evidence(np.vstack([x, g]), y, w, 0.0, math.inf, 1.0)[3]
+    free = _line_fits(np.vstack([x, g]), y, w)[-1]
     scale = max(float(free.min()) / max(len(x) - 3, 1), 1.0)
     # the bend's grid: the fleet's bends ± 6 sd, within a slope that grows or
     # falls e^3-fold over the span, evenly spaced (it crosses 0: a straight line)

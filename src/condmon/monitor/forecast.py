@@ -81,7 +81,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from condmon.errors import DataError
 from condmon.monitor.degradation import (
-    MIN_TESTS, Fit, RatePosterior, aicc_weights, checked_series, fleet_posteriors, growth,
+    MIN_TESTS, Z90, Fit, RatePosterior, aicc_weights, checked_series, fleet_posteriors, growth,
     rate_posterior, weights,
 )
 from condmon.monitor.degradation import fits as degradation_fits
@@ -98,7 +98,6 @@ FloatArray = NDArray[np.float64]
 
 _DRAWS = 4000
 _BAND_DRAWS = 1000
-_Z90 = 1.6448536269514722
 
 
 @dataclass(frozen=True)
@@ -189,7 +188,7 @@ class Forecast:
             x = self.last + t
             a, b = coef
             mid = a + b * x
-            half = _Z90 * np.sqrt(np.maximum(cov[0, 0] + 2.0 * x * cov[0, 1]
+            half = Z90 * np.sqrt(np.maximum(cov[0, 0] + 2.0 * x * cov[0, 1]
                                              + x * x * cov[1, 1], 0.0))
             return mid, mid - half, mid + half
         # the exponential is not linear in its rate: pointwise quantiles of drawn paths
@@ -482,7 +481,7 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
     slope, slope_sd = float(coef[1]), math.sqrt(max(cov[1, 1], 0.0))
     if model in posts or model == "exponential":   # β at the last test, towards the threshold
         slope *= sign
-    interval = (slope - _Z90 * slope_sd, slope + _Z90 * slope_sd)
+    interval = (slope - Z90 * slope_sd, slope + Z90 * slope_sd)
     towards = interval[0] > 0 if sign > 0 else interval[1] < 0
     if not towards:   # 0, or the wrong direction, inside the interval
         notes.append(f"the slope's 90 % interval [{interval[0]:.3g}, {interval[1]:.3g}] "

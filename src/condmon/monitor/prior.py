@@ -35,7 +35,7 @@ from numpy.typing import ArrayLike
 
 from condmon.errors import DataError
 from condmon.monitor.degradation import (
-    MIN_TESTS, Fit, FloatArray, aicc_weights, bent_fit, checked_series, fits, weights,
+    MIN_TESTS, Z90, Fit, FloatArray, aicc_weights, bent_fit, checked_series, fits, weights,
 )
 
 __all__ = ["RatePrior", "FleetPrior", "UnitWear", "fleet_prior", "fleet_wear_prior", "unit_rate",
@@ -95,8 +95,7 @@ class RatePrior:
             what = f"slope {self.mean:.3g} ± {self.sd:.2g} %/{self.per}"
         else:
             what = f"growth rate {self.mean:.3g} ± {self.sd:.2g} /{self.per}"
-        units = f"{self.units} unit{'s' * (self.units != 1)}"
-        return f"fleet prior ({self.model}) from {units}: {what}"
+        return f"fleet prior ({self.model}) from {_count(self.units)}: {what}"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (a vague sd as None)."""
@@ -170,6 +169,10 @@ def unit_rate(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
     tail = float(np.mean(ya[-MIN_TESTS:]))
     fit = fits(xa, ya, sa, spread, 1.0 if tail >= 0 else -1.0).get(model)
     return None if fit is None else (float(fit[0][-1]), float(fit[1][-1, -1]))
+
+
+def _count(n: int) -> str:
+    return f"{n} unit{'s' * (n != 1)}"
 
 
 def prior_from_rates(rates: Sequence[tuple[float, float]], model: str = "linear",
@@ -276,7 +279,7 @@ def unit_wear(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float) -> 
     weight = aicc_weights(found, len(xa))[1].get("exponential", 0.0)
     start, bend = _bent_line(xa, sign * ya, weights(sa, spread))
     slope, var = _rate_of(lin)
-    half = _Z90 * math.sqrt(max(var, 0.0))
+    half = Z90 * math.sqrt(max(var, 0.0))
     way = 1.0 if slope - half > 0 else -1.0 if slope + half < 0 else 0.0
     return UnitWear(weight, (slope, var), None if exp is None else _rate_of(exp),
                     None if exp is None else _amplitude_of(exp, float(xa[-1])), start, bend,
@@ -296,8 +299,6 @@ def _bent_line(x: FloatArray, y: FloatArray, w: FloatArray
         return None, None
     return (float(coef[1]), float(cov[1, 1])), (float(coef[2]), float(cov[2, 2]))
 
-
-_Z90 = 1.6448536269514722
 
 
 def _rate_of(fit: Fit) -> tuple[float, float]:
@@ -382,8 +383,7 @@ class FleetPrior:
             if q is not None and q.informative:
                 what.append(f"{label} {q.mean:.3g} ± {q.sd:.2g}{unit}")
         k = self.exponential.units
-        return (f"fleet prior from {self.units} unit{'s' * (self.units != 1)} "
-                f"({k} wore exponentially): "
+        return (f"fleet prior from {_count(self.units)} ({k} wore exponentially): "
                 + "; ".join(what))
 
     def to_dict(self) -> dict[str, Any]:
@@ -424,13 +424,13 @@ def prior_from_wear(wears: Sequence[UnitWear], per: str = "test",
     straight = [w for w in wears if not (w.shape == "exponential" and w.exponential)]
 
     def among(values: list[tuple[float, float] | None], model: str) -> RatePrior:
-        # a peer that did not rise has no bend: the others teach it
+        # a peer without one (a bend of a line that did not rise) leaves it to the others
         return prior_from_rates([v for v in values if v is not None], model, per)
 
     return FleetPrior(
         (len(curved) + 1.0) / (len(wears) + 2.0),
         prior_from_rates([w.linear for w in straight], "linear", per),
-        prior_from_rates([w.exponential for w in curved if w.exponential], "exponential", per),
+        among([w.exponential for w in curved], "exponential"),
         len(wears), among([w.amplitude for w in curved], "exponential"),
         among([w.bend for w in straight], "exponential"),
         among([w.start for w in straight], "linear"))

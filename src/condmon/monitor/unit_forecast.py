@@ -447,9 +447,9 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
         (x, change, se, spread), rows = found
         limit = r2[name]
         nogo = limit if isinstance(limit, NoGo) else NoGo(float(limit), float(limit))
+        mean = float(baseline.mean[baseline.parameters.index(key)])
         threshold, never = nogo.threshold(change, se, spread)
-        never = never or nogo.beyond(threshold, float(baseline.mean[
-            baseline.parameters.index(key)]))
+        never = never or nogo.beyond(threshold, mean)
         rising = threshold > 0
         rule = rules.get(f"{'high' if rising else 'low'}({name})", "")
         prior = (priors or {}).get((key, 1.0 if rising else -1.0), (priors or {}).get(key))
@@ -461,8 +461,7 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
             # no steady move the way its last checks pointed, where no-go cannot come:
             # the other way, if no-go can come there (a steady move that way is forecast)
             other, cannot = nogo.towards(not rising, se, spread)
-            cannot = cannot or nogo.beyond(other, float(baseline.mean[
-                baseline.parameters.index(key)]))
+            cannot = cannot or nogo.beyond(other, mean)
             if cannot:
                 f = dataclasses.replace(f, unreachable=f"{never}; nor the other way: {cannot}")
             else:

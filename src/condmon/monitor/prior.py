@@ -149,7 +149,7 @@ def fleet_prior(series: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike, float]],
     >>> fleet = [(x, r * x, np.ones(20), 1.0, ) for r in (1.8, 2.0, 2.2)]
     >>> p = fleet_prior(fleet)
     >>> p.describe()
-    'fleet prior (linear) from 3 units: slope 2 ± 0.22 %/test'
+    'fleet prior (linear) from 3 units: slope 2 ± 0.23 %/test'
     >>> fleet_prior(fleet[:1]).describe()
     'no fleet history: vague prior'
     """

@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 
 from condmon.errors import DataError
 from condmon.monitor.baseline import Baseline
+from condmon.monitor.degradation import steady_direction
 from condmon.monitor.forecast import (
     MIN_TESTS, Forecast, Prior, checked_horizon, forecast_series,
 )
@@ -96,14 +97,16 @@ class NoGo:
             return math.inf
         return max(self.r1 + degree * (width + self.r2 - self.r1) - width, 1e-9)
 
-    def threshold(self, change: NDArray[np.float64], se: NDArray[np.float64],
-                  spread: float) -> tuple[float, str | None]:
-        """The signed no-go change a series heads for (in the direction of
-        its last 3 checks, at a typical check's half-width: ``k`` times the
+    def threshold(self, x: NDArray[np.float64], change: NDArray[np.float64],
+                  se: NDArray[np.float64], spread: float) -> tuple[float, str | None]:
+        """The signed no-go change a series heads for (the way of its steady
+        move, when its slope's 90 % interval is clear of 0; else the way of
+        its last 3 checks; at a typical check's half-width: ``k`` times the
         larger of the baseline spread and the checks' median standard
         error) [%], and why a check cannot turn no-go that way (None: it can).
         ``r2`` in that direction stands in when it cannot."""
-        rising = float(np.nanmean(change[-MIN_TESTS:])) >= 0.0
+        way = steady_direction(x, change, se, spread)
+        rising = way > 0 if way else float(np.nanmean(change[-MIN_TESTS:])) >= 0.0
         return self.towards(rising, se, spread)
 
     def towards(self, rising: bool, se: NDArray[np.float64], spread: float
@@ -164,7 +167,7 @@ class ParameterForecast:
     hours: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        return {"parameter": self.parameter, "unit": self.unit, "rule": self.rule,
+        return {"parameter": self.parameter, "unit": self.unit, "rule": self.rule or None,
                 "date": self.date, "at_hours": self.hours, **self.forecast.to_dict()}
 
 
@@ -217,7 +220,7 @@ class UnitForecast:
         ``hours``), the median and 90 % interval of the tests (days, hours)
         left [tests (or d, h)] (None: not within any horizon), the median
         crossing date (ISO 8601, dated checks only, else None), the fault rule
-        the no-go change fires ("" when none names it alone) and the
+        the no-go change fires (None when none names it alone) and the
         operating hours at the median crossing (a forecast in hours, else
         None) [h]. None when no parameter trends towards no-go.
         """
@@ -226,7 +229,7 @@ class UnitForecast:
             return None
         med, lo, hi = (v if math.isfinite(v) else None for v in e.forecast.remaining)
         return {"parameter": e.parameter, "unit": e.unit, "by": self.by, "median": med,
-                "low": lo, "high": hi, "date": e.date, "rule": e.rule, "at_hours": e.hours}
+                "low": lo, "high": hi, "date": e.date, "rule": e.rule or None, "at_hours": e.hours}
 
 
 @dataclass(frozen=True)
@@ -448,7 +451,7 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
         limit = r2[name]
         nogo = limit if isinstance(limit, NoGo) else NoGo(float(limit), float(limit))
         mean = float(baseline.mean[baseline.parameters.index(key)])
-        threshold, never = nogo.threshold(change, se, spread)
+        threshold, never = nogo.threshold(x, change, se, spread)
         never = never or nogo.beyond(threshold, mean)
         rising = threshold > 0
         rule = rules.get(f"{'high' if rising else 'low'}({name})", "")

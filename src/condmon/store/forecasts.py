@@ -408,8 +408,10 @@ def prior_units() -> int:
 
 #: What a kept forecast means: raised when forecasts change their meaning
 #: (2: to the change at which a check turns no-go, the fleet's priors by
-#: direction), so the forecasts and wear kept by an older method are made again.
-FORECAST_METHOD = 2
+#: direction; 3: mid-p intervals, the scale read from the residuals, the way
+#: of a steady move), so the forecasts and wear kept by an older method are
+#: made again.
+FORECAST_METHOD = 3
 
 _CURRENT: set[str] = set()   # histories whose kept forecasts are the current method's
 

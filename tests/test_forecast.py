@@ -764,3 +764,61 @@ def test_checks_that_drift_together_are_not_a_trend_by_chance() -> None:
         trends += forecast_series(np.arange(1.0, 31.0), e, np.full(30, 3.0), 2.0,
                                   threshold=40.0).trend
     assert trends <= 19, trends
+
+
+def _magnet(ke: float, kt: float, n: int = 12) -> tuple[object, object]:
+    """``n`` dated checks of Ke and Kt changing ``ke`` and ``kt`` % a day,
+    a baseline of both 0.05 ± 1 %."""
+    import pandas as pd
+
+    from condmon.monitor.baseline import Baseline
+
+    day = np.arange(1.0, n + 1.0)
+    noise = np.random.default_rng(8).normal(0.0, 0.3, (2, n))
+    checks = pd.DataFrame({"test_date": pd.date_range("2026-03-01", periods=n, freq="D"),
+                           "Ke_change": ke * day + noise[0], "Ke_se": np.full(n, 0.0005),
+                           "Kt_change": kt * day + noise[1], "Kt_se": np.full(n, 0.0005)},
+                          index=range(10, 10 + n))
+    return checks, Baseline(("Ke", "Kt"), (0.05, 0.05), (0.0005, 0.0005), 5)
+
+
+def test_a_fault_of_two_symptoms_turns_no_go_when_the_later_comes() -> None:
+    """Magnet weakening is ``low(Ke) and low(Kt)``: neither names a fault
+    alone, yet both falling turn a check no-go when the later reaches its
+    no-go change. Kt falling faster waits for Ke; the unit's earliest is Ke's,
+    the rule named with its partner. With Kt steady, Ke's fall cannot make a
+    check no-go: "no trend", and why."""
+    from condmon.models.registry import get_model
+    from condmon.monitor.unit_forecast import forecast_checks
+    from condmon.store.forecasts import machine_nogo
+
+    nogo, rules = machine_nogo(get_model("dc-motor"))
+    assert nogo["Ke"].fall_with == ("low(Kt)",) and rules["low(Ke)"] == "magnet weakening"
+    checks, baseline = _magnet(-2.0, -3.0)
+    f = forecast_checks("M", checks, baseline, nogo, rules)
+    by = {p.parameter: p for p in f.parameters}
+    assert by["Ke"].forecast.trend and by["Kt"].forecast.trend
+    assert by["Kt"].waits_for == "Ke" and not by["Ke"].waits_for
+    assert f.earliest is by["Ke"] and by["Ke"].rule == "magnet weakening, with Kt"
+    threshold = by["Ke"].forecast.threshold
+    assert threshold < 0
+    truth = threshold / -2.0 - 12.0                 # days from the last check
+    assert by["Ke"].forecast.remaining[1] <= truth <= by["Ke"].forecast.remaining[2]
+    assert f.summary()["parameter"] == "Ke"
+    checks, baseline = _magnet(-2.0, 0.0)
+    g = {p.parameter: p for p in forecast_checks("M", checks, baseline, nogo, rules).parameters}
+    assert not g["Ke"].forecast.trend and "needs low(Kt) too" in g["Ke"].forecast.unreachable
+
+
+def test_a_series_whose_last_check_measured_past_no_go_is_at_no_go_now() -> None:
+    """A check past the no-go change is at no-go: no draw says when (before, in
+    whole checks, "1 test (1–1)"; in days "0 d (0–0.67)")."""
+    x = np.arange(1.0, 11.0)
+    for step in (1.0, None):
+        f = forecast_series(x, 11.0 * x, np.full(10, 1.0), 2.0, threshold=105.0, step=step,
+                            horizon=3.0)
+        assert f.remaining == (0.0, 0.0, 0.0) and f.p_within == 1.0
+        assert "at no-go now" in f.notes[-1]
+    from condmon.monitor.unit_forecast import remaining_text
+    assert remaining_text({"median": 0.0, "low": 0.0, "high": 0.0, "by": "tests"}) == "at no-go now"
+    assert remaining_text({"median": 1.0, "low": 1.0, "high": 2.0, "by": "tests"}) == "1 test (1–2)"

@@ -86,6 +86,34 @@ def test_the_kept_state_follows_every_write(store_url: str, results: list[Any]) 
         assert store.history_marks(["EMA-0"]) == {"EMA-0": marks["EMA-0"]}
 
 
+def test_a_unit_with_undated_checks_takes_its_last_stored_as_its_latest(
+        store_url: str, results: list[Any]) -> None:
+    """Checks dated in the past with an undated one between them: the undated
+    one's storing time is not when it was tested, so the latest is the last
+    stored (as its forecast orders them); with every check dated, the latest
+    by test date (a record checked late goes where it was tested)."""
+    def dated(day: int) -> datetime:
+        return datetime(2026, 2, day, tzinfo=timezone.utc)
+
+    with open_store(store_url) as store:
+        ids = [store.add_test("MIX", r, role="baseline", digest=f"mb{i}")
+               for i, r in enumerate(results[:3])]
+        bid = store.save_baseline("MIX", _baseline(results[:3]), ids)
+        for i, (day, status) in enumerate([(1, "go"), (None, "go"), (3, "no-go")]):
+            store.add_test("MIX", results[3], role="check", digest=f"mc{i}", baseline_id=bid,
+                           test_date=None if day is None else dated(day), symptoms={},
+                           diagnosis=_Diagnosis(status))
+        assert _status(store, "MIX") == "no-go"
+        assert _kept(store) == _worked_out(store)
+        ids = [store.add_test("LATE", r, role="baseline", digest=f"lb{i}")
+               for i, r in enumerate(results[:3])]
+        bid = store.save_baseline("LATE", _baseline(results[:3]), ids)
+        for i, (day, status) in enumerate([(5, "advisory"), (2, "go")]):   # checked late
+            store.add_test("LATE", results[3], role="check", digest=f"lc{i}", baseline_id=bid,
+                           test_date=dated(day), symptoms={}, diagnosis=_Diagnosis(status))
+        assert _status(store, "LATE") == "advisory"
+
+
 def test_a_unit_write_waits_for_a_batch_over_the_same_unit(store_url: str,
                                                             results: list[Any]) -> None:
     """A fleet's batch and a single write of the same unit do not overlap (on
@@ -199,7 +227,7 @@ def test_a_v7_history_gets_its_states_on_opening(tmp_path: Path, fleet_db: Path)
         c.execute("DROP TABLE unit_states")
         c.execute("UPDATE condmon_meta SET value = '7' WHERE key = 'schema_version'")
     with open_store(str(db)) as store:
-        assert store.schema_version == schema.SCHEMA_VERSION == 9
+        assert store.schema_version == schema.SCHEMA_VERSION == 10
         assert store.unit_summaries() == before and _kept(store) == _worked_out(store)
 
 

@@ -140,9 +140,12 @@ def _print_forecast(ahead: dict[str, Any]) -> None:
     f = ahead.get("forecast")
     if f:
         when = remaining_text(f)
+        past = when.endswith(", date past")
+        when = when.removesuffix(", date past")
         out.print(f"forecast: {f['parameter']} " + (when if when == "at no-go now" else
                                                     f"no-go in {when}")
                   + (f", about {f['date'][:10]}" if f["date"] else "")
+                  + (" (past: the check is old; check the unit again)" if past else "")
                   + (f" ({f['rule']})" if f["rule"] else "")
                   + "; median (90 % interval), `condmon forecast` for more", highlight=False,
                   markup=False, soft_wrap=True)

@@ -21,7 +21,7 @@ from condmon.diagnose.rules import RuleBase, evaluate, load_rules
 from condmon.models.regimes import split_key
 
 __all__ = ["FaultDegree", "Diagnosis", "diagnose", "STATUSES", "WATCH_DEGREE", "LEVEL_NOTE",
-           "nogo_degree", "single_faults"]
+           "nogo_degree", "single_faults", "joint_faults"]
 
 FloatArray = NDArray[np.float64]
 STATUSES = ("go", "advisory", "no-go")
@@ -324,16 +324,67 @@ def single_faults(rules: RuleBase | None = None) -> dict[str, FaultDegree]:
     >>> single_faults()["high(D)"].name, single_faults()["high(R)"].name
     ('friction increase', 'winding resistance increase')
     """
-    rb = rules or load_rules()
-    out: dict[str, FaultDegree] = {}
-    for p in sorted(rb.parameters()):
-        for kind in ("high", "low"):
-            high = {q: 0.0 for q in rb.parameters()}
-            low = dict(high)
-            (high if kind == "high" else low)[p] = 1.0
-            high, low, _ = _preprocess(high, low, rb)
-            fired = [FaultDegree(r.name, 1.0, r.severity, r.advice, r.severity)
-                     for r in rb.faults if float(evaluate(r.condition, high, low)) >= 1.0 - 1e-12]
-            if fired:
-                out[f"{kind}({p})"] = min(fired, key=lambda f: f.severity != "major")
-    return out
+    return dict(_single_faults(rules or load_rules()))
+
+
+@functools.lru_cache(maxsize=32)
+def _single_faults(rb: RuleBase) -> tuple[tuple[str, FaultDegree], ...]:
+    out = []
+    for s in _symptoms(rb):
+        fired = _fired(rb, [s])
+        if fired:
+            out.append((s, min(fired, key=lambda f: f.severity != "major")))
+    return tuple(out)
+
+
+def _symptoms(rb: RuleBase) -> list[str]:
+    return [f"{kind}({p})" for p in sorted(rb.parameters()) for kind in ("high", "low")]
+
+
+def _fired(rb: RuleBase, on: Sequence[str]) -> list[FaultDegree]:
+    """The rules a degree of 1 on the symptoms ``on`` (``"high(D)"``), every
+    other 0, fires in full, after the rule base's preprocessing."""
+    high = {q: 0.0 for q in rb.parameters()}
+    low = dict(high)
+    for s in on:
+        kind, p = s[:-1].split("(")
+        (high if kind == "high" else low)[p] = 1.0
+    high, low, _ = _preprocess(high, low, rb)
+    return [FaultDegree(r.name, 1.0, r.severity, r.advice, r.severity)
+            for r in rb.faults if float(evaluate(r.condition, high, low)) >= 1.0 - 1e-12]
+
+
+def joint_faults(rules: RuleBase | None = None) -> dict[str, tuple[FaultDegree, tuple[str, ...]]]:
+    """The major faults a symptom names together with another, where it names
+    none alone: ``{"low(Ke)": (magnet weakening, ("low(Kt)",)), ...}``. The
+    rule fires in full on the two symptoms at 1 (every other 0) and on
+    neither alone; a check turns no-go by it when the later of the two
+    reaches the no-go degree (a rule's ``and`` is the minimum).
+
+    Example
+    -------
+    >>> f, partners = joint_faults()["low(Ke)"]
+    >>> f.name, partners
+    ('magnet weakening', ('low(Kt)',))
+    """
+    return dict(_joint_faults(rules or load_rules()))
+
+
+@functools.lru_cache(maxsize=32)
+def _joint_faults(rb: RuleBase) -> tuple[tuple[str, tuple[FaultDegree, tuple[str, ...]]], ...]:
+    symptoms = _symptoms(rb)
+    alone = {s: _fired(rb, [s]) for s in symptoms}
+    out = []
+    for s in symptoms:
+        if any(f.severity == "major" for f in alone[s]):
+            continue            # a major fault of its own: single_faults
+        for t in symptoms:
+            if t == s or t.split("(")[1] == s.split("(")[1]:
+                continue        # (high and low of one parameter cannot come together)
+            named = {f.name for f in alone[s] + alone[t]}
+            both = [f for f in _fired(rb, [s, t]) if f.severity == "major"
+                    and f.name not in named]
+            if both:
+                out.append((s, (both[0], (t,))))
+                break
+    return tuple(out)

@@ -530,6 +530,11 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
         return Forecast("no trend", threshold, slope, interval, None,
                         0.0 if horizon is not None else None, n, tuple(notes),
                         *_fitted(straight or fits["linear"]), last, unreachable or "")
+    if sign * ya[-1] >= abs(threshold):   # already there: no draw of when
+        notes.append("the last check measured past the no-go change: at no-go now")
+        return Forecast(model, threshold, slope, interval, (0.0, 0.0, 0.0),
+                        1.0 if horizon is not None else None, n, tuple(notes),
+                        *_fitted(fits[model]), last)
     # each model's draws in proportion to its evidence weight (model averaging);
     # a posterior's draws are (α, β, b) from the last test, drawn as the exponential's
     rng = np.random.default_rng(seed)

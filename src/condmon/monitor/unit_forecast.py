@@ -72,6 +72,10 @@ class NoGo:
     lower, upper : float
         The parameter's plausible values (a friction is ≥ 0): a no-go past
         them cannot come. [the parameter's unit]
+    rise_with, fall_with : tuple of str
+        The symptoms a rise (a fall) names its major fault with
+        (``("low(Kt)",)`` for a fall of Ke: magnet weakening): the check
+        turns no-go when the later of them reaches the degree too.
 
     Example
     -------
@@ -88,6 +92,8 @@ class NoGo:
     fall: float = 1.0
     lower: float = -math.inf
     upper: float = math.inf
+    rise_with: tuple[str, ...] = ()
+    fall_with: tuple[str, ...] = ()
 
     def change(self, width: float, rising: bool) -> float:
         """How far the change goes before a check turns no-go, for a
@@ -155,6 +161,10 @@ class ParameterForecast:
     hours : float or None
         The unit's operating hours at the median crossing (a forecast in
         hours). [h]
+    waits_for : str
+        The parameter whose no-go change this one's fault also needs and
+        that comes later ("": none): magnet weakening needs Ke and Kt both
+        low, so the earlier of the two is not when the unit turns no-go.
     """
 
     parameter: str
@@ -165,10 +175,12 @@ class ParameterForecast:
     test_ids: tuple[int, ...] = ()
     span: float = 0.0
     hours: float | None = None
+    waits_for: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         return {"parameter": self.parameter, "unit": self.unit, "rule": self.rule or None,
-                "date": self.date, "at_hours": self.hours, **self.forecast.to_dict()}
+                "date": self.date, "at_hours": self.hours,
+                "waits_for": self.waits_for or None, **self.forecast.to_dict()}
 
 
 @dataclass(frozen=True)
@@ -201,7 +213,8 @@ class UnitForecast:
     @property
     def earliest(self) -> ParameterForecast | None:
         """The parameter forecast to turn no-go first (None: no trend anywhere)."""
-        trends = [p for p in self.parameters if p.forecast.remaining is not None]
+        trends = [p for p in self.parameters
+                  if p.forecast.remaining is not None and not p.waits_for]
         return trends[0] if trends else None
 
     def to_dict(self) -> dict[str, Any]:
@@ -480,13 +493,60 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
               and math.isfinite(f.remaining[0]) else None)
         out.append(ParameterForecast(key, (units or {}).get(name, ""), rule, f, when,
                                      tuple(int(i) for i in rows), float(x[-1] - x[0]), at))
-    out.sort(key=lambda p: (p.forecast.remaining is None,
-                            p.forecast.remaining[0] if p.forecast.remaining else 0.0))
+    out = _with_partners(out, r2)
+    order = {p.parameter: p for p in out}
+    out.sort(key=lambda p: (p.forecast.remaining is None, _median(order.get(p.waits_for, p)),
+                            bool(p.waits_for)))
     notes = [axis.note] if axis.note else []
     late = _overdue(out, axis, now)
     if late:
         notes.append(late)
     return UnitForecast(unit, axis.by, len(checks), tuple(out), tuple(notes), horizon)
+
+
+def _median(p: ParameterForecast) -> float:
+    return p.forecast.remaining[0] if p.forecast.remaining else 0.0
+
+
+def _symptom(p: ParameterForecast) -> tuple[str, str]:
+    """``("low(Ke)", regime)`` of a forecast, by the way it heads."""
+    name, _, regime = p.parameter.partition("@")
+    return f"{'high' if p.forecast.threshold > 0 else 'low'}({name})", regime
+
+
+def _with_partners(out: list[ParameterForecast], r2: Mapping[str, float | NoGo]
+                   ) -> list[ParameterForecast]:
+    """A fault two symptoms name together (magnet weakening: ``low(Ke) and
+    low(Kt)``, the minimum of the two) turns a check no-go when the later of
+    them reaches its no-go change: each one's rule names its partner; the
+    earlier waits for the later (``waits_for``); one whose partner does not
+    trend that way (of the same regime) is "no trend", with the reason."""
+    trending = {_symptom(p): p for p in out if p.forecast.trend}
+    done = []
+    for p in out:
+        limit = r2.get(p.parameter.partition("@")[0])
+        partners = (() if not isinstance(limit, NoGo) or not p.forecast.trend else
+                    limit.rise_with if p.forecast.threshold > 0 else limit.fall_with)
+        if not partners:
+            done.append(p)
+            continue
+        regime = _symptom(p)[1]
+        mates = [trending.get((s, regime)) for s in partners]
+        missing = [s for s, m in zip(partners, mates) if m is None]
+        if missing:
+            why = (f"{p.rule} needs {' and '.join(missing)} too, which does not trend "
+                   "towards its no-go")
+            f = dataclasses.replace(p.forecast, model="no trend", remaining=None,
+                                    p_within=None if p.forecast.p_within is None else 0.0,
+                                    notes=(*p.forecast.notes, why), unreachable=why)
+            done.append(dataclasses.replace(p, forecast=f, date=None, hours=None))
+            continue
+        later = max((m for m in mates if m is not None), key=_median)
+        names = ", ".join(m.parameter for m in mates if m is not None)
+        done.append(dataclasses.replace(
+            p, rule=f"{p.rule}, with {names}",
+            waits_for=later.parameter if _median(later) > _median(p) else ""))
+    return done
 
 
 def _overdue(out: list[ParameterForecast], axis: Axis, now: pd.Timestamp | None) -> str | None:
@@ -505,15 +565,21 @@ def _overdue(out: list[ParameterForecast], axis: Axis, now: pd.Timestamp | None)
             f"check is {age:.0f} d old; check the unit again")
 
 
-def remaining_text(f: dict[str, Any] | None, reason: str | None = None) -> str:
+def remaining_text(f: dict[str, Any] | None, reason: str | None = None,
+                   now: pd.Timestamp | None = None) -> str:
     """A unit's earliest forecast (:meth:`UnitForecast.summary`) in a few
     words, as tables print it: ``12 d (11–13)`` (days), ``8.5 tests (6.1–∞)``;
-    ``—`` without one (``no trend`` when ``reason`` says so).
+    ``—`` without one (``no trend`` when ``reason`` says so); a median no-go
+    date already past at ``now`` (default: the clock) says so: the unit is
+    due a check.
 
     Example
     -------
     >>> remaining_text({"median": 12.1, "low": 11.1, "high": None, "by": "days"})
     '12 d (11–∞)'
+    >>> remaining_text({"median": 12.1, "low": 11.1, "high": 13.0, "by": "days",
+    ...                 "date": "2026-01-15T00:00:00+00:00"}, now=pd.Timestamp("2026-02-01"))
+    '12 d (11–13), date past'
     """
     if not f:
         return "no trend" if reason == NO_TREND else "—"
@@ -525,5 +591,14 @@ def remaining_text(f: dict[str, Any] | None, reason: str | None = None) -> str:
             return "∞"
         return f"{v:.0f}" if abs(v) >= 10 else f"{v:.2g}"
 
-    per = {"days": "d", "hours": "h"}.get(f["by"], "tests")
-    return f"{n(f['median'])} {per} ({n(f['low'])}–{n(f['high'])})"
+    per = {"days": "d", "hours": "h"}.get(f["by"], "test" if f["median"] == 1 else "tests")
+    past = ", date past" if f.get("date") and _past(f["date"], now) else ""
+    return f"{n(f['median'])} {per} ({n(f['low'])}–{n(f['high'])}){past}"
+
+
+def _past(date: str, now: pd.Timestamp | None) -> bool:
+    """Whether an ISO 8601 date is before ``now`` (default: the clock)."""
+    now = pd.Timestamp.now(tz="UTC") if now is None else pd.Timestamp(now)
+    now = now.tz_localize("UTC") if now.tzinfo is None else now
+    when = pd.Timestamp(date)
+    return bool((when.tz_localize("UTC") if when.tzinfo is None else when) < now)

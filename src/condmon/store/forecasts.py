@@ -252,29 +252,37 @@ def machine_nogo(machine: Machine, baseline: Baseline | None = None
     """Where each of a machine's parameters turns a check no-go on its own
     (:class:`~condmon.monitor.unit_forecast.NoGo`: its breakpoints and symptom
     width from its monitor, the diagnoser's no-go degree when a major rule
-    names its rise or fall alone, its plausible values), and the rule each
-    one-symptom condition names (``{"high(D)": "friction increase"}``)."""
-    from condmon.diagnose.diagnoser import nogo_degree, single_faults
+    names its rise or fall, alone or with another symptom (``low(Ke) and
+    low(Kt)``: the partner is kept, :func:`~condmon.diagnose.diagnoser.joint_faults`),
+    its plausible values), and the rule each one-symptom condition names
+    (``{"high(D)": "friction increase", "low(Ke)": "magnet weakening"}``)."""
+    from condmon.diagnose.diagnoser import joint_faults, nogo_degree, single_faults
     from condmon.diagnose.rules import machine_rules
     from condmon.monitor.generic import machine_monitor
 
     rb = machine_rules(machine)
     named = single_faults(rb)
+    joint = joint_faults(rb)
     degree = nogo_degree(rb)
     cfg = machine_monitor(machine, baseline)
     bounds = machine.spec.plausibility.bounds
     out = {}
     for name, r2 in cfg.r2.items():
-        sides = [degree if (f := named.get(f"{kind}({name})")) and f.severity == "major"
-                 else math.inf for kind in ("high", "low")]
+        sides = [degree if ((f := named.get(f"{kind}({name})")) and f.severity == "major")
+                 or f"{kind}({name})" in joint else math.inf for kind in ("high", "low")]
+        rise_with, fall_with = (joint[s][1] if (s := f"{kind}({name})") in joint else ()
+                                for kind in ("high", "low"))
         lower, upper = -math.inf, math.inf
         for op, value in (bounds[name].limits if name in bounds else ()):
             if op in ("gt", "ge"):
                 lower = max(lower, value)
             else:
                 upper = min(upper, value)
-        out[name] = NoGo(cfg.r1[name], r2, cfg.k, sides[0], sides[1], lower, upper)
-    return out, {k: f.name for k, f in named.items()}
+        out[name] = NoGo(cfg.r1[name], r2, cfg.k, sides[0], sides[1], lower, upper,
+                         rise_with, fall_with)
+    rules = {k: f.name for k, (f, _) in joint.items()}
+    return out, {**rules, **{k: f.name for k, f in named.items()
+                             if f.severity == "major" or k not in rules}}
 
 
 #: Why a unit with isolations (a plant model run beside it) and no tests has no forecast.
@@ -409,9 +417,9 @@ def prior_units() -> int:
 #: What a kept forecast means: raised when forecasts change their meaning
 #: (2: to the change at which a check turns no-go, the fleet's priors by
 #: direction; 3: mid-p intervals, the scale read from the residuals, the way
-#: of a steady move), so the forecasts and wear kept by an older method are
-#: made again.
-FORECAST_METHOD = 3
+#: of a steady move; 4: faults of two symptoms), so the forecasts and wear
+#: kept by an older method are made again.
+FORECAST_METHOD = 4
 
 _CURRENT: set[str] = set()   # histories whose kept forecasts are the current method's
 

@@ -14,7 +14,7 @@ __all__ = ["metadata", "units", "tests", "estimates", "baselines", "baseline_val
            "PARAMETER_LENGTH"]
 
 #: Version of the schema this code writes.
-SCHEMA_VERSION = 9
+SCHEMA_VERSION = 10
 
 #: Longest unit, fault or baseline name the store keeps (the same on every back-end).
 NAME_LENGTH = 200
@@ -400,7 +400,14 @@ def _v8_to_v9(conn: sa.Connection) -> None:
             index.create(conn, checkfirst=True)
 
 
+def _v9_to_v10(conn: sa.Connection) -> None:
+    """No table changes: a unit with undated checks takes its last stored check
+    as its latest (an undated check's storing time is not when it was tested);
+    the store works out every unit's status again once the migrations have run."""
+
+
 MIGRATIONS: dict[int, Callable[[sa.Connection], None]] = {1: _v1_to_v2, 2: _v2_to_v3,
                                                           3: _v3_to_v4, 4: _v4_to_v5,
                                                           5: _v5_to_v6, 6: _v6_to_v7,
-                                                          7: _v7_to_v8, 8: _v8_to_v9}
+                                                          7: _v7_to_v8, 8: _v8_to_v9,
+                                                          9: _v9_to_v10}

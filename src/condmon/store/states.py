@@ -77,13 +77,22 @@ def _state_rows(conn: sa.Connection, uids: list[int] | None) -> list[dict[str, A
                           d.c.status.in_(DEGRADED)),
         per_unit(sa.select(sa.func.max(a.c.id)).where(a.c.unit_id == u.c.id))), u.c.id)).all()
     t_when = sa.func.coalesce(t.c.test_date, t.c.created_at)
-    # a unit's status is its latest check's; baseline tests only without checks
+    # a unit's status is its latest check's; baseline tests only without checks. The
+    # latest by test date when every check carries one (a record checked late goes
+    # where it was tested), else the last stored (an undated check's storing time is
+    # not when it was tested), as its forecast orders them
+    dated = only(sa.select(t.c.unit_id, sa.func.min(sa.case((t.c.test_date.is_(None), 0),
+                                                            else_=1)).label("all"))
+                 .where(t.c.excluded.is_(False), t.c.role == "check"), t.c.unit_id
+                 ).group_by(t.c.unit_id).subquery()
     ranked = only(sa.select(t.c.unit_id, t.c.id, t.c.source, t.c.role, t.c.accepted,
                             t.c.excluded, t_when.label("at"), t.c.reason, t.c.regime,
                             sa.func.row_number().over(
                                 partition_by=t.c.unit_id,
-                                order_by=((t.c.role == "check").desc(), t_when.desc(),
+                                order_by=((t.c.role == "check").desc(),
+                                          sa.case((dated.c.all == 1, t_when)).desc(),
                                           t.c.id.desc())).label("rank"))
+                  .select_from(t.outerjoin(dated, dated.c.unit_id == t.c.unit_id))
                   .where(t.c.excluded.is_(False)), t.c.unit_id).subquery()
     newest = d.alias("newest")   # the evaluation against the newest baseline evaluated with
     latest_bid = (sa.select(sa.func.max(newest.c.baseline_id))

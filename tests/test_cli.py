@@ -260,3 +260,13 @@ def test_help_and_a_bare_command_still_help(capsys: pytest.CaptureFixture[str]) 
     assert main(["--help"]) == 0 and "Commands" in capsys.readouterr().out
     assert main([]) == 2 and "Commands" in capsys.readouterr().out
     assert main(["simulate"]) == 2 and "actuator" in capsys.readouterr().out
+
+
+def test_units_of_a_history_without_units_says_so(tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    from condmon.store import open_store
+
+    db = str(tmp_path / "h.db")
+    open_store(db).close()
+    assert main(["units", "--db", db]) == 0
+    assert "no units in" in capsys.readouterr().out

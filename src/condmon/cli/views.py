@@ -42,7 +42,7 @@ def register(app: typer.Typer) -> None:
         from condmon.monitor.generic import load_generic_settings
         from condmon.store.db import open_store
         from condmon.store.engine import redact
-        from condmon.monitor.unit_forecast import remaining_text
+        from condmon.monitor.unit_forecast import NO_TREND, remaining_text
         from condmon.report.web_data import fleet_document
 
         from condmon.report.web_data import SORTS
@@ -61,11 +61,17 @@ def register(app: typer.Typer) -> None:
         if as_json:
             write_json(doc)
             return
+        if not doc["total"]:
+            out.print(f"no units in {redact(db)} yet: `condmon baseline add RECORDS --unit U` "
+                      "starts one", markup=False, highlight=False, soft_wrap=True)
+            return
         grouped = any(r["group"] for r in rows)
         regimes = any(r["latest_regime"] for r in rows)
         table = Table(title=escape(f"Units in {redact(db)}"), box=box.SIMPLE_HEAD,
                       pad_edge=False, collapse_padding=True)
-        ahead = sort == "forecast" or any(r["forecast"] for r in rows)
+        # the column when any unit has a forecast, or "no trend" (a stable fleet says so)
+        ahead = sort == "forecast" or any(r["forecast"] or r["forecast_reason"] == NO_TREND
+                                          for r in rows)
         cols = ("unit", "model", *(("group",) if grouped else ()), "tests", "latest",
                 *(("regime",) if regimes else ()), "date", "status",
                 *(("no-go in",) if ahead else ()))
@@ -118,7 +124,8 @@ def register(app: typer.Typer) -> None:
                       highlight=False)
         if ahead:
             out.print("no-go in: the earliest forecast to no-go, tests (days, hours) left, median "
-                      "(90 % interval); `condmon forecast --unit U` for every parameter",
+                      "(90 % interval; date past: its median date is before today, the unit "
+                      "is due a check); `condmon forecast --unit U` for every parameter",
                       markup=False, highlight=False, soft_wrap=True)
         if flagged:
             err.print(f"warning: baseline flagged for {', '.join(flagged)} (`condmon baseline list "

@@ -87,10 +87,9 @@ from numpy.typing import ArrayLike, NDArray
 from condmon.errors import DataError
 from condmon.monitor.degradation import (
     MIN_TESTS, Z90, Fit, RatePosterior, aicc_weights, checked_series, fleet_posteriors, growth,
-    rate_posterior, serial_factor, weights,
+    rate_posterior, residual_scale, serial_factor, weights,
 )
 from condmon.monitor.degradation import fits as degradation_fits
-from condmon.monitor.degradation import residual_scale
 from condmon.monitor.prior import (
     FleetPrior, Prior, RatePrior, fleet_prior, fleet_wear_prior, prior_from_rates,
     prior_from_wear, unit_rate, unit_wear, updated,

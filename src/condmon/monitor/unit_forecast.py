@@ -555,10 +555,9 @@ def _overdue(out: list[ParameterForecast], axis: Axis, now: pd.Timestamp | None)
     dated = [(p.parameter, p.date) for p in out if p.date is not None]
     if not dated or not axis.dated or (out[0].forecast.remaining or (1.0,))[0] == 0:
         return None   # (due at its last check: that check's status says it)
-    now = pd.Timestamp.now(tz="UTC") if now is None else pd.Timestamp(now)
-    now = now.tz_localize("UTC") if now.tzinfo is None else now
+    now = _utc(now)
     parameter, date = dated[0]
-    if pd.Timestamp(date) >= now:
+    if not _past(date, now):
         return None
     age = (now - axis.dates.max()).total_seconds() / 86400.0
     return (f"{parameter}'s median no-go date {date[:10]} is past: the last "
@@ -596,9 +595,12 @@ def remaining_text(f: dict[str, Any] | None, reason: str | None = None,
     return f"{n(f['median'])} {per} ({n(f['low'])}–{n(f['high'])}){past}"
 
 
+def _utc(when: Any) -> pd.Timestamp:
+    """A time in UTC (a naive one taken as UTC; None: the clock)."""
+    t = pd.Timestamp.now(tz="UTC") if when is None else pd.Timestamp(when)
+    return t.tz_localize("UTC") if t.tzinfo is None else t
+
+
 def _past(date: str, now: pd.Timestamp | None) -> bool:
     """Whether an ISO 8601 date is before ``now`` (default: the clock)."""
-    now = pd.Timestamp.now(tz="UTC") if now is None else pd.Timestamp(now)
-    now = now.tz_localize("UTC") if now.tzinfo is None else now
-    when = pd.Timestamp(date)
-    return bool((when.tz_localize("UTC") if when.tzinfo is None else when) < now)
+    return bool(_utc(date) < _utc(now))

@@ -26,25 +26,45 @@ def _early(seed: int, tests: int = 4) -> tuple[np.ndarray, np.ndarray]:
 
 
 def test_a_tight_correct_prior_sharpens_an_early_forecast() -> None:
-    truth = THRESHOLD / RATE - 4.0
+    """Six tests of a unit that wears as its fleet did: once its own checks
+    move, the fleet's rate narrows and steadies the forecast; the tests where
+    its own checks do not move yet are "no trend" with the prior too (the
+    fleet's wear is not a trend of a unit's own)."""
+    truth = THRESHOLD / RATE - 6.0
     tight = RatePrior("linear", RATE, 0.1, 20)
     err_own, err_prior, width_own, width_prior = [], [], [], []
     for seed in range(40):
-        x, y = _early(seed)
-        own = forecast_series(x, y, np.full(4, NOISE), 1.0, THRESHOLD)
-        post = forecast_series(x, y, np.full(4, NOISE), 1.0, THRESHOLD, prior=tight)
-        assert post.remaining is not None and post.model == "linear"
+        x, y = _early(seed, tests=6)
+        own = forecast_series(x, y, np.full(6, NOISE), 1.0, THRESHOLD)
+        post = forecast_series(x, y, np.full(6, NOISE), 1.0, THRESHOLD, prior=tight)
+        assert (post.remaining is None) == (own.remaining is None)
+        if own.remaining is None:       # no trend seen in 6 tests: no number at all
+            continue
+        assert post.model == "linear"
         err_prior.append(abs(post.remaining[0] - truth))
         width_prior.append(post.remaining[2] - post.remaining[1])
-        if own.remaining is not None:
-            err_own.append(abs(own.remaining[0] - truth))
-            width_own.append(own.remaining[2] - own.remaining[1])
-        else:                           # no trend seen in 4 tests: no number at all
-            err_own.append(math.inf)
-            width_own.append(math.inf)
+        err_own.append(abs(own.remaining[0] - truth))
+        width_own.append(own.remaining[2] - own.remaining[1])
+    assert len(err_own) >= 30
     assert np.median(err_prior) < 0.5 * np.median(err_own)
     assert np.median(err_prior) / truth < 0.1
     assert np.median(width_prior) < 0.5 * np.median(width_own)
+
+
+def test_a_healthy_unit_is_not_forecast_to_wear_as_its_peers_did() -> None:
+    """Peers that wore -5 %/day give a tight prior; a unit whose checks stay
+    flat (±2 %) is "no trend"; mostly because its own checks do not move
+    where the prior alone would have made a trend of them."""
+    x = np.arange(1.0, 11.0)
+    peers = RatePrior("linear", -5.0, 0.2, 3)
+    own = 0
+    for seed in range(20):
+        y = np.random.default_rng(seed).normal(0.0, 1.0, 10)
+        f = forecast_series(x, y, np.full(10, 1.0), 1.0, -40.0, prior=peers)
+        assert not f.trend and f.remaining is None, (seed, f)
+        assert "no steady move" in f.notes[-1]
+        own += "own checks hold no steady move" in f.notes[-1]
+    assert own >= 10, own
 
 
 def test_a_wrong_but_vague_prior_does_not_move_the_forecast() -> None:

@@ -343,6 +343,24 @@ def _median_interval(left: FloatArray, whole: bool) -> tuple[float, float, float
     return med, float(lo), float(hi)
 
 
+def _slope(fit: Fit, kind: str, scale: float, xa: FloatArray, ya: FloatArray, w: FloatArray,
+           sign: float) -> tuple[float, tuple[float, float]]:
+    """A fit's slope at the last test, towards the threshold for the
+    exponential's, and its 90 % interval [% per x]. A trend stands out of
+    the tests' stated uncertainty at least (a series that happens to scatter
+    less than stated does not make a stable unit's drift), nor do checks
+    that drift together (the residuals' autocorrelation,
+    :func:`~condmon.monitor.degradation.serial_factor`)."""
+    coef, cov, _ = fit
+    slope, sd = float(coef[1]), math.sqrt(max(cov[1, 1], 0.0))
+    if kind == "exponential":   # β at the last test, towards the threshold
+        slope *= sign
+    last = float(xa[-1])
+    fitted = _level(kind, np.asarray(coef, dtype=np.float64)[None, :], xa - last, last, sign)[0]
+    sd *= math.sqrt(serial_factor((sign * ya - fitted) * np.sqrt(w)) / min(scale, 1.0))
+    return slope, (slope - Z90 * sd, slope + Z90 * sd)
+
+
 def _scale(fit: Fit, n: int) -> float:
     """A fit's residual variance factor (:func:`residual_scale`)."""
     return residual_scale(fit[2], max(n - len(fit[0]), 1))
@@ -472,6 +490,7 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
     n = len(xa)
     w = weights(sa, spread)
     aic, weight = aicc_weights(fits, n) if len(fits) > 1 else ({}, {"linear": 1.0})
+    own, own_model = dict(fits), max(weight, key=lambda k: weight[k])   # the unit's alone
     posts: dict[str, RatePosterior] = {}
     straight: Fit | None = None   # the line's own fit, for "no trend", when a posterior bends it
     if shaped and isinstance(prior, FleetPrior):
@@ -505,23 +524,22 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
                              "fits the series")
         elif prior is not None:
             notes.append(prior.describe())
-    coef, cov, _ = fits[model]
     last = float(xa[-1])
-    slope, slope_sd = float(coef[1]), math.sqrt(max(cov[1, 1], 0.0))
-    if model in posts or model == "exponential":   # β at the last test, towards the threshold
-        slope *= sign
-    # a trend stands out of the tests' stated uncertainty at least: a series that
-    # happens to scatter less than stated does not make a stable unit's drift;
-    # nor do checks that drift together (their residuals' autocorrelation)
-    kind = "exponential" if model in posts else model
-    fitted = _level(kind, np.asarray(coef, dtype=np.float64)[None, :], xa - last, last, sign)[0]
-    slope_sd *= math.sqrt(serial_factor((sign * ya - fitted) * np.sqrt(w)) / min(
-        posts[model].scale if model in posts else _scale(fits[model], n), 1.0))
-    interval = (slope - Z90 * slope_sd, slope + Z90 * slope_sd)
+    slope, interval = _slope(fits[model], "exponential" if model in posts else model,
+                             posts[model].scale if model in posts else _scale(fits[model], n),
+                             xa, ya, w, sign)
     towards = interval[0] > 0 if sign > 0 else interval[1] < 0
-    if not towards:   # 0, or the wrong direction, inside the interval
+    # the fleet's wear is a unit's only once its own checks move: peers that
+    # degraded do not make a healthy unit's trend
+    mine = (_slope(own[own_model], own_model, _scale(own[own_model], n), xa, ya, w, sign)[1]
+            if own[own_model] is not fits[own_model] or model in posts else interval)
+    if not towards or not (mine[0] > 0 if sign > 0 else mine[1] < 0):
         notes.append(f"the slope's 90 % interval [{interval[0]:.3g}, {interval[1]:.3g}] "
-                     "holds no steady move towards the threshold")
+                     "holds no steady move towards the threshold" if not towards else
+                     f"the unit's own checks hold no steady move towards the threshold "
+                     f"(their slope's 90 % interval [{mine[0]:.3g}, {mine[1]:.3g}]): the "
+                     "fleet's wear is not taken as a trend of this unit's")
+        towards = False
         unreachable = None   # no move: which way it cannot come is noise
     elif unreachable:   # a move towards a no-go that cannot come
         notes.append(unreachable)

@@ -417,9 +417,10 @@ def prior_units() -> int:
 #: What a kept forecast means: raised when forecasts change their meaning
 #: (2: to the change at which a check turns no-go, the fleet's priors by
 #: direction; 3: mid-p intervals, the scale read from the residuals, the way
-#: of a steady move; 4: faults of two symptoms), so the forecasts and wear
-#: kept by an older method are made again.
-FORECAST_METHOD = 4
+#: of a steady move; 4: faults of two symptoms; 5: a trend needs the unit's
+#: own checks to move, not its peers' prior alone), so the forecasts and
+#: wear kept by an older method are made again.
+FORECAST_METHOD = 5
 
 _CURRENT: set[str] = set()   # histories whose kept forecasts are the current method's
 

@@ -274,7 +274,7 @@ def test_units_carry_the_earliest_forecast(wearing: tuple[Path, float],
     units = {u["unit"]: u for u in json.loads(capsys.readouterr().out)["units"]}
     f = units["WEAR"]["forecast"]
     assert set(f) == {"parameter", "unit", "by", "median", "low", "high", "date", "rule",
-                      "at_hours"}
+                      "at_hours", "at_no_go"}
     assert (f["parameter"], f["by"], f["rule"]) == ("D", "days", "friction increase")
     assert f["median"] == pytest.approx(truth, rel=0.2) and f["low"] <= truth <= f["high"]
     assert f["unit"] == "N m s/rad" and f["date"].startswith("2026-")
@@ -817,8 +817,14 @@ def test_a_series_whose_last_check_measured_past_no_go_is_at_no_go_now() -> None
     for step in (1.0, None):
         f = forecast_series(x, 11.0 * x, np.full(10, 1.0), 2.0, threshold=105.0, step=step,
                             horizon=3.0)
-        assert f.remaining == (0.0, 0.0, 0.0) and f.p_within == 1.0
+        assert f.remaining == (0.0, 0.0, 0.0) and f.p_within == 1.0 and f.at_nogo
         assert "at no-go now" in f.notes[-1]
+    # a path past no-go in days whose last check was not: due now, not at no-go
+    g = forecast_series(x, np.r_[11.0 * x[:-1], 100.0], np.full(10, 1.0), 2.0, threshold=105.0,
+                        step=None)
+    assert not g.at_nogo
     from condmon.monitor.unit_forecast import remaining_text
-    assert remaining_text({"median": 0.0, "low": 0.0, "high": 0.0, "by": "tests"}) == "at no-go now"
+    zero = {"median": 0.0, "low": 0.0, "high": 0.0, "by": "days"}
+    assert remaining_text({**zero, "at_no_go": True}) == "at no-go now"
+    assert remaining_text(zero) == "due now (its trend is past no-go)"
     assert remaining_text({"median": 1.0, "low": 1.0, "high": 2.0, "by": "tests"}) == "1 test (1–2)"

@@ -142,7 +142,7 @@ def _print_forecast(ahead: dict[str, Any]) -> None:
         when = remaining_text(f)
         past = when.endswith(", date past")
         when = when.removesuffix(", date past")
-        out.print(f"forecast: {f['parameter']} " + (when if when == "at no-go now" else
+        out.print(f"forecast: {f['parameter']} " + (when if f["high"] == 0 else
                                                     f"no-go in {when}")
                   + (f", about {f['date'][:10]}" if f["date"] else "")
                   + (" (past: the check is old; check the unit again)" if past else "")

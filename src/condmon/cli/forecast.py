@@ -76,7 +76,8 @@ def register(app: typer.Typer) -> None:
         for p in res.parameters:
             f = p.forecast
             rem = ("no trend" if f.remaining is None else
-                   "at no-go now" if f.remaining[2] == 0 else
+                   "at no-go now" if f.at_nogo else
+                   "due now" if f.remaining[2] == 0 else
                    f"{n(f.remaining[0])} ({n(f.remaining[1])}–{n(f.remaining[2])})"
                    + (" exp." if f.model == "exponential" else ""))
             # no trend: the no-go change of the way it can come (its sign follows noise
@@ -96,7 +97,8 @@ def register(app: typer.Typer) -> None:
         e = res.earliest
         r = None if e is None else e.forecast.remaining
         out.print("no parameter trends towards no-go" if r is None or e is None else
-                  f"earliest: {e.parameter}, at no-go now" if r[2] == 0 else
+                  f"earliest: {e.parameter}, at no-go now" if e.forecast.at_nogo else
+                  f"earliest: {e.parameter}, due now (its trend is past no-go)" if r[2] == 0 else
                   f"earliest: {e.parameter} in {n(r[0])} {left.split()[0]} "
                   f"(90 %: {n(r[1])}–{n(r[2])})", markup=False, highlight=False)
         for note in res.notes:

@@ -141,6 +141,10 @@ class Forecast:
         ``x`` of the last test. [test (or d, h)]
     unreachable : str
         Why no check can turn no-go this way ("": it can), for a "no trend".
+    at_nogo : bool
+        The last check measured past the threshold: at no-go now (the
+        remaining (0, 0, 0)). A trend whose path is past the threshold while
+        the last check was not gives 0 too, without it: due now.
     """
 
     model: str
@@ -155,6 +159,7 @@ class Forecast:
     cov: tuple[tuple[float, ...], ...] = ()
     last: float = math.nan
     unreachable: str = ""
+    at_nogo: bool = False
 
     @property
     def trend(self) -> bool:
@@ -218,7 +223,7 @@ class Forecast:
                     "median": num(self.remaining[0]), "low": num(self.remaining[1]),
                     "high": num(self.remaining[2])},
                 "p_within_horizon": self.p_within, "tests": self.n, "notes": list(self.notes),
-                "unreachable": self.unreachable or None}
+                "unreachable": self.unreachable or None, "at_no_go": self.at_nogo}
 
 
 def checked_horizon(horizon: float | None) -> None:
@@ -551,7 +556,7 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
         notes.append("the last check measured past the no-go change: at no-go now")
         return Forecast(model, threshold, slope, interval, (0.0, 0.0, 0.0),
                         1.0 if horizon is not None else None, n, tuple(notes),
-                        *_fitted(fits[model]), last)
+                        *_fitted(fits[model]), last, at_nogo=True)
     # each model's draws in proportion to its evidence weight (model averaging);
     # a posterior's draws are (α, β, b) from the last test, drawn as the exponential's
     rng = np.random.default_rng(seed)

@@ -235,14 +235,16 @@ class UnitForecast:
         crossing date (ISO 8601, dated checks only, else None), the fault rule
         the no-go change fires (None when none names it alone) and the
         operating hours at the median crossing (a forecast in hours, else
-        None) [h]. None when no parameter trends towards no-go.
+        None) [h], and whether its last check measured past the no-go
+        change (``at_no_go``). None when no parameter trends towards no-go.
         """
         e = self.earliest
         if e is None or e.forecast.remaining is None:
             return None
         med, lo, hi = (v if math.isfinite(v) else None for v in e.forecast.remaining)
         return {"parameter": e.parameter, "unit": e.unit, "by": self.by, "median": med,
-                "low": lo, "high": hi, "date": e.date, "rule": e.rule or None, "at_hours": e.hours}
+                "low": lo, "high": hi, "date": e.date, "rule": e.rule or None, "at_hours": e.hours,
+                "at_no_go": e.forecast.at_nogo}
 
 
 @dataclass(frozen=True)
@@ -582,8 +584,10 @@ def remaining_text(f: dict[str, Any] | None, reason: str | None = None,
     """
     if not f:
         return "no trend" if reason == NO_TREND else "—"
-    if f["high"] == 0:
+    if f.get("at_no_go"):
         return "at no-go now"
+    if f["high"] == 0:   # the trend is past no-go, its last check was not
+        return "due now (its trend is past no-go)"
 
     def n(v: float | None) -> str:
         if v is None or not math.isfinite(v):

@@ -828,3 +828,20 @@ def test_a_series_whose_last_check_measured_past_no_go_is_at_no_go_now() -> None
     assert remaining_text({**zero, "at_no_go": True}) == "at no-go now"
     assert remaining_text(zero) == "due now (its trend is past no-go)"
     assert remaining_text({"median": 1.0, "low": 1.0, "high": 2.0, "by": "tests"}) == "1 test (1–2)"
+
+
+def test_the_report_index_lists_units_by_urgency(wearing: tuple[Path, float],
+                                                 tmp_path: Path) -> None:
+    """The static report's index: a "no-go in" column, the soonest first (WEAR
+    before SLOW, the stable unit last, "no trend")."""
+    import re
+
+    from condmon.report.html import write_fleet_index
+
+    with open_store(str(wearing[0]), create=False) as store:
+        index = write_fleet_index(store, tmp_path).read_text()
+    assert "<th class='l'>no-go in</th>" in index and "By urgency" in index
+    order = [u for u in re.findall(r"<tr><td class='l'>(\w+)", index)]
+    assert order == ["WEAR", "SLOW", "STABLE"], order
+    stable = re.search(r"<tr><td class='l'>STABLE.*?</tr>", index)
+    assert stable is not None and "no trend" in stable.group(0)

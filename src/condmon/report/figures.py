@@ -10,7 +10,8 @@ error bar of every figure and page, :func:`condmon.report.trends.error_bar`); ea
 is coloured by the status stored for it and filled when this parameter's
 symptom is above 0, so the picture agrees with the table; a parameter trending
 towards no-go gets its forecast: the fitted trend continued from the last check
-to the no-go line (r2, dotted) with its 90 % band shaded. Excluded tests are
+to the no-go change (dotted: where a check turns no-go, short of r2) with its
+90 % band shaded. Excluded tests are
 never drawn; rejected ones only in the fit figure.
 
 Every legend sits outside the axes (below them), so it never covers a point;

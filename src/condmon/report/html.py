@@ -162,7 +162,8 @@ def _tests_part(store: HistoryStore, unit: str, hist: Any, cfg: MonitorConfig, s
             f"the active baseline's ±{cfg.k:g}·σ. Excluded and rejected tests are not "
             "drawn." + (f" Purple ({FORECAST_LABEL}): the fitted trend of "
                         f"{esc(', '.join(b.parameter for b in bands))} continued from the last "
-                        "check to the no-go line (r2, dotted), as <code>condmon forecast</code> "
+                        "check to the no-go change (dotted: where a check turns no-go, short of "
+                        "r2), as <code>condmon forecast</code> "
                         "gives it." if bands else "") + "</p>")
     else:
         body.append("<p class='sub'>No accepted check to trend yet.</p>")
@@ -256,7 +257,8 @@ def write_report(store: HistoryStore, unit: str, out_dir: str | Path,
 def write_fleet_index(store: HistoryStore, out_dir: str | Path, title: str = "Fleet",
                       extra: str = "", summaries: Sequence[Mapping[str, Any]] | None = None
                       ) -> Path:
-    """Write ``index.html``: every unit with its latest status, linked to its page.
+    """Write ``index.html``: every unit with its latest status and its earliest
+    forecast to no-go, by urgency (the soonest first), linked to its page.
 
     Parameters
     ----------
@@ -276,9 +278,13 @@ def write_fleet_index(store: HistoryStore, out_dir: str | Path, title: str = "Fl
         The index file. A unit whose page is not in ``out_dir`` is listed
         without a link.
     """
+    from condmon.monitor.unit_forecast import remaining_text
+    from condmon.store.forecasts import attach_forecasts, by_urgency
+
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    units = list(store.unit_summaries() if summaries is None else summaries)
+    units = by_urgency(attach_forecasts(store, [dict(s) for s in (
+        store.unit_summaries() if summaries is None else summaries)]))
     rows: list[str] = []
     counts: dict[str, int] = {}
     flagged = 0
@@ -297,15 +303,20 @@ def write_fleet_index(store: HistoryStore, out_dir: str | Path, title: str = "Fl
                     f"<td class='l'>{when(s['latest_date'])}</td>"
                     f"<td class='l'>{esc(Path(str(s['model'])).name)}</td>"
                     f"<td>{int(s['tests'])}</td><td>{int(s['isolations'])}</td>"
-                    f"<td>{flag}</td><td class='l'>{esc(s['summary'] or '')}</td></tr>")
+                    f"<td>{flag}</td>"
+                    f"<td class='l'>{esc(remaining_text(s['forecast'], s['forecast_reason']))}"
+                    f"</td><td class='l'>{esc(s['summary'] or '')}</td></tr>")
     tally = ", ".join(f"{n} {esc(k)}" for k, n in sorted(counts.items()))
     body = [f"<h1>{esc(title)}</h1>",
             f"<p class='sub'>{len(units)} unit{'s' if len(units) != 1 else ''}"
             f"{': ' + tally if tally else ''}; {flagged} with a flagged baseline (⚠: "
-            f"warnings to look at). Written {when(datetime.now(timezone.utc))} UTC.</p>",
+            f"warnings to look at). By urgency: the earliest forecast to no-go first (no-go "
+            f"in: tests, days or hours left, median and 90 % interval). Written "
+            f"{when(datetime.now(timezone.utc))} UTC.</p>",
             "<table><tr><th class='l'>unit</th><th class='l'>latest status</th>"
             "<th class='l'>latest (UTC)</th><th class='l'>model</th><th>tests</th>"
-            "<th>isolations</th><th>baseline flags</th><th class='l'>latest summary</th></tr>"
+            "<th>isolations</th><th>baseline flags</th><th class='l'>no-go in</th>"
+            "<th class='l'>latest summary</th></tr>"
             f"{''.join(rows)}</table>", extra]
     index = out / f"{INDEX}.html"
     index.write_text(page(title, body), encoding="utf-8")

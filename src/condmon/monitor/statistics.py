@@ -208,9 +208,12 @@ class CheckStatistics:
                      "below the fault breakpoints")
         if not self.calibrated:
             wide = sorted(self.scatter_ratio, key=lambda k: -self.scatter_ratio[k])[:2]
-            line += ("; NOT at the stated rates: this unit's checks scatter "
-                     + ", ".join(f"{self.scatter_ratio[k]:.2g}x" + f" ({k})" for k in wide)
-                     + " the variance of its baseline's tests: rebuild the baseline from tests "
+            scatter = ("this unit's checks scatter "
+                       + ", ".join(f"{self.scatter_ratio[k]:.2g}x" + f" ({k})" for k in wide)
+                       + " the variance of its baseline's tests")
+            line += (f"; {scatter}: a diagnosed fault's own change may do that, the rates "
+                     "are stated for a healthy unit" if status in ("advisory", "no-go") else
+                     f"; NOT at the stated rates: {scatter}: rebuild the baseline from tests "
                      "that span its operating conditions (sessions, temperatures)")
         return line
 

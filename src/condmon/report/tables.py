@@ -140,14 +140,18 @@ def baseline_section(stored: Any, cfg: MonitorConfig,
 
 
 def faults_table(faults: Sequence[CheckFault]) -> str:
-    """A check's faults: name, degree, severity and advice."""
+    """A check's faults: name, degree, severity in this check and advice, with
+    what the severity means (a major rule below no-go is listed minor)."""
+    from condmon.diagnose.diagnoser import LEVEL_NOTE
+
     if not faults:
         return ""
     rows = "".join(f"<tr><td class='l'>{esc(f.name)}</td><td>{f.degree:.2f}</td>"
                    f"<td class='l'>{esc(f.severity)}</td><td class='l'>{esc(f.advice)}</td></tr>"
                    for f in faults)
-    return ("<table><tr><th class='l'>fault</th><th>degree</th><th class='l'>severity</th>"
-            f"<th class='l'>advice</th></tr>{rows}</table>")
+    return ("<table><tr><th class='l'>fault</th><th>degree</th>"
+            "<th class='l'>severity in this check</th>"
+            f"<th class='l'>advice</th></tr>{rows}</table><p class='sub'>{esc(LEVEL_NOTE)}</p>")
 
 
 def _change_cell(r: Any, p: str) -> str:

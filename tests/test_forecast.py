@@ -845,3 +845,17 @@ def test_the_report_index_lists_units_by_urgency(wearing: tuple[Path, float],
     assert order == ["WEAR", "SLOW", "STABLE"], order
     stable = re.search(r"<tr><td class='l'>STABLE.*?</tr>", index)
     assert stable is not None and "no trend" in stable.group(0)
+
+
+def test_a_check_past_its_no_go_change_whose_status_is_not_no_go_is_due_now() -> None:
+    """Its measured change passed the no-go change, but its own (wider) symptom
+    kept it advisory: the unit is due now, not at no-go now."""
+    from condmon.monitor.unit_forecast import NoGo, forecast_checks
+
+    checks, baseline = _falling([-10.0, -20.0, -30.0, -40.0, -45.0])
+    for status, at in (("advisory", False), ("no-go", True)):
+        checks["status"] = ["go", "go", "advisory", "advisory", status]
+        f = forecast_checks("U", checks, baseline, {"D": NoGo(20.0, 40.0, lower=-100.0)}, {})
+        p = f.parameters[0].forecast
+        assert p.remaining == (0.0, 0.0, 0.0) and p.at_nogo is at, status
+        assert f.summary() is not None and f.summary()["at_no_go"] is at

@@ -489,6 +489,11 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
                                     prior=(priors or {}).get((key, 1.0 if rising else -1.0),
                                                              (priors or {}).get(key)),
                                     step=1.0 if axis.by == "tests" else None)
+        said = str(checks["status"].loc[rows[-1]]) if "status" in checks else "no-go"
+        if f.at_nogo and said != "no-go":   # past its no-go change, yet the check said not
+            f = dataclasses.replace(f, at_nogo=False, notes=(
+                *f.notes[:-1], f"the last check measured past the no-go change, yet its "
+                f"status is {said}: due now"))
         when = None if f.remaining is None else axis.date_after(rows[-1], f.remaining[0])
         at = (float(axis.hours[rows[-1]] + f.remaining[0])
               if axis.by == "hours" and f.remaining is not None

@@ -135,17 +135,15 @@ def register(app: typer.Typer) -> None:
 
 def _print_forecast(ahead: dict[str, Any]) -> None:
     """The unit's earliest forecast to no-go after a check (none on a dry run)."""
-    from condmon.monitor.unit_forecast import remaining_text
+    from condmon.monitor.unit_forecast import date_past, remaining_text
 
     f = ahead.get("forecast")
     if f:
-        when = remaining_text(f)
-        past = when.endswith(", date past")
-        when = when.removesuffix(", date past")
+        when = remaining_text(f, past=False)
         out.print(f"forecast: {f['parameter']} " + (when if f["high"] == 0 else
                                                     f"no-go in {when}")
                   + (f", about {f['date'][:10]}" if f["date"] else "")
-                  + (" (past: the check is old; check the unit again)" if past else "")
+                  + (" (past: the check is old; check the unit again)" if date_past(f) else "")
                   + (f" ({f['rule']})" if f["rule"] else "")
                   + "; median (90 % interval), `condmon forecast` for more", highlight=False,
                   markup=False, soft_wrap=True)

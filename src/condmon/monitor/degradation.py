@@ -37,7 +37,7 @@ __all__ = ["MIN_TESTS", "EXP_MIN_TESTS", "Fit", "wls", "growth", "exp_fit", "fit
            "checked_series", "aicc_weights", "weights", "RatePosterior", "rate_posterior",
            "ShapePosteriors", "fleet_posteriors", "bent_fit", "Z90",
            "SCALE_PRIOR_TESTS", "residual_scale", "steady_direction",
-           "serial_factor", "SERIAL_MIN_TESTS"]
+           "serial_factor", "SERIAL_MIN_TESTS", "trend_sd"]
 
 FloatArray = NDArray[np.float64]
 #: A weighted fit: coefficients, their covariance, the weighted residual sum of squares.
@@ -220,6 +220,21 @@ def serial_factor(r: FloatArray) -> float:
     return (1.0 + rho) / (1.0 - rho)
 
 
+def trend_sd(sd: float, residuals: FloatArray, scale: float) -> float:
+    """A slope's standard deviation as a trend test takes it: at the tests'
+    stated variance at least (a series that happens to scatter less than
+    stated, ``scale`` < 1, does not make a stable unit's drift), and widened
+    by :func:`serial_factor` of its weighted ``residuals`` (checks that drift
+    together). [% per x]
+
+    Example
+    -------
+    >>> trend_sd(1.0, np.zeros(3), 0.25)        # a quarter of the stated variance: taken at 1
+    2.0
+    """
+    return sd * math.sqrt(serial_factor(residuals) / min(scale, 1.0))
+
+
 def steady_direction(x: FloatArray, y: FloatArray, se: FloatArray, spread: float) -> float:
     """The sign of a series' steady move: +1.0 or -1.0 when its weighted
     line's slope has a 90 % interval clear of 0 (at the tests' stated
@@ -234,9 +249,8 @@ def steady_direction(x: FloatArray, y: FloatArray, se: FloatArray, spread: float
     """
     w = weights(se, spread)
     coef, cov, rss = wls(x, y, w)
-    serial = serial_factor((y - coef[0] - coef[1] * x) * np.sqrt(w))
-    sd = math.sqrt(max(cov[1, 1], 0.0) * serial
-                   / min(residual_scale(rss, max(len(x) - 2, 1)), 1.0))
+    sd = trend_sd(math.sqrt(max(cov[1, 1], 0.0)), (y - coef[0] - coef[1] * x) * np.sqrt(w),
+                  residual_scale(rss, max(len(x) - 2, 1)))
     if abs(coef[1]) > Z90 * sd:
         return float(np.sign(coef[1]))
     return 0.0

@@ -87,7 +87,7 @@ from numpy.typing import ArrayLike, NDArray
 from condmon.errors import DataError
 from condmon.monitor.degradation import (
     MIN_TESTS, Z90, Fit, RatePosterior, aicc_weights, checked_series, fleet_posteriors, growth,
-    rate_posterior, residual_scale, serial_factor, weights,
+    rate_posterior, residual_scale, trend_sd, weights,
 )
 from condmon.monitor.degradation import fits as degradation_fits
 from condmon.monitor.prior import (
@@ -351,18 +351,15 @@ def _median_interval(left: FloatArray, whole: bool) -> tuple[float, float, float
 def _slope(fit: Fit, kind: str, scale: float, xa: FloatArray, ya: FloatArray, w: FloatArray,
            sign: float) -> tuple[float, tuple[float, float]]:
     """A fit's slope at the last test, towards the threshold for the
-    exponential's, and its 90 % interval [% per x]. A trend stands out of
-    the tests' stated uncertainty at least (a series that happens to scatter
-    less than stated does not make a stable unit's drift), nor do checks
-    that drift together (the residuals' autocorrelation,
-    :func:`~condmon.monitor.degradation.serial_factor`)."""
+    exponential's, and its 90 % interval as a trend test takes it
+    (:func:`~condmon.monitor.degradation.trend_sd`). [% per x]"""
     coef, cov, _ = fit
-    slope, sd = float(coef[1]), math.sqrt(max(cov[1, 1], 0.0))
+    slope = float(coef[1])
     if kind == "exponential":   # β at the last test, towards the threshold
         slope *= sign
     last = float(xa[-1])
     fitted = _level(kind, np.asarray(coef, dtype=np.float64)[None, :], xa - last, last, sign)[0]
-    sd *= math.sqrt(serial_factor((sign * ya - fitted) * np.sqrt(w)) / min(scale, 1.0))
+    sd = trend_sd(math.sqrt(max(cov[1, 1], 0.0)), (sign * ya - fitted) * np.sqrt(w), scale)
     return slope, (slope - Z90 * sd, slope + Z90 * sd)
 
 
@@ -530,15 +527,22 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
         elif prior is not None:
             notes.append(prior.describe())
     last = float(xa[-1])
-    slope, interval = _slope(fits[model], "exponential" if model in posts else model,
-                             posts[model].scale if model in posts else _scale(fits[model], n),
-                             xa, ya, w, sign)
-    towards = interval[0] > 0 if sign > 0 else interval[1] < 0
+    def kind(m: str) -> str:        # a posterior's (α, β, b) are drawn as the exponential's
+        return "exponential" if m in posts else m
+
+    def scale(m: str) -> float:
+        return posts[m].scale if m in posts else _scale(fits[m], n)
+
+    def heads(iv: tuple[float, float]) -> bool:   # clear of 0, on the threshold's side
+        return iv[0] > 0 if sign > 0 else iv[1] < 0
+
+    slope, interval = _slope(fits[model], kind(model), scale(model), xa, ya, w, sign)
+    towards = heads(interval)
     # the fleet's wear is a unit's only once its own checks move: peers that
     # degraded do not make a healthy unit's trend
     mine = (_slope(own[own_model], own_model, _scale(own[own_model], n), xa, ya, w, sign)[1]
             if own[own_model] is not fits[own_model] or model in posts else interval)
-    if not towards or not (mine[0] > 0 if sign > 0 else mine[1] < 0):
+    if not towards or not heads(mine):
         notes.append(f"the slope's 90 % interval [{interval[0]:.3g}, {interval[1]:.3g}] "
                      "holds no steady move towards the threshold" if not towards else
                      f"the unit's own checks hold no steady move towards the threshold "
@@ -560,9 +564,7 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
     # each model's draws in proportion to its evidence weight (model averaging);
     # a posterior's draws are (α, β, b) from the last test, drawn as the exponential's
     rng = np.random.default_rng(seed)
-    lefts = [_left("exponential" if m in posts else m,
-                   posts[m].draws if m in posts else _normal_draws(fits[m]),
-                   posts[m].scale if m in posts else _scale(fits[m], n),
+    lefts = [_left(kind(m), posts[m].draws if m in posts else _normal_draws(fits[m]), scale(m),
                    float(np.median(1.0 / w)), threshold, last, rng, round(_DRAWS * weight[m]),
                    step)
              for m in sorted(weight)]

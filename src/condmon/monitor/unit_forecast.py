@@ -35,7 +35,7 @@ from condmon.monitor.forecast import (
 
 __all__ = ["ParameterForecast", "UnitForecast", "forecast_checks", "forecast_axis", "Axis", "NoGo",
            "in_test_order",
-           "remaining_text", "NO_TREND", "parameter_series", "Series"]
+           "remaining_text", "date_past", "NO_TREND", "parameter_series", "Series"]
 
 #: One parameter's change series: x [test (or d)], change [%], each test's
 #: standard error and the baseline's spread [% of the baseline mean].
@@ -123,7 +123,8 @@ class NoGo:
         at = self.change(width, rising)
         if not math.isfinite(at):
             return sign * self.r2, (f"no major fault rule names a {'rise' if rising else 'fall'}"
-                                    " of this parameter alone: it cannot make a check no-go")
+                                    " of this parameter, alone or with one other symptom: "
+                                    "it cannot make a check no-go")
         return sign * at, None
 
     def beyond(self, threshold: float, mean: float) -> str | None:
@@ -469,12 +470,18 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
         threshold, never = nogo.threshold(x, change, se, spread)
         never = never or nogo.beyond(threshold, mean)
         rising = threshold > 0
-        rule = rules.get(f"{'high' if rising else 'low'}({name})", "")
-        prior = (priors or {}).get((key, 1.0 if rising else -1.0), (priors or {}).get(key))
-        # counted in tests, the no-go is a check: whole checks (days and
-        # hours have no cadence to come: the crossing itself)
-        f = forecast_series(x, change, se, spread, threshold, horizon, seed, prior=prior,
-                            step=1.0 if axis.by == "tests" else None, unreachable=never)
+
+        def heading(threshold: float, unreachable: str | None = None) -> Forecast:
+            # the peers that wore this way teach it; counted in tests, the no-go is
+            # a check: whole checks (days and hours have no cadence to come: the
+            # crossing itself)
+            prior = (priors or {}).get((key, 1.0 if threshold > 0 else -1.0),
+                                       (priors or {}).get(key))
+            return forecast_series(x, change, se, spread, threshold, horizon, seed, prior=prior,
+                                   step=1.0 if axis.by == "tests" else None,
+                                   unreachable=unreachable)
+
+        f = heading(threshold, never)
         if never and not f.trend and not f.unreachable:
             # no steady move the way its last checks pointed, where no-go cannot come:
             # the other way, if no-go can come there (a steady move that way is forecast)
@@ -483,12 +490,8 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
             if cannot:
                 f = dataclasses.replace(f, unreachable=f"{never}; nor the other way: {cannot}")
             else:
-                rising = not rising
-                rule = rules.get(f"{'high' if rising else 'low'}({name})", "")
-                f = forecast_series(x, change, se, spread, other, horizon, seed,
-                                    prior=(priors or {}).get((key, 1.0 if rising else -1.0),
-                                                             (priors or {}).get(key)),
-                                    step=1.0 if axis.by == "tests" else None)
+                rising, f = not rising, heading(other)
+        rule = rules.get(_condition(name, rising), "")
         said = str(checks["status"].loc[rows[-1]]) if "status" in checks else "no-go"
         if f.at_nogo and said != "no-go":   # past its no-go change, yet the check said not
             f = dataclasses.replace(f, at_nogo=False, notes=(
@@ -518,7 +521,12 @@ def _median(p: ParameterForecast) -> float:
 def _symptom(p: ParameterForecast) -> tuple[str, str]:
     """``("low(Ke)", regime)`` of a forecast, by the way it heads."""
     name, _, regime = p.parameter.partition("@")
-    return f"{'high' if p.forecast.threshold > 0 else 'low'}({name})", regime
+    return _condition(name, p.forecast.threshold > 0), regime
+
+
+def _condition(name: str, rising: bool) -> str:
+    """A parameter's symptom as the rules name it: ``high(D)``, ``low(Ke)``."""
+    return f"{'high' if rising else 'low'}({name})"
 
 
 def _with_partners(out: list[ParameterForecast], r2: Mapping[str, float | NoGo]
@@ -572,12 +580,12 @@ def _overdue(out: list[ParameterForecast], axis: Axis, now: pd.Timestamp | None)
 
 
 def remaining_text(f: dict[str, Any] | None, reason: str | None = None,
-                   now: pd.Timestamp | None = None) -> str:
+                   now: pd.Timestamp | None = None, past: bool = True) -> str:
     """A unit's earliest forecast (:meth:`UnitForecast.summary`) in a few
     words, as tables print it: ``12 d (11–13)`` (days), ``8.5 tests (6.1–∞)``;
     ``—`` without one (``no trend`` when ``reason`` says so); a median no-go
-    date already past at ``now`` (default: the clock) says so: the unit is
-    due a check.
+    date already past at ``now`` (default: the clock) says so (unless not
+    ``past``: :func:`date_past` tells it): the unit is due a check.
 
     Example
     -------
@@ -600,8 +608,16 @@ def remaining_text(f: dict[str, Any] | None, reason: str | None = None,
         return f"{v:.0f}" if abs(v) >= 10 else f"{v:.2g}"
 
     per = {"days": "d", "hours": "h"}.get(f["by"], "test" if f["median"] == 1 else "tests")
-    past = ", date past" if f.get("date") and _past(f["date"], now) else ""
-    return f"{n(f['median'])} {per} ({n(f['low'])}–{n(f['high'])}){past}"
+    flag = ", date past" if past and date_past(f, now) else ""
+    return f"{n(f['median'])} {per} ({n(f['low'])}–{n(f['high'])}){flag}"
+
+
+def date_past(f: dict[str, Any] | None, now: pd.Timestamp | None = None) -> bool:
+    """Whether a forecast's (:meth:`UnitForecast.summary`) median no-go date
+    is before ``now`` (default: the clock); False without a date."""
+    if not f or not f.get("date"):
+        return False
+    return _past(str(f["date"]), now)
 
 
 def _utc(when: Any) -> pd.Timestamp:

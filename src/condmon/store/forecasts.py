@@ -268,10 +268,11 @@ def machine_nogo(machine: Machine, baseline: Baseline | None = None
     bounds = machine.spec.plausibility.bounds
     out = {}
     for name, r2 in cfg.r2.items():
-        sides = [degree if ((f := named.get(f"{kind}({name})")) and f.severity == "major")
-                 or f"{kind}({name})" in joint else math.inf for kind in ("high", "low")]
-        rise_with, fall_with = (joint[s][1] if (s := f"{kind}({name})") in joint else ()
-                                for kind in ("high", "low"))
+        sides, partners = [], []
+        for s in (f"high({name})", f"low({name})"):   # a major rule alone, or with a partner
+            major = (f := named.get(s)) is not None and f.severity == "major"
+            sides.append(degree if major or s in joint else math.inf)
+            partners.append(joint[s][1] if s in joint else ())
         lower, upper = -math.inf, math.inf
         for op, value in (bounds[name].limits if name in bounds else ()):
             if op in ("gt", "ge"):
@@ -279,10 +280,10 @@ def machine_nogo(machine: Machine, baseline: Baseline | None = None
             else:
                 upper = min(upper, value)
         out[name] = NoGo(cfg.r1[name], r2, cfg.k, sides[0], sides[1], lower, upper,
-                         rise_with, fall_with)
-    rules = {k: f.name for k, (f, _) in joint.items()}
-    return out, {**rules, **{k: f.name for k, f in named.items()
-                             if f.severity == "major" or k not in rules}}
+                         partners[0], partners[1])
+    # a joint rule names a symptom only where no major rule names it alone
+    return out, {**{k: f.name for k, f in named.items()},
+                 **{k: f.name for k, (f, _) in joint.items()}}
 
 
 #: Why a unit with isolations (a plant model run beside it) and no tests has no forecast.

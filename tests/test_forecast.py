@@ -859,3 +859,20 @@ def test_a_check_past_its_no_go_change_whose_status_is_not_no_go_is_due_now() ->
         p = f.parameters[0].forecast
         assert p.remaining == (0.0, 0.0, 0.0) and p.at_nogo is at, status
         assert f.summary() is not None and f.summary()["at_no_go"] is at
+
+
+def test_check_prints_no_interval_words_for_a_unit_at_no_go(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """After a check at no-go, its forecast line gives no "median (90 %
+    interval)" (there are no numbers); a forecast with numbers does."""
+    from condmon.cli.check import _print_forecast
+
+    base = {"parameter": "D", "by": "tests", "date": None, "rule": "friction increase"}
+    capsys.readouterr()
+    _print_forecast({"forecast": {**base, "median": 0.0, "low": 0.0, "high": 0.0,
+                                  "at_no_go": True}})
+    _print_forecast({"forecast": {**base, "median": 4.0, "low": 3.0, "high": 6.0,
+                                  "at_no_go": False}})
+    now, later = capsys.readouterr().out.splitlines()
+    assert "at no-go now (friction increase)" in now and "interval" not in now
+    assert "no-go in 4 tests (3–6)" in later and "median (90 % interval)" in later

@@ -139,13 +139,13 @@ def _print_forecast(ahead: dict[str, Any]) -> None:
 
     f = ahead.get("forecast")
     if f:
-        when = remaining_text(f, past=False)
-        out.print(f"forecast: {f['parameter']} " + (when if f["high"] == 0 else
-                                                    f"no-go in {when}")
-                  + (f", about {f['date'][:10]}" if f["date"] else "")
+        when, now = remaining_text(f, past=False), f["high"] == 0   # at no-go, or due, now
+        out.print(f"forecast: {f['parameter']} " + (when if now else f"no-go in {when}")
+                  + (f", about {f['date'][:10]}" if f["date"] and not now else "")
                   + (" (past: the check is old; check the unit again)" if date_past(f) else "")
                   + (f" ({f['rule']})" if f["rule"] else "")
-                  + "; median (90 % interval), `condmon forecast` for more", highlight=False,
+                  + ("" if now else "; median (90 % interval)")
+                  + ", `condmon forecast` for more", highlight=False,
                   markup=False, soft_wrap=True)
     elif ahead.get("forecast_reason"):
         out.print(f"forecast: none, {ahead['forecast_reason']}", highlight=False, markup=False,

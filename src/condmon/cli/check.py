@@ -98,7 +98,7 @@ def register(app: typer.Typer) -> None:
         for col in ("parameter", "value", "unit", "change %", "SymH", "SymL"):
             table.add_column(col, justify="left" if col in ("parameter", "unit") else "right")
         stored = res.estimate.stored_values()
-        units = res.estimate.units
+        units = {**res.estimate.units, **res.estimate.feature_units}
         for p, change in res.percent_change.items():
             sym = res.symptoms.get(p, {"high": 0.0, "low": 0.0})
             table.add_row(escape(p), fmt(stored[p][0]) if p in stored else "—",

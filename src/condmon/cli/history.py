@@ -155,7 +155,7 @@ def register(app: typer.Typer, baseline_app: typer.Typer) -> None:
         current = [b for b in versions if b.name == active and latest[b.name] == b.id]
         if current:
             b = current[0]
-            units = get_model(model).units if model is not None else {}
+            units = get_model(model).monitored_units if model is not None else {}
             out.print(f"{b.name} v{b.version}: mean ± standard deviation of its tests",
                       highlight=False, markup=False)
             for p, m, sd in zip(b.baseline.parameters, b.baseline.mean, b.baseline.std):

@@ -316,4 +316,6 @@ def machine_rules(machine: Machine) -> RuleBase:
     if machine.rules is not None:
         return load_rules(machine.rules)
     described = {p.name: p.description for p in machine.plant.parameters}
-    return generic_rules(machine.spec.report, described)
+    described.update({f.name: f.description or f"{f.statistic} of {f.channel}"
+                      for f in machine.features})
+    return generic_rules(machine.monitored, described)

@@ -221,7 +221,8 @@ def estimate(record: pd.DataFrame | Columns, model: str | Machine = "dc-motor", 
                               input_name=machine.linear().input if chosen == "linear" else None,
                               inputs=machine.plant.input_names,
                               min_samples=10 * (len(machine.spec.unknowns) + 1), source=source,
-                              optional=_condition_columns(machine))
+                              optional=(*_condition_columns(machine),
+                                        *(f.channel for f in machine.features)))
     consts = dict(df.attrs.get("constants", {}) or {})
     _check_constants(machine, given, strict=tuple(given))
     consts.update(given)
@@ -232,10 +233,27 @@ def estimate(record: pd.DataFrame | Columns, model: str | Machine = "dc-motor", 
                   "(--constants): not estimated".replace("  ", " ") for k, v in fixed.items())
     if df.attrs.get("record_settings") not in (None, "", "as written"):
         notes += (f"record read with its settings: {df.attrs['record_settings']}",)
-    return estimate_record(rec, machine, method=method, excitation=exc,
-                           fit_threshold=fit_threshold, route=chosen, constants=consts,
-                           metadata=metadata, window=window, hold=hold, fixed=fixed,
-                           notes=notes)
+    res = estimate_record(rec, machine, method=method, excitation=exc,
+                          fit_threshold=fit_threshold, route=chosen, constants=consts,
+                          metadata=metadata, window=window, hold=hold, fixed=fixed,
+                          notes=notes)
+    return with_features(res, rec, machine)
+
+
+def with_features(res: EstimateResult, rec: Record, machine: Machine) -> EstimateResult:
+    """``res`` with the signal features ``machine`` declares, computed over
+    ``rec``'s windows (:func:`condmon.features.compute_features`); ``res``
+    itself when it declares none."""
+    if not machine.features:
+        return res
+    from condmon.features import compute_features
+
+    spans = [(w.regime, w.first, w.stop, w.used) for w in res.windows] \
+        or [("", 0, len(rec), True)]
+    est = compute_features(rec.columns, 1.0 / rec.dt, spans, machine.features, rec.source,
+                           machine.plant.source)
+    return dataclasses.replace(res, features=est.values, feature_units=est.units,
+                               notes=(*res.notes, *est.notes))
 
 
 def _condition_columns(machine: Machine) -> tuple[str, ...]:

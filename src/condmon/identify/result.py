@@ -90,6 +90,13 @@ class EstimateResult:
         depends on is).
     others : tuple of EstimateResult
         The estimates of the record's other regimes, if it has several.
+    features : dict of str to (float, float)
+        The declared signal features of the record (``[features]``):
+        ``{name@regime: (value, batch-means standard error)}``, every
+        regime's, on the first regime's estimate (:mod:`condmon.features`).
+        [feature units]
+    feature_units : dict of str to str
+        Unit of each feature, by name.
     """
 
     parameters: dict[str, float]
@@ -113,6 +120,8 @@ class EstimateResult:
     held: dict[str, str] = field(default_factory=dict)
     trended: tuple[str, ...] | None = None
     others: tuple[EstimateResult, ...] = ()
+    features: dict[str, tuple[float, float]] = field(default_factory=dict)
+    feature_units: dict[str, str] = field(default_factory=dict)
 
     @property
     def model_key(self) -> str:
@@ -181,7 +190,9 @@ class EstimateResult:
         """What the history keeps: ``{name: (value, std_error)}``, a regime's
         parameters named ``Tc@forward``. For a usable record the identified
         quantities of each accepted regime; otherwise (kept for the record,
-        never trended) every parameter of this estimate that has a value.
+        never trended) every parameter of this estimate that has a value. The
+        record's signal features follow (``vib@forward``), whatever its regimes'
+        estimates.
 
         Example
         -------
@@ -193,10 +204,28 @@ class EstimateResult:
         from condmon.models.regimes import regime_key
 
         if not self.usable:
-            return {regime_key(k, self.regime): (v, self.std_errors[k])
-                    for k, v in self.parameters.items() if np.isfinite(v)}
-        return {regime_key(k, p.regime): (p.parameters[k], p.std_errors[k])
-                for p in self.regimes if p.accepted for k in p.identified}
+            out = {regime_key(k, self.regime): (v, self.std_errors[k])
+                   for k, v in self.parameters.items() if np.isfinite(v)}
+        else:
+            out = {regime_key(k, p.regime): (p.parameters[k], p.std_errors[k])
+                   for p in self.regimes if p.accepted for k in p.identified}
+        out.update(self.features)
+        return out
+
+    def unit_of(self, key: str) -> str:
+        """The unit of a stored quantity (``Tc@forward`` or a feature ``vib@forward``).
+
+        Example
+        -------
+        >>> from condmon.simulate import simulate_actuator
+        >>> from condmon.identify import estimate
+        >>> estimate(simulate_actuator(seed=1)).unit_of("R")
+        'ohm'
+        """
+        from condmon.models.regimes import split_key
+
+        name = split_key(key)[0]
+        return self.units.get(name, self.feature_units.get(name, ""))
 
     @property
     def regime_label(self) -> str:
@@ -245,6 +274,11 @@ class EstimateResult:
         }
         if self.others:
             doc["other_regimes"] = [o.to_dict() for o in self.others]
+        if self.features:
+            doc["features"] = {k: {"value": _clean({"v": v})["v"],
+                                   "std_error": _clean({"s": se})["s"],
+                                   "unit": self.unit_of(k)}
+                               for k, (v, se) in self.features.items()}
         return doc
 
     def to_frame(self) -> pd.DataFrame:

@@ -381,7 +381,8 @@ def _dump_compiled(model: PlantModel, fns: tuple[Callable[..., Any], ...]
 
 #: Top-level entries a declaration may hold.
 DECLARATION_KEYS = ("name", "description", "parameters", "inputs", "variables", "states",
-                    "sensors", "test", "smoothing", "estimation", "monitor", "record", "regimes")
+                    "sensors", "test", "smoothing", "estimation", "monitor", "record", "regimes",
+                    "features")
 
 
 def plant_from_doc(doc: Mapping[str, Any], source: str) -> PlantModel:

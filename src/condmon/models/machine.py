@@ -31,6 +31,7 @@ from condmon.models.declared import PlantModel, substituted_equations, symbols_o
 from condmon.models.plausibility import (
     IdentifiabilityLimits, Plausibility,
 )
+from condmon.models.features import FeatureSpec
 from condmon.models.regimes import RegimeSpec
 
 if TYPE_CHECKING:
@@ -127,7 +128,8 @@ class Machine:
     one); ``rules`` and ``breakpoints`` the model's own rule base and monitor
     breakpoints files (None: generic monitoring from the baseline's spread,
     :mod:`condmon.monitor.generic`); ``record`` how the rig writes its files
-    (the ``[record]`` table); ``regimes`` its operating regimes.
+    (the ``[record]`` table); ``regimes`` its operating regimes; ``features``
+    the signal features it declares (``[features]``, :mod:`condmon.models.features`).
 
     Example
     -------
@@ -146,6 +148,7 @@ class Machine:
     breakpoints: str | None = None
     record: RecordSettings = field(default_factory=RecordSettings)
     regimes: RegimeSpec = field(default_factory=RegimeSpec)
+    features: tuple[FeatureSpec, ...] = ()
 
     @property
     def monitored_generically(self) -> bool:
@@ -158,6 +161,22 @@ class Machine:
     def name(self) -> str:
         """The model's name."""
         return self.plant.name
+
+    @property
+    def monitored(self) -> tuple[str, ...]:
+        """What is baselined, checked and named in rules: the reported
+        parameters, then the declared signal features (``[features]``)."""
+        return (*self.spec.report, *(f.name for f in self.features))
+
+    @property
+    def feature_units(self) -> dict[str, str]:
+        """Unit of every declared signal feature."""
+        return {f.name: f.unit for f in self.features}
+
+    @property
+    def monitored_units(self) -> dict[str, str]:
+        """Unit of everything monitored: the reported parameters and the features."""
+        return {**self.units, **self.feature_units}
 
     @property
     def units(self) -> dict[str, str]:

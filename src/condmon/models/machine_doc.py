@@ -1,5 +1,5 @@
-"""Reading a declaration's ``[estimation]``, ``[monitor]``, ``[record]`` and
-``[regimes]`` tables into a :class:`~condmon.models.machine.Machine`."""
+"""Reading a declaration's ``[estimation]``, ``[monitor]``, ``[record]``,
+``[regimes]`` and ``[features]`` tables into a :class:`~condmon.models.machine.Machine`."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from typing import Any
 from condmon.errors import ConfigError
 from condmon.io.rig import parse_record_settings
 from condmon.models.declared import PlantModel
+from condmon.models.features import parse_features
 from condmon.models.machine import (
     DATA_DIR, ROUTES, EstimationSpec, Machine, derived_numeric,
 )
@@ -59,10 +60,18 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any],
             raise ConfigError(f"{src}[monitor].{key}: {path} not found")
         return str(path)
 
+    record = parse_record_settings(doc.get("record"), f"{src}[record]")
+    regimes = parse_regimes(doc.get("regimes"), src)
+    est_table = doc.get("estimation")
+    derived_names = tuple(dict(est_table.get("derived", {}))) if isinstance(est_table, dict) \
+        else ()
+    features = parse_features(doc.get("features"), src,
+                              reserved=(*plant.parameter_names, *derived_names),
+                              regimes=tuple(r.name for r in regimes.regimes),
+                              sample_rate=record.sample_rate)
     files: dict[str, Any] = {"origin": origin, "rules": _file("rules"),
-                             "breakpoints": _file("breakpoints"),
-                             "record": parse_record_settings(doc.get("record"), f"{src}[record]"),
-                             "regimes": parse_regimes(doc.get("regimes"), src)}
+                             "breakpoints": _file("breakpoints"), "record": record,
+                             "regimes": regimes, "features": features}
     est = doc.get("estimation")
     if est is None:  # a model for residuals and isolation only (e.g. the HST)
         return Machine(plant, EstimationSpec((), ()), **files)

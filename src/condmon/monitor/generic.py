@@ -161,7 +161,7 @@ def machine_monitor(machine: Machine, baseline: Baseline | None = None) -> Monit
         return load_monitor_config(machine.breakpoints)
     cfg = load_generic_settings()
     if baseline is None:
-        floor = {p: cfg.min_relative_spread for p in machine.spec.report}
+        floor = {p: cfg.min_relative_spread for p in machine.monitored}
         return MonitorConfig({p: cfg.r1_sigma * v for p, v in floor.items()},
                              {p: cfg.r2_sigma * v for p, v in floor.items()}, cfg.k,
                              "generic monitoring (no baseline yet)", cfg.baseline, cfg.statistics)

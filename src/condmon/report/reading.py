@@ -69,4 +69,4 @@ def model_units(machine: Any) -> dict[str, str]:
     A regime's parameter (``Tc@forward``) takes its parameter's unit
     (:func:`condmon.models.regimes.split_key`).
     """
-    return {**machine.plant.parameter_units(), **machine.units}
+    return {**machine.plant.parameter_units(), **machine.monitored_units}

@@ -330,7 +330,7 @@ def model_order(model: str | None, names: Sequence[str]) -> list[str]:
     from condmon.models.registry import get_model
 
     try:
-        order = list(get_model(model).spec.report) if model else []
+        order = list(get_model(model).monitored) if model else []
     except (ModelError, ConfigError):
         order = []
     rank = {p: i for i, p in enumerate(order)}

@@ -330,7 +330,7 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
         return CheckResult(unit, tid, res, "retest", baseline, baseline_flags=flags,
                            test_date=key.test_date, warning=filed_elsewhere(store, unit, key),
                            against=against_label, forecast=_forecast(store, unit, dry_run))
-    row, diag = evaluate(res, baseline, cfg, rb, machine.spec.report)
+    row, diag = evaluate(res, baseline, cfg, rb, machine.monitored)
     stats = (unit_statistics(store, unit, ids, baseline, res,
                              dataclasses.replace(cfg.statistics, **override))
              if ref is None else None)

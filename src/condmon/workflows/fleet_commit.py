@@ -387,7 +387,7 @@ def _commit_check(batch: _Batch, plan: _Unit, out: RecordOutcome,
     if not res.usable:
         tid, elsewhere = _add_test(batch, plan, out, "check")
         return report("rejected", "retest", one_line(str(res.reason), None), tid, elsewhere)
-    row, diag = evaluate(res, state.baseline, cfg, rb, get_model(plan.model).spec.report)
+    row, diag = evaluate(res, state.baseline, cfg, rb, get_model(plan.model).monitored)
     if state.latest is None or list(state.latest.test_ids) != state.ids:
         state.latest = view.save_baseline(batch.writer, state.ids, monitor=cfg,
                                           reason="baseline of the first check")

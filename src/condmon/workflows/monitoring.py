@@ -113,7 +113,7 @@ def monitoring_of(machine: Machine, baseline: Baseline, monitor: MonitorConfig |
     the machine's parameters."""
     cfg = monitor or machine_monitor(machine, baseline)
     rb = rules or machine_rules(machine)
-    rb.check_parameters(machine.spec.report)
+    rb.check_parameters(machine.monitored)
     return cfg, rb
 
 
@@ -173,7 +173,7 @@ def reevaluate(store: HistoryStore, unit: str, baseline: StoredBaseline,
         if not row:  # its regimes have no baseline in this version
             continue
         diag = diagnose({p: {"high": v["high"], "low": v["low"]} for p, v in row.items()}, rb,
-                        machine.spec.report)
+                        machine.monitored)
         if store.save_evaluation(unit, int(tid), baseline.id, row, diag):
             before = todo.loc[tid, "status"]
             changed[int(tid)] = (None if before == "unchecked" else str(before), diag.status)
@@ -356,7 +356,7 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
                              f"baseline of {unit!r} from {stored.baseline.n} accepted healthy "
                              f"tests ({stored.name!r} v{stored.version})"
                              + (f"; regimes: {regimes}" if regimes else ""), stored.flags,
-                             notes, machine.units)
+                             notes, machine.monitored_units)
 
 
 def _regime_counts(baseline: Baseline) -> str:

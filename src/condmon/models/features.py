@@ -1,0 +1,207 @@
+"""Signal features declared as data: statistics of a record's channels in a regime's windows.
+
+A physical parameter says how the machine behaves; a signal feature says what
+its sensors show while it does. Gear and bearing damage shows in vibration
+during motion, while a leaking seal is quiet: a feature beside the parameters
+tells such faults apart. A declaration names its features in a ``[features]``
+table; each is computed per regime (:mod:`condmon.features`), stored under
+``name@regime`` like a regime's parameter, and baselined, trended, checked and
+named in rules exactly like one.
+
+.. code-block:: toml
+
+    [features.vib_stroke]
+    channel = "acc3"              # a record column after [record] (model or file name)
+    statistic = "std"             # rms, std, kurtosis, crest, peak_to_peak, mean, band_power
+    regimes = ["forward", "reverse"]   # default: every regime the estimation uses
+    unit = "m/s^2"
+    description = "vibration of the shaft housing during a stroke"
+
+    [features.mesh]
+    channel = "acc3"
+    statistic = "band_power"
+    band = [40.0, 100.0]          # [Hz], band_power only
+    unit = "(m/s^2)^2"
+
+This module reads and validates the table; a band is checked against the
+Nyquist frequency when the declaration's ``[record]`` states a sample rate,
+else against each record's.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from condmon.errors import ConfigError
+
+__all__ = ["FeatureSpec", "STATISTICS", "parse_features", "check_band"]
+
+#: The statistics a feature may take, with what each is (for messages and docs).
+STATISTICS: dict[str, str] = {
+    "rms": "root mean square of the channel [channel unit]",
+    "std": "standard deviation about the window's mean [channel unit]",
+    "kurtosis": "kurtosis (Pearson: 3 for a normal signal) [-]",
+    "crest": "crest factor: largest |x - mean| over the standard deviation [-]",
+    "peak_to_peak": "largest minus smallest value [channel unit]",
+    "mean": "mean [channel unit]",
+    "band_power": "power in a frequency band (Welch's periodogram) [channel unit^2]",
+}
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_KEYS = ("channel", "statistic", "regimes", "band", "unit", "description")
+
+
+@dataclass(frozen=True)
+class FeatureSpec:
+    """One declared signal feature.
+
+    Attributes
+    ----------
+    name : str
+        Its name in the history and in rules (``vib_stroke``).
+    channel : str
+        The record column it is a statistic of (after ``[record]``).
+    statistic : str
+        One of :data:`STATISTICS`.
+    regimes : tuple of str
+        The regimes whose windows it is computed in; empty: every regime the
+        estimation uses.
+    band : tuple of float or None
+        ``(low, high)`` of a band power. [Hz]
+    unit : str
+    description : str
+    """
+
+    name: str
+    channel: str
+    statistic: str
+    regimes: tuple[str, ...] = ()
+    band: tuple[float, float] | None = None
+    unit: str = ""
+    description: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return {"name": self.name, "channel": self.channel, "statistic": self.statistic,
+                "regimes": list(self.regimes), "band_hz": list(self.band) if self.band else None,
+                "unit": self.unit, "description": self.description}
+
+
+def check_band(spec: FeatureSpec, sample_rate: float, where: str) -> None:
+    """Raise :class:`ConfigError` when ``spec``'s band reaches past the Nyquist
+    frequency of ``sample_rate`` [Hz].
+
+    Example
+    -------
+    >>> f = FeatureSpec("mesh", "acc", "band_power", band=(40.0, 200.0))
+    >>> check_band(f, 250.0, "rig.toml")
+    Traceback (most recent call last):
+    ...
+    condmon.errors.ConfigError: rig.toml[features.mesh].band: 200 Hz is above the Nyquist frequency 125 Hz of a 250 Hz record; allowed: a band within 0 .. 125 Hz
+    """
+    if spec.band is None:
+        return
+    nyquist = sample_rate / 2.0
+    if spec.band[1] > nyquist:
+        raise ConfigError(f"{where}[features.{spec.name}].band: {spec.band[1]:g} Hz is above "
+                          f"the Nyquist frequency {nyquist:g} Hz of a {sample_rate:g} Hz "
+                          f"record; allowed: a band within 0 .. {nyquist:g} Hz")
+
+
+def _band(value: Any, at: str) -> tuple[float, float]:
+    ok = (isinstance(value, list) and len(value) == 2
+          and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                  for v in value))
+    if not ok or not 0.0 <= float(value[0]) < float(value[1]):
+        raise ConfigError(f"{at}.band must be [low, high] in Hz with 0 <= low < high, "
+                          f"not {value!r}")
+    return float(value[0]), float(value[1])
+
+
+def parse_features(table: Mapping[str, Any] | None, source: str, *,
+                   reserved: tuple[str, ...] = (), regimes: tuple[str, ...] = (),
+                   sample_rate: float | None = None) -> tuple[FeatureSpec, ...]:
+    """Read and validate a declaration's ``[features]`` table.
+
+    Parameters
+    ----------
+    table : mapping or None
+        ``{name: {channel, statistic, regimes, band, unit, description}}``.
+    source : str
+        The declaration file, named in every message.
+    reserved : tuple of str
+        Names already taken (the reported parameters).
+    regimes : tuple of str
+        The declared regimes a feature may name (empty: the declaration has
+        none, and a feature names none).
+    sample_rate : float, optional
+        The ``[record]`` sample rate, when declared: bands are checked against
+        its Nyquist frequency. [Hz]
+
+    Returns
+    -------
+    tuple of FeatureSpec
+
+    Raises
+    ------
+    ConfigError
+        Naming the file, the feature and the allowed values.
+
+    Example
+    -------
+    >>> fs = parse_features({"vib": {"channel": "acc", "statistic": "std"}}, "rig.toml")
+    >>> fs[0].name, fs[0].channel, fs[0].statistic
+    ('vib', 'acc', 'std')
+    """
+    if not table:
+        return ()
+    if not isinstance(table, Mapping):
+        raise ConfigError(f"{source}[features] must be a table of features "
+                          "([features.NAME] with channel and statistic)")
+    out = []
+    for name, entry in table.items():
+        at = f"{source}[features.{name}]"
+        if not isinstance(name, str) or not _NAME.match(name) or "@" in name:
+            raise ConfigError(f"{at}: a feature's name holds letters, digits and _ and does "
+                              "not start with a digit")
+        if name in reserved:
+            raise ConfigError(f"{at}: {name!r} is already a reported parameter; "
+                              "give the feature another name")
+        if not isinstance(entry, Mapping):
+            raise ConfigError(f"{at} must be a table with channel and statistic")
+        extra = [k for k in entry if k not in _KEYS]
+        if extra:
+            raise ConfigError(f"{at}: unknown key {extra[0]!r}; allowed: {', '.join(_KEYS)}")
+        channel = entry.get("channel")
+        if not isinstance(channel, str) or not channel.strip():
+            raise ConfigError(f"{at}.channel must name a record column (after [record]), "
+                              f"not {channel!r}")
+        stat = entry.get("statistic")
+        if stat not in STATISTICS:
+            raise ConfigError(f"{at}.statistic: unknown statistic {stat!r}; allowed: "
+                              f"{', '.join(STATISTICS)}")
+        band = None
+        if stat == "band_power":
+            if "band" not in entry:
+                raise ConfigError(f"{at}: a band_power needs band = [low, high] in Hz")
+            band = _band(entry["band"], at)
+        elif "band" in entry:
+            raise ConfigError(f"{at}.band is for statistic = \"band_power\" only, not {stat!r}")
+        names = entry.get("regimes", [])
+        if isinstance(names, str):
+            names = [names]
+        if not isinstance(names, list) or not all(isinstance(r, str) for r in names):
+            raise ConfigError(f"{at}.regimes must be a list of regime names")
+        unknown = [r for r in names if r not in regimes]
+        if unknown:
+            raise ConfigError(f"{at}.regimes: unknown regime {unknown[0]!r}; allowed: "
+                              f"{', '.join(regimes) or 'none (the declaration has no [regimes])'}")
+        spec = FeatureSpec(name, channel.strip(), str(stat), tuple(names), band,
+                           str(entry.get("unit", "")), str(entry.get("description", "")))
+        if sample_rate is not None:
+            check_band(spec, sample_rate, source)
+        out.append(spec)
+    return tuple(out)

@@ -91,27 +91,47 @@ def estimate_cmd(
         write_json(res.to_dict())
         return
     for part in res.regimes:
-        _print_estimate(part, record)
+        _print_estimate(part, record, res.systematic)
+    if res.features:
+        table = Table(title=escape(f"{record} — signal features"))
+        for col in ("feature", "value", "std error", "unit"):
+            table.add_column(col, justify="left" if col in ("feature", "unit") else "right")
+        for k, (v, se) in res.features.items():
+            table.add_row(escape(k), fmt(v), fmt(se), escape(res.unit_of(k)))
+        out.print(table)
+    if res.systematic:
+        out.print("systematic: the standard uncertainty from the sensors' stated accuracy "
+                  "(each sensor's error uniform within ± its accuracy), beside the standard "
+                  "error from the record's noise", highlight=False, markup=False, soft_wrap=True)
 
 
 _HOW = {"inverse": "inverse model", "oe": "output error", "steady": "steady balances"}
 
 
-def _print_estimate(res: Any, record: str) -> None:
-    """One regime's estimate as a table, its fit, windows and notes."""
+def _print_estimate(res: Any, record: str, systematic: dict[str, float] | None = None) -> None:
+    """One regime's estimate as a table, its fit, windows and notes; ``systematic``:
+    the record's systematic parts, by stored name (a column when given)."""
     how = (("closed-loop instruments" if res.closed_loop_instruments else "direct approach")
            if res.route == "linear" else _HOW.get(res.route, res.route))
     regime = f", regime {res.regime}" if res.regime else ""
     title = escape(f"{record} — {res.model}, {res.method.upper()}, {how}{regime}")
     if any(math.isfinite(v) for v in res.parameters.values()):
         table = Table(title=title)
-        for col in ("parameter", "value", "std error", "unit", "from"):
+        from condmon.models.regimes import regime_key
+
+        sys_ = systematic or {}
+        cols = ("parameter", "value", "std error", *(("systematic",) if sys_ else ()), "unit",
+                "from")
+        for col in cols:
             table.add_column(col, justify="right" if col not in ("parameter", "from") else "left")
         for k, v in res.parameters.items():
             source = ("record" if k in res.identified else
                       f"held ({res.held[k]})" if k in res.held else "—")
+            known = sys_.get(regime_key(k, res.regime), math.nan)
+            extra = ((fmt(known) if k in res.identified and math.isfinite(known) else "—",)
+                     if sys_ else ())
             table.add_row(escape(k), fmt(v),
-                          fmt(res.std_errors[k]) if k in res.identified else "—",
+                          fmt(res.std_errors[k]) if k in res.identified else "—", *extra,
                           escape(res.units[k]), source)
         out.print(table)
     else:
@@ -309,7 +329,7 @@ def baseline_add_cmd(
             table.add_row(escape(p), fmt(m), fmt(sd), escape(res.units.get(split_key(p)[0], "")),
                           f"{100 * sd / abs(m):.2f}")
         out.print(table)
-    print_flags(res.flags, unit)
+    print_flags((*res.info, *res.flags), unit)
     offered = [t for t in res.tests if not t.duplicate]
     if offered and not any(t.accepted and not t.refused for t in offered):
         err.print(f"no test accepted: 0 of {len(offered)} record(s) could join the baseline "

@@ -97,6 +97,16 @@ class EstimateResult:
         [feature units]
     feature_units : dict of str to str
         Unit of each feature, by name.
+    systematic : dict of str to float
+        The systematic part of each stored value (keyed as
+        :meth:`stored_values`): its standard uncertainty from the sensors'
+        stated accuracy (``[record.columns]``'s ``accuracy``), each sensor's
+        error taken as uniform within ± its accuracy (GUM type B, ``a/√3``),
+        propagated by estimating again with the reading offset by its
+        accuracy, root-sum-square over the sensors. A sensor drifting within
+        its accuracy between two records moves the value by about this much;
+        ``std_errors`` is the record's own noise and says nothing of it. Empty
+        when no accuracy is declared. [same units]
     """
 
     parameters: dict[str, float]
@@ -122,6 +132,7 @@ class EstimateResult:
     others: tuple[EstimateResult, ...] = ()
     features: dict[str, tuple[float, float]] = field(default_factory=dict)
     feature_units: dict[str, str] = field(default_factory=dict)
+    systematic: dict[str, float] = field(default_factory=dict)
 
     @property
     def model_key(self) -> str:
@@ -274,6 +285,8 @@ class EstimateResult:
         }
         if self.others:
             doc["other_regimes"] = [o.to_dict() for o in self.others]
+        if self.systematic:
+            doc["systematic"] = _clean(self.systematic)
         if self.features:
             doc["features"] = {k: {"value": _clean({"v": v})["v"],
                                    "std_error": _clean({"s": se})["s"],

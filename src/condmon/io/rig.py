@@ -64,6 +64,11 @@ class RecordSettings:
         Offset per model column, added after the scale. [unit]
     ignore : tuple of str
         File columns dropped on reading (a logger's own columns).
+    accuracy : dict of str to float
+        Stated accuracy of a model column's sensor, as a bound on its error
+        in the column's unit after scaling (``accuracy = 51711.0``, or
+        ``accuracy = "0.25 %"`` of ``full_scale``); the estimate's systematic
+        part comes from it (:func:`condmon.identify.estimate.systematic_part`). [unit]
     sources : tuple of str
         Where the settings came from, for messages and notes.
 
@@ -82,6 +87,7 @@ class RecordSettings:
     offset: dict[str, float] = field(default_factory=dict)
     ignore: tuple[str, ...] = ()
     sources: tuple[str, ...] = ()
+    accuracy: dict[str, float] = field(default_factory=dict)
 
     @property
     def empty(self) -> bool:
@@ -108,7 +114,8 @@ class RecordSettings:
             later.sample_rate if later.sample_rate is not None else self.sample_rate,
             {**self.scale, **later.scale}, {**self.offset, **later.offset},
             tuple(dict.fromkeys((*self.ignore, *later.ignore))),
-            tuple(dict.fromkeys((*self.sources, *later.sources))))
+            tuple(dict.fromkeys((*self.sources, *later.sources))),
+            {**self.accuracy, **later.accuracy})
 
     def describe(self, dropped: int | None = None) -> str:
         """One line saying what the settings do (for notes); ``dropped``: how
@@ -130,7 +137,8 @@ class RecordSettings:
         """JSON-ready form."""
         return {"columns": dict(self.columns), "sample_rate": self.sample_rate,
                 "scale": dict(self.scale), "offset": dict(self.offset),
-                "ignore": list(self.ignore), "sources": list(self.sources)}
+                "ignore": list(self.ignore), "sources": list(self.sources),
+                "accuracy": dict(self.accuracy)}
 
 
 def _finite(value: Any, where: str, *, nonzero: bool = False, positive: bool = False) -> float:
@@ -147,6 +155,32 @@ def _finite(value: Any, where: str, *, nonzero: bool = False, positive: bool = F
     if nonzero and out == 0:
         raise ConfigError(f"{where} must not be 0 (it would erase the column)")
     return out
+
+
+#: Keys of a ``[record.columns]`` entry given as a table.
+_COLUMN_KEYS = ("column", "scale", "offset", "unit", "accuracy", "full_scale")
+
+
+def _accuracy(spec: Mapping[str, Any], here: str) -> float:
+    """A column's stated accuracy in its unit: a number, or ``"X %"`` of ``full_scale``.
+
+    Example
+    -------
+    >>> _accuracy({"accuracy": "0.25 %", "full_scale": 2.0e7}, "rig.toml[record.columns.pA]")
+    50000.0
+    """
+    value = spec["accuracy"]
+    if isinstance(value, str) and value.strip().endswith("%"):
+        pct = _finite(value.strip()[:-1], f"{here}.accuracy", positive=True)
+        if "full_scale" not in spec:
+            raise ConfigError(f"{here}.accuracy {value!r} is a percentage of full scale: add "
+                              "full_scale = <the sensor's range, in the column's unit>")
+        return pct / 100.0 * _finite(spec["full_scale"], f"{here}.full_scale", positive=True)
+    try:
+        return _finite(value, f"{here}.accuracy", positive=True)
+    except ConfigError:
+        raise ConfigError(f"{here}.accuracy must be > 0: a number in the column's unit, or "
+                          f"\"X %\" of full_scale; not {value!r}") from None
 
 
 def parse_assignments(text: str | None, what: str) -> dict[str, str]:
@@ -222,6 +256,7 @@ def parse_record_settings(table: Mapping[str, Any] | None, where: str, *,
     columns: dict[str, str] = {}
     scale: dict[str, float] = {}
     offset: dict[str, float] = {}
+    accuracy: dict[str, float] = {}
     raw_cols = table.get("columns", {})
     if isinstance(raw_cols, str):
         raw_cols = parse_assignments(raw_cols, at("columns"))
@@ -238,10 +273,15 @@ def parse_record_settings(table: Mapping[str, Any] | None, where: str, *,
         if not isinstance(spec, Mapping):
             raise ConfigError(f"{here} must be a file column name or a table "
                               "{ column = ..., scale = ..., offset = ... }")
-        extra = [k for k in spec if k not in ("column", "scale", "offset", "unit")]
+        extra = [k for k in spec if k not in _COLUMN_KEYS]
         if extra:
-            raise ConfigError(f"{here}: unknown key {extra[0]!r}; allowed: column, scale, "
-                              "offset, unit")
+            raise ConfigError(f"{here}: unknown key {extra[0]!r}; allowed: "
+                              f"{', '.join(_COLUMN_KEYS)}")
+        if "accuracy" in spec:
+            accuracy[str(name)] = _accuracy(spec, here)
+        elif "full_scale" in spec:
+            raise ConfigError(f"{here}.full_scale is for an accuracy in % of full scale: "
+                              "add accuracy = \"0.25 %\" (or give accuracy as a number)")
         if "column" in spec:
             if not isinstance(spec["column"], str) or not spec["column"].strip():
                 raise ConfigError(f"{here}.column must be a file column name")
@@ -269,7 +309,7 @@ def parse_record_settings(table: Mapping[str, Any] | None, where: str, *,
         ignore = [c.strip() for c in ignore.split(",") if c.strip()]
     if not isinstance(ignore, (list, tuple)) or not all(isinstance(c, str) for c in ignore):
         raise ConfigError(f"{at('ignore')} must be a list of file column names")
-    return RecordSettings(columns, fs, scale, offset, tuple(ignore), (where,))
+    return RecordSettings(columns, fs, scale, offset, tuple(ignore), (where,), accuracy)
 
 
 def apply_record_settings(df: pd.DataFrame, settings: RecordSettings | None,

@@ -205,7 +205,7 @@ class BulkWriter:
         tid = self._add(S.tests, dict(unit_id=uid, **test_values(
             result, role, digest, file_digest, as_utc(test_date), fingerprint, hours)), keyed=True)
         assert tid is not None
-        for row in estimate_rows(tid, stored):
+        for row in estimate_rows(tid, stored, getattr(result, "systematic", None)):
             self._add(S.estimates, row)
         for table, rows in zip((S.symptoms, S.diagnoses, S.diagnosis_faults), evaluation):
             for row in rows:

@@ -58,9 +58,13 @@ def stored_estimates(result: Any) -> dict[str, tuple[Any, Any]]:
     return dict(stored)
 
 
-def estimate_rows(tid: Any, stored: Mapping[str, tuple[Any, Any]]) -> list[dict[str, Any]]:
-    """``estimates`` rows of test ``tid``."""
-    return [{"test_id": tid, "parameter": p, "value": num(v), "std_error": num(se)}
+def estimate_rows(tid: Any, stored: Mapping[str, tuple[Any, Any]],
+                  systematic: Mapping[str, float] | None = None) -> list[dict[str, Any]]:
+    """``estimates`` rows of test ``tid``; ``systematic``: each value's
+    systematic part (:attr:`~condmon.identify.EstimateResult.systematic`)."""
+    sys_ = systematic or {}
+    return [{"test_id": tid, "parameter": p, "value": num(v), "std_error": num(se),
+             "systematic": num(sys_[p]) if p in sys_ else None}
             for p, (v, se) in stored.items()]
 
 
@@ -185,7 +189,8 @@ class TestsMixin(StoreBase):
                 ).inserted_primary_key[0])  # type: ignore[index]
             stored = stored_estimates(result)
             if stored:
-                conn.execute(sa.insert(S.estimates), estimate_rows(tid, stored))
+                conn.execute(sa.insert(S.estimates), estimate_rows(
+                    tid, stored, getattr(result, "systematic", None)))
             if baseline_id is not None and (symptoms is not None or diagnosis is not None):
                 self._insert_evaluation(conn, tid, baseline_id, symptoms or {}, diagnosis)
             usable = bool(getattr(result, "usable", result.accepted))
@@ -273,6 +278,19 @@ class TestsMixin(StoreBase):
         val = df.pivot(index="test_id", columns="parameter", values="value").reindex(ids)
         se = df.pivot(index="test_id", columns="parameter", values="se").reindex(ids)
         return val, se
+
+    def systematic_of(self, test_ids: Sequence[int]) -> pd.DataFrame:
+        """The systematic part of each value (rows: tests in the given order,
+        columns: parameters; NaN where none was stated). [parameter units]"""
+        ids = [int(i) for i in test_ids]
+        if not ids:
+            return pd.DataFrame()
+        rows = self._read(lambda c: c.execute(
+            sa.select(S.estimates.c.test_id, S.estimates.c.parameter,
+                      S.estimates.c.systematic).where(S.estimates.c.test_id.in_(ids))).all())
+        df = pd.DataFrame(rows, columns=["test_id", "parameter", "systematic"])
+        df["systematic"] = pd.to_numeric(df["systematic"], errors="coerce")
+        return df.pivot(index="test_id", columns="parameter", values="systematic").reindex(ids)
 
     def usable_tests(self, unit: str, role: str | None = None) -> list[int]:
         """Ids of the unit's accepted, not excluded tests of ``role`` (None:

@@ -14,7 +14,7 @@ __all__ = ["metadata", "units", "tests", "estimates", "baselines", "baseline_val
            "PARAMETER_LENGTH"]
 
 #: Version of the schema this code writes.
-SCHEMA_VERSION = 10
+SCHEMA_VERSION = 11
 
 #: Longest unit, fault or baseline name the store keeps (the same on every back-end).
 NAME_LENGTH = 200
@@ -118,6 +118,8 @@ estimates = sa.Table(
     sa.Column("parameter", sa.String(PARAMETER_LENGTH), primary_key=True),
     sa.Column("value", TolerantFloat(), nullable=True),
     sa.Column("std_error", TolerantFloat(), nullable=True),
+    # v11: the systematic part from the sensors' stated accuracy (NULL: none stated)
+    sa.Column("systematic", TolerantFloat(), nullable=True),
 )
 
 baselines = sa.Table(
@@ -406,8 +408,15 @@ def _v9_to_v10(conn: sa.Connection) -> None:
     the store works out every unit's status again once the migrations have run."""
 
 
+def _v10_to_v11(conn: sa.Connection) -> None:
+    """Each estimate keeps its systematic part from the sensors' stated
+    accuracy (``estimates.systematic``; NULL for the estimates stored before)."""
+    if "systematic" not in {c["name"] for c in sa.inspect(conn).get_columns("estimates")}:
+        conn.execute(sa.text("ALTER TABLE estimates ADD COLUMN systematic FLOAT"))
+
+
 MIGRATIONS: dict[int, Callable[[sa.Connection], None]] = {1: _v1_to_v2, 2: _v2_to_v3,
                                                           3: _v3_to_v4, 4: _v4_to_v5,
                                                           5: _v5_to_v6, 6: _v6_to_v7,
                                                           7: _v7_to_v8, 8: _v8_to_v9,
-                                                          9: _v9_to_v10}
+                                                          9: _v9_to_v10, 10: _v10_to_v11}

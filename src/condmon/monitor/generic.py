@@ -19,18 +19,22 @@ The same breakpoints judge a unit against a group of its peers
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from condmon.errors import ConfigError
 from condmon.io.config import load_default
 from condmon.models.machine import Machine
+from condmon.models.regimes import split_key
 from condmon.monitor.baseline import Baseline, BaselineChecks
 from condmon.monitor.fuzzy import MonitorConfig, load_statistics
 from condmon.monitor.statistics import StatisticsConfig
 
 __all__ = ["GenericSettings", "load_generic_settings", "spread_breakpoints", "generic_config",
-           "describe_generic", "StatusPoints", "machine_monitor", "peer_monitor"]
+           "describe_generic", "StatusPoints", "machine_monitor", "peer_monitor",
+           "yardstick", "judged_config"]
 
 #: Membership functions of the status (go, advisory, no-go) on [0, 1]: 3 or 4 points each.
 StatusPoints = tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]
@@ -195,6 +199,89 @@ def peer_monitor(machine: Machine, reference: Baseline) -> MonitorConfig:
     return MonitorConfig(r1, r2, own.k, f"peer comparison ({own.source}, capped at "
                          f"{settings.r1_sigma:g}/{settings.r2_sigma:g} spreads)", own.baseline,
                          own.statistics)
+
+
+def yardstick(baseline: Baseline, systematic: Mapping[str, float] | None = None
+              ) -> dict[str, float]:
+    """The relative spread a change is judged against, per parameter. [%]
+
+    ``s = sqrt((σ/|θ̄| · t(n-1)/z)² + (u/|θ̄|)²) · 100``: the baseline's
+    record-to-record scatter σ (widened for few tests as in
+    :func:`spread_breakpoints`) together with the systematic part ``u`` the
+    sensors' stated accuracy leaves in the value
+    (:attr:`condmon.identify.EstimateResult.systematic`): a change the
+    sensors could make by drifting within their accuracy is no change of the
+    machine. The estimate's own standard error is not part of it: on real
+    machines it is several times smaller than the scatter. Floored at the
+    generic settings' ``min_relative_spread``.
+
+    Example
+    -------
+    >>> b = Baseline(("Tc",), (40.0,), (0.4,), 30)
+    >>> round(yardstick(b)["Tc"], 2), round(yardstick(b, {"Tc": 3.0})["Tc"], 2)
+    (1.04, 7.57)
+    """
+    cfg = load_generic_settings()
+    sys_ = systematic or {}
+    out = {}
+    for name, mean, std, n in zip(baseline.parameters, baseline.mean, baseline.std,
+                                  baseline.count_array):
+        scale = 100.0 / abs(mean) if mean != 0 else math.inf
+        u = sys_.get(name, 0.0)
+        u = u if math.isfinite(u) else 0.0
+        s = math.hypot(std * scale * _t_ratio(int(n)), u * scale)
+        out[name] = max(s, cfg.min_relative_spread) if math.isfinite(s) else math.inf
+    return out
+
+
+def judged_config(config: MonitorConfig, baseline: Baseline,
+                  systematic: Mapping[str, float] | None = None
+                  ) -> tuple[MonitorConfig, tuple[str, ...]]:
+    """The breakpoints a check against ``baseline`` is judged with, and what was raised.
+
+    Each parameter's ``r1`` and ``r2`` are at least ``r1_sigma`` and
+    ``r2_sigma`` times its :func:`yardstick` (the generic settings' 4 and 8):
+    a declared breakpoint inside the healthy scatter would call the unit's
+    ordinary record-to-record variation a fault, so the scatter's wins, and
+    the note says so, unless the monitor file insists (``insist = true``). A
+    parameter the file has no breakpoints for (a signal feature) takes the
+    scatter's.
+
+    Returns
+    -------
+    config : MonitorConfig
+        Keyed by the baseline's parameters.
+    raised : tuple of str
+        One note per declared breakpoint the scatter raised.
+
+    Example
+    -------
+    >>> b = Baseline(("Tc@forward", "vib@forward"), (40.0, 5.0), (0.4, 1.0), 30)
+    >>> cfg, raised = judged_config(MonitorConfig({"Tc": 15.0}, {"Tc": 30.0}), b, {"Tc@forward": 3.0})
+    >>> round(cfg.r1["Tc@forward"], 1), round(cfg.r1["vib@forward"], 1)
+    (30.3, 83.5)
+    >>> raised[0][:60]
+    'Tc@forward: the declared r1 15 % lies inside the healthy sca'
+    """
+    settings = load_generic_settings()
+    s = yardstick(baseline, systematic)
+    known = config.keyed(baseline.parameters)
+    r1, r2, raised = {}, {}, []
+    for name in baseline.parameters:
+        floor1, floor2 = settings.r1_sigma * s[name], settings.r2_sigma * s[name]
+        if name not in known.r1:
+            r1[name], r2[name] = floor1, floor2
+            continue
+        d1, d2 = known.r1[name], known.r2[name]
+        if split_key(name)[0] in config.insist or name in config.insist or d1 >= floor1:
+            r1[name], r2[name] = d1, d2
+            continue
+        r1[name], r2[name] = floor1, max(d2, floor2)
+        raised.append(f"{name}: the declared r1 {d1:g} % lies inside the healthy scatter "
+                      f"({settings.r1_sigma:g} × {s[name]:.3g} % = {floor1:.3g} %, the "
+                      "record-to-record scatter with the sensors' accuracy): the scatter's "
+                      "is used (insist = true in [breakpoints] keeps the declared)")
+    return dataclasses.replace(config, r1=r1, r2=r2), tuple(raised)
 
 
 def describe_generic(settings: GenericSettings | None = None) -> str:

@@ -116,13 +116,22 @@ def register(app: typer.Typer) -> None:
             if note.startswith("possible structure mismatch"):
                 out.print(f"note: {note}", highlight=False, markup=False)
         if res.diagnosis.no_fault:
-            out.print("no fault")
+            out.print("no fault named" if res.diagnosis.undetermined else "no fault")
         for f in res.diagnosis.faults:
             level = ("major: at no-go level" if f.severity == "major" else
                      "minor: at advisory level" + (", a major fault if it grows"
                                                    if f.rule_severity == "major" else ""))
             out.print(f"[bold]{escape(f.name)}[/] — degree {f.degree:.2f} ({level}): "
                       f"{escape(f.advice)}")
+        for c in res.diagnosis.candidates:
+            if c.ambiguous:
+                out.print(f"candidates, equally likely: {', '.join(c.faults)} (degree "
+                          f"{c.degree_text}): the symptoms do not tell them apart",
+                          highlight=False, markup=False, soft_wrap=True)
+        for u in res.diagnosis.undetermined:
+            out.print(f"{u.text}: {u.kind}({u.parameter}) is {u.degree:.2f} and no fault rule "
+                      "naming it holds to advisory level", highlight=False, markup=False,
+                      soft_wrap=True)
         if res.diagnosis.watch:
             out.print("to watch (below advisory level, not faults): " + ", ".join(
                 f"{f.name} ({f.degree:.2f})" for f in res.diagnosis.watch), highlight=False,

@@ -30,6 +30,7 @@ from condmon.cli.forecast import register as register_forecast_command
 from condmon.cli.history import print_flags
 from condmon.cli.history import register as register_history_commands
 from condmon.cli.plant import register as register_plant_commands
+from condmon.cli.rules import register as register_rules_commands
 from condmon.cli.serve import register as register_serve_command
 from condmon.cli.views import register as register_view_commands
 from condmon.cli.watch import register as register_watch_command
@@ -338,6 +339,7 @@ def baseline_add_cmd(
 
 
 register_check_command(app)
+register_rules_commands(app)
 
 
 

@@ -17,11 +17,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from condmon.diagnose.evidence import (
+    AMBIGUITY_TOLERANCE, CandidateSet, UnexplainedChange, candidate_sets, unexplained_changes,
+)
 from condmon.diagnose.rules import RuleBase, evaluate, load_rules
 from condmon.models.regimes import split_key
 
 __all__ = ["FaultDegree", "Diagnosis", "diagnose", "STATUSES", "WATCH_DEGREE", "LEVEL_NOTE",
-           "nogo_degree", "single_faults", "joint_faults"]
+           "nogo_degree", "advisory_degree", "single_faults", "joint_faults", "CandidateSet",
+           "UnexplainedChange", "AMBIGUITY_TOLERANCE"]
 
 FloatArray = NDArray[np.float64]
 STATUSES = ("go", "advisory", "no-go")
@@ -89,6 +93,16 @@ class Diagnosis:
         Rules whose condition holds to a degree of at least
         :data:`WATCH_DEGREE` but below advisory level: not faults, tendencies
         to watch.
+    candidates : tuple of CandidateSet
+        The listed faults grouped by what the symptoms tell apart, best
+        supported first (:mod:`condmon.diagnose.evidence`): a set of one fault
+        is told from the others; a larger set is an ambiguity set, its faults
+        equally likely (it may hold a rule below advisory level that the
+        symptoms cannot exclude). Empty for a go test.
+    undetermined : tuple of UnexplainedChange
+        Clear symptoms (at least :func:`advisory_degree`) that no fault rule
+        accounts for: "change detected in P (low), cause not determined".
+        They never change the status.
     """
 
     status: str
@@ -97,6 +111,8 @@ class Diagnosis:
     symptoms: dict[str, dict[str, float]] = field(default_factory=dict)
     applied: tuple[str, ...] = ()
     watch: tuple[FaultDegree, ...] = ()
+    candidates: tuple[CandidateSet, ...] = ()
+    undetermined: tuple[UnexplainedChange, ...] = ()
 
     @property
     def no_fault(self) -> bool:
@@ -104,14 +120,28 @@ class Diagnosis:
         return not self.faults
 
     @property
+    def ambiguous(self) -> bool:
+        """True when the symptoms leave two faults or more that they cannot tell apart."""
+        return any(c.ambiguous for c in self.candidates)
+
+    @property
     def summary(self) -> str:
-        """One line for the operator."""
-        watch = ("; to watch: " + ", ".join(f"{f.name} ({f.degree:.2f})" for f in self.watch)
-                 if self.watch else "")
+        """One line for the operator: one fault is named alone only when the
+        symptoms tell it from the others; faults they cannot tell apart are
+        named together as candidates; a clear change no rule explains is said
+        to have no determined cause."""
+        named = {n for c in self.candidates for n in c.faults}
+        watched = [f for f in self.watch if f.name not in named]
+        watch = ("; to watch: " + ", ".join(f"{f.name} ({f.degree:.2f})" for f in watched)
+                 if watched else "")
+        changes = "".join(f"; {c.text}" for c in self.undetermined)
         if self.no_fault:
-            return f"{self.status}: no fault{watch}"
-        top = ", ".join(f"{f.name} ({f.degree:.2f})" for f in self.faults)
-        return f"{self.status}: {top}{watch}"
+            return f"{self.status}: no fault{' named' if changes else ''}{changes}{watch}"
+        if self.candidates:
+            top = ("; " if self.ambiguous else ", ").join(c.text for c in self.candidates)
+        else:
+            top = ", ".join(f"{f.name} ({f.degree:.2f})" for f in self.faults)
+        return f"{self.status}: {top}{changes}{watch}"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form."""
@@ -119,6 +149,9 @@ class Diagnosis:
                 "faults": [f.to_dict() for f in self.faults],
                 "watch": [f.to_dict() for f in self.watch],
                 "no_fault": self.no_fault, "summary": self.summary,
+                "candidates": [c.to_dict() for c in self.candidates],
+                "ambiguous": self.ambiguous,
+                "undetermined": [c.to_dict() for c in self.undetermined],
                 "preprocessing_applied": list(self.applied)}
 
 
@@ -190,7 +223,8 @@ def _preprocess(high: dict[str, float], low: dict[str, float], rules: RuleBase
 
 
 def diagnose(symptoms: Mapping[str, Mapping[str, float]], rules: RuleBase | None = None,
-             parameters: Sequence[str] | None = None) -> Diagnosis:
+             parameters: Sequence[str] | None = None, *,
+             tolerance: float = AMBIGUITY_TOLERANCE) -> Diagnosis:
     """Diagnose one test from its symptoms.
 
     Parameters
@@ -206,6 +240,9 @@ def diagnose(symptoms: Mapping[str, Mapping[str, float]], rules: RuleBase | None
         without a symptom (not identified by this test, or not in its
         baseline) counts as 0. Default: the rules must name only the
         symptoms' parameters.
+    tolerance : float
+        Degrees and symptom evidence closer than this do not tell two faults
+        apart (:mod:`condmon.diagnose.evidence`). [-]
 
     Returns
     -------
@@ -221,6 +258,9 @@ def diagnose(symptoms: Mapping[str, Mapping[str, float]], rules: RuleBase | None
     >>> s["R"]["high"] = 1.0
     >>> diagnose(s).summary
     'no-go: winding resistance increase (1.00)'
+    >>> s["R"]["high"], s["D"]["low"] = 0.0, 0.9
+    >>> diagnose(s).summary
+    'go: no fault named; change detected in D (low), cause not determined'
     """
     rb = rules if rules is not None else load_rules()
     high: dict[str, float] = {}
@@ -264,7 +304,12 @@ def diagnose(symptoms: Mapping[str, Mapping[str, float]], rules: RuleBase | None
         faults = [dataclasses.replace(f, severity="minor") for f in watch]
         watch = []
     sym = {p: {"high": high[p], "low": low[p]} for p in high}
-    return Diagnosis(status, condition, tuple(faults), sym, tuple(applied), tuple(watch))
+    fired = {f.name: f.degree for f in held if f.degree >= WATCH_DEGREE}
+    fired.update({f.name: f.degree for f in faults})
+    candidates = candidate_sets(fired, [f.name for f in faults], rb, high, low, tolerance)
+    unexplained = unexplained_changes(degrees, rb, high, low, advisory_degree(rb))
+    return Diagnosis(status, condition, tuple(faults), sym, tuple(applied), tuple(watch),
+                     candidates, unexplained)
 
 
 def _infer(sets: tuple[FloatArray, ...], worst: float, major: float, minor: float
@@ -294,6 +339,40 @@ def nogo_degree(rules: RuleBase | None = None) -> float:
     """
     rb = rules or load_rules()
     return _nogo_degree(tuple(rb.status.go), tuple(rb.status.advisory), tuple(rb.status.no_go))
+
+
+def advisory_degree(rules: RuleBase | None = None) -> float:
+    """The smallest degree of a single major fault at which a check turns
+    advisory (or worse): where the status sets' inference first leaves go,
+    found by bisection (inf: none does). [-]
+
+    A symptom this strong that no fault rule accounts for is a change whose
+    cause is not determined (:attr:`Diagnosis.undetermined`).
+
+    Example
+    -------
+    >>> 0.2 < advisory_degree() < 0.4
+    True
+    """
+    rb = rules or load_rules()
+    return _advisory_degree(tuple(rb.status.go), tuple(rb.status.advisory),
+                            tuple(rb.status.no_go))
+
+
+@functools.lru_cache(maxsize=32)
+def _advisory_degree(*points: tuple[float, ...]) -> float:
+    """:func:`advisory_degree` of the status sets' points (each diagnosis asks it)."""
+    sets = tuple(_mf(p) for p in points)
+    if _infer(sets, 1.0, 1.0, 0.0)[1] == "go":
+        return math.inf
+    lo, hi = 0.0, 1.0
+    for _ in range(40):          # to 1e-12
+        mid = 0.5 * (lo + hi)
+        if _infer(sets, mid, mid, 0.0)[1] != "go":
+            hi = mid
+        else:
+            lo = mid
+    return hi
 
 
 @functools.lru_cache(maxsize=32)

@@ -124,6 +124,10 @@ class CheckResult:
                        [f.to_dict() for f in self.diagnosis.faults]),
             "summary": (self.diagnosis.summary if self.diagnosis is not None else
                         f"retest: {self.estimate.reason}"),
+            "candidates": ([] if self.diagnosis is None else
+                           [c.to_dict() for c in self.diagnosis.candidates]),
+            "undetermined": ([] if self.diagnosis is None else
+                             [u.to_dict() for u in self.diagnosis.undetermined]),
             "regime": self.estimate.regime_label,
             "windows": est["windows"],
             "identifiable": {**est["identifiable"],

@@ -23,11 +23,34 @@ JsonOpt = Annotated[bool, typer.Option("--json", help="Print the result as JSON.
 
 
 def print_flags(flags: Any, unit: str) -> None:
-    """Warn (stderr) about a baseline's plausibility flags, with the tests to look at."""
+    """Warn (stderr) about a baseline's plausibility flags, with the tests to look
+    at or what to do (a trend: the tests to build it from); a note (the tests'
+    scatter against their standard errors) is said as a note, no warning."""
+    import shlex
+
+    from condmon.monitor.baseline_checks import is_warning
+
+    shown: set[tuple[int, ...]] = set()  # one rebuild command per set of tests kept
     for f in flags:
-        err.print(f"warning: baseline of {unit}: {f['message']} — look at "
-                  f"{', '.join(f'#{t}' for t in f['tests'])}; `condmon exclude TEST --reason "
-                  "...` takes a wrong one out", highlight=False, markup=False, soft_wrap=True)
+        if not is_warning(f):
+            # "spread": the same ratio, as a warning of an older condmon's baseline
+            tail = ("; the scatter, not the standard error, is the yardstick of a check"
+                    if f.get("kind") == "spread" else "")
+            err.print(f"note: baseline of {unit}: {f['message']}{tail}", highlight=False,
+                      markup=False, soft_wrap=True)
+        elif f.get("kind") == "trend":
+            keep = tuple(int(t) for t in f.get("keep") or [])
+            rebuild = (f"; `condmon baseline rebuild --unit {shlex.quote(unit)} --tests "
+                       f"{','.join(map(str, keep))} --reason 'warm-up left out'` builds it "
+                       "without them" if keep and keep not in shown else "")
+            shown.add(keep)
+            err.print(f"warning: baseline of {unit}: {f['message']}{rebuild}", highlight=False,
+                      markup=False, soft_wrap=True)
+        else:
+            err.print(f"warning: baseline of {unit}: {f['message']} — look at "
+                      f"{', '.join(f'#{t}' for t in f['tests'])}; `condmon exclude TEST "
+                      "--reason ...` takes a wrong one out", highlight=False, markup=False,
+                      soft_wrap=True)
 
 
 def _print_change(res: ChangeResult) -> None:
@@ -131,6 +154,7 @@ def register(app: typer.Typer, baseline_app: typer.Typer) -> None:
     ) -> None:
         """Every version of the unit's baselines: tests, reason, flags (* = active)."""
         from condmon.models.regimes import split_key
+        from condmon.monitor.baseline_checks import is_warning
         from condmon.models.registry import get_model
         from condmon.store.db import open_store
 
@@ -150,7 +174,8 @@ def register(app: typer.Typer, baseline_app: typer.Typer) -> None:
             mark = "*" if b.name == active and latest[b.name] == b.id else ""
             table.add_row(mark, escape(b.name), str(b.version), f"{b.created_at:%Y-%m-%d %H:%M}",
                           str(b.baseline.n), id_runs(b.test_ids),
-                          str(len(b.flags)) if b.flags else "", escape(b.reason or ""))
+                          str(sum(map(is_warning, b.flags))) if any(map(is_warning, b.flags))
+                          else "", escape(b.reason or ""))
         out.print(table)
         current = [b for b in versions if b.name == active and latest[b.name] == b.id]
         if current:

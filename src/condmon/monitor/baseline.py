@@ -1,4 +1,8 @@
-"""Healthy baseline of each parameter and percent change against it (SPEC A6.1-2)."""
+"""Healthy baseline of each parameter and percent change against it (SPEC A6.1-2).
+
+Whether a baseline can be trusted (outliers, a trend in time order) is
+:mod:`condmon.monitor.baseline_checks`; its names are importable from here too.
+"""
 
 from __future__ import annotations
 
@@ -10,15 +14,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from condmon.errors import DataError
+from condmon.monitor.baseline_checks import (  # kept importable from here
+    INFO_KINDS, MIN_BASELINE_TESTS, BaselineChecks, Trend, assess_baseline, baseline_scatter,
+    baseline_trends, is_warning,
+)
 
 __all__ = ["Baseline", "make_baseline", "percent_change", "MIN_BASELINE_TESTS",
-           "BaselineChecks", "assess_baseline", "missing_regimes"]
+           "BaselineChecks", "assess_baseline", "missing_regimes", "Trend", "baseline_trends",
+           "baseline_scatter", "is_warning", "INFO_KINDS"]
 
 FloatArray = NDArray[np.float64]
-
-#: Fewest accepted healthy tests a baseline is computed from.
-MIN_BASELINE_TESTS = 3
-
 
 @dataclass(frozen=True)
 class Baseline:
@@ -197,98 +202,3 @@ def percent_change(values: ArrayLike, baseline: Baseline) -> FloatArray:
     v = np.asarray(values, dtype=np.float64)
     return np.asarray(100.0 * (v - baseline.mean_array) / np.abs(baseline.mean_array),
                       dtype=np.float64)
-
-
-@dataclass(frozen=True)
-class BaselineChecks:
-    """When a baseline's spread is implausible (the ``[baseline]`` table of a
-    monitor file).
-
-    Attributes
-    ----------
-    outlier_z : float
-        Robust z-score (``0.6745 |x - median| / MAD``) above which a test is an
-        outlier ... [-]
-    outlier_se : float
-        ... provided it is also this many of its own standard errors from the
-        median (so a tiny MAD among a few tests raises no false flag). [-]
-    spread_ratio : float
-        A parameter's sample standard deviation over the RMS of the tests'
-        own standard errors above which the spread is implausible. [-]
-    """
-
-    outlier_z: float = 3.5
-    outlier_se: float = 4.0
-    spread_ratio: float = 3.0
-
-
-def assess_baseline(values: ArrayLike, std_errors: ArrayLike, test_ids: Sequence[int],
-                    parameters: Sequence[str], checks: BaselineChecks | None = None
-                    ) -> tuple[dict[str, Any], ...]:
-    """Flags of a baseline that should not be trusted as it is.
-
-    Two tests: a robust outlier test per parameter (median and MAD, which one
-    bad test cannot drag), and the spread against the estimates' own standard
-    errors (healthy tests scatter by about their standard error; a spread far
-    above it means the tests do not share one condition).
-
-    Parameters
-    ----------
-    values, std_errors : array_like, shape (N, P)
-        Estimates and their standard errors, one row per test. [parameter units]
-    test_ids : sequence of int
-        The tests' ids, for the messages.
-    parameters : sequence of str
-    checks : BaselineChecks, optional
-
-    Returns
-    -------
-    tuple of dict
-        ``{"kind": "outlier" | "spread", "parameter", "tests", "message"}``; empty
-        when nothing is suspicious.
-
-    Example
-    -------
-    >>> vals = [[1.00], [1.02], [0.98], [1.01], [7.0]]
-    >>> ses = [[0.02]] * 5
-    >>> [f["kind"] for f in assess_baseline(vals, ses, [1, 2, 3, 4, 5], ["D"])]
-    ['outlier', 'spread']
-    >>> assess_baseline(vals[:4], ses[:4], [1, 2, 3, 4], ["D"])
-    ()
-    """
-    cfg = checks or BaselineChecks()
-    x = np.atleast_2d(np.asarray(values, dtype=np.float64))
-    se = np.atleast_2d(np.asarray(std_errors, dtype=np.float64))
-    all_ids = [int(i) for i in test_ids]
-    flags: list[dict[str, Any]] = []
-    if x.shape[0] < MIN_BASELINE_TESTS:
-        return ()
-    for j, p in enumerate(parameters):
-        have = np.isfinite(x[:, j])  # a test of another regime lacks the parameter
-        if have.sum() < MIN_BASELINE_TESTS:
-            continue
-        col, s = x[have, j], se[have, j]
-        ids = [i for i, h in zip(all_ids, have) if h]
-        med = float(np.median(col))
-        dev = np.abs(col - med)
-        mad = float(np.median(dev))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            z = np.where(mad > 0, 0.6745 * dev / mad, np.where(dev > 0, np.inf, 0.0))
-            in_se = np.where(np.isfinite(s) & (s > 0), dev / s, np.inf)
-        out = [ids[i] for i in range(len(ids)) if z[i] > cfg.outlier_z and in_se[i] > cfg.outlier_se]
-        if out:
-            scale = abs(med) if med != 0 else 1.0
-            worst = max(range(len(ids)), key=lambda i: dev[i])
-            flags.append({"kind": "outlier", "parameter": p, "tests": out,
-                          "message": f"{p}: test(s) {', '.join(f'#{i}' for i in out)} far from "
-                                     f"the others (#{ids[worst]} at "
-                                     f"{100 * (col[worst] - med) / scale:+.0f} % of the median)"})
-        good = np.isfinite(s) & (s > 0)
-        if good.sum() >= 2:
-            rms_se = float(np.sqrt(np.mean(s[good] ** 2)))
-            sd = float(np.std(col, ddof=1))
-            if rms_se > 0 and sd > cfg.spread_ratio * rms_se:
-                flags.append({"kind": "spread", "parameter": p, "tests": out or ids,
-                              "message": f"{p}: baseline spread {sd / rms_se:.1f}x the tests' "
-                                         f"own standard errors (limit {cfg.spread_ratio:g}x)"})
-    return tuple(flags)

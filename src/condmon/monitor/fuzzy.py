@@ -121,10 +121,11 @@ def load_monitor_config(path: str | Path | None = None, k: float | None = None) 
         r2 = {p: float(v["r2"]) for p, v in bp.items()}
         kk = float(raw.get("k", 2.0)) if k is None else float(k)
         table = dict(raw.get("baseline", {}))
-        unknown = sorted(set(table) - {"outlier_z", "outlier_se", "spread_ratio"})
+        unknown = sorted(set(table) - {"outlier_z", "outlier_se", "spread_ratio",
+                                       "trend_alpha", "outlier_alpha"})
         if unknown:
             raise KeyError(f"unknown [baseline] key(s) {unknown}; allowed: outlier_z, "
-                           "outlier_se, spread_ratio")
+                           "outlier_se, spread_ratio, trend_alpha, outlier_alpha")
         checks = BaselineChecks(**{key: float(v) for key, v in table.items()})
     except (KeyError, TypeError, ValueError) as err:
         raise ConfigError(f"{src}: expected [breakpoints] P = {{ r1 = .., r2 = .. }}, "

@@ -361,10 +361,26 @@ def _commit_baseline_test(batch: _Batch, plan: _Unit, out: RecordOutcome,
         plan.building = False
         return report("stored", "baseline", f"baseline of {plan.name!r} from {len(ids)} "
                       f"accepted healthy tests ({stored.name!r} v{stored.version})"
-                      + (f"; {label} complete" if label else ""), tid, elsewhere)
+                      + (f"; {label} complete" if label else ""), tid,
+                      _flagged(plan.name, stored, elsewhere))
     n = max(plan.counts[r] for r in regimes) if regimes else len(plan.members)
     return report("stored", "baseline", f"baseline test {n} of {baseline_count}"
                   + (f" ({label})" if label else ""), tid, elsewhere)
+
+
+def _flagged(unit: str, version: Version, elsewhere: Callable[[], str | None]
+             ) -> Callable[[], str | None]:
+    """The warning of the record that completed a baseline: its flags (as
+    `baseline add` warns of them), and a copy filed under another unit."""
+    def text() -> str | None:
+        from condmon.monitor.baseline_checks import is_warning
+
+        said = [f"baseline of {unit!r} flagged: {f['message']}" for f in version.flags()
+                if is_warning(f)]
+        also = elsewhere()
+        return "; ".join([*said, *([also] if also else [])]) or None
+
+    return text
 
 
 def _commit_check(batch: _Batch, plan: _Unit, out: RecordOutcome,

@@ -34,15 +34,24 @@ if TYPE_CHECKING:
 __all__ = ["Version", "UnitView", "Known", "Records"]
 
 
+def _no_flags() -> tuple[dict[str, Any], ...]:
+    return ()
+
+
 @dataclass(frozen=True)
 class Version:
-    """A version of a unit's active baseline (stored, or made in this batch)."""
+    """A version of a unit's active baseline (stored, or made in this batch).
+
+    ``flags`` gives its plausibility flags once the batch is written (they
+    name the tests' ids); a stored version's are not read again (empty).
+    """
 
     id: Id
     name: str
     version: int
     test_ids: tuple[Id, ...]
     baseline: Baseline
+    flags: Callable[[], tuple[dict[str, Any], ...]] = field(default=_no_flags, compare=False)
 
 
 @dataclass(frozen=True)
@@ -154,7 +163,8 @@ class UnitView:
                       monitor: MonitorConfig | None = None) -> Version:
         """As :func:`condmon.workflows.monitoring.save_current_baseline`: the
         next version of the active baseline from tests ``ids`` (the latest one
-        when it has these tests already)."""
+        when it has these tests already), its flags tested with ``ids`` in the
+        order given: the order the records were run (by date when known)."""
         from condmon.models.registry import get_model
         from condmon.monitor.generic import machine_monitor
 
@@ -170,11 +180,17 @@ class UnitView:
         order = list(ids)
         version = 1 if last is None else last.version + 1
         # the flags name the tests: made once they are written and have their ids
-        bid = writer.add_baseline(
-            self.uid, base, members, name=self.label, version=version, reason=reason,
-            flags=lambda: assess_baseline(values, ses, [int(i) for i in order],
-                                          base.parameters, cfg.baseline))
-        self.latest = Version(bid, self.label, version, members, base)
+        found: list[tuple[dict[str, Any], ...]] = []
+
+        def flags() -> tuple[dict[str, Any], ...]:
+            if not found:
+                found.append(assess_baseline(values, ses, [int(i) for i in order],
+                                             base.parameters, cfg.baseline))
+            return found[0]
+
+        bid = writer.add_baseline(self.uid, base, members, name=self.label, version=version,
+                                  reason=reason, flags=flags)
+        self.latest = Version(bid, self.label, version, members, base, flags)
         return self.latest
 
     # -- adding ---------------------------------------------------------------------------

@@ -29,7 +29,7 @@ from condmon.models.machine import Machine
 from condmon.models.regimes import split_key
 from condmon.models.registry import get_model
 from condmon.monitor.baseline import (
-    MIN_BASELINE_TESTS, Baseline, assess_baseline, missing_regimes,
+    MIN_BASELINE_TESTS, Baseline, assess_baseline, baseline_scatter, missing_regimes,
 )
 from condmon.monitor.fuzzy import MonitorConfig, compute_symptoms
 from condmon.monitor.generic import describe_generic, machine_monitor
@@ -43,7 +43,7 @@ __all__ = ["EstimateOptions", "AddedTest", "BaselineAddResult", "RecordKey",
            "add_baseline_tests", "current_baseline", "RecordLike",
            "unit_monitor", "save_current_baseline", "reevaluate", "parse_date", "record_key",
            "evaluate", "baseline_members", "filed_elsewhere", "elsewhere_warning", "monitoring_of", "restricted",
-           "no_baseline_yet"]
+           "no_baseline_yet", "baseline_notes", "in_time_order"]
 
 Progress = Callable[[int, int, str], None]
 
@@ -81,12 +81,17 @@ class BaselineAddResult:
     message : str
     flags : tuple of dict
         Why the baseline may not be trustworthy (see
-        :func:`condmon.monitor.assess_baseline`); empty when nothing is suspicious.
+        :func:`condmon.monitor.assess_baseline`: an outlier, a trend in time
+        order); empty when nothing is suspicious.
     notes : tuple of str
         What the user should know at once (a model monitored generically).
     units : dict of str to str
         Unit of each of the model's parameters (a regime's ``Tc@forward`` has
         ``Tc``'s); empty without a baseline.
+    info : tuple of dict
+        What is known of the baseline and is no warning: the parameters whose
+        tests scatter more than their standard errors say (kind ``scatter``,
+        see :func:`condmon.monitor.baseline.baseline_scatter`).
     """
 
     tests: tuple[AddedTest, ...]
@@ -96,6 +101,7 @@ class BaselineAddResult:
     flags: tuple[dict[str, Any], ...] = ()
     notes: tuple[str, ...] = ()
     units: dict[str, str] = field(default_factory=dict)
+    info: tuple[dict[str, Any], ...] = ()
 
 
 def unit_monitor(store: HistoryStore, unit: str, baseline: Baseline | None = None
@@ -122,9 +128,10 @@ def save_current_baseline(store: HistoryStore, unit: str, ids: Sequence[int], *,
                           monitor: MonitorConfig | None = None
                           ) -> tuple[StoredBaseline, bool]:
     """Store the baseline of tests ``ids`` as the next version of ``name`` (the
-    unit's active baseline by default), with its plausibility flags; returns
-    it and whether it is a new version. Checks are not re-evaluated here (see
-    :func:`reevaluate`).
+    unit's active baseline by default), with its plausibility flags (outliers,
+    and a trend of the tests taken in time order: :func:`in_time_order`);
+    returns it and whether it is a new version. Checks are not re-evaluated
+    here (see :func:`reevaluate`).
 
     Raises
     ------
@@ -132,16 +139,36 @@ def save_current_baseline(store: HistoryStore, unit: str, ids: Sequence[int], *,
         Fewer than 3 tests.
     """
     base = _baseline_of(store, unit, ids)
-    values, ses = store.estimates_of(ids)
+    order = in_time_order(store, unit, ids)
+    values, ses = store.estimates_of(order)
     cfg = monitor or unit_monitor(store, unit, base)
     flags = assess_baseline(values[list(base.parameters)].to_numpy(),
-                            ses[list(base.parameters)].to_numpy(), list(ids),
+                            ses[list(base.parameters)].to_numpy(), order,
                             base.parameters, cfg.baseline)
     before = store.latest_baseline(unit, name)
     bid = store.save_baseline(unit, base, ids, name=name, reason=reason, flags=flags)
     # read back by id: another writer may have saved a later version meanwhile
     saved = store.baseline_by_id(unit, bid)
     return saved, before is None or before.id != bid
+
+
+def in_time_order(store: HistoryStore, unit: str, ids: Sequence[int]) -> list[int]:
+    """The unit's tests ``ids`` in the order they were run: by test date (when
+    only the storing time is known, by that), then by id."""
+    dates = store.history(unit)["date"]
+    return sorted((int(i) for i in ids), key=lambda i: (dates.get(i, pd.NaT), i))
+
+
+def baseline_notes(store: HistoryStore, unit: str, baseline: StoredBaseline,
+                   monitor: MonitorConfig | None = None) -> tuple[dict[str, Any], ...]:
+    """What is known of a stored baseline and is no warning: the parameters
+    whose tests scatter more than their standard errors say (see
+    :func:`condmon.monitor.baseline.baseline_scatter`)."""
+    params = list(baseline.baseline.parameters)
+    values, ses = store.estimates_of(list(baseline.test_ids))
+    cfg = monitor or unit_monitor(store, unit, baseline.baseline)
+    return baseline_scatter(values[params].to_numpy(), ses[params].to_numpy(), params,
+                            cfg.baseline)
 
 
 def reevaluate(store: HistoryStore, unit: str, baseline: StoredBaseline,
@@ -351,12 +378,13 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
                                  notes=notes)
     if fresh:
         reevaluate(store, unit, stored)
+    info = baseline_notes(store, unit, stored)
     regimes = _regime_counts(stored.baseline)
     return BaselineAddResult(tuple(added), stored.baseline, stored.id,
                              f"baseline of {unit!r} from {stored.baseline.n} accepted healthy "
                              f"tests ({stored.name!r} v{stored.version})"
                              + (f"; regimes: {regimes}" if regimes else ""), stored.flags,
-                             notes, machine.monitored_units)
+                             notes, machine.monitored_units, info)
 
 
 def _regime_counts(baseline: Baseline) -> str:

@@ -24,14 +24,17 @@ TRUTH = {"Tc": 40.0, "Dv": 5.0, "Tl": 2.0}
 
 def stroke(speed: float, *, seed: int = 0, fs: float = 250.0, n: int = 3000,
            stroke_s: float = 1.6, start: int = 12, friction: dict[str, float] | None = None,
-           hold_only: bool = False, noise_counts: float = 3.0) -> pd.DataFrame:
+           hold_only: bool = False, noise_counts: float = 3.0, vibration: float = 20.0,
+           oil: float = 12200.0) -> pd.DataFrame:
     """One record: a stroke at ``speed`` [rad/s] (its sign the direction) from
     sample ``start`` for ``stroke_s`` seconds, then a hold against the end stop.
 
     The driving pressure difference balances the friction during the stroke,
     ``Dm Δp = Dv ω + Tc sign ω + Tl``; in the hold the stop takes a large
     torque. Columns as the stand writes them: ``Time`` (1..n), ``Angle``,
-    ``PG_1``, ``PG_2`` (counts) and the node's ``F_Names``, ``F_Values``,
+    ``PG_1``, ``PG_2``, ``Accel_1..3`` (about 8,192 counts, ``vibration``
+    counts of white noise during the stroke, a tenth of it in the hold),
+    ``Temp_1..3`` (``oil`` counts) and the node's ``F_Names``, ``F_Values``,
     ``Prediction``.
     """
     f = {**TRUTH, **(friction or {})}
@@ -51,6 +54,10 @@ def stroke(speed: float, *, seed: int = 0, fs: float = 250.0, n: int = 3000,
     df = pd.DataFrame({"Time": np.arange(1, n + 1)})
     for name, value in counts.items():
         df[name] = np.round(value + noise_counts * rng.standard_normal(n)).astype(int)
+    shake = np.where(moving, vibration, vibration / 10.0)
+    for k in (1, 2, 3):
+        df[f"Accel_{k}"] = np.round(8192.0 + shake * rng.standard_normal(n)).astype(int)
+        df[f"Temp_{k}"] = np.round(oil + rng.standard_normal(n)).astype(int)
     df["F_Names"] = [f"feature {i % 7}" for i in range(n)]
     df["F_Values"] = rng.standard_normal(n)
     df["Prediction"] = 0.0

@@ -163,9 +163,9 @@ def test_a_v6_history_without_its_later_columns_is_completed(tmp_path: Path) -> 
                                                c.execute("PRAGMA table_info(forecasts)")}
 
 
-def test_a_v10_history_gets_the_systematic_column(tmp_path: Path) -> None:
-    """Estimates stored before v11 have no systematic part (NULL), and the
-    column is added on opening."""
+def test_a_v10_history_gets_the_systematic_and_conditions_columns(tmp_path: Path) -> None:
+    """Estimates stored before v11 have no systematic part, tests no conditions
+    (NULL): the columns are added on opening."""
     import sqlite3
 
     db = tmp_path / "v10.db"
@@ -173,12 +173,14 @@ def test_a_v10_history_gets_the_systematic_column(tmp_path: Path) -> None:
         pass
     with sqlite3.connect(db) as c:
         c.execute("ALTER TABLE estimates DROP COLUMN systematic")
+        c.execute("ALTER TABLE tests DROP COLUMN conditions")
         c.execute("UPDATE condmon_meta SET value = '10' WHERE key = 'schema_version'")
     with open_store(str(db)) as store:
         assert store.schema_version == 11
         assert store.systematic_of([]).empty
     with sqlite3.connect(db) as c:
         assert "systematic" in {r[1] for r in c.execute("PRAGMA table_info(estimates)")}
+        assert "conditions" in {r[1] for r in c.execute("PRAGMA table_info(tests)")}
 
 
 def test_a_v8_history_gets_the_content_hash_index(tmp_path: Path) -> None:

@@ -160,5 +160,6 @@ def progress() -> Progress:
 
 def status_text(status: str) -> str:
     """A status in its colour, as rich markup."""
-    color = {"go": "green", "advisory": "yellow", "no-go": "red", "retest": "blue"}.get(status, "white")
+    color = {"go": "green", "advisory": "yellow", "no-go": "red", "retest": "blue",
+             "not judged": "cyan"}.get(status, "white")
     return f"[bold {color}]{status}[/]"

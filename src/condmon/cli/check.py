@@ -55,10 +55,11 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Check one test against the unit's baseline: go / advisory / no-go and faults.
 
-        Beside the fuzzy status, a calibrated test of the change against the
-        baseline's scatter and of a drift over the checks since the baseline, each
-        alarming with the stated false-alarm probability (--alpha, --drift-alpha);
-        they never change the status."""
+        A calibrated test of the change against the baseline's scatter (--alpha,
+        its false-alarm probability) governs the status against the unit's own
+        baseline: without its alarm the check is go; with it the fuzzy
+        monitor's status stands and names the fault. A drift test over the
+        checks since the baseline (--drift-alpha) is shown beside it."""
         from condmon.diagnose.rules import load_rules
         from condmon.models.regimes import split_key
         from condmon.monitor.fuzzy import load_monitor_config
@@ -89,11 +90,20 @@ def register(app: typer.Typer) -> None:
                      if res.estimate.regime_label else "")
                   + (f", against {escape(res.against)}" if res.against != "unit" else "")
                   + (f", test #{res.test_id})" if res.test_id >= 0 else ", not stored)"))
+        if res.not_judged is not None:
+            out.print(f"not judged: {res.not_judged}: the baseline's tests do not span these "
+                      "conditions, so nothing says how a healthy unit behaves here; the test "
+                      "is stored but changes no trend. Extend the baseline to these "
+                      "conditions, or test again within them.", markup=False, soft_wrap=True)
+            _print_forecast(res.forecast)
+            return
         if res.diagnosis is None:
             out.print(f"rejected: {res.estimate.reason}; the test is stored but changes no trend. "
                       "Retest.", markup=False)
             _print_forecast(res.forecast)
             return
+        for line in res.judgement:
+            out.print(f"judged: {line}", highlight=False, markup=False, soft_wrap=True)
         table = Table()
         for col in ("parameter", "value", "unit", "change %", "SymH", "SymL"):
             table.add_column(col, justify="left" if col in ("parameter", "unit") else "right")

@@ -101,9 +101,10 @@ def estimate_cmd(
             table.add_row(escape(k), fmt(v), fmt(se), escape(res.unit_of(k)))
         out.print(table)
     if res.systematic:
-        out.print("systematic: the standard uncertainty from the sensors' stated accuracy "
-                  "(each sensor's error uniform within ± its accuracy), beside the standard "
-                  "error from the record's noise", highlight=False, markup=False, soft_wrap=True)
+        out.print("systematic: how far the sensors could move a value by drifting within "
+                  "their stated accuracy (each reading offset by its accuracy, root-sum-square "
+                  "over the sensors), beside the standard error from the record's noise",
+                  highlight=False, markup=False, soft_wrap=True)
 
 
 _HOW = {"inverse": "inverse model", "oe": "output error", "steady": "steady balances"}

@@ -103,6 +103,9 @@ class Diagnosis:
         Clear symptoms (at least :func:`advisory_degree`) that no fault rule
         accounts for: "change detected in P (low), cause not determined".
         They never change the status.
+    calibrated : str
+        How the calibrated change test governed the status, when it did
+        (:func:`condmon.monitor.statistics.governed`); "" otherwise.
     """
 
     status: str
@@ -113,6 +116,7 @@ class Diagnosis:
     watch: tuple[FaultDegree, ...] = ()
     candidates: tuple[CandidateSet, ...] = ()
     undetermined: tuple[UnexplainedChange, ...] = ()
+    calibrated: str = ""
 
     @property
     def no_fault(self) -> bool:
@@ -135,6 +139,7 @@ class Diagnosis:
         watch = ("; to watch: " + ", ".join(f"{f.name} ({f.degree:.2f})" for f in watched)
                  if watched else "")
         changes = "".join(f"; {c.text}" for c in self.undetermined)
+        changes += f"; {self.calibrated}" if self.calibrated else ""
         if self.no_fault:
             return f"{self.status}: no fault{' named' if changes else ''}{changes}{watch}"
         if self.candidates:
@@ -152,6 +157,7 @@ class Diagnosis:
                 "candidates": [c.to_dict() for c in self.candidates],
                 "ambiguous": self.ambiguous,
                 "undetermined": [c.to_dict() for c in self.undetermined],
+                "calibrated": self.calibrated or None,
                 "preprocessing_applied": list(self.applied)}
 
 

@@ -195,8 +195,9 @@ def compute_features(columns: Mapping[str, FloatArray], sample_rate: float,
     Raises
     ------
     DataError
-        A feature's channel is not a column of the record (naming the record,
-        the feature and the record's columns).
+        A required feature's channel is not a column of the record (naming
+        the record, the feature and the record's columns); a feature declared
+        ``required = false`` is left out with a note.
     ConfigError
         A band above the record's Nyquist frequency.
 
@@ -213,6 +214,10 @@ def compute_features(columns: Mapping[str, FloatArray], sample_rate: float,
     values: dict[str, tuple[float, float]] = {}
     notes: list[str] = []
     for spec in specs:
+        if spec.channel not in columns and not spec.required:
+            notes.append(f"feature {spec.name} not computed: the record has no column "
+                         f"{spec.channel!r} (required = false)")
+            continue
         if spec.channel not in columns:
             have = sorted(k for k in columns if k != "t")
             raise DataError(f"{source}: feature {spec.name!r} ({declaration}[features."

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from condmon._threads import one_blas_thread
-from condmon.errors import CondmonError, ModelError
+from condmon.errors import CondmonError, DataError, ModelError
 from condmon.identify.defaults import list_estimators
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD, FitCheck
 from condmon.identify.greybox import choose_route
@@ -222,7 +222,9 @@ def estimate(record: pd.DataFrame | Columns, model: str | Machine = "dc-motor", 
                               inputs=machine.plant.input_names,
                               min_samples=10 * (len(machine.spec.unknowns) + 1), source=source,
                               optional=(*_condition_columns(machine),
-                                        *(f.channel for f in machine.features)))
+                                        *(f.channel for f in machine.features),
+                                        *(c.feature.channel for c in machine.conditions
+                                          if c.feature is not None)))
     consts = dict(df.attrs.get("constants", {}) or {})
     _check_constants(machine, given, strict=tuple(given))
     consts.update(given)
@@ -237,7 +239,7 @@ def estimate(record: pd.DataFrame | Columns, model: str | Machine = "dc-motor", 
         return with_features(estimate_record(
             r, machine, method=method, excitation=exc, fit_threshold=fit_threshold,
             route=chosen, constants=consts, metadata=metadata, window=window, hold=hold,
-            fixed=fixed, notes=notes), r, machine)
+            fixed=fixed, notes=notes), r, machine, metadata)
 
     res = run(rec)
     accuracy = machine.record.merged(settings).accuracy
@@ -246,19 +248,16 @@ def estimate(record: pd.DataFrame | Columns, model: str | Machine = "dc-motor", 
     return dataclasses.replace(res, systematic=systematic_part(res, rec, accuracy, run))
 
 
-#: A bound ``a`` on a sensor's error read as a uniform distribution: standard uncertainty a/√3.
-_UNIFORM = 1.0 / math.sqrt(3.0)
-
-
 def systematic_part(res: EstimateResult, rec: Record, accuracy: Mapping[str, float],
                     run: Callable[[Record], EstimateResult]) -> dict[str, float]:
     """The systematic part of each of ``res``'s stored values from its sensors'
     stated accuracy (see :attr:`EstimateResult.systematic`).
 
     Each column with a stated accuracy ``a`` is offset by ``+a`` and the record
-    estimated again with ``run``; the value's change is its sensitivity to
-    that sensor at its bound. The systematic part is the root-sum-square of
-    the changes over the sensors, times ``1/√3`` (a uniform error within ±a).
+    estimated again with ``run``; the value's change is how far that sensor
+    moves it at its bound. The systematic part is the root-sum-square of the
+    changes over the sensors (independent sensors seldom reach their bounds
+    together, in the directions that add).
     Written here, not taken from a library: the uncertainties package
     propagates through functions of numbers, not through an estimator run on a
     record. A value the offset record does not give (its estimate refused)
@@ -268,7 +267,7 @@ def systematic_part(res: EstimateResult, rec: Record, accuracy: Mapping[str, flo
     -------
     A balance ``F = c (pA - pB)`` read from two gauges of ±0.25 % of 200 bar:
     each gauge's 0.5 bar moves ``F`` by ``c`` × 0.5 bar, so the systematic part
-    is ``c × 0.5 bar × √2 / √3`` whatever the noise.
+    is ``c × 0.5 bar × √2`` whatever the noise.
     """
     base = res.stored_values()
     total = dict.fromkeys(base, 0.0)
@@ -283,14 +282,22 @@ def systematic_part(res: EstimateResult, rec: Record, accuracy: Mapping[str, flo
         for key, (value, _) in base.items():
             other = moved.get(key, (math.nan, math.nan))[0]
             total[key] += (float(other) - float(value)) ** 2
-    return {k: math.sqrt(v) * _UNIFORM for k, v in total.items()}
+    return {k: math.sqrt(v) for k, v in total.items()}
 
 
-def with_features(res: EstimateResult, rec: Record, machine: Machine) -> EstimateResult:
-    """``res`` with the signal features ``machine`` declares, computed over
-    ``rec``'s windows (:func:`condmon.features.compute_features`); ``res``
-    itself when it declares none."""
-    if not machine.features:
+def with_features(res: EstimateResult, rec: Record, machine: Machine,
+                  metadata: Mapping[str, Any] | None = None) -> EstimateResult:
+    """``res`` with the signal features and the operating conditions
+    ``machine`` declares, computed over ``rec``'s windows
+    (:func:`condmon.features.compute_features`) and from ``metadata``;
+    ``res`` itself when it declares none.
+
+    Raises
+    ------
+    DataError
+        A condition's metadata field that is not a number.
+    """
+    if not machine.features and not machine.conditions:
         return res
     from condmon.features import compute_features
 
@@ -298,8 +305,29 @@ def with_features(res: EstimateResult, rec: Record, machine: Machine) -> Estimat
         or [("", 0, len(rec), True)]
     est = compute_features(rec.columns, 1.0 / rec.dt, spans, machine.features, rec.source,
                            machine.plant.source)
+    channels = [c.feature for c in machine.conditions if c.feature is not None]
+    conds = compute_features(rec.columns, 1.0 / rec.dt, spans, channels, rec.source,
+                             machine.plant.source)
+    conditions = dict(conds.values)
+    notes = [*res.notes, *est.notes, *conds.notes]
+    for c in machine.conditions:
+        if c.metadata is None:
+            continue
+        value = (metadata or {}).get(c.metadata)
+        if value is None:
+            notes.append(f"condition {c.name} not known: the record has no metadata field "
+                         f"{c.metadata!r}")
+            continue
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            number = math.nan
+        if isinstance(value, bool) or not math.isfinite(number):
+            raise DataError(f"{rec.source}: condition {c.name!r} reads metadata field "
+                            f"{c.metadata!r} = {value!r}, which is not a finite number")
+        conditions[c.name] = (number, 0.0)
     return dataclasses.replace(res, features=est.values, feature_units=est.units,
-                               notes=(*res.notes, *est.notes))
+                               conditions=conditions, notes=tuple(notes))
 
 
 def _condition_columns(machine: Machine) -> tuple[str, ...]:

@@ -97,16 +97,21 @@ class EstimateResult:
         [feature units]
     feature_units : dict of str to str
         Unit of each feature, by name.
+    conditions : dict of str to (float, float)
+        The record's operating conditions (``[conditions]``): a channel's
+        statistic per regime (``oil@forward``) or a metadata field (``load``),
+        each with its standard error (batch means; 0 for a metadata field).
+        [condition units]
     systematic : dict of str to float
         The systematic part of each stored value (keyed as
-        :meth:`stored_values`): its standard uncertainty from the sensors'
-        stated accuracy (``[record.columns]``'s ``accuracy``), each sensor's
-        error taken as uniform within ± its accuracy (GUM type B, ``a/√3``),
-        propagated by estimating again with the reading offset by its
-        accuracy, root-sum-square over the sensors. A sensor drifting within
-        its accuracy between two records moves the value by about this much;
-        ``std_errors`` is the record's own noise and says nothing of it. Empty
-        when no accuracy is declared. [same units]
+        :meth:`stored_values`): how far the sensors could move it by drifting
+        within their stated accuracy (``[record.columns]``'s ``accuracy``),
+        the change of the value when each reading is offset by its accuracy,
+        root-sum-square over the sensors. A bound, not a standard deviation:
+        a change inside it cannot be told from the sensors' drift
+        (:func:`condmon.monitor.generic.judged_config`). ``std_errors`` is the
+        record's own noise and says nothing of it. Empty when no accuracy is
+        declared. [same units]
     """
 
     parameters: dict[str, float]
@@ -133,6 +138,7 @@ class EstimateResult:
     features: dict[str, tuple[float, float]] = field(default_factory=dict)
     feature_units: dict[str, str] = field(default_factory=dict)
     systematic: dict[str, float] = field(default_factory=dict)
+    conditions: dict[str, tuple[float, float]] = field(default_factory=dict)
 
     @property
     def model_key(self) -> str:
@@ -287,6 +293,10 @@ class EstimateResult:
             doc["other_regimes"] = [o.to_dict() for o in self.others]
         if self.systematic:
             doc["systematic"] = _clean(self.systematic)
+        if self.conditions:
+            doc["conditions"] = {k: {"value": _clean({"v": v})["v"],
+                                     "std_error": _clean({"s": se})["s"]}
+                                 for k, (v, se) in self.conditions.items()}
         if self.features:
             doc["features"] = {k: {"value": _clean({"v": v})["v"],
                                    "std_error": _clean({"s": se})["s"],

@@ -382,7 +382,7 @@ def _dump_compiled(model: PlantModel, fns: tuple[Callable[..., Any], ...]
 #: Top-level entries a declaration may hold.
 DECLARATION_KEYS = ("name", "description", "parameters", "inputs", "variables", "states",
                     "sensors", "test", "smoothing", "estimation", "monitor", "record", "regimes",
-                    "features")
+                    "features", "conditions")
 
 
 def plant_from_doc(doc: Mapping[str, Any], source: str) -> PlantModel:

@@ -38,7 +38,8 @@ from typing import Any
 
 from condmon.errors import ConfigError
 
-__all__ = ["FeatureSpec", "STATISTICS", "parse_features", "check_band"]
+__all__ = ["FeatureSpec", "STATISTICS", "parse_features", "check_band", "ConditionSpec",
+           "parse_conditions"]
 
 #: The statistics a feature may take, with what each is (for messages and docs).
 STATISTICS: dict[str, str] = {
@@ -51,7 +52,7 @@ STATISTICS: dict[str, str] = {
     "band_power": "power in a frequency band (Welch's periodogram) [channel unit^2]",
 }
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
-_KEYS = ("channel", "statistic", "regimes", "band", "unit", "description")
+_KEYS = ("channel", "statistic", "regimes", "band", "unit", "description", "required")
 
 
 @dataclass(frozen=True)
@@ -73,6 +74,11 @@ class FeatureSpec:
         ``(low, high)`` of a band power. [Hz]
     unit : str
     description : str
+    required : bool
+        Whether a record without the channel is refused (one line naming the
+        channel); ``required = false``: it is estimated without the feature,
+        and a note says so (a rig channel some records lack, such as a
+        simulated built-in test's).
     """
 
     name: str
@@ -82,6 +88,7 @@ class FeatureSpec:
     band: tuple[float, float] | None = None
     unit: str = ""
     description: str = ""
+    required: bool = True
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form."""
@@ -123,7 +130,8 @@ def _band(value: Any, at: str) -> tuple[float, float]:
 
 def parse_features(table: Mapping[str, Any] | None, source: str, *,
                    reserved: tuple[str, ...] = (), regimes: tuple[str, ...] = (),
-                   sample_rate: float | None = None) -> tuple[FeatureSpec, ...]:
+                   sample_rate: float | None = None, kind: str = "features"
+                   ) -> tuple[FeatureSpec, ...]:
     """Read and validate a declaration's ``[features]`` table.
 
     Parameters
@@ -140,6 +148,8 @@ def parse_features(table: Mapping[str, Any] | None, source: str, *,
     sample_rate : float, optional
         The ``[record]`` sample rate, when declared: bands are checked against
         its Nyquist frequency. [Hz]
+    kind : str
+        The table's name in messages (``conditions`` for a condition's statistic).
 
     Returns
     -------
@@ -163,7 +173,7 @@ def parse_features(table: Mapping[str, Any] | None, source: str, *,
                           "([features.NAME] with channel and statistic)")
     out = []
     for name, entry in table.items():
-        at = f"{source}[features.{name}]"
+        at = f"{source}[{kind}.{name}]"
         if not isinstance(name, str) or not _NAME.match(name) or "@" in name:
             raise ConfigError(f"{at}: a feature's name holds letters, digits and _ and does "
                               "not start with a digit")
@@ -199,9 +209,115 @@ def parse_features(table: Mapping[str, Any] | None, source: str, *,
         if unknown:
             raise ConfigError(f"{at}.regimes: unknown regime {unknown[0]!r}; allowed: "
                               f"{', '.join(regimes) or 'none (the declaration has no [regimes])'}")
+        required = entry.get("required", True)
+        if not isinstance(required, bool):
+            raise ConfigError(f"{at}.required must be true or false, not {required!r}")
         spec = FeatureSpec(name, channel.strip(), str(stat), tuple(names), band,
-                           str(entry.get("unit", "")), str(entry.get("description", "")))
+                           str(entry.get("unit", "")), str(entry.get("description", "")),
+                           required)
         if sample_rate is not None:
             check_band(spec, sample_rate, source)
         out.append(spec)
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class ConditionSpec:
+    """One declared operating condition (``[conditions]``): a covariate the
+    healthy value of every parameter and feature is fitted against.
+
+    Attributes
+    ----------
+    name : str
+    feature : FeatureSpec or None
+        A statistic of a record channel in the regimes' windows (``mean`` by
+        default): an oil temperature, a supply pressure.
+    metadata : str or None
+        Or a numeric metadata field of the record (``load``, ``hours``).
+    unit : str
+    description : str
+    between_units : bool
+        Whether its level means the same on another unit (a calibrated sensor,
+        a metadata field). A raw channel's level is its own sensor's: against
+        peers it is not used, and the check says so.
+    """
+
+    name: str
+    feature: FeatureSpec | None = None
+    metadata: str | None = None
+    unit: str = ""
+    description: str = ""
+    between_units: bool = False
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return {"name": self.name, "channel": self.feature.channel if self.feature else None,
+                "statistic": self.feature.statistic if self.feature else None,
+                "metadata": self.metadata, "unit": self.unit,
+                "description": self.description, "between_units": self.between_units}
+
+
+_CONDITION_KEYS = ("channel", "statistic", "regimes", "metadata", "unit", "description",
+                   "between_units", "required")
+
+
+def parse_conditions(table: Mapping[str, Any] | None, source: str, *,
+                     reserved: tuple[str, ...] = (), regimes: tuple[str, ...] = ()
+                     ) -> tuple[ConditionSpec, ...]:
+    """Read and validate a declaration's ``[conditions]`` table.
+
+    Each entry is a record channel's statistic in the regimes' windows
+    (``channel``, ``statistic`` = ``mean`` by default, ``regimes``) or a
+    numeric metadata field (``metadata = "load"``), with ``unit``,
+    ``description`` and ``between_units`` (default false for a channel,
+    true for a metadata field).
+
+    Raises
+    ------
+    ConfigError
+        Naming the file, the condition and the allowed values.
+
+    Example
+    -------
+    >>> cs = parse_conditions({"oil": {"channel": "T1"}, "load": {"metadata": "load"}}, "rig.toml")
+    >>> [(c.name, c.feature.statistic if c.feature else c.metadata) for c in cs]
+    [('oil', 'mean'), ('load', 'load')]
+    """
+    if not table:
+        return ()
+    if not isinstance(table, Mapping):
+        raise ConfigError(f"{source}[conditions] must be a table of conditions "
+                          "([conditions.NAME] with channel or metadata)")
+    out = []
+    for name, entry in table.items():
+        at = f"{source}[conditions.{name}]"
+        if not isinstance(entry, Mapping):
+            raise ConfigError(f"{at} must be a table with channel or metadata")
+        extra = [k for k in entry if k not in _CONDITION_KEYS]
+        if extra:
+            raise ConfigError(f"{at}: unknown key {extra[0]!r}; allowed: "
+                              f"{', '.join(_CONDITION_KEYS)}")
+        if ("channel" in entry) == ("metadata" in entry):
+            raise ConfigError(f"{at} needs one of channel (a record column) or metadata (a "
+                              "metadata field)")
+        between = entry.get("between_units", "metadata" in entry)
+        if not isinstance(between, bool):
+            raise ConfigError(f"{at}.between_units must be true or false, not {between!r}")
+        unit, text = str(entry.get("unit", "")), str(entry.get("description", ""))
+        if "metadata" in entry:
+            field_ = entry["metadata"]
+            if not isinstance(field_, str) or not field_.strip():
+                raise ConfigError(f"{at}.metadata must name a metadata field, not {field_!r}")
+            bad = [k for k in ("statistic", "regimes", "required") if k in entry]
+            if bad:
+                raise ConfigError(f"{at}.{bad[0]} is for a channel's condition, not a "
+                                  "metadata field's")
+            out.append(ConditionSpec(name, None, field_.strip(), unit, text, between))
+            continue
+        feature = parse_features(
+            {name: {"channel": entry["channel"], "statistic": entry.get("statistic", "mean"),
+                    "regimes": entry.get("regimes", []), "unit": unit,
+                    "required": entry.get("required", True)}},
+            source, reserved=reserved, regimes=regimes, kind="conditions")[0]
+        out.append(ConditionSpec(name, feature, None, unit, text, between))
     return tuple(out)

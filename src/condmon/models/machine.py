@@ -31,7 +31,7 @@ from condmon.models.declared import PlantModel, substituted_equations, symbols_o
 from condmon.models.plausibility import (
     IdentifiabilityLimits, Plausibility,
 )
-from condmon.models.features import FeatureSpec
+from condmon.models.features import ConditionSpec, FeatureSpec
 from condmon.models.regimes import RegimeSpec
 
 if TYPE_CHECKING:
@@ -129,7 +129,9 @@ class Machine:
     breakpoints files (None: generic monitoring from the baseline's spread,
     :mod:`condmon.monitor.generic`); ``record`` how the rig writes its files
     (the ``[record]`` table); ``regimes`` its operating regimes; ``features``
-    the signal features it declares (``[features]``, :mod:`condmon.models.features`).
+    the signal features it declares (``[features]``, :mod:`condmon.models.features`);
+    ``conditions`` its operating conditions (``[conditions]``), the covariates
+    a healthy value is fitted against (:mod:`condmon.monitor.conditions`).
 
     Example
     -------
@@ -149,6 +151,7 @@ class Machine:
     record: RecordSettings = field(default_factory=RecordSettings)
     regimes: RegimeSpec = field(default_factory=RegimeSpec)
     features: tuple[FeatureSpec, ...] = ()
+    conditions: tuple[ConditionSpec, ...] = ()
 
     @property
     def monitored_generically(self) -> bool:

@@ -1,5 +1,5 @@
 """Reading a declaration's ``[estimation]``, ``[monitor]``, ``[record]``,
-``[regimes]`` and ``[features]`` tables into a :class:`~condmon.models.machine.Machine`."""
+``[regimes]``, ``[features]`` and ``[conditions]`` tables into a :class:`~condmon.models.machine.Machine`."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from typing import Any
 from condmon.errors import ConfigError
 from condmon.io.rig import parse_record_settings
 from condmon.models.declared import PlantModel
-from condmon.models.features import parse_features
+from condmon.models.features import parse_conditions, parse_features
 from condmon.models.machine import (
     DATA_DIR, ROUTES, EstimationSpec, Machine, derived_numeric,
 )
@@ -69,9 +69,14 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any],
                               reserved=(*plant.parameter_names, *derived_names),
                               regimes=tuple(r.name for r in regimes.regimes),
                               sample_rate=record.sample_rate)
+    conditions = parse_conditions(doc.get("conditions"), src,
+                                  reserved=(*plant.parameter_names, *derived_names,
+                                            *(f.name for f in features)),
+                                  regimes=tuple(r.name for r in regimes.regimes))
     files: dict[str, Any] = {"origin": origin, "rules": _file("rules"),
                              "breakpoints": _file("breakpoints"), "record": record,
-                             "regimes": regimes, "features": features}
+                             "regimes": regimes, "features": features,
+                             "conditions": conditions}
     est = doc.get("estimation")
     if est is None:  # a model for residuals and isolation only (e.g. the HST)
         return Machine(plant, EstimationSpec((), ()), **files)

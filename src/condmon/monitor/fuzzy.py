@@ -62,6 +62,16 @@ class MonitorConfig:
     statistics : StatisticsConfig
         False-alarm probabilities of the statistical tests beside the fuzzy
         status (optional ``[statistics]`` table; :mod:`condmon.monitor.statistics`).
+    insist : frozenset of str
+        Parameters whose declared breakpoints hold even inside the healthy
+        scatter (``insist = true`` in their ``[breakpoints]`` entry); the
+        others' are raised to the scatter's
+        (:func:`condmon.monitor.generic.judged_config`).
+    between_units : dict of str to float
+        The stated spread of a parameter between healthy units of the model
+        (one standard deviation, in % of the mean; the ``[between_units]``
+        table): a comparison with fewer than three peers adds it to the
+        peer's scatter (:func:`condmon.monitor.generic.peer_spread`). [%]
     """
 
     r1: dict[str, float]
@@ -70,6 +80,8 @@ class MonitorConfig:
     source: str = "condmon/data/monitor.toml"
     baseline: BaselineChecks = BaselineChecks()
     statistics: StatisticsConfig = StatisticsConfig()
+    insist: frozenset[str] = frozenset()
+    between_units: dict[str, float] = dataclasses.field(default_factory=dict)
 
     def arrays(self, parameters: Sequence[str]) -> tuple[FloatArray, FloatArray]:
         """``r1`` and ``r2`` in the order of ``parameters``; a regime's parameter
@@ -119,6 +131,7 @@ def load_monitor_config(path: str | Path | None = None, k: float | None = None) 
         bp = raw["breakpoints"]
         r1 = {p: float(v["r1"]) for p, v in bp.items()}
         r2 = {p: float(v["r2"]) for p, v in bp.items()}
+        insist = frozenset(p for p, v in bp.items() if v.get("insist", False) is True)
         kk = float(raw.get("k", 2.0)) if k is None else float(k)
         table = dict(raw.get("baseline", {}))
         unknown = sorted(set(table) - {"outlier_z", "outlier_se", "spread_ratio",
@@ -127,6 +140,7 @@ def load_monitor_config(path: str | Path | None = None, k: float | None = None) 
             raise KeyError(f"unknown [baseline] key(s) {unknown}; allowed: outlier_z, "
                            "outlier_se, spread_ratio, trend_alpha, outlier_alpha")
         checks = BaselineChecks(**{key: float(v) for key, v in table.items()})
+        between = {str(p): float(v) for p, v in dict(raw.get("between_units", {})).items()}
     except (KeyError, TypeError, ValueError) as err:
         raise ConfigError(f"{src}: expected [breakpoints] P = {{ r1 = .., r2 = .. }}, "
                           f"k = number and an optional [baseline] table ({err})") from None
@@ -140,7 +154,11 @@ def load_monitor_config(path: str | Path | None = None, k: float | None = None) 
                               f"got r1={r1[p]}, r2={r2[p]}")
     if kk < 0:
         raise ConfigError(f"{src}: k must be >= 0, got {kk}")
-    return MonitorConfig(r1, r2, kk, src, checks, stats)
+    bad = [p for p, v in between.items() if not (np.isfinite(v) and v > 0)]
+    if bad:
+        raise ConfigError(f"{src}: [between_units] {bad[0]} must be a spread > 0 [% of the "
+                          f"mean], got {between[bad[0]]!r}")
+    return MonitorConfig(r1, r2, kk, src, checks, stats, insist, between)
 
 
 def load_statistics(table: Any, source: str) -> StatisticsConfig:

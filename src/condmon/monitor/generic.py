@@ -23,6 +23,7 @@ import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 from condmon.errors import ConfigError
 from condmon.io.config import load_default
@@ -34,7 +35,7 @@ from condmon.monitor.statistics import StatisticsConfig
 
 __all__ = ["GenericSettings", "load_generic_settings", "spread_breakpoints", "generic_config",
            "describe_generic", "StatusPoints", "machine_monitor", "peer_monitor",
-           "yardstick", "judged_config"]
+           "yardstick", "judged_config", "with_scatter", "typical_systematic", "peer_spread"]
 
 #: Membership functions of the status (go, advisory, no-go) on [0, 1]: 3 or 4 points each.
 StatusPoints = tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]
@@ -113,9 +114,9 @@ def _t_ratio(n: int) -> float:
     """``t(n-1, 0.975) / z(0.975)``: how much wider a spread of ``n`` tests is read."""
     if n < 2:
         return math.inf
-    from scipy.special import stdtrit
+    from condmon.monitor.distributions import t_ppf   # plain Python: a check loads no scipy
 
-    return float(stdtrit(n - 1, 0.975)) / 1.959963984540054
+    return t_ppf(float(n - 1), 0.975) / 1.959963984540054
 
 
 def spread_breakpoints(baseline: Baseline, settings: GenericSettings | None = None
@@ -151,7 +152,10 @@ def generic_config(baseline: Baseline, settings: GenericSettings | None = None
 def machine_monitor(machine: Machine, baseline: Baseline | None = None) -> MonitorConfig:
     """The monitor configuration of a machine: its ``[monitor]`` breakpoints, or
     generic ones from ``baseline``'s spread when it declares none (without a
-    baseline: the generic settings' floor).
+    baseline: the generic settings' floor). Declared breakpoints come as
+    declared: a check raises those inside the healthy scatter
+    (:func:`judged_config`); :func:`with_scatter` gives the ones a check
+    against a baseline is judged with, to draw or forecast with.
 
     Example
     -------
@@ -192,7 +196,7 @@ def peer_monitor(machine: Machine, reference: Baseline) -> MonitorConfig:
     r1, r2 = spread_breakpoints(reference, settings)
     own = machine_monitor(machine, reference)
     if machine.breakpoints is not None:
-        mine = own.arrays(reference.parameters)
+        mine = with_scatter(own, reference).arrays(reference.parameters)
         for i, key in enumerate(reference.parameters):
             r1[key] = min(r1[key], float(mine[0][i]))
             r2[key] = max(min(r2[key], float(mine[1][i])), r1[key] * (1 + 1e-9) + 1e-12)
@@ -201,35 +205,27 @@ def peer_monitor(machine: Machine, reference: Baseline) -> MonitorConfig:
                          own.statistics)
 
 
-def yardstick(baseline: Baseline, systematic: Mapping[str, float] | None = None
-              ) -> dict[str, float]:
-    """The relative spread a change is judged against, per parameter. [%]
+def yardstick(baseline: Baseline) -> dict[str, float]:
+    """The relative record-to-record scatter a change is judged against, per parameter. [%]
 
-    ``s = sqrt((σ/|θ̄| · t(n-1)/z)² + (u/|θ̄|)²) · 100``: the baseline's
-    record-to-record scatter σ (widened for few tests as in
-    :func:`spread_breakpoints`) together with the systematic part ``u`` the
-    sensors' stated accuracy leaves in the value
-    (:attr:`condmon.identify.EstimateResult.systematic`): a change the
-    sensors could make by drifting within their accuracy is no change of the
-    machine. The estimate's own standard error is not part of it: on real
-    machines it is several times smaller than the scatter. Floored at the
-    generic settings' ``min_relative_spread``.
+    ``s = σ/|θ̄| · t(n-1, 0.975)/z(0.975) · 100``: the baseline's sample
+    standard deviation, widened for few tests as in
+    :func:`spread_breakpoints`, floored at the generic settings'
+    ``min_relative_spread``. The estimate's own standard error is not part of
+    it: on real machines it is several times smaller than the scatter.
 
     Example
     -------
     >>> b = Baseline(("Tc",), (40.0,), (0.4,), 30)
-    >>> round(yardstick(b)["Tc"], 2), round(yardstick(b, {"Tc": 3.0})["Tc"], 2)
-    (1.04, 7.57)
+    >>> round(yardstick(b)["Tc"], 2)
+    1.04
     """
     cfg = load_generic_settings()
-    sys_ = systematic or {}
     out = {}
     for name, mean, std, n in zip(baseline.parameters, baseline.mean, baseline.std,
                                   baseline.count_array):
         scale = 100.0 / abs(mean) if mean != 0 else math.inf
-        u = sys_.get(name, 0.0)
-        u = u if math.isfinite(u) else 0.0
-        s = math.hypot(std * scale * _t_ratio(int(n)), u * scale)
+        s = std * scale * _t_ratio(int(n))
         out[name] = max(s, cfg.min_relative_spread) if math.isfinite(s) else math.inf
     return out
 
@@ -239,36 +235,44 @@ def judged_config(config: MonitorConfig, baseline: Baseline,
                   ) -> tuple[MonitorConfig, tuple[str, ...]]:
     """The breakpoints a check against ``baseline`` is judged with, and what was raised.
 
-    Each parameter's ``r1`` and ``r2`` are at least ``r1_sigma`` and
-    ``r2_sigma`` times its :func:`yardstick` (the generic settings' 4 and 8):
-    a declared breakpoint inside the healthy scatter would call the unit's
-    ordinary record-to-record variation a fault, so the scatter's wins, and
-    the note says so, unless the monitor file insists (``insist = true``). A
-    parameter the file has no breakpoints for (a signal feature) takes the
-    scatter's.
+    Each parameter's ``r1`` and ``r2`` are at least ``b + r1_sigma · s`` and
+    ``b + r2_sigma · s``: ``s`` its :func:`yardstick` (the healthy scatter;
+    the generic settings' 4 and 8 times it), ``b`` the bound the sensors'
+    stated accuracy sets on a change they could make by drifting
+    (:attr:`condmon.identify.EstimateResult.systematic`, in % of the
+    baseline mean). A bounded error is added to the random one's limit, as
+    a guard band is (ISO 14253-1): a change inside the sensors' accuracy is
+    no change of the machine, whatever the scatter. A declared breakpoint
+    below that floor would call the unit's ordinary variation a fault, so the
+    floor wins, and the note says so, unless the monitor file insists
+    (``insist = true``). A parameter the file has no breakpoints for (a
+    signal feature) takes the floor.
 
     Returns
     -------
     config : MonitorConfig
         Keyed by the baseline's parameters.
     raised : tuple of str
-        One note per declared breakpoint the scatter raised.
+        One note per declared breakpoint the floor raised.
 
     Example
     -------
     >>> b = Baseline(("Tc@forward", "vib@forward"), (40.0, 5.0), (0.4, 1.0), 30)
-    >>> cfg, raised = judged_config(MonitorConfig({"Tc": 15.0}, {"Tc": 30.0}), b, {"Tc@forward": 3.0})
+    >>> cfg, raised = judged_config(MonitorConfig({"Tc": 15.0}, {"Tc": 30.0}), b, {"Tc@forward": 6.0})
     >>> round(cfg.r1["Tc@forward"], 1), round(cfg.r1["vib@forward"], 1)
-    (30.3, 83.5)
+    (19.2, 83.5)
     >>> raised[0][:60]
     'Tc@forward: the declared r1 15 % lies inside the healthy sca'
     """
     settings = load_generic_settings()
-    s = yardstick(baseline, systematic)
+    s = yardstick(baseline)
     known = config.keyed(baseline.parameters)
+    sys_ = systematic or {}
     r1, r2, raised = {}, {}, []
-    for name in baseline.parameters:
-        floor1, floor2 = settings.r1_sigma * s[name], settings.r2_sigma * s[name]
+    for name, mean in zip(baseline.parameters, baseline.mean):
+        b = sys_.get(name, 0.0)
+        b = 100.0 * b / abs(mean) if math.isfinite(b) and mean != 0 else 0.0
+        floor1, floor2 = b + settings.r1_sigma * s[name], b + settings.r2_sigma * s[name]
         if name not in known.r1:
             r1[name], r2[name] = floor1, floor2
             continue
@@ -277,11 +281,88 @@ def judged_config(config: MonitorConfig, baseline: Baseline,
             r1[name], r2[name] = d1, d2
             continue
         r1[name], r2[name] = floor1, max(d2, floor2)
-        raised.append(f"{name}: the declared r1 {d1:g} % lies inside the healthy scatter "
-                      f"({settings.r1_sigma:g} × {s[name]:.3g} % = {floor1:.3g} %, the "
-                      "record-to-record scatter with the sensors' accuracy): the scatter's "
-                      "is used (insist = true in [breakpoints] keeps the declared)")
+        accuracy = f" plus the sensors' accuracy {b:.3g} %" if b else ""
+        raised.append(f"{name}: the declared r1 {d1:g} % lies inside the healthy scatter"
+                      f"{' and the sensors’ accuracy' if b else ''} ({settings.r1_sigma:g} × "
+                      f"{s[name]:.3g} %{accuracy} = {floor1:.3g} %): that is used (insist = "
+                      "true in [breakpoints] keeps the declared)")
     return dataclasses.replace(config, r1=r1, r2=r2), tuple(raised)
+
+
+def peer_spread(reference: Baseline, config: MonitorConfig
+                ) -> tuple[Baseline, tuple[str, ...]]:
+    """Another unit's baseline as a check of this unit is judged against it.
+
+    One peer's record-to-record scatter says nothing of how far two healthy
+    units of the model differ (their sensors, their assembly, their load's
+    own friction). Its standard deviation is widened by the spread between
+    units the monitor file states (``[between_units]``, one standard
+    deviation in % of the mean): ``sqrt(σ² + (τ·|θ̄|)²)``, so the answer is as
+    wide as two units may honestly differ. A parameter with none stated is
+    judged on the peer's scatter alone, and the note says so.
+
+    Returns
+    -------
+    baseline : Baseline
+    notes : tuple of str
+
+    Example
+    -------
+    >>> ref = Baseline(("Tc@forward", "vib1@forward"), (40.0, 5.0), (0.4, 0.5), 50)
+    >>> b, notes = peer_spread(ref, MonitorConfig({}, {}, between_units={"Tc": 10.0}))
+    >>> round(b.std[0], 3), b.std[1], notes[0][:40]
+    (4.02, 0.5, 'vib1@forward: no spread between units is')
+    """
+    stds, notes = [], []
+    for name, mean, std in zip(reference.parameters, reference.mean, reference.std):
+        tau = config.between_units.get(name, config.between_units.get(split_key(name)[0]))
+        if tau is None:
+            stds.append(std)
+            notes.append(f"{name}: no spread between units is stated ([between_units] of "
+                         f"{config.source}): a difference between two healthy units is read "
+                         "as a change")
+            continue
+        stds.append(math.hypot(std, tau / 100.0 * abs(mean)))
+    return dataclasses.replace(reference, std=tuple(stds)), tuple(notes)
+
+
+def typical_systematic(history: Any) -> dict[str, float]:
+    """The median systematic part of each parameter over a history's rows
+    (its ``P_sys`` columns; empty when it has none). [parameter units]
+
+    Example
+    -------
+    >>> import pandas as pd
+    >>> typical_systematic(pd.DataFrame({"Tc": [40.0, 41.0], "Tc_sys": [6.0, 6.2]}))
+    {'Tc': 6.1}
+    """
+    cols = [c for c in getattr(history, "columns", ()) if str(c).endswith("_sys")]
+    out = {}
+    for c in cols:
+        value = float(history[c].median())
+        if math.isfinite(value):
+            out[str(c)[: -len("_sys")]] = value
+    return out
+
+
+def with_scatter(config: MonitorConfig, baseline: Baseline,
+                 systematic: Mapping[str, float] | None = None) -> MonitorConfig:
+    """``config`` with the breakpoints a check against ``baseline`` is judged
+    with (:func:`judged_config`, with a typical ``systematic`` part, e.g.
+    :func:`typical_systematic`) under the baseline's names, its own kept under
+    theirs (``Tc`` beside ``Tc@forward``): what a figure draws and a forecast
+    aims at.
+
+    Example
+    -------
+    >>> b = Baseline(("Tc@forward",), (40.0,), (2.0,), 30)
+    >>> cfg = with_scatter(MonitorConfig({"Tc": 15.0}, {"Tc": 30.0}), b)
+    >>> cfg.r1["Tc"], round(cfg.r1["Tc@forward"], 1)
+    (15.0, 20.9)
+    """
+    judged = judged_config(config, baseline, systematic)[0]
+    return dataclasses.replace(judged, r1={**config.r1, **judged.r1},
+                               r2={**config.r2, **judged.r2})
 
 
 def describe_generic(settings: GenericSettings | None = None) -> str:

@@ -54,11 +54,13 @@ too large a ratio sets ``calibrated`` false and the line says so.
 Both are exact for normal estimates; the benchmark
 (``benchmarks/bench_prognostics.py``) measures the rates on simulated checks.
 
-How they combine with the fuzzy status: the status (go / advisory / no-go) is
-the fuzzy diagnoser's and names the fault; the statistics never change it.
-An alarm is shown beside it, and an alarm under a ``go`` is said as such
-("statistical alarm under go: a change beyond the healthy scatter, below the
-fault breakpoints"): a reason to look, not to stop.
+How they combine with the fuzzy status: the change test governs it
+(:func:`governed_status`): a check whose change test does not alarm is
+``go``, so that its stated false-alarm probability bounds the rate at which
+a healthy unit's checks are flagged; with an alarm the fuzzy diagnoser's
+status stands and names the fault (an alarm under ``go`` is a change beyond
+the healthy scatter, below the fault breakpoints: said beside it, a reason
+to look, not to stop). The drift test is shown beside the status.
 
 Why by hand: scipy has the F and t distributions but no Hotelling prediction
 or drift test with a rank-deficient covariance, and the change-detection
@@ -76,9 +78,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from condmon.errors import DataError
-from condmon.monitor.distributions import f_sf, t_cdf
+from condmon.monitor.distributions import f_sf, t_cdf, t_ppf
 
-__all__ = ["StatisticsConfig", "CheckStatistics", "check_statistics", "checked_alpha"]
+__all__ = ["StatisticsConfig", "CheckStatistics", "check_statistics", "checked_alpha",
+           "governed_status", "can_govern", "NOGO_SCATTERS"]
 
 FloatArray = NDArray[np.float64]
 
@@ -381,3 +384,86 @@ def _scatter_check(earlier: FloatArray, S: FloatArray, n: int, distinct: int
     nu = 2.0 * (k - 1) / 3.0
     p = f_sf(nu, n - 1, ratio)
     return ratio, bool(np.min(p) >= _SCATTER_LEVEL / max(distinct, 1))
+
+
+#: Where the generic monitor's symptom reaches the no-go degree, in scatters of
+#: the baseline (r1 - k + 0.727 (k + r2 - r1) with r1, r2, k = 4, 8, 2; see
+#: condmon.monitor.unit_forecast.NoGo): the change a governing test must be able to confirm.
+NOGO_SCATTERS = 6.36
+
+
+def can_govern(stats: CheckStatistics) -> bool:
+    """Whether the change test of a baseline of ``stats.tests`` tests can
+    confirm a change the fuzzy monitor calls no-go: its critical ``|t|``
+    (Šidák over the parameters, the mean's own error in) no larger than the
+    no-go point of a scatter of that many tests (:data:`NOGO_SCATTERS`, the
+    scatter widened by ``t(n-1, 0.975)/z`` as the breakpoints are). With few
+    tests the test's heavy tails make it blind to any change: it cannot
+    govern then.
+
+    Example
+    -------
+    >>> mk = lambda n: CheckStatistics(0.0, 1.0, 0.01, False, "max-t", ("R", "L", "D"), 1, n,
+    ...                                None, None, 0.01, None, {}, 1)
+    >>> can_govern(mk(3)), can_govern(mk(10))
+    (False, True)
+    """
+    n = stats.tests
+    if n < 3:
+        return False
+    k = max(len(stats.parameters), 1)
+    crit = t_ppf(float(n - 1), 1.0 - stats.alpha / (2.0 * k)) * math.sqrt(1.0 + 1.0 / n)
+    return crit <= NOGO_SCATTERS * t_ppf(float(n - 1), 0.975) / 1.959963984540054
+
+
+def governed_status(status: str, stats: CheckStatistics, changes: dict[str, float],
+                    scatter: dict[str, float]) -> tuple[str, str]:
+    """The status a check takes once its calibrated change test governs it, and why.
+
+    The change test's false-alarm probability ``alpha`` is the one stated for
+    a check of a healthy unit, so it decides whether the check shows a
+    change at all: with no alarm (``p >= alpha``) the check is ``go``
+    whatever the fuzzy monitor's breakpoints say, its change being within
+    the healthy scatter. With an alarm the fuzzy status stands: it says
+    whether the change matters (a change beyond the scatter but below the
+    fault breakpoints stays ``go``, the alarm said beside it) and which fault.
+    A baseline of too few tests for the test to confirm a no-go
+    (:func:`can_govern`) leaves the fuzzy status as it is.
+
+    Parameters
+    ----------
+    status : str
+        The fuzzy diagnoser's.
+    stats : CheckStatistics
+    changes : dict of str to float
+        The check's change per parameter. [%]
+    scatter : dict of str to float
+        Each parameter's baseline scatter. [% of the mean]
+
+    Returns
+    -------
+    status : str
+    why : str
+        "" when the fuzzy status stands.
+
+    Example
+    -------
+    >>> s = CheckStatistics(3.0, 0.2, 0.01, False, "max-t", ("R",), 1, 10, None, None,
+    ...                     0.01, None, {}, 1)
+    >>> governed_status("advisory", s, {"R": 9.0}, {"R": 3.0})[0]
+    'go'
+    >>> a = CheckStatistics(9.0, 1e-6, 0.01, True, "max-t", ("R",), 1, 10, None, None,
+    ...                     0.01, None, {}, 1)
+    >>> governed_status("no-go", a, {"R": 60.0}, {"R": 2.0})
+    ('no-go', '')
+    """
+    if not stats.alarm and status in ("advisory", "no-go") and can_govern(stats):
+        z = {k: abs(v) / scatter[k] for k, v in changes.items()
+             if k in scatter and scatter[k] > 0 and math.isfinite(v)}
+        top = max(z, key=lambda k: z[k]) if z else None
+        what = (f" (largest: {top} {changes[top]:+.1f} %, {z[top]:.1f} scatters)"
+                if top is not None else "")
+        return "go", (f"within the healthy scatter{what}: the change test's p "
+                      f"{stats.p_value:.2g} >= α {stats.alpha:g}, so the fuzzy monitor's "
+                      f"{status} is not taken")
+    return status, ""

@@ -459,7 +459,7 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
     axis = forecast_axis(checks)
     out = []
     for key in baseline.parameters:
-        name = key.split("@", 1)[0]
+        name = key if key in r2 else key.split("@", 1)[0]   # a regime's own, else its parameter's
         found = parameter_series(checks, baseline, key, axis) if name in r2 else None
         if found is None:
             continue
@@ -491,7 +491,7 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
                 f = dataclasses.replace(f, unreachable=f"{never}; nor the other way: {cannot}")
             else:
                 rising, f = not rising, heading(other)
-        rule = rules.get(_condition(name, rising), "")
+        rule = rules.get(_condition(key.split("@", 1)[0], rising), "")
         said = str(checks["status"].loc[rows[-1]]) if "status" in checks else "no-go"
         if f.at_nogo and said != "no-go":   # past its no-go change, yet the check said not
             f = dataclasses.replace(f, at_nogo=False, notes=(

@@ -22,14 +22,14 @@ __all__ = ["CSS", "STATUSES", "esc", "badge", "when", "page", "flags_box", "test
            "latest_isolation", "suspects_table", "unit_of"]
 
 #: Every status a page may show.
-STATUSES = ("go", "advisory", "no-go", "retest", "building", "baseline", "rejected",
-            "excluded", "unchecked")
+STATUSES = ("go", "advisory", "no-go", "retest", "not judged", "building", "baseline",
+            "rejected", "excluded", "unchecked")
 
 CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:2em;color:#222;max-width:1150px}
 h1{margin-bottom:0}.sub{color:#666;margin-top:.2em}a{color:#1f4e79}
 .status{display:inline-block;padding:.15em .6em;border-radius:4px;font-weight:bold;color:#fff}
-.go{background:#2e7d32}.advisory{background:#ef6c00}.no-go{background:#c62828}.retest{background:#546e7a}
+.go{background:#2e7d32}.advisory{background:#ef6c00}.no-go{background:#c62828}.retest{background:#546e7a}.not-judged{background:#00838f}
 .baseline,.unchecked{background:#7f8c8d}.building{background:#90a4ae}.rejected{background:#c0392b}.excluded{background:#bdbdbd}
 table{border-collapse:collapse;font-size:.85em;margin:.5em 0 1.5em}
 td,th{border:1px solid #ddd;padding:.25em .6em;text-align:right}th{background:#f3f3f3}
@@ -55,7 +55,8 @@ def esc(value: object) -> str:
 def badge(status: object) -> str:
     """A coloured status label (plain text for anything not a status)."""
     s = status if isinstance(status, str) and status else "—"
-    return f'<span class="status {s}">{esc(s)}</span>' if s in STATUSES else esc(s)
+    return (f'<span class="status {s.replace(" ", "-")}">{esc(s)}</span>' if s in STATUSES
+            else esc(s))
 
 
 def when(stamp: Any) -> str:

@@ -114,6 +114,7 @@ def _trended(history: pd.DataFrame) -> pd.DataFrame:
         return history
     ok = (history["role"] == "check") & history["accepted"].astype(bool)
     ok &= ~history["excluded"].astype(bool)
+    ok &= history["status"] != "not judged"   # outside its baseline's conditions: no change
     return history[ok]
 
 

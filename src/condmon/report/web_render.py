@@ -131,7 +131,8 @@ def _trends(data: UnitData) -> _Trends:
     members = [] if stored is None else [
         i for i in stored.test_ids if i in hist.index and not hist.loc[i, "excluded"]]
     checks = [int(i) for i in hist.index[(hist["role"] == "check") & hist["accepted"]
-                                         & ~hist["excluded"]]]
+                                         & ~hist["excluded"]
+                                         & (hist["status"] != "not judged")]]
     if not params or not (members or checks):
         return _Trends(untrended=_untrended(hist))
     stamps = {int(str(i)): float(d.timestamp()) for i, d in hist["date"].items()}

@@ -29,8 +29,12 @@ from condmon.store.baselines import (
     DEFAULT_BASELINE, StoredBaseline, baseline_value_rows, members_of, stored_baseline,
 )
 from condmon.store.engine import StoreError, store_error
-from condmon.store.history import ROLES, estimate_rows, evaluation_rows, stored_estimates, test_values
+from condmon.store.history import (
+    ROLES, condition_pairs, estimate_rows, evaluation_rows, stored_estimates, test_values,
+)
 from condmon.store.isolations import isolation_estimate_rows, isolation_values
+
+_CHUNK = 500   # test ids per IN (...) list: well inside every back-end's limit
 
 __all__ = ["Pending", "UnitState", "KnownRow", "BulkWriter", "BulkWriteError", "BulkMixin",
            "resolve"]
@@ -96,6 +100,8 @@ class UnitState:
         The stored estimates ``{parameter: (value, standard error)}`` of its
         baseline's tests (:func:`~condmon.store.baselines.members_of`);
         missing values are NaN. [parameter units]
+    conditions : mapping of int to mapping of str to float
+        The operating conditions of the same tests (those that have any).
     """
 
     id: int
@@ -107,6 +113,7 @@ class UnitState:
     latest: StoredBaseline | None
     usable: tuple[tuple[int, str], ...]
     estimates: Mapping[int, Mapping[str, tuple[float, float]]]
+    conditions: Mapping[int, Mapping[str, tuple[float, float]]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -374,11 +381,18 @@ class BulkMixin(StoreBase):
                         sa.select(e.c.test_id, e.c.parameter, e.c.value, e.c.std_error)
                         .where(e.c.test_id.in_(others))):
                     est.setdefault(int(tid), {})[str(p)] = _pair(val, se)
+            wanted = sorted({i for ids in members.values() for i in ids})
+            conds: dict[int, dict[str, tuple[float, float]]] = {}
+            for k in range(0, len(wanted), _CHUNK):
+                for tid, doc in c.execute(sa.select(t.c.id, t.c.conditions).where(
+                        t.c.id.in_(wanted[k:k + _CHUNK]), t.c.conditions.is_not(None))):
+                    conds[int(tid)] = condition_pairs(doc)
             return {str(r.unit): UnitState(
                 uid, str(r.unit), str(r.model), r.model_source,
                 str(r.baseline_name or DEFAULT_BASELINE), r.group_name, latest[uid],
                 tuple(usable.get(uid, {}).items()),
-                {i: est.get(i, {}) for i in members[uid]}) for uid, r in units.items()}
+                {i: est.get(i, {}) for i in members[uid]},
+                {i: conds[i] for i in members[uid] if i in conds}) for uid, r in units.items()}
 
         return self._read(run)
 

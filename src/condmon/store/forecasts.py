@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import pandas as pd
@@ -149,7 +149,8 @@ class FleetHistory:
             baseline, ids = current_baseline(self.store, unit)
             hist = self.store.history(unit)
             checks = hist[(hist["role"] == "check") & hist["accepted"].astype(bool)
-                          & ~hist["excluded"].astype(bool)]
+                          & ~hist["excluded"].astype(bool)
+                          & (hist["status"] != "not judged")]   # no change measured
             self._checks[unit] = (baseline, in_test_order(
                 checks[[i not in ids for i in checks.index]]))
         return self._checks[unit]
@@ -242,12 +243,15 @@ def read_forecast(store: HistoryStore, unit: str, horizon: float | None = None,
     machine = get_model(store.unit_model(unit) or "dc-motor")
     priors = (fleet.priors(unit, baseline.parameters, forecast_axis(checks).by)
               if len(checks) else {})
-    nogo, rules = machine_nogo(machine, baseline)
+    from condmon.monitor.generic import typical_systematic
+
+    nogo, rules = machine_nogo(machine, baseline, typical_systematic(checks))
     return forecast_checks(unit, checks, baseline, nogo, rules, machine.units, horizon, seed,
                            priors)
 
 
-def machine_nogo(machine: Machine, baseline: Baseline | None = None
+def machine_nogo(machine: Machine, baseline: Baseline | None = None,
+                 systematic: Mapping[str, float] | None = None
                  ) -> tuple[dict[str, NoGo], dict[str, str]]:
     """Where each of a machine's parameters turns a check no-go on its own
     (:class:`~condmon.monitor.unit_forecast.NoGo`: its breakpoints and symptom
@@ -255,26 +259,32 @@ def machine_nogo(machine: Machine, baseline: Baseline | None = None
     names its rise or fall, alone or with another symptom (``low(Ke) and
     low(Kt)``: the partner is kept, :func:`~condmon.diagnose.diagnoser.joint_faults`),
     its plausible values), and the rule each one-symptom condition names
-    (``{"high(D)": "friction increase", "low(Ke)": "magnet weakening"}``)."""
+    (``{"high(D)": "friction increase", "low(Ke)": "magnet weakening"}``).
+    Against a baseline, the breakpoints are the ones its checks are judged
+    with (:func:`~condmon.monitor.generic.with_scatter`), with the checks'
+    ``systematic`` parts. [parameter units]"""
     from condmon.diagnose.diagnoser import joint_faults, nogo_degree, single_faults
     from condmon.diagnose.rules import machine_rules
-    from condmon.monitor.generic import machine_monitor
+    from condmon.monitor.generic import machine_monitor, with_scatter
 
     rb = machine_rules(machine)
     named = single_faults(rb)
     joint = joint_faults(rb)
     degree = nogo_degree(rb)
     cfg = machine_monitor(machine, baseline)
+    if baseline is not None:   # the breakpoints its checks are judged with
+        cfg = with_scatter(cfg, baseline, systematic)
     bounds = machine.spec.plausibility.bounds
     out = {}
     for name, r2 in cfg.r2.items():
         sides, partners = [], []
-        for s in (f"high({name})", f"low({name})"):   # a major rule alone, or with a partner
+        base = name.split("@", 1)[0]   # a regime's parameter takes its parameter's rules
+        for s in (f"high({base})", f"low({base})"):   # a major rule alone, or with a partner
             major = (f := named.get(s)) is not None and f.severity == "major"
             sides.append(degree if major or s in joint else math.inf)
             partners.append(joint[s][1] if s in joint else ())
         lower, upper = -math.inf, math.inf
-        for op, value in (bounds[name].limits if name in bounds else ()):
+        for op, value in (bounds[base].limits if base in bounds else ()):
             if op in ("gt", "ge"):
                 lower = max(lower, value)
             else:

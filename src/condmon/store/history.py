@@ -31,6 +31,7 @@ def test_values(result: Any, role: str, digest: str, file_digest: str,
                 ) -> dict[str, Any]:
     """A test's ``tests`` row but its ``unit_id`` (see :meth:`TestsMixin.add_test`)."""
     usable = bool(getattr(result, "usable", result.accepted))
+    conds = dict(getattr(result, "conditions", {}) or {})
     return dict(
         created_at=now(), source=result.source, file_hash=file_digest, record_hash=digest,
         test_date=test_date, fingerprint=fingerprint, hours=hours,
@@ -40,7 +41,9 @@ def test_values(result: Any, role: str, digest: str, file_digest: str,
         fits=json.dumps({k: num(v) for k, v in result.fit.fits_percent.items()}),
         method=result.method, closed_loop=bool(result.closed_loop_instruments),
         constants=json.dumps({k: num(v) for k, v in
-                              dict(getattr(result, "constants", {})).items()}))
+                              dict(getattr(result, "constants", {})).items()}),
+        conditions=json.dumps({k: [num(v), num(se)] for k, (v, se) in conds.items()})
+        if conds else None)
 
 
 def stored_estimates(result: Any) -> dict[str, tuple[Any, Any]]:
@@ -56,6 +59,23 @@ def stored_estimates(result: Any) -> dict[str, tuple[Any, Any]]:
     for p in stored:
         check_name(p, "parameter name", limit=S.PARAMETER_LENGTH)
     return dict(stored)
+
+
+def condition_pairs(doc: str | None) -> dict[str, tuple[float, float]]:
+    """A test's stored conditions (``tests.conditions``: JSON ``{name: [value,
+    std error]}``) as numbers, NaN for a missing one.
+
+    Example
+    -------
+    >>> condition_pairs('{"oil@forward": [12200.5, 0.3], "load": [2.0, null]}')
+    {'oil@forward': (12200.5, 0.3), 'load': (2.0, nan)}
+    """
+    out = {}
+    for k, v in (json.loads(doc) if doc else {}).items():
+        value, se = (v + [None])[:2] if isinstance(v, list) else (v, None)
+        out[str(k)] = (float("nan") if value is None else float(value),
+                       float("nan") if se is None else float(se))
+    return out
 
 
 def estimate_rows(tid: Any, stored: Mapping[str, tuple[Any, Any]],
@@ -291,6 +311,24 @@ class TestsMixin(StoreBase):
         df = pd.DataFrame(rows, columns=["test_id", "parameter", "systematic"])
         df["systematic"] = pd.to_numeric(df["systematic"], errors="coerce")
         return df.pivot(index="test_id", columns="parameter", values="systematic").reindex(ids)
+
+    def conditions_of(self, test_ids: Sequence[int]) -> tuple[pd.DataFrame, pd.DataFrame]:
+        """The operating conditions of tests and their standard errors (rows:
+        tests in the given order, columns: conditions, ``oil@forward``; NaN
+        where a test has none). [condition units]"""
+        ids = [int(i) for i in test_ids]
+        if not ids:
+            return pd.DataFrame(), pd.DataFrame()
+        rows = self._read(lambda c: c.execute(
+            sa.select(S.tests.c.id, S.tests.c.conditions)
+            .where(S.tests.c.id.in_(ids))).all())
+        docs = {int(i): condition_pairs(doc) for i, doc in rows}
+        index = pd.Index(ids, name="test_id")
+        values = pd.DataFrame([{k: v[0] for k, v in docs.get(i, {}).items()} for i in ids],
+                              index=index, dtype="float64")
+        errors = pd.DataFrame([{k: v[1] for k, v in docs.get(i, {}).items()} for i in ids],
+                              index=index, dtype="float64")
+        return values, errors
 
     def usable_tests(self, unit: str, role: str | None = None) -> list[int]:
         """Ids of the unit's accepted, not excluded tests of ``role`` (None:

@@ -94,6 +94,8 @@ tests = sa.Table(
     sa.Column("method", sa.String(16), nullable=False),
     sa.Column("closed_loop", sa.Boolean, nullable=False),
     sa.Column("constants", sa.Text, nullable=False),           # JSON {name: value} [SI]
+    # v11: the record's operating conditions, JSON {name: value} (NULL: none declared)
+    sa.Column("conditions", sa.Text, nullable=True),
     # v3: the record's content hash (a re-saved copy is the same test), the
     # test's own date, and exclusion (a test is never deleted)
     sa.Column("record_hash", sa.String(64), nullable=False, server_default=""),
@@ -410,9 +412,12 @@ def _v9_to_v10(conn: sa.Connection) -> None:
 
 def _v10_to_v11(conn: sa.Connection) -> None:
     """Each estimate keeps its systematic part from the sensors' stated
-    accuracy (``estimates.systematic``; NULL for the estimates stored before)."""
+    accuracy (``estimates.systematic``), each test its operating conditions
+    (``tests.conditions``); NULL for what was stored before."""
     if "systematic" not in {c["name"] for c in sa.inspect(conn).get_columns("estimates")}:
         conn.execute(sa.text("ALTER TABLE estimates ADD COLUMN systematic FLOAT"))
+    if "conditions" not in {c["name"] for c in sa.inspect(conn).get_columns("tests")}:
+        conn.execute(sa.text("ALTER TABLE tests ADD COLUMN conditions TEXT"))
 
 
 MIGRATIONS: dict[int, Callable[[sa.Connection], None]] = {1: _v1_to_v2, 2: _v2_to_v3,

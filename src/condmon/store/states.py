@@ -28,8 +28,8 @@ __all__ = ["StatesMixin", "DEGRADED", "STATUS_ORDER", "state_rows"]
 DEGRADED = ("advisory", "no-go")
 
 #: Statuses by severity, the most urgent first (``none``: nothing stored yet).
-STATUS_ORDER = ("no-go", "advisory", "retest", "stale", "go", "unchecked", "building",
-                "baseline", "rejected", "excluded", "none")
+STATUS_ORDER = ("no-go", "advisory", "retest", "not judged", "stale", "go", "unchecked",
+                "building", "baseline", "rejected", "excluded", "none")
 
 _CHUNK = 500   # unit ids per IN (...) list: well inside every back-end's limit
 

@@ -90,7 +90,7 @@ class ViewsMixin(StoreBase):
                 .where(t.c.unit_id == urow.id).order_by(t.c.id)).all()
             est = c.execute(
                 sa.select(S.estimates.c.test_id, S.estimates.c.parameter, S.estimates.c.value,
-                          S.estimates.c.std_error)
+                          S.estimates.c.std_error, S.estimates.c.systematic)
                 .join(t, t.c.id == S.estimates.c.test_id).where(t.c.unit_id == urow.id)).all()
             bid_s = (sa.select(sa.func.max(newest_s.c.baseline_id))
                      .where(newest_s.c.test_id == s.c.test_id).scalar_subquery())
@@ -114,12 +114,17 @@ class ViewsMixin(StoreBase):
         df["status"] = [test_status(r, a, x, s) for r, a, x, s in
                         zip(df["role"], df["accepted"], df["excluded"], df["status"])]
         if est:
-            e = pd.DataFrame(est, columns=["test_id", "parameter", "value", "se"])
+            e = pd.DataFrame(est, columns=["test_id", "parameter", "value", "se", "sys"])
             val = e.pivot(index="test_id", columns="parameter", values="value")
             order = self._ordered(unit, list(val.columns))
             se = e.pivot(index="test_id", columns="parameter", values="se")[order]
             se.columns = [f"{c}_se" for c in se.columns]
             df = df.join(val[order]).join(se)
+            if e["sys"].notna().any():   # the systematic parts, where sensors state an accuracy
+                e["sys"] = pd.to_numeric(e["sys"], errors="coerce")
+                sys_ = e.pivot(index="test_id", columns="parameter", values="sys")[order]
+                sys_.columns = [f"{c}_sys" for c in sys_.columns]
+                df = df.join(sys_)
         if sym:
             s = pd.DataFrame(sym, columns=["test_id", "parameter", "change", "high", "low"])
             for col in ("change", "high", "low"):

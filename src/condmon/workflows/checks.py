@@ -25,11 +25,14 @@ from condmon.diagnose.rules import RuleBase, machine_rules
 from condmon.errors import DataError
 from condmon.identify.estimate import EstimateResult
 from condmon.models.machine import Machine
-from condmon.models.regimes import regime_key
+from condmon.models.regimes import regime_key, split_key
 from condmon.models.registry import get_model
 from condmon.monitor.baseline import Baseline, missing_regimes
 from condmon.monitor.fuzzy import MonitorConfig
-from condmon.monitor.generic import load_generic_settings, peer_monitor
+from condmon.monitor.conditions import NOT_JUDGED, Conditioned, NotJudged, explained
+from condmon.monitor.generic import (
+    judged_config, load_generic_settings, machine_monitor, peer_monitor, peer_spread,
+)
 from condmon.monitor.group import GroupBaseline, group_baseline
 from condmon.monitor.statistics import (
     CheckStatistics, StatisticsConfig, check_statistics, checked_alpha,
@@ -39,12 +42,13 @@ from condmon.store.db import HistoryStore
 from condmon.store.forecasts import keep_forecast
 from condmon.workflows.monitoring import (
     _existing_baseline, _held, _unit_error, _unit_options, current_baseline, evaluate,
-    filed_elsewhere, monitoring_of, no_baseline_yet, save_current_baseline,
+    conditioning, filed_elsewhere, governed, monitoring_of, no_baseline_yet, restricted,
+    save_current_baseline,
 )
 from condmon.workflows.records import EstimateOptions, RecordLike
 
 __all__ = ["CheckResult", "check_test", "unit_statistics", "Reference", "reference_for", "resolve_against",
-           "group_reference"]
+           "group_reference", "judgement_notes"]
 
 
 @dataclass(frozen=True)
@@ -85,6 +89,14 @@ class CheckResult:
         check counted: ``{"forecast", "forecast_reason"}``
         (:func:`condmon.store.forecasts.forecast_fields`; ``forecast`` None
         with fewer than 3 checks since the baseline, no trend, a dry run).
+    not_judged : str or None
+        Why the check is not judged (status ``not judged``): its operating
+        conditions lie outside the range its baseline's tests span
+        (:mod:`condmon.monitor.conditions`). Stored and shown, never trended.
+    judgement : tuple of str
+        How the change was judged, where it differs from the plain baseline:
+        declared breakpoints raised to the healthy scatter, parameters fitted
+        against the conditions.
     """
 
     unit: str
@@ -102,6 +114,8 @@ class CheckResult:
     against: str = "unit"
     statistics: CheckStatistics | None = None
     forecast: dict[str, Any] = field(default_factory=dict)
+    not_judged: str | None = None
+    judgement: tuple[str, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready result (the ``condmon check --json`` document)."""
@@ -123,7 +137,12 @@ class CheckResult:
             "faults": ([] if self.diagnosis is None else
                        [f.to_dict() for f in self.diagnosis.faults]),
             "summary": (self.diagnosis.summary if self.diagnosis is not None else
+                        f"not judged: {self.not_judged}" if self.not_judged else
                         f"retest: {self.estimate.reason}"),
+            "not_judged": self.not_judged,
+            "judgement": list(self.judgement),
+            "conditions": est.get("conditions", {}),
+            "systematic": est.get("systematic", {}),
             "candidates": ([] if self.diagnosis is None else
                            [c.to_dict() for c in self.diagnosis.candidates]),
             "undetermined": ([] if self.diagnosis is None else
@@ -303,6 +322,7 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
     DuplicateTestError
         The record is already in the unit's history.
     """
+    widened: tuple[str, ...] = ()
     override = {k: checked_alpha(v, f"--{k.replace('_', '-')}")
                 for k, v in (("alpha", alpha), ("drift_alpha", drift_alpha)) if v is not None}
     opts = _unit_options(store, unit, options or EstimateOptions())
@@ -316,6 +336,8 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
         flags = latest.flags if latest is not None and list(latest.test_ids) == ids else ()
     else:
         baseline, ids = ref.baseline, list(ref.test_ids)
+        if ref.group is None:   # one peer: as wide as two healthy units may differ
+            baseline, widened = peer_spread(baseline, monitor or machine_monitor(machine))
         cfg, rb = monitoring_of(machine, baseline, monitor or peer_monitor(machine, baseline),
                                 rules or machine_rules(machine))
         latest, flags = None, ()
@@ -334,24 +356,31 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
         return CheckResult(unit, tid, res, "retest", baseline, baseline_flags=flags,
                            test_date=key.test_date, warning=filed_elsewhere(store, unit, key),
                            against=against_label, forecast=_forecast(store, unit, dry_run))
-    row, diag = evaluate(res, baseline, cfg, rb, machine.monitored)
+    cond = conditioning(store, ids, baseline, res.conditions, machine,
+                        peer=None if ref is None else ref.label,
+                        group=ref is not None and ref.group is not None)
+    judged = baseline if cond is None else cond.baseline
+    if cond is not None and cond.not_judged is not None:
+        return _not_judged(store, unit, res, key, cond, baseline, ids, ref, latest, flags, cfg,
+                           against_label, dry_run)
+    row, diag = evaluate(res, judged, cfg, rb, machine.monitored)
     stats = (unit_statistics(store, unit, ids, baseline, res,
-                             dataclasses.replace(cfg.statistics, **override))
+                             dataclasses.replace(cfg.statistics, **override), cond)
              if ref is None else None)
+    if stats is not None:
+        diag = governed(diag, stats, row, judged)
     missing = missing_regimes(list(res.stored_values()), baseline)
     note = no_baseline_yet(missing, baseline) if missing else None
+    how = (*widened, *judgement_notes(res, judged, cfg),
+           *(cond.notes if cond is not None else ()),
+           *(f"{p}: judged against its prediction at {', '.join(c)}"
+             for p, c in (cond.fitted.items() if cond is not None else ())))
     if dry_run:
         tid = -1
     else:
-        if ref is not None:
-            bid = store.save_baseline(unit, baseline, ids, name=ref.name, activate=False,
-                                      reason=f"compared with {ref.label}")
-        else:
-            if latest is None or list(latest.test_ids) != ids:
-                latest, _ = save_current_baseline(store, unit, ids, monitor=cfg,
-                                                  reason="baseline of the first check")
-                flags = latest.flags
-            bid = latest.id
+        fresh = ref is None and (latest is None or list(latest.test_ids) != ids)
+        bid, latest = _bid(store, unit, baseline, ids, ref, latest, cfg)
+        flags = latest.flags if fresh else flags
         tid = store.add_test(unit, res, role="check", digest=key.content, file_digest=key.file,
                              fingerprint=key.fingerprint, test_date=key.test_date, hours=key.hours,
                              symptoms=row, baseline_id=bid, diagnosis=diag)
@@ -359,17 +388,65 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
                        {p: v["percent_change"] for p, v in row.items()},
                        {p: {"high": v["high"], "low": v["low"]} for p, v in row.items()},
                        diag, flags, key.test_date, filed_elsewhere(store, unit, key), note,
-                       against_label, stats, _forecast(store, unit, dry_run))
+                       against_label, stats, _forecast(store, unit, dry_run), None, how)
+
+
+def _bid(store: HistoryStore, unit: str, baseline: Baseline, ids: list[int],
+         ref: Reference | None, latest: Any, cfg: MonitorConfig) -> tuple[int, Any]:
+    """The stored baseline version a check is evaluated against (saved when new)."""
+    if ref is not None:
+        return store.save_baseline(unit, baseline, ids, name=ref.name, activate=False,
+                                   reason=f"compared with {ref.label}"), latest
+    if latest is None or list(latest.test_ids) != ids:
+        latest, _ = save_current_baseline(store, unit, ids, monitor=cfg,
+                                          reason="baseline of the first check")
+    return int(latest.id), latest
+
+
+def _not_judged(store: HistoryStore, unit: str, res: EstimateResult, key: Any,
+                cond: Conditioned, baseline: Baseline, ids: list[int], ref: Reference | None,
+                latest: Any, flags: tuple[dict[str, Any], ...], cfg: MonitorConfig,
+                against: str, dry_run: bool) -> CheckResult:
+    """A check whose conditions its baseline does not span: stored with the
+    reason (status ``not judged``), no symptom, never trended."""
+    reason = str(cond.not_judged)
+    tid = -1
+    if not dry_run:
+        bid, latest = _bid(store, unit, baseline, ids, ref, latest, cfg)
+        flags = flags if ref is not None or latest is None else latest.flags
+        tid = store.add_test(unit, res, role="check", digest=key.content, file_digest=key.file,
+                             fingerprint=key.fingerprint, test_date=key.test_date,
+                             hours=key.hours, baseline_id=bid, diagnosis=NotJudged(reason))
+    return CheckResult(unit, tid, res, NOT_JUDGED, baseline, baseline_flags=flags,
+                       test_date=key.test_date, warning=filed_elsewhere(store, unit, key),
+                       against=against, forecast=_forecast(store, unit, dry_run),
+                       not_judged=reason, judgement=cond.notes)
+
+
+def judgement_notes(res: EstimateResult, baseline: Baseline, monitor: MonitorConfig
+                    ) -> tuple[str, ...]:
+    """The declared breakpoints a check's change is not judged with: raised to
+    the healthy scatter with its systematic part (see
+    :func:`~condmon.monitor.generic.judged_config`)."""
+    keys = [k for k in baseline.parameters if k in res.stored_values()]
+    if not keys:
+        return ()
+    return judged_config(monitor, restricted(baseline, keys),
+                         {k: res.systematic[k] for k in keys if k in res.systematic})[1]
 
 
 def unit_statistics(store: HistoryStore, unit: str, ids: list[int], baseline: Baseline,
-                    res: EstimateResult, config: StatisticsConfig) -> CheckStatistics | None:
+                    res: EstimateResult, config: StatisticsConfig,
+                    conditioned: Conditioned | None = None) -> CheckStatistics | None:
     """The calibrated tests of a check of ``unit`` against its own baseline (tests
     ``ids``), before it is stored: its change against the baseline's scatter,
     and the drift of the accepted checks since the baseline's last test and it.
 
     A test's parameters of one regime are tested with that regime's; None when
-    fewer than 3 baseline tests have every parameter the test has.
+    fewer than 3 baseline tests have every parameter the test has. With the
+    baseline fitted against operating conditions (``conditioned``), the
+    change is the check's departure from its prediction and the baseline's
+    scatter is its tests' about the fit (the drift test keeps the values).
     """
     stored = res.stored_values()
     keys = [k for k in baseline.parameters
@@ -388,13 +465,23 @@ def unit_statistics(store: HistoryStore, unit: str, ids: list[int], baseline: Ba
 
     members = hist.loc[[i for i in ids if i in hist.index]]
     base, base_se = changes(members)
+    if conditioned is not None and conditioned.fitted:
+        conds = store.conditions_of(list(members.index))[0]
+        vals = members[keys].to_numpy(dtype=np.float64)
+        ok = np.isfinite(vals).all(axis=1) & np.isfinite(
+            members[[f"{k}_se" for k in keys]].to_numpy(dtype=np.float64)).all(axis=1)
+        resid = explained(vals, keys, {str(c): conds[c].to_numpy(dtype=np.float64)
+                                       for c in conds.columns})
+        base = (resid[ok] - mean) * scale
     if len(base) < 3:
         return None
     usable = (hist["role"] == "check") & hist["accepted"].astype(bool) \
-        & ~hist["excluded"].astype(bool)
+        & ~hist["excluded"].astype(bool) & (hist["status"] != "not judged")
     since = in_test_order(hist[usable & (hist.index > max(ids))])   # as they were tested
     series, _ = changes(since)
-    now = np.array([stored[k][0] for k in keys]) - mean
+    centre = (mean if conditioned is None or not conditioned.fitted else
+              np.array([conditioned.baseline.value(k) for k in keys], dtype=np.float64))
+    now = np.array([stored[k][0] for k in keys]) - centre
     now_se = np.array([stored[k][1] for k in keys]) * scale
     return check_statistics(tuple(keys), now * scale, now_se, base, base_se,
                             np.vstack([series, now * scale]), config)

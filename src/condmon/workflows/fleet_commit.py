@@ -387,7 +387,10 @@ def _commit_check(batch: _Batch, plan: _Unit, out: RecordOutcome,
                   checker: list[_Checker | None], report: ReportFn) -> _Draft:
     """As :func:`condmon.workflows.monitoring.check_test` for one estimated record."""
     from condmon.models.registry import get_model
-    from condmon.workflows.monitoring import _unit_error, evaluate, monitoring_of
+    from condmon.monitor.conditions import NotJudged
+    from condmon.workflows.monitoring import (
+        _unit_error, conditioning, evaluate, governed, level_statistics, monitoring_of,
+    )
 
     res, view = out.estimate, batch.views[plan.name]
     assert res is not None and plan.model is not None
@@ -403,10 +406,24 @@ def _commit_check(batch: _Batch, plan: _Unit, out: RecordOutcome,
     if not res.usable:
         tid, elsewhere = _add_test(batch, plan, out, "check")
         return report("rejected", "retest", one_line(str(res.reason), None), tid, elsewhere)
-    row, diag = evaluate(res, state.baseline, cfg, rb, get_model(plan.model).monitored)
+    machine = get_model(plan.model)
+    cond = conditioning(None, state.ids, state.baseline, res.conditions, machine,
+                        series=view.series(state.ids) if machine.conditions else None)
     if state.latest is None or list(state.latest.test_ids) != state.ids:
         state.latest = view.save_baseline(batch.writer, state.ids, monitor=cfg,
                                           reason="baseline of the first check")
+    if cond is not None and cond.not_judged is not None:   # outside its baseline's conditions
+        unjudged = NotJudged(cond.not_judged)
+        tid, elsewhere = _add_test(batch, plan, out, "check", symptoms={},
+                                   baseline_id=state.latest.id, diagnosis=unjudged)
+        return report("stored", unjudged.status, unjudged.summary, tid, elsewhere)
+    judged = state.baseline if cond is None else cond.baseline
+    row, diag = evaluate(res, judged, cfg, rb, machine.monitored)
+    values, conds = view.series(state.ids)
+    stats = level_statistics(state.baseline, values, view.errors(state.ids), res,
+                             cfg.statistics, cond, conds)
+    if stats is not None:   # as check_test: the change test governs the status
+        diag = governed(diag, stats, row, judged)
     tid, elsewhere = _add_test(batch, plan, out, "check", symptoms=row,
                                baseline_id=state.latest.id, diagnosis=diag)
     return report("stored", diag.status, diag.summary, tid, elsewhere)

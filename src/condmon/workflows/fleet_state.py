@@ -23,11 +23,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from condmon.monitor.baseline import MIN_BASELINE_TESTS, Baseline, assess_baseline, make_baseline
+from condmon.monitor.conditions import explained
 from condmon.store.base import model_order, num
 from condmon.store.baselines import DEFAULT_BASELINE, members_of, too_few_tests
 from condmon.store.bulk import BulkWriter, Id, KnownRow, Pending, UnitState, id_order
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from condmon.monitor.fuzzy import MonitorConfig
     from condmon.workflows.records import RecordKey
 
@@ -87,6 +90,8 @@ class UnitView:
         ``{test id: {parameter: (value, standard error)}}`` of its baseline's
         tests and of the tests added in the batch (NaN where the store has
         NULL). [parameter units]
+    conditions : dict
+        ``{test id: {condition: value}}`` of the same tests (those that have any).
     """
 
     name: str
@@ -97,6 +102,7 @@ class UnitView:
     latest: Version | None = None
     usable: list[tuple[Id, str]] = field(default_factory=list)
     estimates: dict[Id, dict[str, tuple[float, float]]] = field(default_factory=dict)
+    conditions: dict[Id, dict[str, tuple[float, float]]] = field(default_factory=dict)
 
     @classmethod
     def of(cls, name: str, state: UnitState | None) -> UnitView:
@@ -108,7 +114,8 @@ class UnitView:
             state.latest.baseline)
         return cls(name, state.id, state.model_source or state.model, state.group_name,
                    state.baseline_name, latest, list(state.usable),
-                   {i: dict(v) for i, v in state.estimates.items()})
+                   {i: dict(v) for i, v in state.estimates.items()},
+                   {i: dict(v) for i, v in state.conditions.items()})
 
     # -- the unit's baseline ------------------------------------------------------------
     def members(self) -> list[Id]:
@@ -121,6 +128,23 @@ class UnitView:
         nan = (float("nan"), float("nan"))
         return np.array([[self.estimates.get(i, {}).get(p, nan)[column] for p in params]
                          for i in ids], dtype=np.float64).reshape(len(ids), len(params))
+
+    def series(self, ids: Sequence[Id]) -> tuple[pd.DataFrame, pd.DataFrame]:
+        """The tests' values and operating conditions (rows in the order of
+        ``ids``), as :func:`~condmon.workflows.monitoring.conditioning` reads them."""
+        import pandas as pd
+
+        values = pd.DataFrame([{p: v for p, (v, _) in self.estimates.get(i, {}).items()}
+                               for i in ids])
+        return values, pd.DataFrame([{k: v for k, (v, _) in self.conditions.get(i, {}).items()}
+                                     for i in ids])
+
+    def errors(self, ids: Sequence[Id]) -> pd.DataFrame:
+        """The tests' standard errors (rows in the order of ``ids``)."""
+        import pandas as pd
+
+        return pd.DataFrame([{p: se for p, (_, se) in self.estimates.get(i, {}).items()}
+                             for i in ids])
 
     def parameters(self, ids: Sequence[Id]) -> list[str]:
         """The parameters the tests have, in the model's order."""
@@ -182,6 +206,11 @@ class UnitView:
         # the flags name the tests: made once they are written and have their ids
         found: list[tuple[dict[str, Any], ...]] = []
 
+        conds = self.series(order)[1]
+        if len(conds.columns):   # a trend its operating conditions explain is no trend
+            values = explained(values, params, {str(c): conds[c].to_numpy(dtype=np.float64)
+                                                for c in conds.columns})
+
         def flags() -> tuple[dict[str, Any], ...]:
             if not found:
                 found.append(assess_baseline(values, ses, [int(i) for i in order],
@@ -205,6 +234,8 @@ class UnitView:
         """Keep a test just added: its estimates, and whether it is usable."""
         stored = (result.stored_values() if hasattr(result, "stored_values") else {})
         self.estimates[tid] = {p: (_stored(v), _stored(se)) for p, (v, se) in stored.items()}
+        if getattr(result, "conditions", None):
+            self.conditions[tid] = dict(result.conditions)
         if bool(getattr(result, "usable", result.accepted)):
             self.usable.append((tid, role))
 

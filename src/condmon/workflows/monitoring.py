@@ -12,7 +12,7 @@ excluding tests and rebuilding baselines).
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
@@ -31,8 +31,12 @@ from condmon.models.registry import get_model
 from condmon.monitor.baseline import (
     MIN_BASELINE_TESTS, Baseline, assess_baseline, baseline_scatter, missing_regimes,
 )
+from condmon.monitor.conditions import Conditioned, NotJudged, conditioned_baseline, explained
 from condmon.monitor.fuzzy import MonitorConfig, compute_symptoms
-from condmon.monitor.generic import describe_generic, machine_monitor
+from condmon.monitor.statistics import (
+    CheckStatistics, StatisticsConfig, check_statistics, governed_status,
+)
+from condmon.monitor.generic import describe_generic, judged_config, machine_monitor
 from condmon.store.baselines import (  # read from the store only; kept here for callers
     StoredBaseline, _baseline_of, baseline_members, current_baseline,
 )
@@ -142,8 +146,12 @@ def save_current_baseline(store: HistoryStore, unit: str, ids: Sequence[int], *,
     order = in_time_order(store, unit, ids)
     values, ses = store.estimates_of(order)
     cfg = monitor or unit_monitor(store, unit, base)
-    flags = assess_baseline(values[list(base.parameters)].to_numpy(),
-                            ses[list(base.parameters)].to_numpy(), order,
+    table = values[list(base.parameters)].to_numpy()
+    conds = store.conditions_of(order)[0]
+    if len(conds.columns):   # a trend its operating conditions explain is no trend
+        table = explained(table, base.parameters,
+                          {str(c): conds[c].to_numpy(dtype=np.float64) for c in conds.columns})
+    flags = assess_baseline(table, ses[list(base.parameters)].to_numpy(), order,
                             base.parameters, cfg.baseline)
     before = store.latest_baseline(unit, name)
     bid = store.save_baseline(unit, base, ids, name=name, reason=reason, flags=flags)
@@ -192,19 +200,128 @@ def reevaluate(store: HistoryStore, unit: str, baseline: StoredBaseline,
     params = list(baseline.baseline.parameters)
     values, ses = store.estimates_of(list(todo.index))
     values, ses = values.reindex(columns=params), ses.reindex(columns=params)
-    sym = compute_symptoms(values.to_numpy(), baseline.baseline, cfg, ses.to_numpy())
+    sys_ = store.systematic_of(list(todo.index)).reindex(columns=params)
+    conds, conds_se = (store.conditions_of(list(todo.index)) if machine.conditions
+                       else (pd.DataFrame(), pd.DataFrame()))
+    members = list(baseline.test_ids)
+    series = ((store.estimates_of(members)[0], store.conditions_of(members)[0])
+              if machine.conditions else None)
     have = values.notna().to_numpy()
     changed: dict[int, tuple[str | None, str]] = {}
     for i, tid in enumerate(todo.index):
-        row = {p: v for j, (p, v) in enumerate(sym.row(i).items()) if have[i, j]}
-        if not row:  # its regimes have no baseline in this version
-            continue
-        diag = diagnose({p: {"high": v["high"], "low": v["low"]} for p, v in row.items()}, rb,
-                        machine.monitored)
+        own = {str(p): float(v) for p, v in sys_.iloc[i].items() if np.isfinite(v)}
+        now = ({str(c): (float(v), float(conds_se.loc[tid, c]))
+                for c, v in conds.loc[tid].items() if np.isfinite(v)}
+               if len(conds.columns) else {})
+        cond = conditioning(store, members, baseline.baseline, now, machine, series=series)
+        base = baseline.baseline if cond is None else cond.baseline
+        diag: Diagnosis | NotJudged
+        if cond is not None and cond.not_judged is not None:
+            row: dict[str, dict[str, float]] = {}
+            diag = NotJudged(cond.not_judged)
+        else:
+            judged, _ = judged_config(cfg, base, own)
+            sym = compute_symptoms(values.to_numpy()[i], base, judged, ses.to_numpy()[i])
+            row = {p: v for j, (p, v) in enumerate(sym.row(0).items()) if have[i, j]}
+            if not row:  # its regimes have no baseline in this version
+                continue
+            diag = diagnose({p: {"high": v["high"], "low": v["low"]} for p, v in row.items()},
+                            rb, machine.monitored)
         if store.save_evaluation(unit, int(tid), baseline.id, row, diag):
             before = todo.loc[tid, "status"]
             changed[int(tid)] = (None if before == "unchecked" else str(before), diag.status)
     return changed
+
+
+def conditioning(store: HistoryStore | None, ids: Sequence[Any], baseline: Baseline,
+                 conditions: Mapping[str, tuple[float, float]], machine: Machine, *,
+                 peer: str | None = None, group: bool = False,
+                 series: tuple[pd.DataFrame, pd.DataFrame] | None = None
+                 ) -> Conditioned | None:
+    """The baseline of tests ``ids`` fitted against the operating conditions
+    at a check's ``conditions``
+    (:func:`~condmon.monitor.conditions.conditioned_baseline`); None when the
+    machine declares none or the check has none. Against a ``group``,
+    conditions are not used (its units' conditions are not one series);
+    against another unit (``peer``, its label), only those whose level means
+    the same on another unit (``between_units``). ``conditions``: the
+    check's, each with its standard error. ``series``: the baseline tests'
+    values and conditions, when already read."""
+    if not machine.conditions or not conditions:
+        return None
+    if group:
+        return Conditioned(baseline, None, {}, (
+            "operating conditions are not used against a group: its units' conditions "
+            "are not one series",))
+    spec = {c.name: c for c in machine.conditions}
+    now = {k: float(v[0]) for k, v in conditions.items()
+           if split_key(k)[0] in spec and (peer is None or spec[split_key(k)[0]].between_units)}
+    left = sorted({split_key(k)[0] for k in conditions} - {split_key(k)[0] for k in now})
+    if series is None:
+        assert store is not None, "the baseline's tests are read from the store"
+        series = store.estimates_of(list(ids))[0], store.conditions_of(list(ids))[0]
+    values, conds = series
+    out = conditioned_baseline(
+        baseline, {p: values[p].to_numpy(dtype=np.float64) for p in baseline.parameters
+                   if p in values},
+        {c: conds[c].to_numpy(dtype=np.float64) for c in now if c in conds}, now,
+        {c.name: c.unit for c in machine.conditions},
+        {k: float(conditions[k][1]) for k in now})
+    if left:
+        out = dataclasses.replace(out, notes=(*out.notes, (
+            f"condition(s) {', '.join(left)} not used against {peer}: their level is each "
+            "unit's own sensor's (between_units = false)")))
+    return out
+
+
+def governed(diag: Diagnosis, stats: CheckStatistics, row: Mapping[str, Mapping[str, float]],
+             baseline: Baseline) -> Diagnosis:
+    """The diagnosis with the status the calibrated change test governs
+    (:func:`~condmon.monitor.statistics.governed_status`): a fault the test
+    does not confirm is kept as a tendency to watch."""
+    scatter = {k: 100.0 * s / abs(m) for k, m, s in zip(baseline.parameters, baseline.mean,
+                                                         baseline.std) if m}
+    status, why = governed_status(diag.status, stats,
+                                  {p: v["percent_change"] for p, v in row.items()}, scatter)
+    if not why:
+        return diag
+    if status == "go":
+        return dataclasses.replace(diag, status=status, faults=(), candidates=(),
+                                   watch=(*diag.faults, *diag.watch), calibrated=why)
+    return dataclasses.replace(diag, status=status, calibrated=why)
+
+
+def level_statistics(baseline: Baseline, values: pd.DataFrame, ses: pd.DataFrame,
+                     res: EstimateResult, config: StatisticsConfig,
+                     conditioned: Conditioned | None = None,
+                     conditions: pd.DataFrame | None = None) -> CheckStatistics | None:
+    """The calibrated change test of a check against the baseline's tests
+    (``values`` and ``ses``: one row per test; ``conditions`` theirs, when
+    the baseline is fitted against them), without the drift test: what
+    governs the status (:func:`governed`). None when fewer than 3 baseline
+    tests have every parameter the check has."""
+    stored = res.stored_values()
+    keys = [k for k in baseline.parameters if k in stored and k in values
+            and np.isfinite(stored[k][0]) and np.isfinite(stored[k][1])]
+    if not keys:
+        return None
+    mean = np.array([baseline.value(k) for k in keys], dtype=np.float64)
+    scale = 100.0 / np.abs(mean)
+    vals = values[keys].to_numpy(dtype=np.float64)
+    err = ses.reindex(columns=keys).to_numpy(dtype=np.float64)
+    ok = np.isfinite(vals).all(axis=1) & np.isfinite(err).all(axis=1)
+    fitted = conditioned is not None and bool(conditioned.fitted) and conditions is not None
+    if fitted:
+        assert conditions is not None and conditioned is not None
+        vals = explained(vals, keys, {str(c): conditions[c].to_numpy(dtype=np.float64)
+                                      for c in conditions.columns})
+    if int(ok.sum()) < 3:
+        return None
+    centre = (np.array([conditioned.baseline.value(k) for k in keys], dtype=np.float64)
+              if fitted and conditioned is not None else mean)
+    now = (np.array([stored[k][0] for k in keys]) - centre) * scale
+    return check_statistics(tuple(keys), now, np.array([stored[k][1] for k in keys]) * scale,
+                            (vals[ok] - mean) * scale, err[ok] * scale, now[None, :], config)
 
 
 def restricted(baseline: Baseline, keys: Sequence[str]) -> Baseline:
@@ -223,7 +340,10 @@ def evaluate(res: EstimateResult, baseline: Baseline, monitor: MonitorConfig,
 
     Each of the test's values is compared with the baseline's value of the
     same name, a regime's with its own regime's (``Tc@forward``); values the
-    baseline has none of (a regime with no baseline yet) are left out.
+    baseline has none of (a regime with no baseline yet) are left out. The
+    change is judged against the baseline's scatter with the test's
+    systematic part (:func:`~condmon.monitor.generic.judged_config`): a
+    declared breakpoint inside it is raised to it.
     ``parameters``: every parameter the machine reports (the rules may name
     them; see :func:`~condmon.diagnose.diagnose`).
 
@@ -246,7 +366,9 @@ def evaluate(res: EstimateResult, baseline: Baseline, monitor: MonitorConfig,
     base = restricted(baseline, keys)
     values = np.array([stored[k][0] for k in keys])
     ses = np.array([stored[k][1] for k in keys])
-    sym = compute_symptoms(values, base, monitor, ses)
+    sys_ = {k: res.systematic[k] for k in keys if k in res.systematic}
+    cfg, _ = judged_config(monitor, base, sys_)
+    sym = compute_symptoms(values, base, cfg, ses)
     return sym.row(0), diagnose(sym.to_dict(0), rules, parameters)
 
 

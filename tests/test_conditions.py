@@ -1,0 +1,182 @@
+"""Operating conditions as covariates: a healthy value predicted at the check's conditions."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from _strokes import DECLARATION, write_stroke
+from condmon.cli.main import main
+from condmon.errors import ConfigError
+from condmon.models.features import parse_conditions
+from condmon.monitor.baseline import Baseline
+from condmon.monitor.conditions import condition_keys, conditioned_baseline
+from condmon.store import open_store
+
+#: Friction of the synthetic unit against its oil temperature [N m per count]:
+#: 48 N m cold (12,100 counts), 32 N m warm (12,300).
+SLOPE = -0.08
+
+
+def _tc(oil: float) -> float:
+    return 40.0 + SLOPE * (oil - 12200.0)
+
+
+def test_the_prediction_and_its_spread_are_the_regressions() -> None:
+    """Known truth: y = 2 + 3 c + noise 0.1; the prediction at c0 and the
+    spread of a new value there, s·sqrt(1 + h0)."""
+    rng = np.random.default_rng(4)
+    c = np.linspace(0.0, 10.0, 40)
+    y = 2.0 + 3.0 * c + rng.normal(0.0, 0.1, c.size)
+    base = Baseline(("P",), (float(y.mean()),), (float(y.std(ddof=1)),), c.size)
+    out = conditioned_baseline(base, {"P": y}, {"load": c}, {"load": 7.0})
+    assert out.not_judged is None and out.fitted == {"P": ("load",)}
+    assert out.baseline.mean[0] == pytest.approx(23.0, abs=0.05)
+    X = np.column_stack([np.ones(c.size), c - c.mean()])
+    beta, *_ = np.linalg.lstsq(X, y, rcond=None)
+    s2 = float(np.sum((y - X @ beta) ** 2)) / (c.size - 2)
+    x0 = np.array([1.0, 7.0 - c.mean()])
+    h0 = float(x0 @ np.linalg.inv(X.T @ X) @ x0)
+    # stated over n - q tests, so that the monitor's (1 + 1/(n - q)) gives s²(1 + h0) back
+    assert out.baseline.std[0] ** 2 * (1 + 1 / 39) == pytest.approx(s2 * (1 + h0))
+    assert out.baseline.count_array[0] == 39
+    assert 0.07 < out.baseline.std[0] < 0.13
+
+
+def test_a_check_outside_the_baselines_conditions_is_not_judged() -> None:
+    c = np.linspace(30.0, 40.0, 10)
+    base = Baseline(("Tc@forward",), (40.0,), (1.0,), 10)
+    out = conditioned_baseline(base, {"Tc@forward": 40.0 - 0.1 * c},
+                               {"oil@forward": c}, {"oil@forward": 41.5}, {"oil": "degC"})
+    assert out.not_judged == "oil@forward = 41.5 degC outside the baseline's 30 .. 40"
+    few = conditioned_baseline(base, {"Tc@forward": np.array([1.0, 2.0, 3.0])},
+                               {"oil@forward": np.array([30.0, 35.0, 40.0])},
+                               {"oil@forward": 33.0})
+    assert few.fitted == {} and "cannot fit it against oil@forward (needs 4)" in few.notes[0]
+
+
+def test_the_conditions_of_a_regime_and_the_regime_free_ones_apply() -> None:
+    assert condition_keys("vib@reverse", ["oil@forward", "oil@reverse", "load"]) == [
+        "oil@reverse", "load"]
+    assert condition_keys("R", ["oil@forward", "load"]) == ["load"]
+
+
+@pytest.mark.parametrize("entry, message", [
+    ({"unit": "K"}, "needs one of channel"),
+    ({"channel": "T1", "metadata": "load"}, "needs one of channel"),
+    ({"metadata": "load", "statistic": "mean"}, r"statistic is for a channel's condition"),
+    ({"channel": "T1", "between_units": "yes"}, "between_units must be true or false"),
+    ({"channel": "T1", "statistic": "median"}, "unknown statistic 'median'"),
+    ({"channel": "T1", "smoothing": 3}, "unknown key 'smoothing'"),
+])
+def test_bad_conditions_are_refused_naming_the_file_and_the_condition(
+        entry: dict[str, object], message: str) -> None:
+    with pytest.raises(ConfigError, match=r"rig\.toml\[conditions\.oil\]"):
+        parse_conditions({"oil": entry}, "rig.toml")
+    with pytest.raises(ConfigError, match=message):
+        parse_conditions({"oil": entry}, "rig.toml")
+
+
+def _check(record: Path, db: str, capsys: pytest.CaptureFixture[str]) -> dict[str, object]:
+    capsys.readouterr()
+    assert main(["check", str(record), "--unit", "A", "--db", db, "--json"]) == 0
+    doc: dict[str, object] = json.loads(capsys.readouterr().out)
+    return doc
+
+
+def test_a_unit_is_judged_at_its_own_oil_temperature(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The example's declaration (oil temperature as a condition): a healthy unit
+    whose friction falls 16 N m from cold to warm is go at every temperature of
+    its baseline; a seal leak of -25 % in the cold is found, though it leaves
+    friction near the baseline's mean; a check warmer than any baseline
+    record is not judged, stored and shown so, and never trended."""
+    db = str(tmp_path / "h.db")
+    rng = np.random.default_rng(7)
+    oils = np.linspace(12100.0, 12300.0, 12)
+    files = [str(write_stroke(tmp_path / f"b{k}.txt", 1.0, seed=k, oil=float(o),
+                              friction={"Tc": _tc(o) + rng.normal(0.0, 0.2)}))
+             for k, o in enumerate(oils)]
+    capsys.readouterr()
+    assert main(["baseline", "add", *files, "--unit", "A", "--db", db,
+                 "--model", str(DECLARATION)]) == 0
+    # the baseline warms up record by record: its temperature explains the trend
+    assert "trend" not in capsys.readouterr().err
+    for k, oil in enumerate((12110.0, 12190.0, 12290.0)):
+        doc = _check(write_stroke(tmp_path / f"h{k}.txt", 1.0, seed=50 + k, oil=oil,
+                                  friction={"Tc": _tc(oil)}), db, capsys)
+        assert doc["status"] == "go", doc["summary"]
+        assert any("judged against its prediction at oil@forward" in j
+                   for j in doc["judgement"])  # type: ignore[union-attr]
+    leak = _check(write_stroke(tmp_path / "leak.txt", 1.0, seed=60, oil=12110.0,
+                               friction={"Tc": 0.75 * _tc(12110.0)}), db, capsys)
+    assert leak["status"] in ("advisory", "no-go"), leak["summary"]
+    assert "seal" in str(leak["summary"])
+    # the same leak is 11.5 % below the baseline's mean: without the condition it hides
+    plain = tmp_path / "plain"
+    plain.mkdir()
+    for f in DECLARATION.parent.glob("*.toml"):
+        text = f.read_text()
+        if f.name == DECLARATION.name:
+            start = text.index("[conditions.oil]")
+            text = text[:start] + text[text.index("[monitor]"):]
+        (plain / f.name).write_text(text)
+    other = str(tmp_path / "plain.db")
+    capsys.readouterr()
+    assert main(["baseline", "add", *files, "--unit", "A", "--db", other,
+                 "--model", str(plain / DECLARATION.name)]) == 0
+    assert "Tc@forward: the baseline's tests trend" in capsys.readouterr().err  # unexplained
+    assert _check(tmp_path / "leak.txt", other, capsys)["status"] == "go"
+    warm = _check(write_stroke(tmp_path / "warm.txt", 1.0, seed=61, oil=12400.0,
+                               friction={"Tc": _tc(12400.0)}), db, capsys)
+    assert warm["status"] == "not judged"
+    assert str(warm["not_judged"]).startswith("oil@forward = 12400 count outside the "
+                                              "baseline's 12100 .. 12300")
+    assert warm["summary"] == f"not judged: {warm['not_judged']}"
+    with open_store(db) as store:
+        hist = store.history("A")
+    assert (hist["status"] == "not judged").sum() == 1
+    assert str(hist.loc[hist["status"] == "not judged", "summary"].iloc[0]).startswith(
+        "not judged: oil@forward")
+    capsys.readouterr()
+    assert main(["history", "--unit", "A", "--db", db]) == 0
+    assert "not judged" in capsys.readouterr().out
+    # healthy records of the warm unit extend the baseline: the warm check is judged now
+    more = [str(write_stroke(tmp_path / f"w{k}.txt", 1.0, seed=80 + k, oil=float(o),
+                             friction={"Tc": _tc(o) + rng.normal(0.0, 0.2)}))
+            for k, o in enumerate(np.linspace(12320.0, 12420.0, 4))]
+    assert main(["baseline", "add", *more, "--unit", "A", "--db", db]) == 0
+    with open_store(db) as store:
+        hist = store.history("A")
+    assert (hist["status"] == "not judged").sum() == 0
+    assert hist.loc[hist["source"].str.endswith("warm.txt"), "status"].iloc[0] == "go"
+
+
+def test_a_fleet_run_judges_at_the_conditions_and_says_when_it_cannot(
+        tmp_path: Path) -> None:
+    """The same unit as a folder of `fleet run`: its first 12 records the
+    baseline (cold to warm), then a healthy check within them (go), one warmer
+    than all of them (not judged) and a cold seal leak (flagged)."""
+    inbox = tmp_path / "inbox" / "A"
+    inbox.mkdir(parents=True)
+    (inbox / "unit.toml").write_text(f'model = "{DECLARATION}"\n')
+    rng = np.random.default_rng(8)
+    for k, o in enumerate(np.linspace(12100.0, 12300.0, 12)):
+        write_stroke(inbox / f"r{k:02d}.txt", 1.0, seed=k, oil=float(o),
+                     friction={"Tc": _tc(o) + rng.normal(0.0, 0.2)})
+    write_stroke(inbox / "r12.txt", 1.0, seed=40, oil=12200.0, friction={"Tc": _tc(12200.0)})
+    write_stroke(inbox / "r13.txt", 1.0, seed=41, oil=12450.0, friction={"Tc": _tc(12450.0)})
+    write_stroke(inbox / "r14.txt", 1.0, seed=42, oil=12110.0,
+                 friction={"Tc": 0.75 * _tc(12110.0)})
+    db = str(tmp_path / "f.db")
+    assert main(["fleet", "run", str(tmp_path / "inbox"), "--db", db,
+                 "--baseline-count", "12", "--workers", "1"]) == 0
+    with open_store(db) as store:
+        hist = store.history("A")
+    status = dict(zip(hist["source"].map(lambda s: Path(str(s)).name), hist["status"]))
+    assert status["r12.txt"] == "go"
+    assert status["r13.txt"] == "not judged"
+    assert status["r14.txt"] in ("advisory", "no-go")

@@ -1,0 +1,99 @@
+"""The yardstick of a check: the healthy scatter with the sensors' stated accuracy."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from condmon.errors import ConfigError
+from condmon.io.rig import parse_record_settings
+from condmon.monitor.baseline import Baseline
+from condmon.monitor.fuzzy import MonitorConfig, compute_symptoms
+from condmon.monitor.generic import judged_config, yardstick
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "hydraulic-actuator"
+GAUGE = "0.25 %"          # of 20.684 MPa (3,000 psi): 51,710 Pa
+DM = 8.2e-5               # [m^3/rad], the example's displacement
+
+
+def _declaration(tmp_path: Path) -> Path:
+    for f in EXAMPLE.glob("*.toml"):
+        text = f.read_text()
+        for g in ("PG_1", "PG_2"):
+            text = text.replace(f'column = "{g}", scale = 1262.54 }}',
+                                f'column = "{g}", scale = 1262.54, accuracy = "{GAUGE}", '
+                                'full_scale = 2.0684e7 }')
+        (tmp_path / f.name).write_text(text)
+    return tmp_path / "rotary-actuator.toml"
+
+
+def test_the_systematic_part_of_friction_is_the_gauges_accuracy_through_the_balance(
+        tmp_path: Path) -> None:
+    """Tc = Dm (pA - pB) - ...: each gauge's ±51,710 Pa moves Tc by Dm × 51,710 Pa; two
+    gauges, root-sum-square: b = Dm × 51,710 × √2 = 5.997 N m."""
+    from condmon.identify import estimate
+    from condmon.io.rig import rig_layout
+    from condmon.models.registry import get_model, load_plant_model
+    from condmon.simulate.plant import simulate_plant
+
+    decl = _declaration(tmp_path)
+    machine = get_model(str(decl))
+    assert machine.record.accuracy == {"pA": pytest.approx(51710.0),
+                                       "pB": pytest.approx(51710.0)}
+    rec = rig_layout(simulate_plant(load_plant_model(str(decl)), seed=2), machine.record)
+    res = estimate(rec.assign(F_Names="", F_Values=0.0, Prediction=0.0), str(decl))
+    truth = DM * 51710.0 * math.sqrt(2.0)
+    for key in ("Tc@forward", "Tc@reverse"):
+        assert res.systematic[key] == pytest.approx(truth, rel=1e-3)
+    assert res.to_dict()["systematic"]["Tc@forward"] == pytest.approx(truth, rel=1e-3)
+    # the record's own noise is another, smaller thing
+    assert res.stored_values()["Tc@forward"][1] < truth
+
+
+@pytest.mark.parametrize("spec, message", [
+    ({"column": "PG_1", "accuracy": 0}, "accuracy must be > 0"),
+    ({"column": "PG_1", "accuracy": -3.0}, "accuracy must be > 0"),
+    ({"column": "PG_1", "accuracy": "0.25 %"}, "add full_scale"),
+    ({"column": "PG_1", "full_scale": 2e7}, "add accuracy"),
+])
+def test_a_bad_accuracy_is_refused_naming_the_column(spec: dict[str, object],
+                                                      message: str) -> None:
+    with pytest.raises(ConfigError, match=r"rig\.toml\[record\]\.columns\.pA.*" + message):
+        parse_record_settings({"columns": {"pA": spec}}, "rig.toml[record]")
+
+
+def test_a_declared_breakpoint_inside_the_scatter_is_raised_unless_insisted() -> None:
+    # 30 tests of 40 N m scattering 2 N m (5 %): 4 x 5 % x t(29)/z = 20.8 % > 15 %
+    base = Baseline(("Tc@forward",), (40.0,), (2.0,), 30)
+    s = yardstick(base)["Tc@forward"]
+    assert s == pytest.approx(5.0 * 2.045229642132703 / 1.959963984540054, rel=1e-6)
+    cfg, raised = judged_config(MonitorConfig({"Tc": 15.0}, {"Tc": 30.0}), base)
+    assert cfg.r1["Tc@forward"] == pytest.approx(4 * s) and cfg.r2["Tc@forward"] == 8 * s
+    assert "lies inside the healthy scatter" in raised[0]
+    kept, none = judged_config(MonitorConfig({"Tc": 15.0}, {"Tc": 30.0},
+                                             insist=frozenset({"Tc"})), base)
+    assert kept.r1["Tc@forward"] == 15.0 and none == ()
+    # a tight baseline leaves the declared breakpoints alone
+    tight, none = judged_config(MonitorConfig({"Tc": 15.0}, {"Tc": 30.0}),
+                                Baseline(("Tc@forward",), (40.0,), (0.2,), 30))
+    assert tight.r1["Tc@forward"] == 15.0 and none == ()
+
+
+def test_a_change_inside_the_sensors_accuracy_raises_no_symptom() -> None:
+    """A no-load actuator: friction 12 N m from two gauges whose accuracy alone
+    can move it by 6 N m (50 %). A +40 % change is within what the gauges can
+    drift: no symptom; without the systematic part it would be a full one."""
+    base = Baseline(("Tc@forward",), (12.0,), (0.12,), 30)
+    declared = MonitorConfig({"Tc": 10.0}, {"Tc": 20.0})
+    judged, raised = judged_config(declared, base, {"Tc@forward": 6.0})
+    s = yardstick(base)["Tc@forward"]
+    assert judged.r1["Tc@forward"] == pytest.approx(50.0 + 4 * s)
+    assert judged.r2["Tc@forward"] == pytest.approx(50.0 + 8 * s)
+    assert "sensors’ accuracy" in raised[0]
+    assert compute_symptoms([16.8], base, judged, [0.05]).row(0)["Tc@forward"]["high"] == 0.0
+    plain = judged_config(declared, base)[0]
+    assert compute_symptoms([16.8], base, plain, [0.05]).row(0)["Tc@forward"]["high"] == 1.0
+    # beyond the gauges' reach and the scatter: a symptom again
+    assert compute_symptoms([21.0], base, judged, [0.05]).row(0)["Tc@forward"]["high"] > 0.5

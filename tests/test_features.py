@@ -173,3 +173,49 @@ def test_a_feature_naming_a_channel_the_record_lacks_is_one_line_and_exit_2(
     err = capsys.readouterr().err
     assert "channel 'Accel_9', which the record does not have" in err
     assert len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("addition, message", [
+    ('[features.mesh]\nchannel = "pA"\nstatistic = "band_power"\nband = [10.0, 200.0]\n',
+     r"\[features\.mesh\]\.band: 200 Hz is above the Nyquist frequency 125 Hz"),
+    ('[conditions.oil2]\nchannel = "Temp_9"\n',
+     r"condition 'oil2' \(.*\[conditions\.oil2\]\) names channel 'Temp_9', which the "
+     r"record does not have"),
+    ('[features.vib]\nchannel = "Accel_7"\nstatistic = "std"\n',
+     r"feature 'vib' .* names channel 'Accel_7', which the record does not have"),
+])
+def test_bad_declarations_are_one_line_and_exit_2(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], addition: str, message: str) -> None:
+    """The acceptance's bad inputs through the CLI: a band above Nyquist, a
+    condition naming a column the record lacks, an unknown feature channel."""
+    import re
+
+    from condmon.cli.main import main
+    from condmon.io.rig import rig_layout
+    from condmon.models.registry import get_model, load_plant_model
+    from condmon.simulate.plant import simulate_plant
+
+    good = _declaration(tmp_path, "")
+    rec = rig_layout(simulate_plant(load_plant_model(str(good)), seed=1),
+                     get_model(str(good)).record).assign(F_Names="", F_Values=0.0, Prediction=0.0)
+    path = tmp_path / "rec.csv"
+    rec.to_csv(path, index=False)
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    decl = _declaration(bad, addition)
+    capsys.readouterr()
+    assert main(["estimate", str(path), "--model", str(decl)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and re.search(message, err), err
+
+
+def test_an_accuracy_of_zero_is_one_line_and_exit_2(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from condmon.cli.main import main
+
+    decl = _declaration(tmp_path, "")
+    decl.write_text(decl.read_text().replace('accuracy = "0.25 %", full_scale = 2.0684e7 }   # [Pa]',
+                                             'accuracy = 0.0 }'))
+    assert main(["estimate", "nothing.csv", "--model", str(decl)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "columns.pA.accuracy must be > 0" in err, err

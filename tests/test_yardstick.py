@@ -91,7 +91,7 @@ def test_a_change_inside_the_sensors_accuracy_raises_no_symptom() -> None:
     s = yardstick(base)["Tc@forward"]
     assert judged.r1["Tc@forward"] == pytest.approx(50.0 + 4 * s)
     assert judged.r2["Tc@forward"] == pytest.approx(50.0 + 8 * s)
-    assert "sensors’ accuracy" in raised[0]
+    assert "sensors' accuracy" in raised[0]
     assert compute_symptoms([16.8], base, judged, [0.05]).row(0)["Tc@forward"]["high"] == 0.0
     plain = judged_config(declared, base)[0]
     assert compute_symptoms([16.8], base, plain, [0.05]).row(0)["Tc@forward"]["high"] == 1.0

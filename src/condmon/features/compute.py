@@ -170,7 +170,8 @@ def spans_for(spec: FeatureSpec, windows: Sequence[tuple[str, int, int, bool]]
 def compute_features(columns: Mapping[str, FloatArray], sample_rate: float,
                      windows: Sequence[tuple[str, int, int, bool]],
                      specs: Sequence[FeatureSpec], source: str = "record",
-                     declaration: str = "the declaration") -> FeatureEstimate:
+                     declaration: str = "the declaration", what: str = "feature"
+                     ) -> FeatureEstimate:
     """The declared features of one record.
 
     Parameters
@@ -187,6 +188,9 @@ def compute_features(columns: Mapping[str, FloatArray], sample_rate: float,
         The record, named in messages.
     declaration : str
         The declaration file, named in messages.
+    what : str
+        What the specs are, in messages: ``feature`` (``[features]``) or
+        ``condition`` (``[conditions]``).
 
     Returns
     -------
@@ -215,12 +219,12 @@ def compute_features(columns: Mapping[str, FloatArray], sample_rate: float,
     notes: list[str] = []
     for spec in specs:
         if spec.channel not in columns and not spec.required:
-            notes.append(f"feature {spec.name} not computed: the record has no column "
+            notes.append(f"{what} {spec.name} not computed: the record has no column "
                          f"{spec.channel!r} (required = false)")
             continue
         if spec.channel not in columns:
             have = sorted(k for k in columns if k != "t")
-            raise DataError(f"{source}: feature {spec.name!r} ({declaration}[features."
+            raise DataError(f"{source}: {what} {spec.name!r} ({declaration}[{what}s."
                             f"{spec.name}]) names channel {spec.channel!r}, which the record "
                             f"does not have; its columns: {', '.join(have)}")
         try:
@@ -233,7 +237,7 @@ def compute_features(columns: Mapping[str, FloatArray], sample_rate: float,
                      if b - a >= MIN_SAMPLES]
             parts = [(v, n) for v, n in parts if math.isfinite(v[0]) and math.isfinite(v[1])]
             if not parts:
-                notes.append(f"feature {spec.name} not computed in regime {label or '(all)'}: "
+                notes.append(f"{what} {spec.name} not computed in regime {label or '(all)'}: "
                              f"no window of {MIN_SAMPLES} samples or more with a defined "
                              f"{spec.statistic}")
                 continue

@@ -307,7 +307,7 @@ def with_features(res: EstimateResult, rec: Record, machine: Machine,
                            machine.plant.source)
     channels = [c.feature for c in machine.conditions if c.feature is not None]
     conds = compute_features(rec.columns, 1.0 / rec.dt, spans, channels, rec.source,
-                             machine.plant.source)
+                             machine.plant.source, what="condition")
     conditions = dict(conds.values)
     notes = [*res.notes, *est.notes, *conds.notes]
     for c in machine.conditions:

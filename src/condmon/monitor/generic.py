@@ -282,10 +282,11 @@ def judged_config(config: MonitorConfig, baseline: Baseline,
             continue
         r1[name], r2[name] = floor1, max(d2, floor2)
         accuracy = f" plus the sensors' accuracy {b:.3g} %" if b else ""
+        within = " and the sensors' accuracy" if b else ""
         raised.append(f"{name}: the declared r1 {d1:g} % lies inside the healthy scatter"
-                      f"{' and the sensors’ accuracy' if b else ''} ({settings.r1_sigma:g} × "
-                      f"{s[name]:.3g} %{accuracy} = {floor1:.3g} %): that is used (insist = "
-                      "true in [breakpoints] keeps the declared)")
+                      f"{within} ({settings.r1_sigma:g} × {s[name]:.3g} %{accuracy} = "
+                      f"{floor1:.3g} %): that is used (insist = true in [breakpoints] keeps "
+                      "the declared)")
     return dataclasses.replace(config, r1=r1, r2=r2), tuple(raised)
 
 

@@ -502,6 +502,11 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
         reevaluate(store, unit, stored)
     info = baseline_notes(store, unit, stored)
     regimes = _regime_counts(stored.baseline)
+    if machine.breakpoints is not None:   # declared breakpoints the healthy scatter raises
+        sys_ = store.systematic_of(list(stored.test_ids)).median()
+        notes = (*notes, *judged_config(
+            machine_monitor(machine), stored.baseline,
+            {str(k): float(v) for k, v in sys_.items() if np.isfinite(v)})[1])
     return BaselineAddResult(tuple(added), stored.baseline, stored.id,
                              f"baseline of {unit!r} from {stored.baseline.n} accepted healthy "
                              f"tests ({stored.name!r} v{stored.version})"

@@ -128,6 +128,27 @@ def _band(value: Any, at: str) -> tuple[float, float]:
     return float(value[0]), float(value[1])
 
 
+def _entries(table: Mapping[str, Any] | None, source: str, kind: str, keys: tuple[str, ...],
+             needs: str) -> list[tuple[str, str, Mapping[str, Any]]]:
+    """The ``[kind.NAME]`` entries of a table as ``(name, where, entry)``, each
+    a table of ``keys`` only; :class:`ConfigError` naming the file otherwise."""
+    if not table:
+        return []
+    if not isinstance(table, Mapping):
+        raise ConfigError(f"{source}[{kind}] must be a table of entries ([{kind}.NAME] with "
+                          f"{needs})")
+    out = []
+    for name, entry in table.items():
+        at = f"{source}[{kind}.{name}]"
+        if not isinstance(entry, Mapping):
+            raise ConfigError(f"{at} must be a table with {needs}")
+        extra = [k for k in entry if k not in keys]
+        if extra:
+            raise ConfigError(f"{at}: unknown key {extra[0]!r}; allowed: {', '.join(keys)}")
+        out.append((str(name), at, entry))
+    return out
+
+
 def parse_features(table: Mapping[str, Any] | None, source: str, *,
                    reserved: tuple[str, ...] = (), regimes: tuple[str, ...] = (),
                    sample_rate: float | None = None, kind: str = "features"
@@ -166,25 +187,14 @@ def parse_features(table: Mapping[str, Any] | None, source: str, *,
     >>> fs[0].name, fs[0].channel, fs[0].statistic
     ('vib', 'acc', 'std')
     """
-    if not table:
-        return ()
-    if not isinstance(table, Mapping):
-        raise ConfigError(f"{source}[features] must be a table of features "
-                          "([features.NAME] with channel and statistic)")
     out = []
-    for name, entry in table.items():
-        at = f"{source}[{kind}.{name}]"
-        if not isinstance(name, str) or not _NAME.match(name) or "@" in name:
+    for name, at, entry in _entries(table, source, kind, _KEYS, "channel and statistic"):
+        if not _NAME.match(name) or "@" in name:
             raise ConfigError(f"{at}: a feature's name holds letters, digits and _ and does "
                               "not start with a digit")
         if name in reserved:
             raise ConfigError(f"{at}: {name!r} is already a reported parameter; "
                               "give the feature another name")
-        if not isinstance(entry, Mapping):
-            raise ConfigError(f"{at} must be a table with channel and statistic")
-        extra = [k for k in entry if k not in _KEYS]
-        if extra:
-            raise ConfigError(f"{at}: unknown key {extra[0]!r}; allowed: {', '.join(_KEYS)}")
         channel = entry.get("channel")
         if not isinstance(channel, str) or not channel.strip():
             raise ConfigError(f"{at}.channel must name a record column (after [record]), "
@@ -283,20 +293,9 @@ def parse_conditions(table: Mapping[str, Any] | None, source: str, *,
     >>> [(c.name, c.feature.statistic if c.feature else c.metadata) for c in cs]
     [('oil', 'mean'), ('load', 'load')]
     """
-    if not table:
-        return ()
-    if not isinstance(table, Mapping):
-        raise ConfigError(f"{source}[conditions] must be a table of conditions "
-                          "([conditions.NAME] with channel or metadata)")
     out = []
-    for name, entry in table.items():
-        at = f"{source}[conditions.{name}]"
-        if not isinstance(entry, Mapping):
-            raise ConfigError(f"{at} must be a table with channel or metadata")
-        extra = [k for k in entry if k not in _CONDITION_KEYS]
-        if extra:
-            raise ConfigError(f"{at}: unknown key {extra[0]!r}; allowed: "
-                              f"{', '.join(_CONDITION_KEYS)}")
+    for name, at, entry in _entries(table, source, "conditions", _CONDITION_KEYS,
+                                    "channel or metadata"):
         if ("channel" in entry) == ("metadata" in entry):
             raise ConfigError(f"{at} needs one of channel (a record column) or metadata (a "
                               "metadata field)")

@@ -21,7 +21,8 @@ user to build:
 - **a simulated fleet** of DC-motor units (±5 % manufacturing spread, 2 %
   record-to-record scatter of every parameter): false flags of healthy
   checks against their own baselines, trust warnings at ``baseline add`` and
-  ``check``, a +20 % R flagged.
+  ``check``, a new unit whose R is 20 % above the model's nominal flagged
+  against the group.
 
 Prints a table (with the machine's load) and writes results/routine.json.
 """
@@ -191,7 +192,8 @@ def fleet(seed: int, n_units: int, n_base: int = 10, n_checks: int = 5) -> dict[
                     if any(is_warning(f) for f in res.baseline_flags):
                         warned.add(name)
         out["trust_warnings"] = len(warned)
-        for rec in records(unit(R=1.2), 10):
+        worn = dataclasses.replace(unit(), R=rig0.R * 1.2)   # R 20 % above the model's nominal
+        for rec in records(worn, 10):
             res = check_test(store, "R20", rec, dry_run=True, group="g")
             out["r20_checks"] += 1
             out["r20_flagged"] += res.status in ("advisory", "no-go")

@@ -292,7 +292,11 @@ def _outliers(col: FloatArray, s: FloatArray, cfg: BaselineChecks, family: int =
     (healthy 6-parameter baselines of 5 to 20 tests with a 2 % scatter and
     0.2 % standard errors: a z above 3.5 in 59 % to 34 % of them): it must
     then also be one of the generalized ESD test's outliers (:func:`_esd`)
-    at ``outlier_alpha`` over the ``family`` parameters.
+    at ``outlier_alpha`` over the ``family`` parameters. So must it with
+    :data:`_ESD_TESTS` tests or more, whatever the standard errors: a MAD of
+    ten tests is still a noisy scale (healthy 5-parameter baselines of 10
+    tests scattering 2 % with standard errors of 1 %: 7 of 30 flagged by the
+    z and SE rule alone).
     """
     med = float(np.median(col))
     dev = np.abs(col - med)
@@ -303,10 +307,16 @@ def _outliers(col: FloatArray, s: FloatArray, cfg: BaselineChecks, family: int =
     off = (z > cfg.outlier_z) & (in_se > cfg.outlier_se)
     good = np.isfinite(s) & (s > 0)
     rms_se = float(np.sqrt(np.mean(s[good] ** 2))) if good.any() else 0.0
-    if off.any() and float(np.std(col, ddof=1)) > cfg.spread_ratio * rms_se:
+    if off.any() and (float(np.std(col, ddof=1)) > cfg.spread_ratio * rms_se
+                      or len(col) >= _ESD_TESTS):
         level = -math.expm1(math.log1p(-cfg.outlier_alpha) / max(family, 1))
         off &= _esd(col, level)
     return off, med, dev
+
+
+#: Tests from which an outlier must also pass the calibrated ESD test (below it the
+#: ESD test has little power, and the z and standard-error rule stands alone).
+_ESD_TESTS = 6
 
 
 def _esd(col: FloatArray, alpha: float) -> NDArray[np.bool_]:

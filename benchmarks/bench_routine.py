@@ -10,8 +10,8 @@ user to build:
 
 - **own baseline** (each ``--healthy`` unit): ``baseline add`` of one cycle in
   two of the unit's records (records 4k and 4k + 1 in file-number order: one
-  stroke each way, across the session's conditions), then ``check`` of the
-  others, stored; counts of go / advisory / no-go / not judged, the warnings
+  stroke each way, across the session's conditions), the tests its warnings
+  name excluded (as it advises), then ``check`` of the others, stored; counts of go / advisory / no-go / not judged, the warnings
   ``baseline add`` printed, and what ``forecast`` says of each parameter;
 - **against a healthy peer** (``--peer UNIT=REF``, both healthy, same load):
   ``check --against REF --dry-run`` of every record of UNIT;
@@ -82,11 +82,19 @@ def _share(counts: Counter[str], total: int) -> str:
 
 
 def _baseline(data: Path, unit: str, db: str) -> tuple[list[str], list[str]]:
-    """The README's baseline of ``unit``; its warnings ("warning:" lines)."""
+    """The README's baseline of ``unit``, its advice followed (the tests a
+    warning names are excluded: an outlier, a warm-up to leave out); the
+    warnings ("warning:" lines)."""
     base, rest = _halves(_files(data, unit))
     code, _, err = _cli("baseline", "add", *base, "--unit", unit, "--db", db, "--model", MODEL)
     if code != 0:
         raise SystemExit(f"baseline add {unit} failed: {err.strip()}")
+    with open_store(db) as store:
+        latest = store.latest_baseline(unit)
+        named = sorted({int(t) for f in (latest.flags if latest else ())
+                        if is_warning(f) for t in f.get("tests", [])})
+    for tid in named:
+        _cli("exclude", str(tid), "--db", db, "--reason", "named by baseline add's warning")
     return rest, [line for line in err.splitlines() if line.startswith("warning:")]
 
 

@@ -65,8 +65,8 @@ def test_the_conditions_of_a_regime_and_the_regime_free_ones_apply() -> None:
 
 
 @pytest.mark.parametrize("entry, message", [
-    ({"unit": "K"}, "needs one of channel"),
-    ({"channel": "T1", "metadata": "load"}, "needs one of channel"),
+    ({"unit": "K"}, "needs exactly one of channel"),
+    ({"channel": "T1", "metadata": "load"}, "needs exactly one of channel"),
     ({"metadata": "load", "statistic": "mean"}, r"statistic is for a channel's condition"),
     ({"channel": "T1", "between_units": "yes"}, "between_units must be true or false"),
     ({"channel": "T1", "statistic": "median"}, "unknown statistic 'median'"),
@@ -180,3 +180,25 @@ def test_a_fleet_run_judges_at_the_conditions_and_says_when_it_cannot(
     assert status["r12.txt"] == "go"
     assert status["r13.txt"] == "not judged"
     assert status["r14.txt"] in ("advisory", "no-go")
+
+
+def test_a_new_unit_checked_against_a_peer_keeps_the_declared_model(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A unit first seen in a check against another unit is made with the model
+    it was checked with (it was made a DC motor, and its next record refused);
+    one peer's scatter is widened by the stated spread between units."""
+    db = str(tmp_path / "p.db")
+    files = [str(write_stroke(tmp_path / f"b{k}.txt", 1.0, seed=k, oil=12200.0 + k))
+             for k in range(8)]
+    assert main(["baseline", "add", *files, "--unit", "A", "--db", db,
+                 "--model", str(DECLARATION)]) == 0
+    for k in range(2):
+        rec = write_stroke(tmp_path / f"c{k}.txt", 1.0, seed=20 + k)
+        capsys.readouterr()
+        assert main(["check", str(rec), "--unit", "B", "--against", "A", "--model",
+                     str(DECLARATION), "--db", db, "--json"]) == 0
+        doc = json.loads(capsys.readouterr().out)
+        assert doc["status"] == "go" and doc["against"] == "unit A"
+        assert any("not used against unit A" in j for j in doc["judgement"])
+    with open_store(db) as store:
+        assert store.unit_model("B") == str(DECLARATION.resolve())

@@ -399,10 +399,12 @@ def _nogo_degree(*points: tuple[float, ...]) -> float:
 
 def single_faults(rules: RuleBase | None = None) -> dict[str, FaultDegree]:
     """The fault each parameter's symptom names on its own: ``{"high(D)":
-    friction increase, "low(R)": ...}``, the first rule (a major one before a
+    friction increase, "low(R)": ...}``, the rules (the major ones before the
     minor) that a degree of 1 on that symptom alone, every other 0, fires in
     full (``high(R) and not high(L)`` counts for ``high(R)``), after the
-    rule base's preprocessing, as :func:`diagnose` takes it.
+    rule base's preprocessing, as :func:`diagnose` takes it. Several such
+    rules are one fault named "A or B": the symptom alone does not tell them
+    apart (a friction fall: a leak or the drive train).
 
     Example
     -------
@@ -418,7 +420,10 @@ def _single_faults(rb: RuleBase) -> tuple[tuple[str, FaultDegree], ...]:
     for s in _symptoms(rb):
         fired = _fired(rb, [s])
         if fired:
-            out.append((s, min(fired, key=lambda f: f.severity != "major")))
+            top = min(fired, key=lambda f: f.severity != "major")
+            same = [f.name for f in fired if f.severity == top.severity]
+            out.append((s, dataclasses.replace(top, name=" or ".join(same)) if len(same) > 1
+                        else top))
     return tuple(out)
 
 

@@ -170,8 +170,8 @@ def spans_for(spec: FeatureSpec, windows: Sequence[tuple[str, int, int, bool]]
 def compute_features(columns: Mapping[str, FloatArray], sample_rate: float,
                      windows: Sequence[tuple[str, int, int, bool]],
                      specs: Sequence[FeatureSpec], source: str = "record",
-                     declaration: str = "the declaration", what: str = "feature"
-                     ) -> FeatureEstimate:
+                     declaration: str = "the declaration", what: str = "feature",
+                     available: Sequence[str] | None = None) -> FeatureEstimate:
     """The declared features of one record.
 
     Parameters
@@ -191,6 +191,9 @@ def compute_features(columns: Mapping[str, FloatArray], sample_rate: float,
     what : str
         What the specs are, in messages: ``feature`` (``[features]``) or
         ``condition`` (``[conditions]``).
+    available : sequence of str, optional
+        Every column the record file has (after ``[record]``), named when a
+        channel is missing (default: ``columns``'s).
 
     Returns
     -------
@@ -223,7 +226,8 @@ def compute_features(columns: Mapping[str, FloatArray], sample_rate: float,
                          f"{spec.channel!r} (required = false)")
             continue
         if spec.channel not in columns:
-            have = sorted(k for k in columns if k != "t")
+            have = sorted(str(k) for k in (available if available is not None else columns)
+                          if k != "t")
             raise DataError(f"{source}: {what} {spec.name!r} ({declaration}[{what}s."
                             f"{spec.name}]) names channel {spec.channel!r}, which the record "
                             f"does not have; its columns: {', '.join(have)}")

@@ -239,7 +239,7 @@ def estimate(record: pd.DataFrame | Columns, model: str | Machine = "dc-motor", 
         return with_features(estimate_record(
             r, machine, method=method, excitation=exc, fit_threshold=fit_threshold,
             route=chosen, constants=consts, metadata=metadata, window=window, hold=hold,
-            fixed=fixed, notes=notes), r, machine, metadata)
+            fixed=fixed, notes=notes), r, machine, metadata, tuple(map(str, df.columns)))
 
     res = run(rec)
     accuracy = machine.record.merged(settings).accuracy
@@ -282,15 +282,19 @@ def systematic_part(res: EstimateResult, rec: Record, accuracy: Mapping[str, flo
         for key, (value, _) in base.items():
             other = moved.get(key, (math.nan, math.nan))[0]
             total[key] += (float(other) - float(value)) ** 2
-    return {k: math.sqrt(v) for k, v in total.items()}
+    # a value no stated accuracy moves (a feature of another channel) has none: its
+    # sensors' accuracy is not stated, not zero
+    return {k: math.sqrt(v) for k, v in total.items() if v != 0.0}
 
 
 def with_features(res: EstimateResult, rec: Record, machine: Machine,
-                  metadata: Mapping[str, Any] | None = None) -> EstimateResult:
+                  metadata: Mapping[str, Any] | None = None,
+                  available: Sequence[str] | None = None) -> EstimateResult:
     """``res`` with the signal features and the operating conditions
     ``machine`` declares, computed over ``rec``'s windows
     (:func:`condmon.features.compute_features`) and from ``metadata``;
-    ``res`` itself when it declares none.
+    ``res`` itself when it declares none. ``available``: the record file's
+    columns, named when a channel is missing.
 
     Raises
     ------
@@ -304,10 +308,10 @@ def with_features(res: EstimateResult, rec: Record, machine: Machine,
     spans = [(w.regime, w.first, w.stop, w.used) for w in res.windows] \
         or [("", 0, len(rec), True)]
     est = compute_features(rec.columns, 1.0 / rec.dt, spans, machine.features, rec.source,
-                           machine.plant.source)
+                           machine.plant.source, available=available)
     channels = [c.feature for c in machine.conditions if c.feature is not None]
     conds = compute_features(rec.columns, 1.0 / rec.dt, spans, channels, rec.source,
-                             machine.plant.source, what="condition")
+                             machine.plant.source, what="condition", available=available)
     conditions = dict(conds.values)
     notes = [*res.notes, *est.notes, *conds.notes]
     for c in machine.conditions:

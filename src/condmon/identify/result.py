@@ -110,8 +110,8 @@ class EstimateResult:
         root-sum-square over the sensors. A bound, not a standard deviation:
         a change inside it cannot be told from the sensors' drift
         (:func:`condmon.monitor.generic.judged_config`). ``std_errors`` is the
-        record's own noise and says nothing of it. Empty when no accuracy is
-        declared. [same units]
+        record's own noise and says nothing of it. A value no stated accuracy
+        moves (a feature of a channel without one) has none. [same units]
     """
 
     parameters: dict[str, float]

@@ -297,8 +297,8 @@ def parse_conditions(table: Mapping[str, Any] | None, source: str, *,
     for name, at, entry in _entries(table, source, "conditions", _CONDITION_KEYS,
                                     "channel or metadata"):
         if ("channel" in entry) == ("metadata" in entry):
-            raise ConfigError(f"{at} needs one of channel (a record column) or metadata (a "
-                              "metadata field)")
+            raise ConfigError(f"{at} needs exactly one of channel (a record column) or "
+                              "metadata (a metadata field)")
         between = entry.get("between_units", "metadata" in entry)
         if not isinstance(between, bool):
             raise ConfigError(f"{at}.between_units must be true or false, not {between!r}")

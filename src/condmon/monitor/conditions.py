@@ -42,7 +42,7 @@ from condmon.monitor.baseline import Baseline
 from condmon.models.regimes import split_key
 
 __all__ = ["Conditioned", "condition_keys", "conditioned_baseline", "NotJudged", "NOT_JUDGED",
-           "explained"]
+           "explained", "departures"]
 
 FloatArray = NDArray[np.float64]
 
@@ -239,4 +239,53 @@ def explained(values: FloatArray, parameters: Sequence[str],
         X = np.column_stack([np.ones(int(ok.sum())), C[ok] - C[ok].mean(axis=0)])
         beta, *_ = np.linalg.lstsq(X, y[ok], rcond=None)
         y[ok] = beta[0] + (y[ok] - X @ beta)
+    return out
+
+
+def departures(values: FloatArray, parameters: Sequence[str],
+               conditions: Mapping[str, FloatArray], later: FloatArray,
+               later_conditions: Mapping[str, FloatArray]) -> FloatArray:
+    """Later tests' values with what their conditions explain taken out, by the
+    baseline's fit: each later value minus its prediction at its own
+    conditions, plus the baseline's mean (as :func:`explained` does for the
+    baseline's own tests). A parameter the baseline cannot fit is left as it
+    is. [parameter units]
+
+    Parameters
+    ----------
+    values : ndarray, shape (n, p)
+        The baseline's tests. [parameter units]
+    parameters : sequence of str
+    conditions : mapping of str to ndarray
+        Each condition over the baseline's ``n`` tests.
+    later : ndarray, shape (m, p)
+        The later tests (checks). [parameter units]
+    later_conditions : mapping of str to ndarray
+        Each condition over the ``m`` later tests.
+
+    Example
+    -------
+    >>> t = np.linspace(30.0, 40.0, 8)
+    >>> out = departures((50.0 - 0.5 * t)[:, None], ["Tc"], {"oil": t},
+    ...                  np.array([[29.0], [26.5]]), {"oil": np.array([42.0, 47.0])})
+    >>> out[:, 0].round(2).tolist()      # both on the baseline's line: its mean, 32.5
+    [32.5, 32.5]
+    """
+    out = np.array(later, dtype=np.float64, copy=True)
+    for j, key in enumerate(parameters):
+        keys = [c for c in condition_keys(key, list(conditions)) if c in later_conditions]
+        if not keys:
+            continue
+        C = np.column_stack([np.asarray(conditions[c], dtype=np.float64) for c in keys])
+        y = np.asarray(values, dtype=np.float64)[:, j]
+        ok = np.isfinite(y) & np.isfinite(C).all(axis=1)
+        if np.count_nonzero(ok) < len(keys) + 3:
+            continue
+        center = C[ok].mean(axis=0)
+        X = np.column_stack([np.ones(int(ok.sum())), C[ok] - center])
+        beta, *_ = np.linalg.lstsq(X, y[ok], rcond=None)
+        L = np.column_stack([np.asarray(later_conditions[c], dtype=np.float64) for c in keys])
+        fit = beta[0] + (L - center) @ beta[1:]
+        have = np.isfinite(fit)
+        out[have, j] = beta[0] + (out[have, j] - fit[have])
     return out

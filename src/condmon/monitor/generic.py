@@ -281,9 +281,11 @@ def judged_config(config: MonitorConfig, baseline: Baseline,
             r1[name], r2[name] = d1, d2
             continue
         r1[name], r2[name] = floor1, max(d2, floor2)
+        if config.source.startswith("peer comparison"):
+            continue   # the peers' own spread, not a declared breakpoint: nothing to say
         accuracy = f" plus the sensors' accuracy {b:.3g} %" if b else ""
         within = " and the sensors' accuracy" if b else ""
-        raised.append(f"{name}: the declared r1 {d1:g} % lies inside the healthy scatter"
+        raised.append(f"{name}: the declared r1 {d1:.3g} % lies inside the healthy scatter"
                       f"{within} ({settings.r1_sigma:g} × {s[name]:.3g} %{accuracy} = "
                       f"{floor1:.3g} %): that is used (insist = true in [breakpoints] keeps "
                       "the declared)")

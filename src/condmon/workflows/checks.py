@@ -29,7 +29,7 @@ from condmon.models.regimes import regime_key, split_key
 from condmon.models.registry import get_model
 from condmon.monitor.baseline import Baseline, missing_regimes
 from condmon.monitor.fuzzy import MonitorConfig
-from condmon.monitor.conditions import NOT_JUDGED, Conditioned, NotJudged, explained
+from condmon.monitor.conditions import NOT_JUDGED, Conditioned, NotJudged, departures, explained
 from condmon.monitor.generic import (
     judged_config, load_generic_settings, machine_monitor, peer_monitor, peer_spread,
 )
@@ -362,7 +362,7 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
     judged = baseline if cond is None else cond.baseline
     if cond is not None and cond.not_judged is not None:
         return _not_judged(store, unit, res, key, cond, baseline, ids, ref, latest, flags, cfg,
-                           against_label, dry_run)
+                           against_label, dry_run, machine)
     row, diag = evaluate(res, judged, cfg, rb, machine.monitored)
     stats = (unit_statistics(store, unit, ids, baseline, res,
                              dataclasses.replace(cfg.statistics, **override), cond)
@@ -379,7 +379,7 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
         tid = -1
     else:
         fresh = ref is None and (latest is None or list(latest.test_ids) != ids)
-        bid, latest = _bid(store, unit, baseline, ids, ref, latest, cfg)
+        bid, latest = _bid(store, unit, baseline, ids, ref, latest, cfg, machine)
         flags = latest.flags if fresh else flags
         tid = store.add_test(unit, res, role="check", digest=key.content, file_digest=key.file,
                              fingerprint=key.fingerprint, test_date=key.test_date, hours=key.hours,
@@ -392,8 +392,11 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
 
 
 def _bid(store: HistoryStore, unit: str, baseline: Baseline, ids: list[int],
-         ref: Reference | None, latest: Any, cfg: MonitorConfig) -> tuple[int, Any]:
-    """The stored baseline version a check is evaluated against (saved when new)."""
+         ref: Reference | None, latest: Any, cfg: MonitorConfig, machine: Machine
+         ) -> tuple[int, Any]:
+    """The stored baseline version a check is evaluated against (saved when new);
+    a unit new to the history is made with ``machine``'s model first."""
+    store.unit_id(unit, create=True, model=machine.name, model_source=machine.origin)
     if ref is not None:
         return store.save_baseline(unit, baseline, ids, name=ref.name, activate=False,
                                    reason=f"compared with {ref.label}"), latest
@@ -406,13 +409,13 @@ def _bid(store: HistoryStore, unit: str, baseline: Baseline, ids: list[int],
 def _not_judged(store: HistoryStore, unit: str, res: EstimateResult, key: Any,
                 cond: Conditioned, baseline: Baseline, ids: list[int], ref: Reference | None,
                 latest: Any, flags: tuple[dict[str, Any], ...], cfg: MonitorConfig,
-                against: str, dry_run: bool) -> CheckResult:
+                against: str, dry_run: bool, machine: Machine) -> CheckResult:
     """A check whose conditions its baseline does not span: stored with the
     reason (status ``not judged``), no symptom, never trended."""
     reason = str(cond.not_judged)
     tid = -1
     if not dry_run:
-        bid, latest = _bid(store, unit, baseline, ids, ref, latest, cfg)
+        bid, latest = _bid(store, unit, baseline, ids, ref, latest, cfg, machine)
         flags = flags if ref is not None or latest is None else latest.flags
         tid = store.add_test(unit, res, role="check", digest=key.content, file_digest=key.file,
                              fingerprint=key.fingerprint, test_date=key.test_date,
@@ -445,8 +448,9 @@ def unit_statistics(store: HistoryStore, unit: str, ids: list[int], baseline: Ba
     A test's parameters of one regime are tested with that regime's; None when
     fewer than 3 baseline tests have every parameter the test has. With the
     baseline fitted against operating conditions (``conditioned``), the
-    change is the check's departure from its prediction and the baseline's
-    scatter is its tests' about the fit (the drift test keeps the values).
+    change is the check's departure from its prediction, the baseline's
+    scatter is its tests' about the fit, and the drift is that of the
+    checks' departures from theirs.
     """
     stored = res.stored_values()
     keys = [k for k in baseline.parameters
@@ -479,6 +483,19 @@ def unit_statistics(store: HistoryStore, unit: str, ids: list[int], baseline: Ba
         & ~hist["excluded"].astype(bool) & (hist["status"] != "not judged")
     since = in_test_order(hist[usable & (hist.index > max(ids))])   # as they were tested
     series, _ = changes(since)
+    if conditioned is not None and conditioned.fitted and len(since):
+        # the checks' drift with what their conditions explain taken out
+        base_c = store.conditions_of(list(members.index))[0]
+        since_c = store.conditions_of(list(since.index))[0]
+        rows = since[keys].to_numpy(dtype=np.float64)
+        ok = np.isfinite(rows).all(axis=1) & np.isfinite(
+            since[[f"{k}_se" for k in keys]].to_numpy(dtype=np.float64)).all(axis=1)
+        moved = departures(members[keys].to_numpy(dtype=np.float64), keys,
+                           {str(c): base_c[c].to_numpy(dtype=np.float64)
+                            for c in base_c.columns},
+                           rows, {str(c): since_c[c].to_numpy(dtype=np.float64)
+                                  for c in since_c.columns})
+        series = (moved[ok] - mean) * scale
     centre = (mean if conditioned is None or not conditioned.fitted else
               np.array([conditioned.baseline.value(k) for k in keys], dtype=np.float64))
     now = np.array([stored[k][0] for k in keys]) - centre

@@ -312,7 +312,8 @@ def diagnose(symptoms: Mapping[str, Mapping[str, float]], rules: RuleBase | None
     sym = {p: {"high": high[p], "low": low[p]} for p in high}
     fired = {f.name: f.degree for f in held if f.degree >= WATCH_DEGREE}
     fired.update({f.name: f.degree for f in faults})
-    candidates = candidate_sets(fired, [f.name for f in faults], rb, high, low, tolerance)
+    candidates = candidate_sets(fired, [f.name for f in faults], rb, high, low, tolerance,
+                                advisory_degree(rb))
     unexplained = unexplained_changes(degrees, rb, high, low, advisory_degree(rb))
     return Diagnosis(status, condition, tuple(faults), sym, tuple(applied), tuple(watch),
                      candidates, unexplained)

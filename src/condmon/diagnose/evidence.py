@@ -24,8 +24,9 @@ The rule, precisely (``mu(s)`` is the degree of symptom ``s`` = ``high(P)`` or
    positive one, its absence the negated one, a degree of 0.5 neither), and
    ``w = (a - b) mu(s)`` otherwise (only one names it: a present symptom
    favours the fault naming it positive and counts against one negating it;
-   an absent symptom tells nothing; both the same way: 0). ``s``
-   *discriminates* when ``|w| > tol``; ``w > 0`` favours A.
+   an absent symptom tells nothing, nor one weaker than the advisory degree,
+   a tendency; both the same way: 0). ``s`` *discriminates* when
+   ``|w| > tol``; ``w > 0`` favours A.
 3. **Told apart.** Two fired rules (degree at least
    :data:`~condmon.diagnose.diagnoser.WATCH_DEGREE`) are told apart when their
    degrees differ by more than ``tol`` or some symptom discriminates between
@@ -185,11 +186,14 @@ def _mu(a: Atom, high: Mapping[str, float], low: Mapping[str, float]) -> float:
 
 
 def discriminating(a: Polarity, b: Polarity, high: Mapping[str, float],
-                   low: Mapping[str, float], tolerance: float = AMBIGUITY_TOLERANCE
-                   ) -> dict[Atom, float]:
+                   low: Mapping[str, float], tolerance: float = AMBIGUITY_TOLERANCE,
+                   evidence: float = 0.0) -> dict[Atom, float]:
     """The symptoms that tell fault A from fault B (polarities ``a``, ``b`` of
     :func:`polarities`), with their weight (> 0 favours A; step 2 of the
-    module's docstring).
+    module's docstring). A symptom only one of them names counts when it is
+    at least ``evidence`` strong (the diagnoser passes its advisory degree:
+    a weaker symptom is a tendency to watch, not evidence for one fault over
+    another).
 
     Example
     -------
@@ -206,6 +210,8 @@ def discriminating(a: Polarity, b: Polarity, high: Mapping[str, float],
     for s in dict.fromkeys([*a, *b]):
         pa, pb, mu = a.get(s, 0), b.get(s, 0), _mu(s, high, low)
         w = pa * (2.0 * mu - 1.0) if pa * pb == -1 else (pa - pb) * mu
+        if pa * pb != -1 and mu < evidence:
+            continue
         if abs(w) > tolerance:
             out[s] = w
     return out
@@ -213,7 +219,8 @@ def discriminating(a: Polarity, b: Polarity, high: Mapping[str, float],
 
 def candidate_sets(degrees: Mapping[str, float], listed: Sequence[str], rules: RuleBase,
                    high: Mapping[str, float], low: Mapping[str, float],
-                   tolerance: float = AMBIGUITY_TOLERANCE) -> tuple[CandidateSet, ...]:
+                   tolerance: float = AMBIGUITY_TOLERANCE, evidence: float = 0.0
+                   ) -> tuple[CandidateSet, ...]:
     """The ambiguity sets of the fired rules that hold a listed fault, ranked
     (the rule of the module's docstring, steps 3 to 5).
 
@@ -260,7 +267,8 @@ def candidate_sets(degrees: Mapping[str, float], listed: Sequence[str], rules: R
     for i, a in enumerate(names):
         for b in names[i + 1:]:
             if (abs(degrees[a] - degrees[b]) <= tolerance
-                    and not discriminating(pol.get(a, {}), pol.get(b, {}), high, low, tolerance)):
+                    and not discriminating(pol.get(a, {}), pol.get(b, {}), high, low, tolerance,
+                                           evidence)):
                 parent[root(b)] = root(a)
     groups: dict[str, list[str]] = {}
     for n in names:
@@ -270,7 +278,8 @@ def candidate_sets(degrees: Mapping[str, float], listed: Sequence[str], rules: R
                   key=lambda m: -max(degrees[n] for n in m))
 
     def beats(x: list[str], y: list[str]) -> bool:
-        w = discriminating(pol.get(x[0], {}), pol.get(y[0], {}), high, low, tolerance)
+        w = discriminating(pol.get(x[0], {}), pol.get(y[0], {}), high, low, tolerance,
+                           evidence)
         return sum(w.values()) > tolerance
 
     ranked: list[list[str]] = []

@@ -144,6 +144,13 @@ def test_a_unit_is_judged_at_its_own_oil_temperature(
     capsys.readouterr()
     assert main(["history", "--unit", "A", "--db", db]) == 0
     assert "not judged" in capsys.readouterr().out
+    # the latest check is not judged: the listing and the report say so
+    assert main(["units", "--db", db, "--json"]) == 0
+    (listed,) = json.loads(capsys.readouterr().out)["units"]
+    assert listed["status"] == "not judged"
+    assert main(["report", "--db", db, "--out", str(tmp_path / "rep")]) == 0
+    page = next((tmp_path / "rep").glob("*A*.html")).read_text()
+    assert "status not-judged" in page and "not judged: oil@forward" in page
     # healthy records of the warm unit extend the baseline: the warm check is judged now
     more = [str(write_stroke(tmp_path / f"w{k}.txt", 1.0, seed=80 + k, oil=float(o),
                              friction={"Tc": _tc(o) + rng.normal(0.0, 0.2)}))

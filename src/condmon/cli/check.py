@@ -92,9 +92,9 @@ def register(app: typer.Typer) -> None:
                   + (f", test #{res.test_id})" if res.test_id >= 0 else ", not stored)"))
         if res.not_judged is not None:
             out.print(f"not judged: {res.not_judged}: the baseline's tests do not span these "
-                      "conditions, so nothing says how a healthy unit behaves here; the test "
-                      "is stored but changes no trend. Extend the baseline to these "
-                      "conditions, or test again within them.", markup=False, soft_wrap=True)
+                      "conditions, so nothing says how a healthy unit behaves here; it "
+                      "changes no trend. Extend the baseline to these conditions, or test "
+                      "again within them.", markup=False, soft_wrap=True)
             _print_forecast(res.forecast)
             return
         if res.diagnosis is None:

@@ -339,12 +339,15 @@ def typical_systematic(history: Any) -> dict[str, float]:
     >>> typical_systematic(pd.DataFrame({"Tc": [40.0, 41.0], "Tc_sys": [6.0, 6.2]}))
     {'Tc': 6.1}
     """
+    import numpy as np
+
     cols = [c for c in getattr(history, "columns", ()) if str(c).endswith("_sys")]
     out = {}
     for c in cols:
-        value = float(history[c].median())
-        if math.isfinite(value):
-            out[str(c)[: -len("_sys")]] = value
+        values = np.asarray(history[c], dtype=np.float64)
+        values = values[np.isfinite(values)]
+        if values.size:   # an all-NaN median warns on older numpy
+            out[str(c)[: -len("_sys")]] = float(np.median(values))
     return out
 
 

@@ -36,7 +36,9 @@ from condmon.monitor.fuzzy import MonitorConfig, compute_symptoms
 from condmon.monitor.statistics import (
     CheckStatistics, StatisticsConfig, check_statistics, governed_status,
 )
-from condmon.monitor.generic import describe_generic, judged_config, machine_monitor
+from condmon.monitor.generic import (
+    describe_generic, judged_config, machine_monitor, typical_systematic,
+)
 from condmon.store.baselines import (  # read from the store only; kept here for callers
     StoredBaseline, _baseline_of, baseline_members, current_baseline,
 )
@@ -503,10 +505,10 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
     info = baseline_notes(store, unit, stored)
     regimes = _regime_counts(stored.baseline)
     if machine.breakpoints is not None:   # declared breakpoints the healthy scatter raises
-        sys_ = store.systematic_of(list(stored.test_ids)).median()
         notes = (*notes, *judged_config(
             machine_monitor(machine), stored.baseline,
-            {str(k): float(v) for k, v in sys_.items() if np.isfinite(v)})[1])
+            typical_systematic(store.systematic_of(list(stored.test_ids)).add_suffix("_sys"))
+        )[1])
     return BaselineAddResult(tuple(added), stored.baseline, stored.id,
                              f"baseline of {unit!r} from {stored.baseline.n} accepted healthy "
                              f"tests ({stored.name!r} v{stored.version})"

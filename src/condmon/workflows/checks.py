@@ -395,9 +395,10 @@ def _bid(store: HistoryStore, unit: str, baseline: Baseline, ids: list[int],
          ref: Reference | None, latest: Any, cfg: MonitorConfig, machine: Machine
          ) -> tuple[int, Any]:
     """The stored baseline version a check is evaluated against (saved when new);
-    a unit new to the history is made with ``machine``'s model first."""
-    store.unit_id(unit, create=True, model=machine.name, model_source=machine.origin)
-    if ref is not None:
+    a unit new to the history (checked against another) is made with
+    ``machine``'s model first."""
+    if ref is not None:   # a unit checked against another may be new
+        store.unit_id(unit, create=True, model=machine.name, model_source=machine.origin)
         return store.save_baseline(unit, baseline, ids, name=ref.name, activate=False,
                                    reason=f"compared with {ref.label}"), latest
     if latest is None or list(latest.test_ids) != ids:
@@ -469,8 +470,9 @@ def unit_statistics(store: HistoryStore, unit: str, ids: list[int], baseline: Ba
 
     members = hist.loc[[i for i in ids if i in hist.index]]
     base, base_se = changes(members)
-    if conditioned is not None and conditioned.fitted:
-        conds = store.conditions_of(list(members.index))[0]
+    fitted = conditioned is not None and bool(conditioned.fitted)
+    conds = store.conditions_of(list(members.index))[0] if fitted else pd.DataFrame()
+    if fitted:
         vals = members[keys].to_numpy(dtype=np.float64)
         ok = np.isfinite(vals).all(axis=1) & np.isfinite(
             members[[f"{k}_se" for k in keys]].to_numpy(dtype=np.float64)).all(axis=1)
@@ -483,9 +485,9 @@ def unit_statistics(store: HistoryStore, unit: str, ids: list[int], baseline: Ba
         & ~hist["excluded"].astype(bool) & (hist["status"] != "not judged")
     since = in_test_order(hist[usable & (hist.index > max(ids))])   # as they were tested
     series, _ = changes(since)
-    if conditioned is not None and conditioned.fitted and len(since):
+    if fitted and len(since):
         # the checks' drift with what their conditions explain taken out
-        base_c = store.conditions_of(list(members.index))[0]
+        base_c = conds
         since_c = store.conditions_of(list(since.index))[0]
         rows = since[keys].to_numpy(dtype=np.float64)
         ok = np.isfinite(rows).all(axis=1) & np.isfinite(
@@ -496,8 +498,8 @@ def unit_statistics(store: HistoryStore, unit: str, ids: list[int], baseline: Ba
                            rows, {str(c): since_c[c].to_numpy(dtype=np.float64)
                                   for c in since_c.columns})
         series = (moved[ok] - mean) * scale
-    centre = (mean if conditioned is None or not conditioned.fitted else
-              np.array([conditioned.baseline.value(k) for k in keys], dtype=np.float64))
+    centre = (np.array([conditioned.baseline.value(k) for k in keys], dtype=np.float64)
+              if fitted and conditioned is not None else mean)
     now = np.array([stored[k][0] for k in keys]) - centre
     now_se = np.array([stored[k][1] for k in keys]) * scale
     return check_statistics(tuple(keys), now * scale, now_se, base, base_se,

@@ -407,8 +407,9 @@ def _commit_check(batch: _Batch, plan: _Unit, out: RecordOutcome,
         tid, elsewhere = _add_test(batch, plan, out, "check")
         return report("rejected", "retest", one_line(str(res.reason), None), tid, elsewhere)
     machine = get_model(plan.model)
+    values, conds = view.series(state.ids)
     cond = conditioning(None, state.ids, state.baseline, res.conditions, machine,
-                        series=view.series(state.ids) if machine.conditions else None)
+                        series=(values, conds))
     if state.latest is None or list(state.latest.test_ids) != state.ids:
         state.latest = view.save_baseline(batch.writer, state.ids, monitor=cfg,
                                           reason="baseline of the first check")
@@ -419,9 +420,8 @@ def _commit_check(batch: _Batch, plan: _Unit, out: RecordOutcome,
         return report("stored", unjudged.status, unjudged.summary, tid, elsewhere)
     judged = state.baseline if cond is None else cond.baseline
     row, diag = evaluate(res, judged, cfg, rb, machine.monitored)
-    values, conds = view.series(state.ids)
-    stats = level_statistics(state.baseline, values, view.errors(state.ids), res,
-                             cfg.statistics, cond, conds)
+    stats = level_statistics(state.baseline, values, view.errors(state.ids),
+                             res.stored_values(), cfg.statistics, cond, conds)
     if stats is not None:   # as check_test: the change test governs the status
         diag = governed(diag, stats, row, judged)
     tid, elsewhere = _add_test(batch, plan, out, "check", symptoms=row,

@@ -294,15 +294,15 @@ def governed(diag: Diagnosis, stats: CheckStatistics, row: Mapping[str, Mapping[
 
 
 def level_statistics(baseline: Baseline, values: pd.DataFrame, ses: pd.DataFrame,
-                     res: EstimateResult, config: StatisticsConfig,
+                     stored: Mapping[str, tuple[float, float]], config: StatisticsConfig,
                      conditioned: Conditioned | None = None,
                      conditions: pd.DataFrame | None = None) -> CheckStatistics | None:
-    """The calibrated change test of a check against the baseline's tests
-    (``values`` and ``ses``: one row per test; ``conditions`` theirs, when
-    the baseline is fitted against them), without the drift test: what
-    governs the status (:func:`governed`). None when fewer than 3 baseline
-    tests have every parameter the check has."""
-    stored = res.stored_values()
+    """The calibrated change test of a check (``stored``: its values and
+    standard errors) against the baseline's tests (``values`` and ``ses``:
+    one row per test; ``conditions`` theirs, when the baseline is fitted
+    against them), without the drift test: what governs the status
+    (:func:`governed`). None when fewer than 3 baseline tests have every
+    parameter the check has."""
     keys = [k for k in baseline.parameters if k in stored and k in values
             and np.isfinite(stored[k][0]) and np.isfinite(stored[k][1])]
     if not keys:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from condmon.errors import ConfigError
@@ -97,3 +98,35 @@ def test_a_change_inside_the_sensors_accuracy_raises_no_symptom() -> None:
     assert compute_symptoms([16.8], base, plain, [0.05]).row(0)["Tc@forward"]["high"] == 1.0
     # beyond the gauges' reach and the scatter: a symptom again
     assert compute_symptoms([21.0], base, judged, [0.05]).row(0)["Tc@forward"]["high"] > 0.5
+
+
+def test_a_check_evaluated_again_is_governed_as_a_new_one(tmp_path: Path) -> None:
+    """Breakpoints insisted on far inside the healthy scatter make the fuzzy
+    monitor call a healthy check no-go; the change test, which finds nothing
+    beyond the scatter, keeps it go, whether it is checked or evaluated again
+    against a new baseline version."""
+    from _strokes import DECLARATION, stroke
+    from condmon.store import open_store
+    from condmon.workflows.checks import check_test
+    from condmon.workflows.monitoring import (
+        add_baseline_tests, reevaluate, save_current_baseline,
+    )
+    from condmon.workflows.records import EstimateOptions
+
+    rng = np.random.default_rng(3)
+    opts = EstimateOptions(model=str(DECLARATION))
+
+    def rec(k: int) -> object:
+        return stroke(1.0, seed=k, friction={"Tc": 40.0 * (1 + 0.02 * rng.standard_normal())})
+
+    narrow = MonitorConfig({"Tc": 0.01}, {"Tc": 0.02}, insist=frozenset({"Tc"}))
+    with open_store(str(tmp_path / "g.db")) as store:
+        added = add_baseline_tests(store, "A", [rec(k) for k in range(10)], opts)
+        res = check_test(store, "A", rec(50), opts, monitor=narrow)
+        assert res.status == "go" and "within the healthy scatter" in res.diagnosis.summary
+        ids = [t.test_id for t in added.tests][:9]         # a new version: one test fewer
+        version, _ = save_current_baseline(store, "A", ids, reason="one test fewer")
+        changed = reevaluate(store, "A", version, monitor=narrow)
+        assert changed and all(now == "go" for _, now in changed.values())
+        hist = store.history("A")
+        assert "within the healthy scatter" in str(hist.loc[res.test_id, "summary"])

@@ -185,7 +185,8 @@ def reevaluate(store: HistoryStore, unit: str, baseline: StoredBaseline,
                monitor: MonitorConfig | None = None, rules: RuleBase | None = None
                ) -> dict[int, tuple[str | None, str]]:
     """Evaluate every accepted, not excluded check of the unit against
-    ``baseline`` (the evaluations against earlier baselines are kept).
+    ``baseline`` (the evaluations against earlier baselines are kept), as a
+    check is: at its conditions, its status governed by the change test.
 
     Returns
     -------
@@ -206,8 +207,9 @@ def reevaluate(store: HistoryStore, unit: str, baseline: StoredBaseline,
     conds, conds_se = (store.conditions_of(list(todo.index)) if machine.conditions
                        else (pd.DataFrame(), pd.DataFrame()))
     members = list(baseline.test_ids)
-    series = ((store.estimates_of(members)[0], store.conditions_of(members)[0])
-              if machine.conditions else None)
+    member_values, member_ses = store.estimates_of(members)
+    member_conds = store.conditions_of(members)[0] if machine.conditions else pd.DataFrame()
+    series = (member_values, member_conds)
     have = values.notna().to_numpy()
     changed: dict[int, tuple[str | None, str]] = {}
     for i, tid in enumerate(todo.index):
@@ -229,6 +231,12 @@ def reevaluate(store: HistoryStore, unit: str, baseline: StoredBaseline,
                 continue
             diag = diagnose({p: {"high": v["high"], "low": v["low"]} for p, v in row.items()},
                             rb, machine.monitored)
+            stats = level_statistics(   # as a check: the change test governs the status
+                baseline.baseline, member_values, member_ses,
+                {p: (float(values.loc[tid, p]), float(ses.loc[tid, p])) for p in row},
+                cfg.statistics, cond, member_conds)
+            if stats is not None:
+                diag = governed(diag, stats, row, base)
         if store.save_evaluation(unit, int(tid), baseline.id, row, diag):
             before = todo.loc[tid, "status"]
             changed[int(tid)] = (None if before == "unchecked" else str(before), diag.status)

@@ -262,6 +262,7 @@ def test_a_unit_with_regimes_is_forecast_per_regime(tmp_path: Path,
     doc = json.loads(capsys.readouterr().out)
     assert {p["parameter"] for p in doc["parameters"]} == {"Tc@forward", "Tc@reverse"}
     assert all(p["tests"] == 3 for p in doc["parameters"])
+    assert all(p["unit"] == "N m" for p in doc["parameters"])   # a regime's has its parameter's
 
 
 def test_units_carry_the_earliest_forecast(wearing: tuple[Path, float],

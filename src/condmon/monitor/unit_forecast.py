@@ -501,7 +501,8 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
         at = (float(axis.hours[rows[-1]] + f.remaining[0])
               if axis.by == "hours" and f.remaining is not None
               and math.isfinite(f.remaining[0]) else None)
-        out.append(ParameterForecast(key, (units or {}).get(name, ""), rule, f, when,
+        out.append(ParameterForecast(key, (units or {}).get(key.split("@", 1)[0], ""), rule,
+                                     f, when,
                                      tuple(int(i) for i in rows), float(x[-1] - x[0]), at))
     out = _with_partners(out, r2)
     order = {p.parameter: p for p in out}

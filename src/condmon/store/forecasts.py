@@ -246,8 +246,8 @@ def read_forecast(store: HistoryStore, unit: str, horizon: float | None = None,
     from condmon.monitor.generic import typical_systematic
 
     nogo, rules = machine_nogo(machine, baseline, typical_systematic(checks))
-    return forecast_checks(unit, checks, baseline, nogo, rules, machine.units, horizon, seed,
-                           priors)
+    return forecast_checks(unit, checks, baseline, nogo, rules, machine.monitored_units,
+                           horizon, seed, priors)
 
 
 def machine_nogo(machine: Machine, baseline: Baseline | None = None,

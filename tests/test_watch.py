@@ -405,12 +405,14 @@ def test_events_are_posted_with_retries_and_a_slow_hook_never_holds_the_stream(
     records = {f"HST-{i}": simulate_plant(HST, seed=30 + i, duration=4.0) for i in range(3)}
     stop, lines = threading.Event(), []
     result: dict = {}
+    from condmon.workflows.watch import Watcher
 
     def run() -> None:
         with open_store(str(tmp_path / "n.db")) as store:
-            result["summary"] = watch_mqtt(store, broker.address, model="hst", stop=stop,
-                                           log=lines.append, client_id="notify-watch",
-                                           notify=notifier.send)
+            result["watcher"] = Watcher(store, model="hst")
+            result["summary"] = watch_mqtt(store, broker.address, watcher=result["watcher"],
+                                           stop=stop, log=lines.append,
+                                           client_id="notify-watch", notify=notifier.send)
 
     th = threading.Thread(target=run, daemon=True)
     th.start()
@@ -421,7 +423,8 @@ def test_events_are_posted_with_retries_and_a_slow_hook_never_holds_the_stream(
     _publish_records(broker, records)
     deadline = time.monotonic() + 30
     while time.monotonic() < deadline:
-        if result.get("summary") is None and sum(ln.endswith("the stream") for ln in lines) == 3:
+        if (sum(ln.endswith("the stream") for ln in lines) == 3
+                and result["watcher"].counters.samples == 3 * 401):
             break
         time.sleep(0.05)
     handled = time.monotonic() - started

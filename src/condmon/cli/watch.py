@@ -27,6 +27,8 @@ def register(app: typer.Typer) -> None:
         settle: Annotated[float, typer.Option(help="A dropped file is complete once unchanged this long [s].", min=0)] = 2.0,
         client_id: Annotated[Optional[str], typer.Option(help="MQTT client id: the broker keeps this session's messages while the watcher is away; two watchers with one id push each other off (default: one per history).")] = None,
         notify: Annotated[Optional[str], typer.Option(help="Webhook URL: every event is POSTed to it as JSON, with retries, never holding the stream back.")] = None,
+        journal: Annotated[Optional[Path], typer.Option(help="The journal of messages acknowledged to the broker and not yet stored, replayed at the next start (default: beside a SQLite history, DB.CLIENT-ID.journal; else in the working folder).")] = None,
+        units: Annotated[Optional[str], typer.Option(help="Follow only units whose name matches this regular expression whole (others are refused); [stream] max_units of limits.toml bounds how many.")] = None,
     ) -> None:
         """Watch units live: MQTT streams and record files dropped in a folder.
 
@@ -48,6 +50,7 @@ def register(app: typer.Typer) -> None:
         from condmon.workflows.notify import Notifier
         from condmon.io.stream import StreamLimits
         from condmon.workflows.watch import Watcher, WatchEvent
+        from condmon.workflows.watch_bounds import Bounds, unit_pattern
         from condmon.workflows.watch_folder import FolderSummary, watch_folder
 
         if folder is None and mqtt is None:
@@ -56,6 +59,7 @@ def register(app: typer.Typer) -> None:
             parse_broker(mqtt)
         if model is not None:
             get_model(model)  # an unknown model is refused before connecting
+        pattern = unit_pattern(units)
         if folder is not None and not folder.is_dir():
             raise ConfigError(f"{folder}: not a folder (watch a fleet inbox: FOLDER/UNIT/records)")
 
@@ -97,11 +101,12 @@ def register(app: typer.Typer) -> None:
             _reachable(mqtt)  # an unreachable broker makes no history file
             with open_store(db) as store:
                 watcher = Watcher(store, model=model, isolate_after=isolate_after,
-                                  settings=IsolationSettings.load(settings))
+                                  settings=IsolationSettings.load(settings),
+                                  bounds=Bounds(units=pattern))
                 summary = watch_mqtt(store, mqtt, watcher=watcher, duration=duration, log=log,
                                      client_id=client_id, stop=halt,
                                      notify=notifier.send if notifier else None,
-                                     outbox=outbox)
+                                     outbox=outbox, journal=journal)
             halt.set()
             if thread is not None:
                 thread.join()
@@ -110,7 +115,9 @@ def register(app: typer.Typer) -> None:
                       f"({c.samples} samples), {c.refused} refused, {c.dropped} dropped "
                       f"({summary.overflow} for a full queue), {c.detections} detections, "
                       f"{c.isolations} isolations stored, {c.checks} tests checked, "
-                      f"{c.events} events; history {redact(db)}", markup=False,
+                      f"{c.events} events"
+                      + (f", {summary.replayed} replayed from the journal" if summary.replayed
+                         else "") + f"; history {redact(db)}", markup=False,
                       highlight=False, soft_wrap=True)
         if notifier is not None:
             notifier.close()

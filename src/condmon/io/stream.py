@@ -52,6 +52,14 @@ class StreamLimits:
         Seconds of a plant unit's stream kept before a detection. [s]
     max_test_samples : int
         Samples of one estimation-model unit's test before its ``end``.
+    queue_bytes : int
+        Payloads waiting to be journaled and handled. [bytes]
+    unit_bytes : int
+        Samples one unit holds: its open test or its kept window. [bytes]
+    held_bytes : int
+        Samples all units hold together. [bytes]
+    max_units : int
+        Units one watcher follows; a new unit name past it is refused.
     """
 
     max_message_bytes: int = 8_000_000
@@ -61,6 +69,10 @@ class StreamLimits:
     stale_after: float = 30.0
     keep: float = 60.0
     max_test_samples: int = 2_000_000
+    queue_bytes: int = 128_000_000
+    unit_bytes: int = 48_000_000
+    held_bytes: int = 384_000_000
+    max_units: int = 10_000
 
     @classmethod
     def shipped(cls) -> StreamLimits:
@@ -79,11 +91,15 @@ class Chunk:
         Equal-length float64 columns, ``t`` among them (empty for a bare end). [SI]
     end : bool
         The message closes the unit's test record.
+    ref : int or None
+        The message's row in the watcher's journal (:mod:`condmon.store.journal`),
+        if it was journaled.
     """
 
     unit: str
     columns: dict[str, FloatArray] = field(default_factory=dict)
     end: bool = False
+    ref: int | None = None
 
     @property
     def samples(self) -> int:
@@ -156,7 +172,12 @@ def parse_chunk(topic: str, payload: bytes | str, limits: StreamLimits | None = 
         if len(values) > lim.max_chunk_samples:
             raise DataError(f"{where}: column {name!r} has {len(values)} samples, beyond the "
                             f"limit of {lim.max_chunk_samples} ([stream] max_chunk_samples)")
-        arr = np.asarray(values, dtype=np.float64)
+        try:
+            arr = np.asarray(values, dtype=np.float64)
+        except OverflowError:  # an integer beyond float64 (1e309 written out in digits)
+            k = next(i for i, v in enumerate(values) if abs(v) > 1.7976931348623157e308)
+            raise DataError(f"{where}: column {name!r} has a value beyond float64 at sample "
+                            f"{k}") from None
         if not np.all(np.isfinite(arr)):
             k = int(np.flatnonzero(~np.isfinite(arr))[0])
             raise DataError(f"{where}: column {name!r} has a non-finite value at sample {k}")
@@ -167,6 +188,11 @@ def parse_chunk(topic: str, payload: bytes | str, limits: StreamLimits | None = 
     if len(set(lengths.values())) > 1:
         raise DataError(f"{where}: columns of unequal length ("
                         + ", ".join(f"{k}: {n}" for k, n in lengths.items()) + ")")
+    if not lengths["t"]:
+        if end:
+            return Chunk(unit, {}, True)
+        raise DataError(f"{where}: the columns hold no sample (send {{\"end\": true}} alone "
+                        "to close a test)")
     t = cols["t"]
     if len(t) > 1 and not np.all(np.diff(t) > 0):
         k = int(np.flatnonzero(~(np.diff(t) > 0))[0])

@@ -4,14 +4,23 @@ paho-mqtt (the Eclipse client) does the protocol. The client subscribes to
 ``condmon/+/samples`` with QoS 1 under a fixed client id and a persistent
 session, so a broker that keeps the session hands over what arrived while the
 watcher was away, once; it reconnects with backoff (1 s to 30 s) and
-resubscribes on every connection, and says so in the log. Messages go through
-a bounded queue: when the watcher falls behind, new messages are dropped and
-counted, never piled up. Every event is published retained (QoS 1) on
-``condmon/<unit>/status``, so a client that subscribes later sees each unit's
-last status at once.
+resubscribes on every connection, and says so in the log.
 
-SIGTERM or Ctrl-C stops the loop: the queue is drained, pending isolations
-finish and are stored, and the function returns (the command exits 0).
+**At least once in, once stored.** A message is acknowledged to the broker
+(paho's manual acknowledgement) only once it is written to the watcher's
+journal (:mod:`condmon.store.journal`); until then the broker keeps it and
+sends it again after a stop, a crash or a lost connection. A start replays the
+journal before it takes new messages. A test is stored once (its content hash),
+and an isolation once (its unit and the stream time of its detection), so a
+replay stores nothing twice. Messages wait in a queue bounded in bytes
+(``[stream] queue_bytes``); past it a message is refused, counted and said.
+
+Every event is published retained (QoS 1) on ``condmon/<unit>/status``, so a
+client that subscribes later sees each unit's last status at once.
+
+SIGTERM or Ctrl-C stops the loop: no message is taken after it, messages not
+yet journaled are left to the broker (not acknowledged), running isolations
+finish and are stored, and the client disconnects (the command exits 0).
 """
 
 from __future__ import annotations
@@ -22,13 +31,15 @@ import signal
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any
 
 from condmon.errors import ConfigError, CondmonError
 from condmon.io.stream import STATUS_TOPIC, StreamLimits, parse_broker, parse_chunk
 from condmon.store.db import HistoryStore
 from condmon.store.engine import StoreError
+from condmon.store.journal import StreamJournal, default_journal
 from condmon.workflows.watch import WatchCounters, WatchEvent, Watcher
 
 __all__ = ["parse_broker", "LiveSummary", "watch_mqtt", "stop_on_signals", "restore_signals"]
@@ -50,12 +61,18 @@ class LiveSummary:
         Messages dropped because the queue was full.
     connections : int
         Connections made to the broker (1 + reconnections).
+    replayed : int
+        Messages replayed from the journal at the start.
+    journal : str
+        The journal file.
     """
 
     counters: WatchCounters
     seconds: float
     overflow: int
     connections: int
+    replayed: int = 0
+    journal: str = ""
 
 
 def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
@@ -63,7 +80,8 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
                stop: threading.Event | None = None, log: Callable[[str], None] = print,
                client_id: str | None = None, limits: StreamLimits | None = None,
                notify: Callable[[dict[str, Any]], object] | None = None,
-               outbox: queue.Queue[WatchEvent] | None = None) -> LiveSummary:
+               outbox: queue.Queue[WatchEvent] | None = None,
+               journal: str | Path | None = None) -> LiveSummary:
     """Watch the units streaming to ``broker`` until stopped.
 
     Parameters
@@ -92,6 +110,9 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
         Notifier`'s ``send``: it must not block).
     outbox : queue.Queue, optional
         Events made elsewhere (``watch FOLDER`` beside the stream) to publish too.
+    journal : str or Path, optional
+        The journal file (default: :func:`~condmon.store.journal.default_journal`
+        of the history and the client id).
 
     Returns
     -------
@@ -109,12 +130,15 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
         raise ConfigError(f"--client-id {client_id!r}: give a name of 1 to 128 characters "
                           "(the broker keeps this watcher's session under it)")
     lim = limits or StreamLimits.shipped()
-    inbox: queue.Queue[tuple[str, bytes]] = queue.Queue(maxsize=lim.queue)
-    state = {"overflow": 0, "connections": 0}
+    book = StreamJournal(journal if journal is not None
+                         else default_journal(str(store.url), client_id))
+    inbox: queue.Queue[_Message] = queue.Queue()
+    state = {"overflow": 0, "connections": 0, "bytes": 0, "said": -1e9}
+    count = threading.Lock()  # "bytes" is counted up by paho's thread, down by this one
     halt = stop or threading.Event()
 
     client = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=client_id,
-                         clean_session=False)
+                         clean_session=False, manual_ack=True)
     client.reconnect_delay_set(min_delay=1, max_delay=30)
 
     def on_connect(c: Any, userdata: Any, flags: Any, reason: Any, props: Any) -> None:
@@ -131,10 +155,20 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
             log(f"lost the broker {host}:{port} ({reason}); reconnecting")
 
     def on_message(c: Any, userdata: Any, msg: Any) -> None:
-        try:
-            inbox.put_nowait((msg.topic, msg.payload))
-        except queue.Full:
-            state["overflow"] += 1
+        size = len(msg.payload)
+        with count:
+            full = state["bytes"] + size > lim.queue_bytes or inbox.qsize() >= lim.queue
+            state["bytes"] += 0 if full else size
+        if full:
+            state["overflow"] += 1  # refused: acknowledged, so the broker does not resend it
+            c.ack(msg.mid, msg.qos)
+            if time.monotonic() - state["said"] >= 10.0:
+                state["said"] = time.monotonic()
+                log(f"refused: a message on {msg.topic[:80]!r}: {inbox.qsize()} messages of "
+                    f"{state['bytes']} bytes wait already ([stream] queue_bytes = "
+                    f"{lim.queue_bytes}, queue = {lim.queue}); {state['overflow']} refused so far")
+            return
+        inbox.put(_Message(state["connections"], msg.mid, msg.qos, msg.topic, msg.payload))
 
     client.on_connect = on_connect
     client.on_disconnect = on_disconnect
@@ -155,10 +189,33 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
     except OSError as exc:
         raise ConfigError(f"--mqtt {broker}: cannot reach the broker at {host}:{port} "
                           f"({exc})") from None
+    def _take(batch: list[_Message]) -> None:
+        """Journal, acknowledge and handle messages received."""
+        with count:
+            state["bytes"] -= sum(len(m.payload) for m in batch)
+        # a message of an earlier connection is not acknowledged: the broker
+        # sends it again on this one (persistent session), and that copy is taken
+        batch = [m for m in batch if m.connection == state["connections"]]
+        refs = book.add([(m.topic, m.payload) for m in batch])
+        for m in batch:
+            client.ack(m.mid, m.qos)
+        _handle(w, [(m.topic, m.payload, ref) for m, ref in zip(batch, refs)], lim, log)
+        book.done(_taken(w.finished))
+
     client.loop_start()
     previous = stop_on_signals(halt)
     started = time.monotonic()
+    replayed = 0
     try:
+        kept = list(book.pending())
+        if kept:
+            log(f"replaying {len(kept)} messages kept in the journal {book.path}")
+        for k in range(0, len(kept), BATCH):
+            _handle(w, [(topic, payload, ref) for ref, topic, payload in kept[k:k + BATCH]],
+                    lim, log)
+            book.done(_taken(w.finished))
+            replayed += len(kept[k:k + BATCH])
+        del kept
         while not halt.is_set():
             if duration is not None and time.monotonic() - started >= duration:
                 break
@@ -168,27 +225,53 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
                 first = inbox.get(timeout=0.1)
             except queue.Empty:
                 w.poll()
+                book.done(_taken(w.finished))
                 continue
-            _handle(w, [first, *_drain(inbox, BATCH)], lim, log)
+            _take([first, *_drain(inbox, BATCH)])
             w.poll()
-        # flush: what arrived before the stop is handled, pending isolations stored
-        while messages := _drain(inbox, BATCH):
-            _handle(w, messages, lim, log)
+            book.done(_taken(w.finished))
+        # the stop: what waits now is journaled and handled; nothing more is taken
+        # (what the broker sends after this is not acknowledged: it keeps it)
+        _take(_drain(inbox, inbox.qsize()))
         w.close()
+        book.done(_taken(w.finished))
     finally:
         halt.set()  # a stop, not a lost broker
         restore_signals(previous)
         client.disconnect()
         client.loop_stop()
+        left = len(book)
+        book.close()
+    if left:
+        log(f"{left} messages kept in the journal {book.path} for the next start "
+            "(open tests and kept windows)")
     counters = w.counters
     counters.dropped += state["overflow"]
     return LiveSummary(counters, time.monotonic() - started, state["overflow"],
-                       state["connections"])
+                       state["connections"], replayed, str(book.path))
 
 
-def _drain(inbox: queue.Queue[tuple[str, bytes]], most: int) -> list[tuple[str, bytes]]:
+@dataclass(frozen=True)
+class _Message:
+    """A message as received: its connection (acknowledged on that one only)."""
+
+    connection: int
+    mid: int
+    qos: int
+    topic: str
+    payload: bytes
+
+
+def _taken(finished: list[int]) -> list[int]:
+    """Empty ``finished`` into a new list."""
+    out = list(finished)
+    finished.clear()
+    return out
+
+
+def _drain(inbox: queue.Queue[_Message], most: int) -> list[_Message]:
     """Up to ``most`` messages waiting in the queue (none: an empty list)."""
-    out: list[tuple[str, bytes]] = []
+    out: list[_Message] = []
     while len(out) < most:
         try:
             out.append(inbox.get_nowait())
@@ -197,22 +280,26 @@ def _drain(inbox: queue.Queue[tuple[str, bytes]], most: int) -> list[tuple[str, 
     return out
 
 
-def _handle(w: Watcher, messages: list[tuple[str, bytes]], lim: StreamLimits,
+def _handle(w: Watcher, messages: list[tuple[str, bytes, int | None]], lim: StreamLimits,
             log: Callable[[str], None]) -> None:
-    """Validate messages and hand the good ones to the watcher together."""
+    """Validate messages and hand the good ones to the watcher together; a
+    message refused is done with (its journal row goes)."""
     chunks = []
-    for topic, payload in messages:
+    for topic, payload, ref in messages:
         try:
-            chunks.append(parse_chunk(topic, payload, lim))
-        except CondmonError as exc:
+            chunks.append(replace(parse_chunk(topic, payload, lim), ref=ref))
+        except Exception as exc:  # one message never takes the watcher down
             w.counters.received += 1
             w.counters.refused += 1
-            log(f"refused: {exc}")
+            log(f"refused: {exc}" if isinstance(exc, CondmonError) else
+                f"refused: a message on {topic[:80]!r}: {type(exc).__name__}")
+            if ref is not None:
+                w.finished.append(ref)
     try:
         w.handle_many(chunks)
     except StoreError:
         raise
-    except CondmonError as exc:  # handled per unit inside; a last guard: the stream goes on
+    except Exception as exc:  # handled per chunk inside; a last guard: the stream goes on
         log(f"refused: {exc}")
 
 

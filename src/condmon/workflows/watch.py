@@ -41,6 +41,9 @@ from condmon.io.stream import Chunk, StreamLimits
 from condmon.models.machine import Machine
 from condmon.models.registry import get_model
 from condmon.store.db import HistoryStore
+from condmon.store.engine import StoreError
+from condmon.store.history import DuplicateTestError
+from condmon.workflows.watch_bounds import Bounds, Refused, nbytes
 
 __all__ = ["WatchEvent", "WatchCounters", "Watcher"]
 
@@ -107,6 +110,8 @@ class _Plant:
     """A plant-model unit's stream since it (re)started."""
 
     chunks: list[dict[str, np.ndarray]] = field(default_factory=list)
+    refs: list[int | None] = field(default_factory=list)  # each kept chunk's journal row
+    first_t: float = math.nan  # the stream time the model was started at [s]
     detection: OnlineDetection | None = None
     pending: cf.Future[IsolationResult] | None = None
     isolated: bool = False
@@ -138,6 +143,9 @@ class Watcher:
         readings); after a detection everything is kept until the isolation
         (default: ``[stream] keep`` of ``limits.toml``, 60 s: 190 kB a unit at
         100 Hz with four columns). [s]
+    bounds : Bounds, optional
+        Units admitted and bytes held (default: ``[stream]`` of ``limits.toml``,
+        every unit name).
     """
 
     store: HistoryStore
@@ -149,10 +157,15 @@ class Watcher:
     keep: float = field(default_factory=lambda: StreamLimits.shipped().keep)
     max_test_samples: int = field(
         default_factory=lambda: StreamLimits.shipped().max_test_samples)
+    bounds: Bounds = field(default_factory=Bounds)
     counters: WatchCounters = field(default_factory=WatchCounters)
+    #: Journal rows of chunks done with (effect stored, refused, or out of the
+    #: kept window): the transport deletes them (:mod:`condmon.store.journal`).
+    finished: list[int] = field(default_factory=list)
     _trackers: dict[str, ModelTracker] = field(default_factory=dict, repr=False)
     _plants: dict[str, _Plant] = field(default_factory=dict, repr=False)
     _tests: dict[str, list[dict[str, np.ndarray]]] = field(default_factory=dict, repr=False)
+    _test_refs: dict[str, list[int]] = field(default_factory=dict, repr=False)
     _status: dict[str, str] = field(default_factory=dict, repr=False)
     _machines: dict[str, tuple[str, Machine]] = field(default_factory=dict, repr=False)
     _pool: cf.ThreadPoolExecutor = field(
@@ -188,11 +201,13 @@ class Watcher:
             self.counters.received += 1
             self.counters.samples += chunk.samples
             try:
+                self.bounds.admit(chunk.unit)
                 name, machine = self.machine_of(chunk.unit)
                 if machine.spec.unknowns:
                     events += self._test_chunk(chunk, name)
                     continue
                 if not chunk.columns:
+                    self._finish(chunk.ref)
                     continue
                 missing = [s for s in machine.plant.sensor_names if s not in chunk.columns]
                 if missing:
@@ -202,9 +217,10 @@ class Watcher:
                         f"{', '.join(machine.plant.sensor_names)}")
                 check_stream_chunk(machine.plant, chunk.columns, f"unit {chunk.unit!r}",
                                    self.settings.record)
-            except CondmonError as exc:
-                self.counters.refused += 1
-                self.log(f"refused: {exc}")
+            except StoreError:
+                raise  # the history is out of reach: the journal keeps the message
+            except Exception as exc:  # one message never takes the watcher down
+                self._refuse([chunk], exc)
                 continue
             models[name] = machine
             queue = rounds.setdefault(name, [])
@@ -222,13 +238,30 @@ class Watcher:
             for batch in queue:
                 try:
                     outs = tracker.feed({u: c.columns for u, c in batch.items()})
-                except CondmonError as exc:
-                    self.counters.refused += len(batch)
-                    self.log(f"refused: {exc}")
+                except Exception as exc:  # one batch's model step never stops the stream
+                    self._refuse(list(batch.values()), exc)
                     continue
                 for chunk, out in zip(batch.values(), outs):
-                    events += self._tracked(chunk, out, machine)
+                    try:
+                        events += self._tracked(chunk, out, machine)
+                    except StoreError:
+                        raise
+                    except Exception as exc:  # one chunk's outcome never stops the stream
+                        self._refuse([chunk], exc)
         return events
+
+    def _refuse(self, chunks: Sequence[Chunk], exc: BaseException) -> None:
+        """Count and say a refusal in one line; the chunks are done with."""
+        self.counters.refused += len(chunks)
+        what = str(exc) if isinstance(exc, CondmonError) else (
+            f"unit {chunks[0].unit!r}: {type(exc).__name__}: {str(exc)[:200]}")
+        if not isinstance(exc, Refused) or exc.say:
+            self.log(f"refused: {what}")
+        for chunk in chunks:
+            self._finish(chunk.ref)
+
+    def _finish(self, *refs: int | None) -> None:
+        self.finished.extend(r for r in refs if r is not None)
 
     def poll(self, wait: bool = False) -> list[WatchEvent]:
         """Isolations finished since the last call, stored; their events."""
@@ -240,8 +273,10 @@ class Watcher:
             plant.pending = None
             try:
                 res = fut.result()
-            except CondmonError as exc:
+            except Exception as exc:  # an isolation's failure is said; the stream goes on
                 self.log(f"{unit}: isolation failed: {exc}")
+                plant.isolated = True
+                self._trim(plant, unit)
                 continue
             events += self._isolated(unit, res, plant)
         return events
@@ -274,16 +309,23 @@ class Watcher:
         if out.dropped is not None:
             self.counters.dropped += 1
             self.log(f"{chunk.unit}: chunk dropped, {out.dropped}")
+            self._finish(chunk.ref)
             return events
         for note in out.notes:
             if note not in plant.said:
                 self.log(f"{chunk.unit}: {note}")
             if note.startswith("input "):
                 plant.said.add(note)  # said once per unit, not at every chunk
-        if any("started again" in n for n in out.notes):
-            plant.chunks, plant.detection, plant.isolated = [], None, False
+        if out.dropped is None and (not plant.chunks
+                                    or any("started again" in n for n in out.notes)):
+            self._finish(*plant.refs)
+            self.bounds.give(chunk.unit, sum(nbytes(c) for c in plant.chunks))
+            plant.chunks, plant.refs, plant.detection, plant.isolated = [], [], None, False
+            plant.first_t = float(chunk.columns["t"][0])
+        self.bounds.take(chunk.unit, nbytes(chunk.columns))
         plant.chunks.append(chunk.columns)
-        self._trim(plant)
+        plant.refs.append(chunk.ref)
+        self._trim(plant, chunk.unit)
         if self._status.get(chunk.unit) is None:
             # the unit is in the history from its first chunk (the fleet page lists it)
             self.store.unit_id(chunk.unit, create=True, model=machine.name,
@@ -293,6 +335,17 @@ class Watcher:
         if out.detection is not None:
             d = out.detection
             plant.detection = d
+            earlier = self._continuing(chunk.unit, d, plant)
+            if earlier is not None:
+                plant.isolated = True  # the stored isolation holds; the window is trimmed again
+                self.log(f"{chunk.unit}: the fault of isolation i{earlier} is still there at "
+                         f"t = {plant.first_t:g} s, where the model was started; not isolated "
+                         "again")
+                events.append(self._event(
+                    chunk.unit, "no-go", f"the fault of isolation i{earlier} is still there "
+                    f"(the model started at t = {plant.first_t:g} s on a faulty unit)",
+                    "detected", stream_time=d.time))
+                return events
             self.counters.detections += 1
             events.append(self._event(
                 chunk.unit, "no-go", f"fault detected at t = {d.time:g} s: "
@@ -315,13 +368,20 @@ class Watcher:
         return self._pool.submit(isolate, record, model, settings=self.settings, workers=1,
                                  source=f"{unit} stream")
 
-    def _trim(self, plant: _Plant) -> None:
-        """Keep the last ``keep`` seconds, and whatever follows a detection."""
-        while len(plant.chunks) > 1 and plant.detection is None:
+    def _trim(self, plant: _Plant, unit: str) -> None:
+        """Keep the last ``keep`` seconds, and whatever follows a detection until
+        its isolation is done; never more than ``[stream] unit_bytes``."""
+        while len(plant.chunks) > 1:
             span = plant.chunks[-1]["t"][-1] - plant.chunks[1]["t"][0]
-            if span < self.keep:
+            loose = plant.detection is None or plant.isolated
+            if not self.bounds.over_unit(unit) and (span < self.keep or not loose):
                 break
-            plant.chunks.pop(0)
+            if not loose and not plant.said.intersection({"bytes"}):
+                plant.said.add("bytes")
+                self.log(f"{unit}: the record kept for the isolation passes [stream] "
+                         "unit_bytes; its oldest samples are let go")
+            self.bounds.give(unit, nbytes(plant.chunks.pop(0)))
+            self._finish(plant.refs.pop(0))
 
     @staticmethod
     def _record(plant: _Plant) -> pd.DataFrame:
@@ -334,6 +394,7 @@ class Watcher:
 
         plant.isolated = True
         record = self._record(plant)
+        self._trim(plant, unit)
         record.attrs["source"] = f"{unit} stream"
         name, _ = self.machine_of(unit)
         earlier = self._stored_detection(unit, res)
@@ -350,6 +411,21 @@ class Watcher:
                             + (", already stored" if kept.duplicate else "") + ")",
                             "isolated", tuple(res.isolated),
                             plant.detection.time if plant.detection else None)]
+
+    def _continuing(self, unit: str, d: OnlineDetection, plant: _Plant) -> int | None:
+        """The stored isolation of this unit's stream whose fault a model started
+        on an already faulty unit detects again (after a restart of the watcher:
+        the detection's onset is where the model started, and the stored
+        detection is earlier), if any."""
+        tol = 2.0 * self.settings.detection.persistence + 1.0
+        if not math.isfinite(plant.first_t) or d.onset > plant.first_t + tol:
+            return None
+        iso = self.store.isolations(unit)
+        if not len(iso):
+            return None
+        before = iso[(iso["source"] == f"{unit} stream")
+                     & (iso["detection_time"] <= d.onset + tol)]
+        return int(before.index[-1]) if len(before) else None
 
     def _stored_detection(self, unit: str, res: IsolationResult) -> int | None:
         """The stored isolation of the same stream detection (within twice the
@@ -368,14 +444,22 @@ class Watcher:
 
     def _test_chunk(self, chunk: Chunk, name: str) -> list[WatchEvent]:
         parts = self._tests.setdefault(chunk.unit, [])
+        refs = self._test_refs.setdefault(chunk.unit, [])
         if chunk.columns:
             held = sum(len(p["t"]) for p in parts)
             if parts and set(chunk.columns) != set(parts[0]):
                 raise DataError(f"unit {chunk.unit!r}: the chunk's columns "
                                 f"{sorted(chunk.columns)} are not the test's "
                                 f"{sorted(parts[0])}; chunk refused")
+            size = nbytes(chunk.columns)
+            if self.bounds.over_unit(chunk.unit, size):
+                self._drop_test(chunk.unit)
+                raise self.bounds.refusal(
+                    "unit_bytes", f"unit {chunk.unit!r}: the open test passes "
+                    f"{self.bounds.limits.unit_bytes} bytes with no {{\"end\": true}} "
+                    f"([stream] unit_bytes); its {held} samples are dropped")
             if held + chunk.samples > self.max_test_samples:
-                self._tests.pop(chunk.unit, None)
+                self._drop_test(chunk.unit)
                 raise DataError(f"unit {chunk.unit!r}: the test passes {self.max_test_samples} "
                                 "samples with no {\"end\": true} ([stream] max_test_samples); "
                                 f"its {held} samples are dropped")
@@ -383,17 +467,41 @@ class Watcher:
                 self.counters.dropped += 1
                 self.log(f"{chunk.unit}: chunk dropped, it does not follow the last one "
                          f"(t = {chunk.columns['t'][0]:g} s after {parts[-1]['t'][-1]:g} s)")
+                self._finish(chunk.ref)
             else:
+                self.bounds.take(chunk.unit, size)
                 parts.append(chunk.columns)
+                if chunk.ref is not None:
+                    refs.append(chunk.ref)
+        elif chunk.ref is not None:
+            refs.append(chunk.ref)
         if not chunk.end:
             return []
-        self._tests.pop(chunk.unit, None)
         if not parts:
+            self._drop_test(chunk.unit)
             raise DataError(f"unit {chunk.unit!r}: 'end' with no samples before it")
         frame = pd.DataFrame({c: np.concatenate([p[c] for p in parts if c in p])
                               for c in parts[0]})
         frame.attrs["source"] = f"{chunk.unit} stream"
-        return [self._check(chunk.unit, name, frame)]
+        try:
+            event = self._check(chunk.unit, name, frame)
+        except StoreError:
+            raise  # not stored: the journal keeps the test for the next start
+        except DuplicateTestError as exc:  # a replay of a test stored before a stop
+            event = self._event(chunk.unit, self._status.get(chunk.unit, "go"),
+                                f"test #{exc.test_id} already stored; not stored again",
+                                "checked")
+        except Exception:
+            self._drop_test(chunk.unit)  # refused: said by the caller, done with
+            raise
+        self._drop_test(chunk.unit)
+        return [event]
+
+    def _drop_test(self, unit: str) -> None:
+        """Forget a unit's open test; its chunks are done with."""
+        parts = self._tests.pop(unit, [])
+        self.bounds.give(unit, sum(nbytes(p) for p in parts))
+        self._finish(*self._test_refs.pop(unit, []))
 
     def _check(self, unit: str, name: str, frame: pd.DataFrame) -> WatchEvent:
         from condmon.workflows.checks import check_test

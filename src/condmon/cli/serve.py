@@ -25,7 +25,7 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Serve a live fleet page (every unit's status, trends, tests, isolations, JSON API)
         until Ctrl-C. Reads the history at every request; never writes it."""
-        from condmon.report.web import create_app, serve
+        from condmon.report.web import EVENT_CLIENTS, create_app, serve
         from condmon.store.engine import redact
 
         live = None
@@ -50,7 +50,8 @@ def register(app: typer.Typer) -> None:
 
         try:
             # a browser's live feed holds a thread: more of them with --mqtt
-            serve(web, host=host, port=port, ready=ready, threads=4 if live is None else 32)
+            serve(web, host=host, port=port, ready=ready,
+                  threads=4 if live is None else EVENT_CLIENTS + 16)
         finally:
             if live is not None:
                 live.stop()

@@ -19,12 +19,49 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from condmon.errors import ConfigError
+from condmon.errors import ConfigError, DataError
+from condmon.io.stream import StreamLimits, unit_of_topic
+from condmon.store.states import STATUS_ORDER
 
 __all__ = ["LiveFeed", "with_live"]
 
 STATUS = "condmon/+/status"
 SAMPLES = "condmon/+/samples"
+#: A status message's statuses: the history's and the watcher's own.
+STATUSES = frozenset(STATUS_ORDER) | {"baseline"}
+KINDS = frozenset({"watching", "detected", "isolated", "checked", "baseline"})
+MAX_REASON = 500  # characters of a status's reason kept
+
+
+def valid_status(unit: str, doc: Any) -> dict[str, Any] | None:
+    """A status message as the page may show it, or None when it is not one
+    (another tool, or a hostile client, may publish anything retained).
+
+    Example
+    -------
+    >>> valid_status("U1", {"unit": "U1", "status": 7}) is None
+    True
+    >>> valid_status("U1", {"unit": "U1", "status": "go", "t": 1e999})["t"] is None
+    True
+    """
+    if not isinstance(doc, dict) or doc.get("unit") != unit:
+        return None
+    status, kind = doc.get("status"), doc.get("kind")
+    if not isinstance(status, str) or status not in STATUSES or (
+            kind is not None and (not isinstance(kind, str) or kind not in KINDS)):
+        return None
+    isolated = doc.get("isolated")
+    if isolated is not None and not (isinstance(isolated, list) and len(isolated) <= 64
+                                     and all(isinstance(p, str) for p in isolated)):
+        return None
+    reason, when, t = doc.get("reason"), doc.get("time"), doc.get("t")
+    return {"unit": unit, "status": status,
+            "time": when[:40] if isinstance(when, str) else None,
+            "reason": reason[:MAX_REASON] if isinstance(reason, str) else "",
+            "isolated": [p[:64] for p in isolated] if isolated else [],
+            "kind": kind,
+            "t": float(t) if isinstance(t, (int, float)) and not isinstance(t, bool)
+            and abs(t) < 1e300 else None}
 
 
 @dataclass
@@ -51,7 +88,9 @@ class LiveFeed:
     broker: str
     stale_after: float = 30.0
     log: Callable[[str], None] = lambda line: None
+    max_units: int = field(default_factory=lambda: StreamLimits.shipped().max_units)
     version: int = 0
+    refused: int = 0
     _state: dict[str, dict[str, Any]] = field(default_factory=dict, repr=False)
     _seen: dict[str, float] = field(default_factory=dict, repr=False)
     _changes: list[tuple[int, dict[str, Any]]] = field(default_factory=list, repr=False)
@@ -103,11 +142,20 @@ class LiveFeed:
             self._client.disconnect()
 
     def take(self, topic: str, payload: bytes) -> None:
-        """One message from the broker (a status, or a chunk's arrival)."""
+        """One message from the broker (a status, or a chunk's arrival); one that
+        is not a valid status of a valid unit name, or a new unit past
+        ``max_units``, is refused and counted (said once per 1,000)."""
         parts = topic.split("/")
-        if len(parts) != 3:
+        if len(parts) != 3 or parts[2] not in ("samples", "status"):
             return
         unit, kind = parts[1], parts[2]
+        try:
+            unit_of_topic(f"condmon/{unit}/samples")
+        except DataError:
+            return self._refuse(f"topic {topic[:80]!r}: not a unit name")
+        if unit not in self._seen and len(self._seen) >= self.max_units:
+            return self._refuse(f"unit {unit!r}: the page follows {self.max_units} units "
+                                "already ([stream] max_units)")
         if kind == "samples":
             self._seen[unit] = time.monotonic()
             last = self._state.get(unit)
@@ -115,14 +163,19 @@ class LiveFeed:
                 self._change(unit, dict(last.get("was") or {"unit": unit, "status": "go"}))
             return
         try:
-            doc = json.loads(payload)
-        except ValueError:
-            return
-        if not isinstance(doc, dict) or doc.get("unit") != unit:
-            return
+            doc = valid_status(unit, json.loads(payload))
+        except (ValueError, RecursionError):
+            doc = None
+        if doc is None:
+            return self._refuse(f"{topic[:80]}: not a status message of condmon watch")
         self._seen.setdefault(unit, time.monotonic())
-        self._change(unit, {k: doc.get(k) for k in ("unit", "status", "time", "reason",
-                                                    "isolated", "kind", "t")})
+        self._change(unit, doc)
+
+    def _refuse(self, why: str) -> None:
+        self.refused += 1
+        if self.refused % 1000 == 1:
+            self.log(f"live feed: refused {why}" + (f" ({self.refused} refused so far)"
+                                                    if self.refused > 1 else ""))
 
     def status(self, unit: str) -> dict[str, Any] | None:
         """The unit's live status (None: never heard of)."""

@@ -75,6 +75,12 @@ __all__ = ["create_app", "serve", "readonly_url", "fleet_document", "unit_docume
            "read_unit", "UnitData", "UnknownUnitError", "STATUSES"]
 
 _FILES = Path(__file__).with_name("web_files")
+MAX_NUMBER = 1_000_000  # a page number or a page's size at most (a fleet of a million units)
+MAX_QUERY = 200  # characters of a search: a unit name is at most 64
+#: Browsers streaming live changes at once. Each holds a server thread; ``serve
+#: --mqtt`` runs EVENT_CLIENTS + 16 threads, so 16 always serve pages. A browser
+#: past the bound keeps the page's timed reload.
+EVENT_CLIENTS = 16
 
 
 # -- the application ---------------------------------------------------------------------
@@ -141,6 +147,7 @@ def create_app(db: str | Path, *, refresh: float = 30.0, live: LiveFeed | None =
     'no-go'
     """
     history = _History(db)
+    streams = threading.BoundedSemaphore(EVENT_CLIENTS)
     app = Flask(__name__, template_folder=str(_FILES / "templates"),
                 static_folder=str(_FILES / "static"), static_url_path="/static")
     app.url_map.merge_slashes = False
@@ -191,10 +198,22 @@ def create_app(db: str | Path, *, refresh: float = 30.0, live: LiveFeed | None =
         if raw == "all" and name == "per_page":
             return None
         try:
-            return int(str(raw))
+            value = int(str(raw)[:12])
+            if len(str(raw)) > 12 or not 1 <= value <= MAX_NUMBER:
+                raise ValueError
+            return value
         except ValueError:
-            raise FilterError(f"{name}={raw!r}: a whole number >= 1"
+            raise FilterError(f"{name}={str(raw)[:20]!r}: a whole number from 1 to {MAX_NUMBER}"
                               + (" or 'all'" if name == "per_page" else "")) from None
+
+    def query() -> str | None:
+        q = request.args.get("q")
+        if q is not None and (len(q) > MAX_QUERY or any(ord(ch) < 32 for ch in q)):
+            raise FilterError(f"q: a search of up to {MAX_QUERY} printable characters "
+                              f"(this one has {len(q)}"
+                              + (", with a control character)" if any(ord(ch) < 32 for ch in q)
+                                 else ")"))
+        return q
 
     def _page(n: int | None) -> int:
         return 1 if n is None else n
@@ -202,7 +221,7 @@ def create_app(db: str | Path, *, refresh: float = 30.0, live: LiveFeed | None =
     def fleet(clamp: bool = False) -> dict[str, Any]:
         """The page of the fleet the request asks for (its live statuses over the history's)."""
         with history.open() as store:
-            return fleet_document(store, request.args.getlist("status"), request.args.get("q"),
+            return fleet_document(store, request.args.getlist("status"), query(),
                                   request.args.get("sort"), _page(number("page", 1)),
                                   number("per_page", PER_PAGE),
                                   None if live is None else with_live(store.unit_summaries(),
@@ -214,19 +233,30 @@ def create_app(db: str | Path, *, refresh: float = 30.0, live: LiveFeed | None =
             return _json({"error": "no live feed: start the page with condmon serve --mqtt "
                                    "HOST:PORT"}, 404)
         feed = live
-        after = int(request.headers.get("Last-Event-ID") or request.args.get("after") or
-                    feed.version)
+        try:
+            after = int(str(request.headers.get("Last-Event-ID") or request.args.get("after")
+                            or feed.version)[:12])
+        except ValueError:
+            raise FilterError("after: the number of the last change seen") from None
+        if not streams.acquire(blocking=False):
+            # every event client holds a server thread: past the bound a browser
+            # keeps its timed reload, and the page's own threads stay free
+            return _json({"error": f"{EVENT_CLIENTS} live clients are connected already; the "
+                                   "page reloads itself instead"}, 503)
 
         def stream() -> Any:
-            last = after
-            yield "retry: 2000\n\n"
-            while True:
-                changes = feed.changes(last, 15.0)
-                if not changes:
-                    yield ": still here\n\n"
-                for version, doc in changes:
-                    last = version
-                    yield f"id: {version}\ndata: {json.dumps(doc)}\n\n"
+            try:
+                last = after
+                yield "retry: 2000\n\n"
+                while True:
+                    changes = feed.changes(last, 15.0)
+                    if not changes:
+                        yield ": still here\n\n"
+                    for version, doc in changes:
+                        last = version
+                        yield f"id: {version}\ndata: {json.dumps(doc)}\n\n"
+            finally:
+                streams.release()
 
         return Response(stream(), mimetype="text/event-stream",
                         headers={"X-Accel-Buffering": "no"})

@@ -110,3 +110,36 @@ def test_live_clients_past_the_bound_are_turned_away_and_pages_still_served(
     for resp in open_streams:
         resp.close()
     assert threading.active_count() >= 1
+
+
+def test_numbers_no_quantity_reaches_read_as_unknown(tmp_path: Path) -> None:
+    """±inf and 1e308 written by another tool made the unit page a 500 and
+    `report` a LinAlgError traceback: they are read as unknown."""
+    import sqlite3
+
+    from condmon.cli.main import app
+    from condmon.workflows.checks import check_test
+    from typer.testing import CliRunner
+
+    db = tmp_path / "inf.db"
+    with open_store(str(db)) as store:
+        add_baseline_tests(store, "E", [simulate_actuator(seed=s) for s in (1, 2, 3)])
+        for seed in (9, 10):
+            check_test(store, "E", simulate_actuator(seed=seed))
+    with sqlite3.connect(db) as c:
+        last = "(select max(id) from tests)"
+        c.execute(f"update estimates set value = 9e999 where test_id = {last} "
+                  "and parameter = 'R'")
+        c.execute(f"update estimates set value = -9e999 where test_id = {last} "
+                  "and parameter = 'L'")
+        c.execute(f"update estimates set value = 1e308, std_error = 1e308 where test_id = "
+                  f"{last} - 1 and parameter = 'Kt'")
+        c.execute("update symptoms set percent_change = 1e308 where parameter = 'R'")
+    client = create_app(db).test_client()
+    for url in ("/", "/units/E", "/api/units/E"):
+        assert client.get(url).status_code == 200, url
+    with open_store(str(db)) as store:
+        hist = store.history("E")
+    assert hist["R"].isna().sum() == 1 and hist["Kt"].isna().sum() == 1
+    res = CliRunner().invoke(app, ["report", "--db", str(db), "--out", str(tmp_path / "r")])
+    assert res.exit_code == 0, res.output

@@ -45,8 +45,16 @@ class TolerantDateTime(sa.types.TypeDecorator[datetime]):
         return process
 
 
+#: Beyond this magnitude a stored number is read as unknown: no quantity condmon
+#: stores (SI values, percent changes, seconds) comes near it, while another
+#: tool's stand-in for infinity (1e308) or an overflow does, and would break
+#: every sum and figure made of it.
+MAX_STORED = 1e100
+
+
 class TolerantFloat(sa.types.TypeDecorator[float]):
-    """A number column that reads a value that is not a number as unknown (None)."""
+    """A number column that reads a value that is not a number, not finite, or
+    beyond :data:`MAX_STORED` as unknown (None)."""
 
     impl = sa.Float
     cache_ok = True
@@ -55,9 +63,10 @@ class TolerantFloat(sa.types.TypeDecorator[float]):
         if value is None:
             return None
         try:
-            return float(value)
+            number = float(value)
         except (ValueError, TypeError, OverflowError):
             return None
+        return number if abs(number) <= MAX_STORED else None  # NaN fails the test too
 
 
 metadata = sa.MetaData()

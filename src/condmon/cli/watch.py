@@ -47,7 +47,7 @@ def register(app: typer.Typer) -> None:
         from condmon.store.engine import redact
         from condmon.workflows.live import (parse_broker, restore_signals, stop_on_signals,
                                             watch_mqtt)
-        from condmon.workflows.notify import Notifier
+        from condmon.workflows.notify import Notifier, shown_url
         from condmon.io.stream import StreamLimits
         from condmon.workflows.watch import Watcher, WatchEvent
         from condmon.workflows.watch_bounds import Bounds, unit_pattern
@@ -121,8 +121,9 @@ def register(app: typer.Typer) -> None:
                       highlight=False, soft_wrap=True)
         if notifier is not None:
             notifier.close()
-            out.print(f"webhook {notify}: {notifier.sent} events posted, {notifier.failed} "
-                      f"given up, {notifier.dropped} dropped for a full queue", markup=False,
+            out.print(f"webhook {shown_url(notify)}: {notifier.sent} events posted, "
+                      f"{notifier.failed} given up, {notifier.dropped} dropped for a full "
+                      f"queue, {notifier.left} left unposted at the stop", markup=False,
                       highlight=False, soft_wrap=True)
         fs = folder_result.get("summary")
         if fs is not None:

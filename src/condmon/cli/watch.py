@@ -24,7 +24,8 @@ def register(app: typer.Typer) -> None:
         duration: Annotated[Optional[float], typer.Option(help="Stop after this long [s] (default: until Ctrl-C or SIGTERM).", min=0)] = None,
         isolate_after: Annotated[Optional[float], typer.Option(help="Data after a detection before its isolation starts [s] (default: what the isolation's settings need).", min=0)] = None,
         settings: Annotated[Optional[Path], typer.Option(help="Detection/estimation/isolation settings TOML, as for isolate (default: the shipped isolation.toml).")] = None,
-        settle: Annotated[float, typer.Option(help="A dropped file is complete once unchanged this long [s].", min=0)] = 2.0,
+        settle: Annotated[float, typer.Option(help="With --complete settle, a dropped file is complete once unchanged this long [s].", min=0)] = 2.0,
+        complete: Annotated[str, typer.Option(help="How a dropped file is known to be complete: rename (written under a hidden or .part/.tmp name, then renamed into place: complete at once; best), marker (NAME.done written beside NAME), or settle (unchanged for --settle; a file written on after a longer pause is stored again and its part excluded as replaced).")] = "settle",
         client_id: Annotated[Optional[str], typer.Option(help="MQTT client id: the broker keeps this session's messages while the watcher is away; two watchers with one id push each other off (default: one per history).")] = None,
         notify: Annotated[Optional[str], typer.Option(help="Webhook URL: every event is POSTed to it as JSON, with retries, never holding the stream back.")] = None,
         journal: Annotated[Optional[Path], typer.Option(help="The journal of messages acknowledged to the broker and not yet stored, replayed at the next start (default: beside a SQLite history, DB.CLIENT-ID.journal; else in the working folder).")] = None,
@@ -51,7 +52,7 @@ def register(app: typer.Typer) -> None:
         from condmon.io.stream import StreamLimits
         from condmon.workflows.watch import Watcher, WatchEvent
         from condmon.workflows.watch_bounds import Bounds, unit_pattern
-        from condmon.workflows.watch_folder import FolderSummary, watch_folder
+        from condmon.workflows.watch_folder import COMPLETE, FolderSummary, watch_folder
 
         if folder is None and mqtt is None:
             raise ConfigError("give a FOLDER to watch, --mqtt HOST:PORT, or both")
@@ -60,6 +61,8 @@ def register(app: typer.Typer) -> None:
         if model is not None:
             get_model(model)  # an unknown model is refused before connecting
         pattern = unit_pattern(units)
+        if complete not in COMPLETE:
+            raise ConfigError(f"--complete {complete!r}: allowed: {', '.join(COMPLETE)}")
         if folder is not None and not folder.is_dir():
             raise ConfigError(f"{folder}: not a folder (watch a fleet inbox: FOLDER/UNIT/records)")
 
@@ -84,7 +87,8 @@ def register(app: typer.Typer) -> None:
 
         def run_folder() -> None:
             assert folder is not None
-            folder_result["summary"] = watch_folder(folder, db, settle=settle, stop=halt,
+            folder_result["summary"] = watch_folder(folder, db, settle=settle, complete=complete,
+                                                    stop=halt,
                                                     duration=duration, log=log, publish=post)
 
         if mqtt is None:
@@ -128,7 +132,8 @@ def register(app: typer.Typer) -> None:
         fs = folder_result.get("summary")
         if fs is not None:
             out.print(f"watched {folder} for {fs.seconds:.1f} s: {fs.files} files handled, "
-                      f"{fs.stored} stored, in {fs.runs} fleet runs", markup=False,
+                      f"{fs.stored} stored, in {fs.runs} fleet runs"
+                      + (f", {fs.replaced} stored in part and replaced" if fs.replaced else ""), markup=False,
                       highlight=False, soft_wrap=True)
 
 

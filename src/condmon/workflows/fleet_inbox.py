@@ -29,6 +29,13 @@ __all__ = ["FleetRecord", "inbox_records", "read_manifest", "UnitFile", "read_un
 
 #: Name of a unit folder's optional declaration (``model = "..."``).
 UNIT_FILE = "unit.toml"
+#: ``NAME.done`` beside ``NAME`` says a dropped file is whole (``watch --complete
+#: marker``); it is no record itself.
+MARKER = ".done"
+#: Names a logger writes a file under before renaming it into place: no records yet.
+TEMPORARY = (".part", ".tmp", ".partial")
+#: A ``unit.toml`` holds a few keys: past this it is refused unread. [bytes]
+MAX_UNIT_FILE = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -161,6 +168,11 @@ def read_unit_file(folder: Path) -> UnitFile:
     if not path.is_file():
         return UnitFile()
     try:
+        size = path.stat().st_size
+        if size > MAX_UNIT_FILE:
+            return UnitFile(error=f"{path}: {size} bytes, beyond the {MAX_UNIT_FILE} a unit "
+                                  "file may hold (it names a model, a group, [record] and "
+                                  "[metadata])")
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         return UnitFile(error=f"{path}: cannot read: {one_line(exc, None)}")
@@ -196,6 +208,7 @@ def _unit_records(folder: Path) -> list[FleetRecord]:
     declaration = Path(model).resolve() if model and model.lower().endswith(".toml") else None
     files = sorted((p for p in folder.rglob("*")
                     if (p.is_file() or _broken_link(p)) and p.name != UNIT_FILE
+                    and not p.name.endswith((MARKER, *TEMPORARY))
                     and not any(part.startswith(".") for part in p.relative_to(folder).parts)
                     and (declaration is None or p.resolve() != declaration)),
                    key=lambda p: _name_key(p.relative_to(folder)))

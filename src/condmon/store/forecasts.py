@@ -301,19 +301,28 @@ ISOLATED = ("its records are isolated against a plant model, not estimated; fore
             "follow the parameters of estimated tests")
 
 
-def _isolated_only(store: HistoryStore, unit: str) -> bool:
-    row = store.unit_summaries([unit])
+def _isolated_only(store: HistoryStore, unit: str, summary: dict[str, Any] | None) -> bool:
+    row = [summary] if summary is not None else store.unit_summaries([unit])
     return bool(row) and not row[0]["tests"] and bool(row[0]["isolations"])
 
 
-def try_forecast(store: HistoryStore, unit: str, fleet: FleetHistory | None = None
+def try_forecast(store: HistoryStore, unit: str, fleet: FleetHistory | None = None,
+                 summary: dict[str, Any] | None = None
                  ) -> tuple[UnitForecast | None, str | None]:
     """:func:`read_forecast`, or why there is none: ``(forecast, None)`` or
     ``(None, reason)`` (no baseline yet, too few usable healthy tests for
-    one, not enough tests to forecast, the model cannot be loaded); never raises a :class:`~condmon.errors.CondmonError`."""
-    usable = 0 if store.unit_model(unit) is None else len(baseline_members(store, unit)[0])
+    one, not enough tests to forecast, the model cannot be loaded); never raises a :class:`~condmon.errors.CondmonError`.
+
+    ``summary``, the unit's entry of :meth:`HistoryStore.unit_summaries` when
+    the caller has it, spares a unit without tests two queries (a listing of a
+    fleet of plant units is then one query, not two a unit).
+    """
+    if summary is not None and not summary["tests"]:
+        usable = 0
+    else:
+        usable = 0 if store.unit_model(unit) is None else len(baseline_members(store, unit)[0])
     if usable < MIN_BASELINE_TESTS:
-        if not usable and _isolated_only(store, unit):
+        if not usable and _isolated_only(store, unit, summary):
             return None, ISOLATED
         return None, NO_BASELINE if not usable else (
             f"no baseline: {usable} usable healthy test(s), a baseline needs "
@@ -379,7 +388,7 @@ def attach_forecasts(store: HistoryStore, rows: list[dict[str, Any]]) -> list[di
         if made is not None and made[:2] == (mark, peers):
             r.update(made[2])
             continue
-        fields = forecast_fields(*try_forecast(store, unit, fleet))
+        fields = forecast_fields(*try_forecast(store, unit, fleet, r))
         r.update(fields)
         if len(_MADE) >= _MADE_MAX:
             _MADE.clear()

@@ -449,9 +449,10 @@ def test_a_listing_forecasts_only_what_changed(wearing: tuple[Path, float],
         made: list[str] = []
         real = F.try_forecast
 
-        def counted(store_: object, unit: str, fleet: object = None) -> object:
+        def counted(store_: object, unit: str, fleet: object = None,
+                    summary: object = None) -> object:
             made.append(unit)
-            return real(store_, unit, fleet)  # type: ignore[arg-type]
+            return real(store_, unit, fleet, summary)  # type: ignore[arg-type]
 
         monkeypatch.setattr(F, "try_forecast", counted)
         again = {r["unit"]: r["forecast"] for r in F.fleet_summaries(store)}

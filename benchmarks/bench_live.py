@@ -14,9 +14,21 @@
   detection itself comes the persistence time (0.5 s) after the residual left
   its band, so onset-to-event is persistence + this latency. Goal: <= 100 ms.
 - **Throughput through the broker**: many units' chunks published as fast as
-  possible; chunks/s and samples/s handled by ``watch``.
+  possible; chunks/s and samples/s handled by ``watch`` (each message journaled
+  before it is acknowledged).
+- **Fault run** (``_live_chaos.py``): 6,000 messages at 400 msg/s, 10 faulty
+  HST units among 35 and 6 dc-motor units sending tests as chunks; 5 SIGTERMs,
+  5 SIGKILLs and 2 broker restarts at random moments. Goal: every test stored
+  whole and once, every fault isolated once, no tracker gap (0 messages lost
+  past the acknowledgement, 0 stored twice).
+- **Floods**: peak RSS of ``watch`` under 3.4 MB chunks, endless dc-motor tests
+  and 30,000 new unit names. Goal: <= 1 GB.
+- **The page under load**: ``GET /`` with 100 event clients. Goal: <= 1 s.
+- **Idle folder watch** over 30,000 files. Goal: <= 5 % of a core.
 
-Prints a table and writes results/live.json.
+    python benchmarks/bench_live.py --part faults flood page folder
+
+Prints tables, the machine's load, and writes results/live.json.
 """
 
 from __future__ import annotations
@@ -32,6 +44,8 @@ import tracemalloc
 from pathlib import Path
 
 import numpy as np
+
+import os
 
 from _common import table, write_json
 
@@ -114,8 +128,6 @@ def _publisher(port: int):  # type: ignore[no-untyped-def]
 
 
 def latency(broker, repeats: int) -> dict[str, float]:  # type: ignore[no-untyped-def]
-    from test_watch import _client  # noqa: F401  (a broker is started by the caller)
-
     samples = []
     for r in range(repeats):
         unit = f"LAT-{r}"
@@ -199,30 +211,61 @@ def main() -> None:
     ap.add_argument("--units", type=int, nargs="+", default=[10, 100, 1000])
     ap.add_argument("--seconds", type=int, default=10)
     ap.add_argument("--repeats", type=int, default=5)
+    parts = ("tracking", "latency", "throughput", "faults", "flood", "page", "folder")
+    ap.add_argument("--part", nargs="+", choices=parts, default=list(parts))
     args = ap.parse_args()
-    rows = [tracking(n, args.seconds) for n in args.units]
-    print(table(rows, "Online residual tracking of the HST (100 Hz, 1 s chunks, one core)"))
-    mem = watcher_memory(100)
-    print(table([mem], "A watcher's memory per plant unit (its model, detector and kept window)"))
-    from test_watch import Broker
+    doc: dict = {"loadavg_1min_start": os.getloadavg()[0]}
+    print(f"load average (1 min) at the start: {os.getloadavg()[0]:.2f} on "
+          f"{os.cpu_count()} cores")
+    if "tracking" in args.part:
+        rows = [tracking(n, args.seconds) for n in args.units]
+        print(table(rows, "Online residual tracking of the HST (100 Hz, 1 s chunks, one core)"))
+        mem = watcher_memory(100)
+        print(table([mem], "A watcher's memory per plant unit (its model, detector and kept "
+                           "window)"))
+        doc.update(tracking=rows, watcher_memory=mem)
+    from _broker import Broker
 
-    folder = Path(tempfile.mkdtemp())
-    broker = Broker.__new__(Broker)
-    try:
-        Broker.__init__(broker, folder)
-    except BaseException as exc:  # pytest.skip when mosquitto is missing
-        print(f"no broker: {exc}")
-        write_json("live", {"tracking": rows, "watcher_memory": mem})
-        return
-    try:
-        lat = latency(broker, args.repeats)
+    import _live_chaos as chaos
+
+    def broker_run(fn, *a):  # type: ignore[no-untyped-def]
+        folder = Path(tempfile.mkdtemp())
+        broker = Broker.__new__(Broker)
+        try:
+            Broker.__init__(broker, folder)
+        except BaseException as exc:  # pytest.skip when mosquitto is missing
+            print(f"no broker: {exc}")
+            return None
+        try:
+            return fn(broker, *a)
+        finally:
+            broker.kill()
+
+    if "latency" in args.part:
+        doc["latency"] = lat = broker_run(latency, args.repeats)
         print(table([lat], "Detection latency through mosquitto (chunk published -> event)"))
-        tp = throughput(broker, 50, args.seconds)
+    if "throughput" in args.part:
+        doc["throughput"] = tp = broker_run(throughput, 50, args.seconds)
         print(table([tp], "Throughput through mosquitto (50 units, 1 s chunks)"))
-    finally:
-        broker.kill()
-    path = write_json("live", {"tracking": rows, "watcher_memory": mem, "latency": lat,
-                               "throughput": tp})
+    if "faults" in args.part:
+        doc["faults"] = f = chaos.fault_run(Broker)
+        print(table([{k: v for k, v in f.items() if k != "disruptions"}],
+                    "Fault run: 5 SIGTERM, 5 SIGKILL, 2 broker restarts under a stream"))
+        print(f"disruptions (s after the stream started): {f['disruptions']}")
+    if "flood" in args.part:
+        doc["flood"] = fl = chaos.flood(Broker)
+        print(table([{k: v for k, v in fl.items() if k != "summary"}],
+                    "Floods: peak RSS of condmon watch"))
+        print(fl["summary"])
+    if "page" in args.part:
+        doc["page"] = pg = chaos.page_under_load()
+        print(table([pg], "The fleet page with 100 event clients connected"))
+    if "folder" in args.part:
+        doc["folder"] = fo = chaos.idle_folder()
+        print(table([fo], "An idle folder watch over 30,000 files"))
+    doc["loadavg_1min_end"] = os.getloadavg()[0]
+    print(f"load average (1 min) at the end: {os.getloadavg()[0]:.2f}")
+    path = write_json("live", doc)
     print(f"wrote {path}")
 
 

@@ -34,7 +34,7 @@ def _free_port() -> int:
 class Broker:
     """A mosquitto process on a loopback port, its sessions persisted in ``folder``."""
 
-    def __init__(self, folder: Path) -> None:
+    def __init__(self, folder: Path, extra: str = "") -> None:
         exe = _mosquitto()
         if exe is None:
             why = ("no MQTT broker: needs Debian's mosquitto (apt-get install mosquitto; "
@@ -51,7 +51,7 @@ class Broker:
         user = "user root\n" if os.geteuid() == 0 else ""
         self.conf.write_text(f"listener {self.port} 127.0.0.1\nallow_anonymous true\n"
                              f"persistence true\npersistence_location {store}/\n"
-                             f"autosave_interval 1\n{user}")
+                             f"autosave_interval 1\n{user}{extra}")
         self.proc: subprocess.Popen[bytes] | None = None
         self.start()
 

@@ -294,8 +294,10 @@ class Watcher:
         events = self.poll(wait=True)
         for unit, parts in self._tests.items():
             if parts:
+                kept = ("; it is kept in the journal and goes on at the next start"
+                        if self._test_refs.get(unit) else "")
                 self.log(f"{unit}: an unfinished test ({sum(len(p['t']) for p in parts)} "
-                         "samples, no {\"end\": true}) was not checked")
+                         "samples, no {\"end\": true}) was not checked" + kept)
         self._pool.shutdown(wait=True)
         return events
 

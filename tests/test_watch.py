@@ -23,7 +23,8 @@ from condmon.simulate.plant import simulate_plant
 from condmon.store import open_store
 from condmon.workflows.live import watch_mqtt
 
-from _broker import Broker, Listener, _client, _connected, _publish_records, broker  # noqa: F401
+from _broker import (Broker, Listener, _client, _connected, _free_port,  # noqa: F401
+                     _publish_records, broker)
 
 HST = load_plant_model("hst")
 

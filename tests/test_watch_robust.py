@@ -261,3 +261,53 @@ def test_a_sigkill_under_a_stream_loses_no_acknowledged_test(broker: Broker,
             assert len(store.history(u)) == 6, (u, err[-2000:])
             for record in tests[u]:  # whole: the stored content is the record's
                 assert store.find_test(u, content_hash(record)) is not None, (u, err[-2000:])
+
+
+def test_a_long_chunk_among_many_short_ones_is_not_padded_to_all(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The flood's attack: one unit's long chunk stepped with many units' 2-sample
+    chunks padded them all to its length (at 100,000 samples and 10,000 units,
+    24 GB). Units are now stepped together only while padding stays within
+    twice their samples, and a long chunk is stepped in pieces."""
+    import condmon.workflows.watch_bounds as wb
+    from condmon.diagnose.tracking import ModelTracker
+
+    monkeypatch.setattr(wb, "PIECE", 1_000)  # 10,000 shipped: the same cut, 10 times smaller
+    rec = simulate_plant(HST, seed=5, duration=30.0)
+    long = json.dumps({c: rec[c].iloc[:2_500].tolist() for c in rec.columns}).encode()
+    short = b'{"t": [0, 0.01], "Ps": [1e7, 1e7], "omega_m": [100, 100]}'
+    padded: list[int] = []
+    real = ModelTracker.feed
+
+    def feed(self: ModelTracker, chunks: Any) -> Any:
+        lengths = [len(c["t"]) for c in chunks.values()]
+        padded.append(max(lengths) * len(lengths))
+        assert max(lengths) * len(lengths) <= 2 * sum(lengths)
+        return real(self, chunks)
+
+    monkeypatch.setattr(ModelTracker, "feed", feed)
+    with open_store(str(tmp_path / "pad.db")) as store:
+        w = Watcher(store, model="hst")
+        msgs = [("condmon/LONG/samples", long, None)] + [
+            (f"condmon/S{i}/samples", short, None) for i in range(300)]
+        _handle(w, msgs, StreamLimits.shipped(), w.log)
+        assert w.counters.refused == 0 and w.counters.received == 301
+        assert w._plants["LONG"].chunks[-1]["t"][-1] == rec["t"].iloc[2_499]
+    assert sorted(padded) == [500, 600, 1_000, 1_000], padded
+
+
+def test_a_stop_ends_a_long_batch_and_leaves_the_rest_in_the_journal(tmp_path: Path) -> None:
+    rec = simulate_plant(HST, seed=6, duration=60.0)
+    payloads = _chunks(rec, 1000)
+    book = StreamJournal(tmp_path / "h.journal")
+    with open_store(str(tmp_path / "h.db")) as store:
+        w = Watcher(store, model="hst", keep=1e9)
+        refs = book.add([("condmon/H/samples", p) for p in payloads])
+        w.halt.set()
+        _handle(w, [("condmon/H/samples", p, r) for p, r in zip(payloads, refs)],
+                StreamLimits.shipped(), w.log)
+        assert w.finished == [] and len(book) == len(payloads)   # nothing stepped, all kept
+        again = Watcher(store, model="hst", keep=1e9)
+        _handle(again, [(t, p, r) for r, t, p in book.pending()], StreamLimits.shipped(),
+                again.log)
+        assert again._plants["H"].chunks[-1]["t"][-1] == rec["t"].iloc[-1]

@@ -182,6 +182,7 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
         log(f"{event.unit}: {event.status}: {event.reason}")
 
     w = watcher or Watcher(store, model=model)
+    w.halt = halt  # a stop ends a long batch within one step; the journal keeps the rest
     w.publish = publish
     w.log = log
     try:

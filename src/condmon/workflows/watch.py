@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import math
+import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
@@ -43,7 +44,7 @@ from condmon.models.registry import get_model
 from condmon.store.db import HistoryStore
 from condmon.store.engine import StoreError
 from condmon.store.history import DuplicateTestError
-from condmon.workflows.watch_bounds import Bounds, Refused, nbytes
+from condmon.workflows.watch_bounds import Bounds, Refused, by_length, nbytes, pieces
 
 __all__ = ["WatchEvent", "WatchCounters", "Watcher"]
 
@@ -158,6 +159,8 @@ class Watcher:
     max_test_samples: int = field(
         default_factory=lambda: StreamLimits.shipped().max_test_samples)
     bounds: Bounds = field(default_factory=Bounds)
+    #: Set to stop within one step: chunks not yet stepped stay in the journal.
+    halt: threading.Event = field(default_factory=threading.Event)
     counters: WatchCounters = field(default_factory=WatchCounters)
     #: Journal rows of chunks done with (effect stored, refused, or out of the
     #: kept window): the transport deletes them (:mod:`condmon.store.journal`).
@@ -224,24 +227,26 @@ class Watcher:
                 continue
             models[name] = machine
             queue = rounds.setdefault(name, [])
-            slot = next((r for r in queue if chunk.unit not in r), None)
-            if slot is None:
-                slot = {}
-                queue.append(slot)
-            slot[chunk.unit] = chunk
+            at = next((k for k, r in enumerate(queue) if chunk.unit not in r), len(queue))
+            for k, piece in enumerate(pieces(chunk), start=at):
+                while len(queue) <= k:
+                    queue.append({})
+                queue[k][chunk.unit] = piece
         for name, queue in rounds.items():
             machine = models[name]  # the unit's, as machine_of found it (no file read again)
             tracker = self._trackers.get(name)
             if tracker is None:
                 tracker = self._trackers[name] = ModelTracker(machine.plant,
                                                               self.settings.detection)
-            for batch in queue:
+            for batch in (g for r in queue for g in by_length(list(r.values()))):
+                if self.halt.is_set():
+                    return events  # a stop: what is left stays in the journal
                 try:
-                    outs = tracker.feed({u: c.columns for u, c in batch.items()})
+                    outs = tracker.feed({c.unit: c.columns for c in batch})
                 except Exception as exc:  # one batch's model step never stops the stream
-                    self._refuse(list(batch.values()), exc)
+                    self._refuse(batch, exc)
                     continue
-                for chunk, out in zip(batch.values(), outs):
+                for chunk, out in zip(batch, outs):
                     try:
                         events += self._tracked(chunk, out, machine)
                     except StoreError:

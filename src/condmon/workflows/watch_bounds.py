@@ -10,22 +10,76 @@ from __future__ import annotations
 
 import re
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from condmon.errors import ConfigError, DataError
-from condmon.io.stream import StreamLimits
+from condmon.io.stream import Chunk, StreamLimits
 
-__all__ = ["Bounds", "Refused", "nbytes", "unit_pattern"]
+__all__ = ["Bounds", "Refused", "nbytes", "unit_pattern", "pieces", "by_length"]
 
 SAY_EVERY = 10.0  # [s] between two lines about the same kind of refusal
+#: Samples of a plant unit's chunk stepped at once: a longer chunk (up to
+#: ``[stream] max_chunk_samples``) is stepped in pieces, so a stop is never more
+#: than one piece away (about 10 s of CPU for one unit).
+PIECE = 10_000
+#: Unit-samples one vectorised step of many units may hold: units of one round
+#: are stepped together only while padding every chunk to the longest stays
+#: within it (about 100 MB of inputs and outputs for the HST) and wastes at most
+#: half the work.
+CELLS = 2_000_000
 
 
 def nbytes(columns: Mapping[str, np.ndarray]) -> int:
     """Bytes a chunk's columns hold."""
     return int(sum(a.nbytes for a in columns.values()))
+
+
+def pieces(chunk: Chunk, most: int | None = None) -> list[Chunk]:
+    """``chunk`` cut into pieces of at most ``most`` samples, in order; the last
+    piece carries its journal row (done with once the whole chunk is).
+
+    Example
+    -------
+    >>> c = Chunk("U1", {"t": np.arange(5.0)}, ref=7)
+    >>> [(len(p.columns["t"]), p.ref) for p in pieces(c, 2)]
+    [(2, None), (2, None), (1, 7)]
+    """
+    most = most or PIECE
+    n = chunk.samples
+    if n <= most:
+        return [chunk]
+    cuts = list(range(0, n, most))
+    return [Chunk(chunk.unit, {c: v[k:k + most] for c, v in chunk.columns.items()},
+                  chunk.end and k == cuts[-1], chunk.ref if k == cuts[-1] else None)
+            for k in cuts]
+
+
+def by_length(batch: Sequence[Chunk], cells: int = CELLS) -> list[list[Chunk]]:
+    """One round's chunks (one a unit) in groups stepped together: by length,
+    a group's padded size (its longest chunk times its units) within ``cells``
+    and at most twice its samples.
+
+    Example
+    -------
+    >>> short = [Chunk(f"U{i}", {"t": np.zeros(10)}) for i in range(3)]
+    >>> long = Chunk("L", {"t": np.zeros(1000)})
+    >>> [[c.unit for c in g] for g in by_length([long, *short])]
+    [['U0', 'U1', 'U2'], ['L']]
+    """
+    groups: list[list[Chunk]] = []
+    for chunk in sorted(batch, key=lambda c: c.samples):
+        group = groups[-1] if groups else None
+        if group is not None:
+            padded = chunk.samples * (len(group) + 1)
+            if padded <= cells and padded <= 2 * (sum(c.samples for c in group)
+                                                  + chunk.samples):
+                group.append(chunk)
+                continue
+        groups.append([chunk])
+    return groups
 
 
 def unit_pattern(text: str | None) -> re.Pattern[str] | None:

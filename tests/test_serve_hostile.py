@@ -143,3 +143,30 @@ def test_numbers_no_quantity_reaches_read_as_unknown(tmp_path: Path) -> None:
     assert hist["R"].isna().sum() == 1 and hist["Kt"].isna().sum() == 1
     res = CliRunner().invoke(app, ["report", "--db", str(db), "--out", str(tmp_path / "r")])
     assert res.exit_code == 0, res.output
+
+
+def test_listing_every_plant_unit_costs_the_same_queries_however_many(tmp_path: Path) -> None:
+    """`?per_page=all` over 30,000 plant units ran past 400 s: each unit without
+    tests cost two more queries (its baseline, its summary again)."""
+    import sqlalchemy as sa
+
+    def statements(n: int) -> int:
+        db = tmp_path / f"u{n}.db"
+        with open_store(str(db)) as store:
+            for i in range(n):
+                store.unit_id(f"HST-{i}", create=True, model="hst")
+            count = [0]
+
+            def tick(*_: Any) -> None:
+                count[0] += 1
+
+            client = create_app(db).test_client()
+            sa.event.listen(sa.engine.Engine, "before_cursor_execute", tick)
+            try:
+                doc = client.get("/api/units?per_page=all").get_json()
+            finally:
+                sa.event.remove(sa.engine.Engine, "before_cursor_execute", tick)
+            assert len(doc["units"]) == n
+            return count[0]
+
+    assert statements(40) == statements(10)

@@ -20,8 +20,8 @@ when its modification time changes (a file added, renamed or removed), and only
 files not yet handed over, or handed over less than ``RECHECK`` seconds ago,
 are looked at. Complete files are handed to
 :func:`condmon.workflows.fleet.run_fleet` (``files=``), so each gets exactly the
-outcome a ``fleet run`` would give it, on one local cluster kept for the whole
-watch; a file already in the history is skipped as ``fleet run`` skips it. Each
+outcome a ``fleet run`` would give it, on a local cluster kept while files
+come (closed after ``IDLE`` seconds without one); a file already in the history is skipped as ``fleet run`` skips it. Each
 stored test's status is an event (:class:`~condmon.workflows.watch.WatchEvent`).
 """
 
@@ -49,6 +49,9 @@ COMPLETE = ("settle", "rename", "marker")
 #: (settle only); then it is left alone, so idle cost does not grow with the
 #: files ever seen. [s]
 RECHECK = 600.0
+#: The local cluster is closed after this long without a new file, and started
+#: again (about 2 s) for the next. [s]
+IDLE = 60.0
 
 
 @dataclass
@@ -127,13 +130,21 @@ def watch_folder(folder: str | Path, db: str, *, settle: float = 2.0, poll: floa
         "marker": f"a file is complete once NAME{MARKER} is beside it"}[complete] + ")")
     summary = FolderSummary()
     started = time.monotonic()
-    with ExitStack() as stack:
+    with ExitStack() as outer:
+        stack = outer.enter_context(ExitStack())   # the local cluster, while files come
         scheduler: str | None = None
+        last = time.monotonic()
         while not halt.is_set():
             if duration is not None and time.monotonic() - started >= duration:
                 break
             ready = files.ready()
+            if not ready and scheduler is not None and time.monotonic() - last > IDLE:
+                stack.close()  # an idle cluster's heartbeats cost more than the watch itself
+                scheduler = None
+                log(f"no new file for {IDLE:g} s: the local cluster is closed (started again "
+                    "for the next file)")
             if ready:
+                last = time.monotonic()
                 if scheduler is None:
                     client = stack.enter_context(local_cluster(workers))
                     scheduler = str(client.scheduler.address)  # type: ignore[union-attr]

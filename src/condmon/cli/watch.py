@@ -123,7 +123,7 @@ def register(app: typer.Typer) -> None:
                       + (f", {summary.replayed} replayed from the journal" if summary.replayed
                          else "") + f"; history {redact(db)}", markup=False,
                       highlight=False, soft_wrap=True)
-        if notifier is not None:
+        if notifier is not None and notify is not None:
             notifier.close()
             out.print(f"webhook {shown_url(notify)}: {notifier.sent} events posted, "
                       f"{notifier.failed} given up, {notifier.dropped} dropped for a full "

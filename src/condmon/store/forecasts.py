@@ -301,7 +301,8 @@ ISOLATED = ("its records are isolated against a plant model, not estimated; fore
             "follow the parameters of estimated tests")
 
 
-def _isolated_only(store: HistoryStore, unit: str, summary: dict[str, Any] | None) -> bool:
+def _isolated_only(store: HistoryStore, unit: str, summary: dict[str, Any] | None = None
+                   ) -> bool:
     row = [summary] if summary is not None else store.unit_summaries([unit])
     return bool(row) and not row[0]["tests"] and bool(row[0]["isolations"])
 

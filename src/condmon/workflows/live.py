@@ -133,7 +133,8 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
     book = StreamJournal(journal if journal is not None
                          else default_journal(str(store.url), client_id))
     inbox: queue.Queue[_Message] = queue.Queue()
-    state = {"overflow": 0, "connections": 0, "bytes": 0, "said": -1e9}
+    state = {"overflow": 0, "connections": 0, "bytes": 0}
+    said = [-1e9]  # when the last line about a full queue was said [s, monotonic]
     count = threading.Lock()  # "bytes" is counted up by paho's thread, down by this one
     halt = stop or threading.Event()
 
@@ -162,8 +163,8 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
         if full:
             state["overflow"] += 1  # refused: acknowledged, so the broker does not resend it
             c.ack(msg.mid, msg.qos)
-            if time.monotonic() - state["said"] >= 10.0:
-                state["said"] = time.monotonic()
+            if time.monotonic() - said[0] >= 10.0:
+                said[0] = time.monotonic()
                 log(f"refused: a message on {msg.topic[:80]!r}: {inbox.qsize()} messages of "
                     f"{state['bytes']} bytes wait already ([stream] queue_bytes = "
                     f"{lim.queue_bytes}, queue = {lim.queue}); {state['overflow']} refused so far")

@@ -150,3 +150,15 @@ def _connected(proc: subprocess.Popen[str], timeout: float = 60.0) -> None:
     pytest.fail(f"condmon watch did not connect: {proc.stderr.read()}")
 
 
+
+
+def start_watch(broker: Broker, db: Path, model: str, client_id: str) -> subprocess.Popen[str]:
+    """`condmon watch --mqtt` as a child process, once it has subscribed."""
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "condmon.cli.main", "watch", "--mqtt",
+                             broker.address, "--db", str(db), "--model", model,
+                             "--client-id", client_id],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    _connected(proc)
+    return proc

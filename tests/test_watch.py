@@ -24,7 +24,7 @@ from condmon.store import open_store
 from condmon.workflows.live import watch_mqtt
 
 from _broker import (Broker, Listener, _client, _connected, _free_port,  # noqa: F401
-                     _publish_records, broker)
+                     _publish_records, broker, start_watch)
 
 HST = load_plant_model("hst")
 
@@ -384,12 +384,7 @@ def test_after_a_sigkill_a_restart_stores_no_event_twice(broker: Broker, tmp_pat
     rec = simulate_plant(HST, ["Rv=+40%@8s"], seed=51, duration=16.0)
 
     def start() -> subprocess.Popen[str]:
-        proc = subprocess.Popen([sys.executable, "-m", "condmon.cli.main", "watch", "--mqtt",
-                                 broker.address, "--db", str(db), "--model", "hst",
-                                 "--client-id", "kill-watch"],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        _connected(proc)
-        return proc
+        return start_watch(broker, db, "hst", "kill-watch")
 
     listen = Listener(broker)
     first = start()

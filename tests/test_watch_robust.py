@@ -11,7 +11,6 @@ import json
 import re
 import signal
 import subprocess
-import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -34,7 +33,7 @@ from condmon.workflows.live import _handle
 from condmon.workflows.watch import Watcher
 from condmon.workflows.watch_bounds import Bounds
 
-from _broker import Broker, _client, _connected, broker  # noqa: F401
+from _broker import Broker, _client, broker, start_watch  # noqa: F401
 
 HST = load_plant_model("hst")
 TOPIC = "condmon/U1/samples"
@@ -215,12 +214,7 @@ def test_a_sigkill_under_a_stream_loses_no_acknowledged_test(broker: Broker,
     streams = {u: [_chunks(t, 250) + [b'{"end": true}'] for t in tests[u]] for u in units}
 
     def start() -> subprocess.Popen[str]:
-        proc = subprocess.Popen([sys.executable, "-m", "condmon.cli.main", "watch", "--mqtt",
-                                 broker.address, "--db", str(db), "--model", "dc-motor",
-                                 "--client-id", "kill-tests"],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        _connected(proc)
-        return proc
+        return start_watch(broker, db, "dc-motor", "kill-tests")
 
     def stored(n: int, timeout: float = 120.0) -> bool:
         deadline = time.monotonic() + timeout

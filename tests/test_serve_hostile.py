@@ -71,9 +71,9 @@ def test_new_unit_names_past_the_limit_are_not_kept() -> None:
 
 
 @pytest.mark.parametrize("url,message", [
-    ("/api/units?per_page=99999999999999999999", "per_page='99999999999999999999': a whole "
-     "number from 1 to 1000000 or 'all'"),
-    ("/api/units?page=0", "page='0': a whole number from 1 to 1000000"),
+    ("/api/units?per_page=99999999999999999999", "per_page=99999999999999999999: at most "
+     "1000000"),
+    ("/api/units?page=" + "9" * 400, "page=999999999999999999999999: at most 1000000"),
     ("/api/units?q=" + "a" * 60_000, "q: a search of up to 200 printable characters "
      "(this one has 60000)"),
     ("/api/units?q=EMA%00", "q: a search of up to 200 printable characters (this one has 4, "

@@ -197,14 +197,15 @@ def create_app(db: str | Path, *, refresh: float = 30.0, live: LiveFeed | None =
             return default
         if raw == "all" and name == "per_page":
             return None
+        text = str(raw)
         try:
-            value = int(str(raw)[:12])
-            if len(str(raw)) > 12 or not 1 <= value <= MAX_NUMBER:
-                raise ValueError
-            return value
+            value = int(text[:24])
         except ValueError:
-            raise FilterError(f"{name}={str(raw)[:20]!r}: a whole number from 1 to {MAX_NUMBER}"
+            raise FilterError(f"{name}={text[:20]!r}: a whole number >= 1"
                               + (" or 'all'" if name == "per_page" else "")) from None
+        if len(text) > 24 or value > MAX_NUMBER:  # the range below 1 is the listing's to say
+            raise FilterError(f"{name}={text[:24]}: at most {MAX_NUMBER}")
+        return value
 
     def query() -> str | None:
         q = request.args.get("q")

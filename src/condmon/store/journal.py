@@ -41,12 +41,15 @@ def default_journal(history: str, client_id: str) -> Path:
     'plant/condmon.db.watch-1.journal'
     >>> default_journal("postgresql://u@h/db", "watch-1").as_posix()
     'condmon.watch-1.journal'
+    >>> default_journal("sqlite:////data/h.db", "w").as_posix(), default_journal("sqlite://", "w")
+    ('/data/h.db.w.journal', PosixPath('condmon.w.journal'))
     """
     safe = "".join(ch if ch.isalnum() or ch in "._-" else "_" for ch in client_id)
-    if "://" in history and not history.startswith("sqlite"):
+    if history.startswith("sqlite:///") and len(history) > len("sqlite:///"):
+        return Path(f"{history[len('sqlite:///'):]}.{safe}.journal")
+    if "://" in history or history.startswith("sqlite"):  # a server, or a memory history
         return Path(f"condmon.{safe}.journal")
-    path = history.split("///", 1)[1] if history.startswith("sqlite") else history
-    return Path(f"{path}.{safe}.journal")
+    return Path(f"{history}.{safe}.journal")
 
 
 class StreamJournal:

@@ -197,11 +197,13 @@ def test_an_open_test_past_its_bytes_is_dropped_and_said(tmp_path: Path) -> None
                for ln in lines), lines
 
 
-def test_a_sigkill_under_a_stream_loses_no_acknowledged_test(broker: Broker,
-                                                             tmp_path: Path) -> None:
+@pytest.mark.parametrize("how", [signal.SIGKILL, signal.SIGTERM], ids=["SIGKILL", "SIGTERM"])
+def test_a_stop_under_a_stream_loses_no_acknowledged_test(broker: Broker, tmp_path: Path,
+                                                          how: signal.Signals) -> None:
     """dc-motor units send tests as chunks through mosquitto; the watcher is
-    killed (SIGKILL) mid-stream and started again: every test sent is stored,
-    once, whole."""
+    killed (SIGKILL) or stopped (SIGTERM) mid-stream and started again: every
+    test sent is stored, once, whole. (With the acknowledgement at receipt, the
+    SIGKILL lost the chunks waiting behind a check.)"""
     from condmon.workflows.monitoring import add_baseline_tests
 
     db = tmp_path / "k.db"
@@ -241,8 +243,8 @@ def test_a_sigkill_under_a_stream_loses_no_acknowledged_test(broker: Broker,
     send(1, slice(None))
     send(2, slice(0, 6))  # these wait behind the second tests' checks
     time.sleep(0.15)
-    watcher.send_signal(signal.SIGKILL)
-    watcher.communicate(timeout=20)
+    watcher.send_signal(how)
+    watcher.communicate(timeout=60)
     watcher = start()
     send(2, slice(6, None))
     pub.loop_stop()  # type: ignore[attr-defined]
@@ -305,3 +307,53 @@ def test_a_stop_ends_a_long_batch_and_leaves_the_rest_in_the_journal(tmp_path: P
         _handle(again, [(t, p, r) for r, t, p in book.pending()], StreamLimits.shipped(),
                 again.log)
         assert again._plants["H"].chunks[-1]["t"][-1] == rec["t"].iloc[-1]
+
+
+def test_a_full_queue_refuses_in_bytes_and_says_so_at_once(broker: Broker,
+                                                           tmp_path: Path) -> None:
+    """A flood of valid messages once reached 3 GB: the queue counted messages, not
+    bytes. Past ``[stream] queue_bytes`` a message is refused, counted and said
+    while the watch runs."""
+    import threading
+
+    from condmon.workflows.live import watch_mqtt
+
+    limits = dataclasses.replace(StreamLimits.shipped(), queue_bytes=20_000)
+    payload = json.dumps({"t": [0.0, 0.01], "Ps": [1e7] * 2, "omega_m": [100.0] * 2,
+                          "pad": [0.0] * 2}).encode() + b" " * 4_000
+    lines: list[str] = []
+    stop = threading.Event()
+    result: dict[str, Any] = {}
+
+    class Slow(Watcher):
+        def handle_many(self, chunks: Any) -> Any:
+            time.sleep(1.0)  # busy: the flood piles up behind it
+            return super().handle_many(chunks)
+
+    def run() -> None:
+        with open_store(str(tmp_path / "q.db")) as store:
+            result["s"] = watch_mqtt(store, broker.address, watcher=Slow(store, model="hst"),
+                                     stop=stop, log=lines.append, client_id="q-watch",
+                                     limits=limits)
+
+    th = threading.Thread(target=run, daemon=True)
+    th.start()
+    deadline = time.monotonic() + 60
+    while not any("subscribed to" in ln for ln in lines) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    pub = _client("q-pub")
+    pub.connect("127.0.0.1", broker.port)  # type: ignore[attr-defined]
+    pub.loop_start()  # type: ignore[attr-defined]
+    for i in range(60):
+        pub.publish(f"condmon/F{i}/samples", payload, qos=0)
+    deadline = time.monotonic() + 30
+    while not any("queue_bytes = 20000" in ln for ln in lines) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    said = [ln for ln in lines if "queue_bytes = 20000" in ln]
+    stop.set()
+    th.join(60)
+    pub.loop_stop()  # type: ignore[attr-defined]
+    assert said and said[0].startswith("refused: a message on 'condmon/F"), lines
+    summary = result["s"]
+    assert summary.overflow > 0
+    assert summary.overflow + summary.counters.received == 60

@@ -18,6 +18,7 @@ may be PostgreSQL), and needs none of SQLAlchemy's portability.
 from __future__ import annotations
 
 import sqlite3
+import threading
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
@@ -72,6 +73,7 @@ class StreamJournal:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
+        self._lock = threading.Lock()  # one connection, written by two threads in turn
         try:
             self._db = sqlite3.connect(str(self.path), isolation_level=None,
                                        check_same_thread=False)
@@ -86,7 +88,7 @@ class StreamJournal:
     def add(self, messages: Iterable[tuple[str, bytes]]) -> list[int]:
         """Write messages in one transaction; their ids, in order."""
         try:
-            with self._tx():
+            with self._lock, self._tx():
                 return [int(self._db.execute(
                     "INSERT INTO messages (topic, payload) VALUES (?, ?)",
                     (topic, sqlite3.Binary(payload))).lastrowid or 0)
@@ -100,7 +102,7 @@ class StreamJournal:
         if not rows:
             return
         try:
-            with self._tx():
+            with self._lock, self._tx():
                 self._db.executemany("DELETE FROM messages WHERE id = ?", rows)
         except sqlite3.Error as exc:
             raise JournalError(f"{self.path}: cannot write the journal ({exc})") from None
@@ -108,14 +110,17 @@ class StreamJournal:
     def pending(self) -> Iterator[tuple[int, str, bytes]]:
         """The messages kept, oldest first: ``(id, topic, payload)``."""
         try:
-            rows = self._db.execute("SELECT id, topic, payload FROM messages ORDER BY id")
-            for ident, topic, payload in rows:
-                yield int(ident), str(topic), bytes(payload)
+            with self._lock:
+                rows = self._db.execute(
+                    "SELECT id, topic, payload FROM messages ORDER BY id").fetchall()
         except sqlite3.Error as exc:
             raise JournalError(f"{self.path}: cannot read the journal ({exc})") from None
+        for ident, topic, payload in rows:
+            yield int(ident), str(topic), bytes(payload)
 
     def __len__(self) -> int:
-        return int(self._db.execute("SELECT count(*) FROM messages").fetchone()[0])
+        with self._lock:
+            return int(self._db.execute("SELECT count(*) FROM messages").fetchone()[0])
 
     def close(self) -> None:
         """Close the file (what it holds stays for the next start)."""

@@ -30,10 +30,10 @@ import queue
 import signal
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from condmon.errors import ConfigError, CondmonError
 from condmon.io.stream import STATUS_TOPIC, StreamLimits, parse_broker, parse_chunk
@@ -44,6 +44,7 @@ from condmon.workflows.watch import WatchCounters, WatchEvent, Watcher
 
 __all__ = ["parse_broker", "LiveSummary", "watch_mqtt", "stop_on_signals", "restore_signals"]
 
+T = TypeVar("T")
 SUBSCRIPTION = "condmon/+/samples"
 BATCH = 2000  # messages handled together at most (one integration of many units)
 
@@ -133,7 +134,7 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
     book = StreamJournal(journal if journal is not None
                          else default_journal(str(store.url), client_id))
     inbox: queue.Queue[_Message] = queue.Queue()
-    state = {"overflow": 0, "connections": 0, "bytes": 0}
+    state = {"overflow": 0, "connections": 0, "bytes": 0, "held": 0}
     said = [-1e9]  # when the last line about a full queue was said [s, monotonic]
     count = threading.Lock()  # "bytes" is counted up by paho's thread, down by this one
     halt = stop or threading.Event()
@@ -157,15 +158,16 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
 
     def on_message(c: Any, userdata: Any, msg: Any) -> None:
         size = len(msg.payload)
-        with count:
-            full = state["bytes"] + size > lim.queue_bytes or inbox.qsize() >= lim.queue
+        with count:  # what waits to be journaled or handled
+            full = state["bytes"] + size > lim.queue_bytes or state["held"] >= lim.queue
             state["bytes"] += 0 if full else size
+            state["held"] += 0 if full else 1
         if full:
             state["overflow"] += 1  # refused: acknowledged, so the broker does not resend it
             c.ack(msg.mid, msg.qos)
             if time.monotonic() - said[0] >= 10.0:
                 said[0] = time.monotonic()
-                log(f"refused: a message on {msg.topic[:80]!r}: {inbox.qsize()} messages of "
+                log(f"refused: a message on {msg.topic[:80]!r}: {state['held']} messages of "
                     f"{state['bytes']} bytes wait already ([stream] queue_bytes = "
                     f"{lim.queue_bytes}, queue = {lim.queue}); {state['overflow']} refused so far")
             return
@@ -191,18 +193,41 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
     except OSError as exc:
         raise ConfigError(f"--mqtt {broker}: cannot reach the broker at {host}:{port} "
                           f"({exc})") from None
-    def _take(batch: list[_Message]) -> None:
-        """Journal, acknowledge and handle messages received."""
+    ready: queue.Queue[tuple[str, bytes, int]] = queue.Queue()
+    taking = threading.Event()  # set: the journal thread stops taking messages
+    failed: list[BaseException] = []
+
+    def release(payloads: list[bytes]) -> None:
         with count:
-            state["bytes"] -= sum(len(m.payload) for m in batch)
-        # a message of an earlier connection is not acknowledged: the broker
-        # sends it again on this one (persistent session), and that copy is taken
-        batch = [m for m in batch if m.connection == state["connections"]]
-        refs = book.add([(m.topic, m.payload) for m in batch])
-        for m in batch:
-            client.ack(m.mid, m.qos)
-        _handle(w, [(m.topic, m.payload, ref) for m, ref in zip(batch, refs)], lim, log)
-        book.done(_taken(w.finished))
+            state["bytes"] -= sum(len(p) for p in payloads)
+            state["held"] -= len(payloads)
+
+    def journal_loop() -> None:
+        """Journal and acknowledge messages as they come, while the main thread
+        steps the ones before: the broker's window of unacknowledged messages
+        (20 by mosquitto's default) keeps moving, and the main thread takes
+        many units' chunks in one step."""
+        while not taking.is_set():
+            try:
+                first = inbox.get(timeout=0.1)
+            except queue.Empty:
+                continue
+            batch = [first, *_drain(inbox, BATCH)]
+            # a message of an earlier connection is not acknowledged: the broker
+            # sends it again on this one (persistent session), and that copy is taken
+            old = [m for m in batch if m.connection != state["connections"]]
+            release([m.payload for m in old])
+            batch = [m for m in batch if m.connection == state["connections"]]
+            try:
+                refs = book.add([(m.topic, m.payload) for m in batch])
+            except CondmonError as exc:  # not acknowledged: the broker keeps them
+                failed.append(exc)
+                halt.set()
+                return
+            for m in batch:
+                client.ack(m.mid, m.qos)
+            for m, ref in zip(batch, refs):
+                ready.put((m.topic, m.payload, ref))
 
     client.loop_start()
     previous = stop_on_signals(halt)
@@ -218,26 +243,34 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
             book.done(_taken(w.finished))
             replayed += len(kept[k:k + BATCH])
         del kept
+        journaling = threading.Thread(target=journal_loop, name="journal", daemon=True)
+        journaling.start()
         while not halt.is_set():
             if duration is not None and time.monotonic() - started >= duration:
                 break
             while outbox is not None and not outbox.empty():
                 publish(outbox.get_nowait())
             try:
-                first = inbox.get(timeout=0.1)
+                first = ready.get(timeout=0.1)
             except queue.Empty:
                 w.poll()
                 book.done(_taken(w.finished))
                 continue
-            _take([first, *_drain(inbox, BATCH)])
+            batch = [first, *_drain(ready, BATCH)]
+            _handle(w, batch, lim, log)
+            release([p for _, p, _ in batch])
             w.poll()
             book.done(_taken(w.finished))
-        # the stop: what waits now is journaled and handled; nothing more is taken
-        # (what the broker sends after this is not acknowledged: it keeps it)
-        _take(_drain(inbox, inbox.qsize()))
+        # the stop: nothing more is taken; what was journaled and not handled stays
+        # in the journal, what was not journaled stays with the broker
+        taking.set()
+        journaling.join()
         w.close()
         book.done(_taken(w.finished))
+        if failed:
+            raise failed[0]
     finally:
+        taking.set()
         halt.set()  # a stop, not a lost broker
         restore_signals(previous)
         client.disconnect()
@@ -271,9 +304,9 @@ def _taken(finished: list[int]) -> list[int]:
     return out
 
 
-def _drain(inbox: queue.Queue[_Message], most: int) -> list[_Message]:
+def _drain(inbox: queue.Queue[T], most: int) -> list[T]:
     """Up to ``most`` messages waiting in the queue (none: an empty list)."""
-    out: list[_Message] = []
+    out: list[T] = []
     while len(out) < most:
         try:
             out.append(inbox.get_nowait())
@@ -282,7 +315,7 @@ def _drain(inbox: queue.Queue[_Message], most: int) -> list[_Message]:
     return out
 
 
-def _handle(w: Watcher, messages: list[tuple[str, bytes, int | None]], lim: StreamLimits,
+def _handle(w: Watcher, messages: Sequence[tuple[str, bytes, int | None]], lim: StreamLimits,
             log: Callable[[str], None]) -> None:
     """Validate messages and hand the good ones to the watcher together; a
     message refused is done with (its journal row goes)."""

@@ -336,13 +336,14 @@ def test_every_file_of_a_unit_is_accounted_for(tmp_path: Path,
         (unit / name).write_text("t\n")
     (unit / "unit.toml").write_text('model = "dc-motor"\n')
     db = tmp_path / "f.db"
-    assert main(["fleet", "run", str(tmp_path / "inbox5"), "--db", str(db)]) == 0
+    assert main(["fleet", "run", str(tmp_path / "inbox5"), "--db", str(db)]) == 2
     got = capsys.readouterr()
     readable = ".csv, .parquet, .pq, .txt, .tsv, .mat, .tdms"
     assert got.err.splitlines() == [
         f"refused {unit / name}: not a record file ({what}); readable: {readable}"
         for name, what in (("a.dat", ".dat"), ("b.csv.gz", ".csv.gz"), ("noext", "no suffix"),
-                           ("notes.xyz", ".xyz"))]
+                           ("notes.xyz", ".xyz"))] + [
+        "nothing was stored: 4 record(s) refused and none taken (exit 2)"]
     assert "4 records: 0 stored, 0 skipped, 0 rejected, 4 refused" in got.out
     assert "records/s" not in got.out and not db.exists()
 
@@ -506,3 +507,16 @@ def test_local_workers_keep_glibcs_adaptive_allocator() -> None:
         env = list(client.run(lambda: (os.environ.get("MALLOC_TRIM_THRESHOLD_"),
                                        os.environ.get("OPENBLAS_NUM_THREADS"))).values())
     assert env == [(None, "1")]
+
+
+def test_a_run_that_stores_nothing_and_refuses_something_exits_2(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Every record refused once exited 0, as if all was well."""
+    (tmp_path / "inbox" / "EMA-1").mkdir(parents=True)
+    (tmp_path / "inbox" / "EMA-1" / "r1.csv").write_text("x,y\n1,2\n")
+    db = str(tmp_path / "f.db")
+    assert main(["fleet", "run", str(tmp_path / "inbox"), "--db", db, "--workers", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "nothing was stored: 1 record(s) refused and none taken (exit 2)" in err
+    assert main(["fleet", "run", str(tmp_path / "inbox"), "--db", db, "--workers", "1",
+                 "--json"]) == 2

@@ -53,7 +53,8 @@ def register(app: typer.Typer) -> None:
         gets fault isolation. Records already in the history (same file or same
         content) are skipped, so running again stores nothing new. A record
         that cannot be read or estimated is refused with its reason; the others
-        go on.
+        go on. Exits 2 when records were refused and none was stored (a run
+        that only skips what is stored already exits 0).
         """
         from condmon.errors import ConfigError
         from condmon.io.records import parse_column_map
@@ -81,8 +82,12 @@ def register(app: typer.Typer) -> None:
             raise typer.Exit(130) from None
         if as_json:
             write_json(res.to_dict())
-            return
-        _print_result(res, str(source))
+        else:
+            _print_result(res, str(source))
+        if res.count("refused") and not (res.count("stored") or res.count("rejected")):
+            err.print(f"nothing was stored: {res.count('refused')} record(s) refused and none "
+                      "taken (exit 2)", highlight=False, markup=False, soft_wrap=True)
+            raise typer.Exit(2)
 
 
 @contextmanager

@@ -270,3 +270,20 @@ def test_units_of_a_history_without_units_says_so(tmp_path: Path,
     open_store(db).close()
     assert main(["units", "--db", db]) == 0
     assert "no units in" in capsys.readouterr().out
+
+
+def test_the_route_option_lists_every_route_and_rules_name_their_default(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """--route left out `steady`, and check --rules said "the shipped one" for a
+    model's own rule base."""
+    from condmon.models.machine import ROUTES
+
+    for command in (["estimate"], ["check"], ["baseline", "add"]):
+        assert main([*command, "--help"]) == 0
+        text = " ".join(re.sub(r"[│╭╮╰╯─]", " ", capsys.readouterr().out).split())
+        listed = re.search(r"Estimation route: ([a-z, ]+?) \(", text)
+        assert listed is not None, text
+        assert set(re.split(r", | or ", listed.group(1))) == set(ROUTES), listed.group(1)
+    assert main(["check", "--help"]) == 0
+    text = " ".join(re.sub(r"[│╭╮╰╯─]", " ", capsys.readouterr().out).split())
+    assert "the shipped one" not in text and "the model's own" in text

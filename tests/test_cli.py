@@ -287,3 +287,15 @@ def test_the_route_option_lists_every_route_and_rules_name_their_default(
     assert main(["check", "--help"]) == 0
     text = " ".join(re.sub(r"[│╭╮╰╯─]", " ", capsys.readouterr().out).split())
     assert "the shipped one" not in text and "the model's own" in text
+
+
+def test_help_lists_every_command_in_workflow_order(capsys: pytest.CaptureFixture[str]) -> None:
+    """--help listed the commands in the order they happened to be registered."""
+    from condmon.cli.main import WORKFLOW, app
+
+    assert main(["--help"]) == 0
+    shown = re.findall(r"^│ ([a-z]+) ", capsys.readouterr().out, flags=re.M)
+    assert shown == list(WORKFLOW)
+    import typer.main
+
+    assert set(typer.main.get_command(app).commands) == set(WORKFLOW)  # type: ignore[attr-defined]

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Annotated, Any, Optional
 
 import typer
+from typer.core import TyperGroup
 from rich.markup import escape
 from rich.table import Table
 
@@ -37,7 +38,24 @@ from condmon.cli.watch import register as register_watch_command
 from condmon.errors import CondmonError
 from condmon.identify.defaults import DEFAULT_FIT_THRESHOLD, list_estimators
 
+#: ``condmon --help`` lists the commands in the order of a user's work: try it,
+#: estimate, baseline and check a unit, a fleet and live units, read the history,
+#: look after it.
+WORKFLOW = ("demo", "simulate", "estimate", "baseline", "check", "isolate", "fleet", "watch",
+            "history", "units", "forecast", "report", "serve", "exclude", "include", "audit",
+            "rules")
+
+
+class _InWorkflowOrder(TyperGroup):
+    """Commands listed in :data:`WORKFLOW` order (any other after them, by name)."""
+
+    def list_commands(self, ctx: Any) -> list[str]:
+        rank = {name: i for i, name in enumerate(WORKFLOW)}
+        return sorted(self.commands, key=lambda n: (rank.get(n, len(rank)), n))
+
+
 app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode="markdown",
+                  cls=_InWorkflowOrder,
                   help="Model-based condition monitoring: estimate, trend, diagnose.")
 simulate_app = typer.Typer(no_args_is_help=True, help="Simulate test-beds with known parameters.")
 app.add_typer(simulate_app, name="simulate")

@@ -440,7 +440,7 @@ def test_unknown_suffix_lists_every_readable_one(tmp_path: Path) -> None:
 def test_mapping_problems(tmp_path: Path) -> None:
     p = tmp_path / "rec.csv"
     p.write_text("t,V,volts\n0,1,2\n1,2,3\n")
-    with pytest.raises(DataError, match=r"column mapping names 'volts' for more than one"):
+    with pytest.raises(DataError, match=r"gives the file's column 'volts' to 'V' and 'I'"):
         read_record(p, {"V": "volts", "I": "volts"})
     df = _read_quiet(p, {"V": "volts"})  # the mapped column replaces the file's own V
     assert list(df.columns) == ["t", "V"] and df["V"].tolist() == [2, 3]
@@ -529,3 +529,13 @@ def test_quoted_decimal_commas_in_a_comma_csv(tmp_path: Path) -> None:
     p = tmp_path / "quoted.csv"
     p.write_text('"t","V"\n"0,000","1,5"\n"0,001","2,5"\n')
     assert _read_quiet(p).to_dict("list") == {"t": [0.0, 0.001], "V": [1.5, 2.5]}
+
+
+def test_a_file_column_given_to_two_model_columns_names_both(tmp_path: Path) -> None:
+    """`--columns x=position` where `position` is read as itself said "names
+    'position' for more than one column", naming neither taker."""
+    p = tmp_path / "r.csv"
+    pd.DataFrame({"t": [0.0, 1.0], "position": [1.0, 2.0]}).to_csv(p, index=False)
+    with pytest.raises(DataError, match="gives the file's column 'position' to 'x' and "
+                       "'position'; a file column reads as one model column"):
+        read_record(p, {"x": "position", "position": "position"})

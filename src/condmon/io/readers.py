@@ -102,7 +102,10 @@ def read_record(path: str | Path, columns: Mapping[str, str] | None = None) -> p
     mapping = dict(columns or {})
     twice = sorted({f for f in mapping.values() if list(mapping.values()).count(f) > 1})
     if twice:
-        raise DataError(f"{p}: column mapping names {twice[0]!r} for more than one column")
+        takers = [k for k, v in mapping.items() if v == twice[0]]
+        raise DataError(f"{p}: the column mapping gives the file's column {twice[0]!r} to "
+                        f"{' and '.join(map(repr, takers))}; a file column reads as one "
+                        "model column (map the others to other columns)")
     if p.stat().st_size == 0:
         raise DataError(f"{p}: the file is empty")
     try:

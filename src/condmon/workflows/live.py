@@ -206,13 +206,15 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
         """Journal and acknowledge messages as they come, while the main thread
         steps the ones before: the broker's window of unacknowledged messages
         (20 by mosquitto's default) keeps moving, and the main thread takes
-        many units' chunks in one step."""
-        while not taking.is_set():
+        many units' chunks in one step. At the stop, what waits is journaled
+        too (what it holds is kept; what comes after is left to the broker)."""
+        while True:
+            stopping = taking.is_set()
             try:
-                first = inbox.get(timeout=0.1)
+                first = [inbox.get(timeout=0.1)] if not stopping else []
             except queue.Empty:
                 continue
-            batch = [first, *_drain(inbox, BATCH)]
+            batch = [*first, *_drain(inbox, inbox.qsize() if stopping else BATCH)]
             # a message of an earlier connection is not acknowledged: the broker
             # sends it again on this one (persistent session), and that copy is taken
             old = [m for m in batch if m.connection != state["connections"]]
@@ -228,6 +230,8 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
                 client.ack(m.mid, m.qos)
             for m, ref in zip(batch, refs):
                 ready.put((m.topic, m.payload, ref))
+            if stopping:
+                return
 
     client.loop_start()
     previous = stop_on_signals(halt)

@@ -539,3 +539,16 @@ def test_a_file_column_given_to_two_model_columns_names_both(tmp_path: Path) -> 
     with pytest.raises(DataError, match="gives the file's column 'position' to 'x' and "
                        "'position'; a file column reads as one model column"):
         read_record(p, {"x": "position", "position": "position"})
+
+
+def test_excel_s_sep_line_is_understood(tmp_path: Path) -> None:
+    """Excel's `sep=;` first line was taken for the header and refused with a
+    misleading reason."""
+    p = tmp_path / "excel.csv"
+    p.write_text("sep=;\nt;V\n0,000;1,5\n0,001;2,5\n", encoding="utf-8-sig")
+    frame = read_record(p)
+    assert frame["t"].tolist() == [0.0, 0.001] and frame["V"].tolist() == [1.5, 2.5]
+    p.write_text("sep=,\nt;V\n0,000;1,5\n0,001;2,5\n")
+    with pytest.raises(DataError, match="line 1 says sep=,, but the lines after it read as "
+                       "semicolon-separated, decimal comma"):
+        read_record(p)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import csv
 import io
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -28,6 +29,8 @@ __all__ = ["Dialect", "sniff_dialect", "read_delimited"]
 SNIFF_BYTES = 65536
 #: Lines (header included) on which the dialect is told.
 SNIFF_LINES = 50
+#: Excel's first line naming the separator of a CSV it writes or reads (``sep=;``).
+_EXCEL_SEP = re.compile(r"\A[ \t]*sep=([,;\t])[ \t]*\r?\n", re.IGNORECASE)
 _NAMES = {",": "comma", ";": "semicolon", "\t": "tab"}
 #: Every digit as written: before pandas 3.1 the parser's default may be off in the
 #: last bit (1e-12 relative), its round-trip one is exact; from 3.1 on every
@@ -48,11 +51,14 @@ class Dialect:
         Decimal mark: ``"."`` or ``","``.
     encoding : str
         ``"utf-8-sig"``, or ``"latin-1"`` when the bytes are not UTF-8.
+    skip : int
+        Lines before the header: 1 for Excel's ``sep=;`` line.
     """
 
     sep: str
     decimal: str
     encoding: str = "utf-8-sig"
+    skip: int = 0
 
     def describe(self) -> str:
         """``"semicolon-separated, decimal comma"``."""
@@ -217,7 +223,15 @@ def read_delimited(path: Path) -> RawRecord:
     >>> d.cleanup()
     """
     text, encoding = _read_head(path)
+    said = _EXCEL_SEP.match(text)
+    if said is not None:  # Excel's "sep=;" line: the separator, said before the header
+        text = text[said.end():]
     dialect = sniff_dialect(text, path, path.suffix.lower(), encoding)
+    if said is not None:
+        if said.group(1) != dialect.sep:
+            raise DataError(f"{path}: line 1 says sep={said.group(1)}, but the lines after it "
+                            f"read as {dialect.describe()}")
+        dialect = Dialect(dialect.sep, dialect.decimal, encoding, skip=1)
     header = next(csv.reader([text.splitlines()[0] if text else ""], delimiter=dialect.sep), [])
     names = [h.strip() for h in header]
     twice = sorted({n for n in names if n and names.count(n) > 1})
@@ -227,7 +241,8 @@ def read_delimited(path: Path) -> RawRecord:
     frame = _parse(path, dialect)
     if dialect.sep != "," and _misread(frame, dialect.decimal):
         # the first lines held no decimal mark, later ones the other: read again
-        other = Dialect(dialect.sep, "." if dialect.decimal == "," else ",", encoding)
+        other = Dialect(dialect.sep, "." if dialect.decimal == "," else ",", encoding,
+                        dialect.skip)
         alt = _parse(path, other)
         if _typed_columns(alt) > _typed_columns(frame):
             frame = alt
@@ -251,6 +266,7 @@ def _misread(frame: pd.DataFrame, decimal: str) -> bool:
 def _parse(path: Path, dialect: Dialect) -> pd.DataFrame:
     frame: pd.DataFrame = pd.read_csv(path, sep=dialect.sep, decimal=dialect.decimal,
                                       encoding=dialect.encoding, skipinitialspace=True,
+                                      skiprows=dialect.skip,
                                       low_memory=False, **_EXACT)
     frame.columns = [str(c).strip() for c in frame.columns]
     return frame

@@ -552,3 +552,12 @@ def test_excel_s_sep_line_is_understood(tmp_path: Path) -> None:
     with pytest.raises(DataError, match="line 1 says sep=,, but the lines after it read as "
                        "semicolon-separated, decimal comma"):
         read_record(p)
+
+
+def test_an_excel_error_cell_is_a_missing_value_at_its_own_row(tmp_path: Path) -> None:
+    """A German Excel `#NV` cell made the column "not numeric (row 0: '1,5')",
+    quoting a valid value of another row."""
+    p = tmp_path / "excel.csv"
+    p.write_text("t;V\n0,000;1,5\n0,001;#NV\n0,002;2,5\n")
+    frame = read_record(p)
+    assert frame["V"].tolist()[0] == 1.5 and np.isnan(frame["V"].tolist()[1])

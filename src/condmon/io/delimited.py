@@ -30,6 +30,10 @@ SNIFF_BYTES = 65536
 #: Lines (header included) on which the dialect is told.
 SNIFF_LINES = 50
 #: Excel's first line naming the separator of a CSV it writes or reads (``sep=;``).
+#: Excel's error cells, in its English and German versions, beside pandas' own
+#: missing-value marks: a missing value, not text that makes a column not numeric.
+_EXCEL_NA = ["#NV", "#N/A", "#WERT!", "#VALUE!", "#DIV/0!", "#BEZUG!", "#REF!", "#ZAHL!",
+             "#NUM!"]
 _EXCEL_SEP = re.compile(r"\A[ \t]*sep=([,;\t])[ \t]*\r?\n", re.IGNORECASE)
 _NAMES = {",": "comma", ";": "semicolon", "\t": "tab"}
 #: Every digit as written: before pandas 3.1 the parser's default may be off in the
@@ -150,6 +154,7 @@ def sniff_dialect(text: str, source: Path | str, suffix: str = ".csv",
             continue
         try:
             sample = pd.read_csv(io.StringIO("\n".join(lines)), sep=sep, decimal=decimal,
+                                 na_values=_EXCEL_NA,
                                  skipinitialspace=True, **_EXACT)
         except (ValueError, pd.errors.ParserError):
             continue
@@ -266,7 +271,7 @@ def _misread(frame: pd.DataFrame, decimal: str) -> bool:
 def _parse(path: Path, dialect: Dialect) -> pd.DataFrame:
     frame: pd.DataFrame = pd.read_csv(path, sep=dialect.sep, decimal=dialect.decimal,
                                       encoding=dialect.encoding, skipinitialspace=True,
-                                      skiprows=dialect.skip,
+                                      skiprows=dialect.skip, na_values=_EXCEL_NA,
                                       low_memory=False, **_EXACT)
     frame.columns = [str(c).strip() for c in frame.columns]
     return frame

@@ -206,8 +206,8 @@ def _write(tmp: Path, name: str, df: pd.DataFrame) -> str:
 
 
 @pytest.mark.parametrize("kind,expect", [
-    ("rpm", "likely unit or sign error: Ke = "),
-    ("mA", "likely unit or sign error"),
+    ("rpm", "column 'omega' (speed sensor) in rpm?"),
+    ("mA", "column 'I' (current sensor) in mA?"),
     ("V negated", "retest"),
     ("time in ms", "is column 't' in milliseconds"),
     ("short", "needs at least 1 s"),
@@ -231,6 +231,8 @@ def test_check_refuses_unit_errors(unit_db: tuple[Path, Path], kind: str, expect
         assert '"faults": []' in captured.out
         return
     assert rc == 2
+    if kind in ("rpm", "mA"):   # refused, and the column to fix is named
+        assert "likely unit or sign error" in captured.err
     assert expect in captured.err
     assert "Traceback" not in captured.err and len(captured.err.strip().splitlines()) == 1
 
@@ -245,6 +247,7 @@ def test_baseline_add_refuses_a_unit_error_and_keeps_the_rest(
     assert main(["baseline", "add", bad, good, "--unit", "U", "--db", str(db)]) == 0
     captured = capsys.readouterr()
     assert "refused" in captured.err and "likely unit or sign error" in captured.err
+    assert "column 'omega' (speed sensor) in rpm?" in captured.err
     assert "1 test(s) added" in captured.out
 
 

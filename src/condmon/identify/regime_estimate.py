@@ -282,6 +282,10 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
         rejection = spec.plausibility.check_values(judged, machine.units,
                                                    {k: v for k, v in zip(names, se)
                                                     if k in trended})
+    if rejection is None:
+        rejection = spec.plausibility.check_precision(
+            {k: v for k, v in zip(names, vals) if k in trended}, machine.units,
+            {k: v for k, v in zip(names, se) if k in trended})
     if rejection is None and not np.all(np.isfinite(se)):
         rejection = "the standard errors are not finite: the data do not determine the model"
     if rejection is None:

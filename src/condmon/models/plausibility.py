@@ -102,6 +102,38 @@ class Plausibility:
                 if len(negative) >= 2 else "")
         return "not physically possible: " + ", ".join(bad) + hint
 
+    def excludes_zero(self, name: str) -> bool:
+        """Whether the bounds of ``name`` leave 0 out (``R > 0``): a magnitude
+        that every unit of the model has, not one that may vanish."""
+        bound = self.bounds.get(name)
+        if bound is None:
+            return False
+        return any((op == "gt" and b >= 0) or (op == "ge" and b > 0) or
+                   (op == "lt" and b <= 0) or (op == "le" and b < 0) for op, b in bound.limits)
+
+    def check_precision(self, values: Mapping[str, float], units: Mapping[str, str],
+                        std_errors: Mapping[str, float]) -> str | None:
+        """Why an estimate is not a measurement (None when it is): a parameter
+        that cannot be 0 (:meth:`excludes_zero`) whose standard error exceeds
+        its value. Its 68 % interval then holds 0 and twice the value alike:
+        the record does not tell the unit's value, and a change computed from
+        it would be read as any fault (the symptom band spans both ways).
+
+        Example
+        -------
+        >>> p = Plausibility({"R": Bound((("gt", 0.0),))})
+        >>> p.check_precision({"R": 1.08}, {"R": "ohm"}, {"R": 40.5})
+        'not a measurement: R = 1.08 ± 40.5 ohm (the standard error exceeds the value)'
+        """
+        bad = [f"{k} = {values[k]:.3g} ± {std_errors[k]:.3g} {units.get(k, '')}".rstrip()
+               for k in self.bounds if k in values and k in std_errors
+               and self.excludes_zero(k) and math.isfinite(values[k])
+               and math.isfinite(std_errors[k]) and std_errors[k] > abs(values[k])]
+        if not bad:
+            return None
+        return ("not a measurement: " + ", ".join(bad)
+                + f" (the standard error exceeds the value{'s' if len(bad) > 1 else ''})")
+
     def bound_notes(self, values: Mapping[str, float], units: Mapping[str, str],
                     std_errors: Mapping[str, float]) -> list[str]:
         """What to say of estimates near a bound: one outside it by less than 3

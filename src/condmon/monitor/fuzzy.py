@@ -205,13 +205,18 @@ def symptom_degree(r: ArrayLike, width: ArrayLike, r1: ArrayLike, r2: ArrayLike
     Returns
     -------
     high, low : ndarray
-        Degrees in [0, 1], broadcast shape of the inputs.
+        Degrees in [0, 1], broadcast shape of the inputs. Where the band
+        ``r ± width`` reaches both ``r1`` and ``-r1`` the direction is not
+        measured, and both are 0; so ``high > 0`` implies ``r > 0`` and
+        ``low > 0`` implies ``r < 0``.
 
     Example
     -------
     >>> h, l = symptom_degree([0.0, 30.0, 45.0], 2.0, 20.0, 40.0)
     >>> h.round(4), l
     (array([0.    , 0.5455, 1.    ]), array([0., 0., 0.]))
+    >>> symptom_degree(7.0, 40.0, 15.0, 30.0)    # the band spans both ways
+    (array(0.), array(0.))
     """
     r_a = np.asarray(r, dtype=np.float64)
     w = np.asarray(width, dtype=np.float64)
@@ -223,7 +228,13 @@ def symptom_degree(r: ArrayLike, width: ArrayLike, r1: ArrayLike, r2: ArrayLike
         high = np.round(np.clip((r_a + w - a) / (w + d), 0.0, 1.0), 12).astype(np.float64)
         low = np.round(np.clip((-r_a + w - a) / (w + d), 0.0, 1.0), 12).astype(np.float64)
     # a parameter the test does not have (another regime's) is no symptom
-    return np.nan_to_num(high, nan=0.0), np.nan_to_num(low, nan=0.0)
+    high, low = np.nan_to_num(high, nan=0.0), np.nan_to_num(low, nan=0.0)
+    # A band that reaches both +r1 and -r1 cannot say which way the parameter
+    # went: neither symptom is evidence (a fault read from it would contradict
+    # the measured change's sign). With both kept, a +7 % change with a wide
+    # band read "high" and "low" at once and named a decrease.
+    both = (high > 0) & (low > 0)
+    return np.where(both, 0.0, high), np.where(both, 0.0, low)
 
 
 def symptom_width(mean: ArrayLike, std: ArrayLike, std_error: ArrayLike | None,

@@ -41,9 +41,9 @@ from condmon.monitor.unit_forecast import in_test_order
 from condmon.store.db import HistoryStore
 from condmon.store.forecasts import keep_forecast
 from condmon.workflows.monitoring import (
-    _existing_baseline, _held, _unit_error, _unit_options, current_baseline, evaluate,
-    conditioning, filed_elsewhere, governed, monitoring_of, no_baseline_yet, restricted,
-    save_current_baseline,
+    _existing_baseline, _held, _unit_error, _unit_options, conditioning, current_baseline,
+    estimate_judged, evaluate, filed_elsewhere, governed, monitoring_of, no_baseline_yet,
+    restricted, save_current_baseline,
 )
 from condmon.workflows.records import EstimateOptions, RecordLike
 
@@ -341,8 +341,7 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
         cfg, rb = monitoring_of(machine, baseline, monitor or peer_monitor(machine, baseline),
                                 rules or machine_rules(machine))
         latest, flags = None, ()
-    res, key = opts.with_hold(_held(baseline)).run(record, test_date)
-    why = _unit_error(res, baseline) if res.usable else None
+    res, key, why = estimate_judged(opts, record, test_date, baseline)
     if why is not None:
         raise DataError(f"{res.source}: refused, {why}; nothing was stored")
     against_label = "unit" if ref is None else ref.label

@@ -22,7 +22,7 @@ import pandas as pd
 
 from condmon.diagnose.diagnoser import Diagnosis, diagnose
 from condmon.diagnose.rules import RuleBase, machine_rules
-from condmon.errors import DataError
+from condmon.errors import DataError, EstimationError, MissingColumnsError
 from condmon.identify.estimate import EstimateResult
 from condmon.io.dates import parse_date
 from condmon.models.machine import Machine
@@ -440,6 +440,45 @@ def _unit_error(res: EstimateResult, baseline: Baseline) -> str | None:
     return None
 
 
+def estimate_judged(opts: EstimateOptions, record: RecordLike,
+                    test_date: str | datetime | None, baseline: Baseline | None
+                    ) -> tuple[EstimateResult, RecordKey, str | None]:
+    """Estimate a record for a unit with ``baseline`` (None: none yet): the
+    result, how the record is known, and why it is refused as a likely unit
+    or sign error against the baseline (None when it is not).
+
+    A refused or rejected estimate names the column whose unit would explain
+    it when one does ("column 'I' (current sensor) in mA?"): the record is
+    estimated again with each measured column read in the units a rig
+    commonly writes instead (:mod:`condmon.identify.unit_errors`).
+    """
+    held = opts.with_hold(_held(baseline))
+    df, key, source = held.parse(record, test_date)
+
+    def believable(r: EstimateResult) -> bool:
+        return r.usable and (baseline is None or _unit_error(r, baseline) is None)
+
+    reference = None if baseline is None else dict(zip(baseline.parameters, baseline.mean))
+    try:
+        res = held.estimate_parsed(df, source)
+    except (DataError, EstimationError) as err:   # refused by the route (a singular fit)
+        if isinstance(err, MissingColumnsError):
+            raise
+        hint = held.unit_hint(df, source, believable, reference)
+        if hint:
+            raise type(err)(f"{err}{hint}") from None
+        raise
+    why = _unit_error(res, baseline) if baseline is not None and res.usable else None
+    if why is None and res.usable:
+        return res, key, None
+    hint = held.unit_hint(df, source, believable, reference)
+    if why is not None:
+        return res, key, why + hint
+    if hint:
+        res = dataclasses.replace(res, rejection=f"{res.reason}{hint}")
+    return res, key, None
+
+
 def _held(baseline: Baseline | None) -> dict[str, float] | None:
     """Values to hold unidentified unknowns at: the baseline's means."""
     return None if baseline is None else dict(zip(baseline.parameters, baseline.mean))
@@ -472,8 +511,7 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
         if progress is not None:
             progress(i, len(records), str(name))
         prior = _existing_baseline(store, unit)
-        res, key = opts.with_hold(_held(prior)).run(rec, test_date)
-        why = None if prior is None or not res.usable else _unit_error(res, prior)
+        res, key, why = estimate_judged(opts, rec, test_date, prior)
         if why is not None:
             added.append(AddedTest(res.source, -1, False, False, why, refused=True))
             continue

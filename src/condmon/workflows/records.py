@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
@@ -175,14 +175,34 @@ class EstimateOptions:
     def run(self, record: RecordLike, test_date: str | datetime | None = None
             ) -> tuple[EstimateResult, RecordKey]:
         """Read (if a path), estimate; returns the result and how the record is known."""
+        df, key, source = self.parse(record, test_date)
+        return self.estimate_parsed(df, source), key
+
+    def parse(self, record: RecordLike, test_date: str | datetime | None = None
+              ) -> tuple[pd.DataFrame | Columns, RecordKey, str]:
+        """Read (if a path) and apply the record settings: the record in model
+        columns, how it is known, and its name for messages."""
         if not isinstance(record, (str, Path)):
             df = self.prepared(record)
-            key = record_key(df, None, test_date, self.metadata)
-            source = str(record.attrs.get("source", "record"))
-        else:
-            df = self.read(record)
-            key, source = record_key(df, record, test_date, self.metadata), str(record)
-        return self.estimate_parsed(df, source), key
+            return (df, record_key(df, None, test_date, self.metadata),
+                    str(record.attrs.get("source", "record")))
+        df = self.read(record)
+        return df, record_key(df, record, test_date, self.metadata), str(record)
+
+    def unit_hint(self, df: pd.DataFrame | Columns, source: str,
+                  accept: Callable[[EstimateResult], bool],
+                  reference: Mapping[str, float] | None = None) -> str:
+        """Which column's unit would explain a refused estimate of ``df``
+        (:func:`condmon.identify.unit_errors.unit_suspects`), as a clause
+        starting with "; " (empty when none does)."""
+        from condmon.identify.unit_errors import suspect_text, unit_suspects
+        from condmon.models.registry import get_model
+
+        plant = get_model(self.model or "dc-motor").plant
+        columns = {c.name: (c.unit, c.description) for c in (*plant.sensors, *plant.inputs)}
+        found = unit_suspects(df, columns, lambda cols: self.estimate_parsed(cols, source),
+                              accept, reference)
+        return f"; {suspect_text(found)}" if found else ""
 
     def estimate_parsed(self, df: pd.DataFrame | Columns, source: str, *, mapped: bool = True
                         ) -> EstimateResult:

@@ -92,6 +92,23 @@ def _record_id(text: str) -> tuple[str, int]:
 
 def register(app: typer.Typer, baseline_app: typer.Typer) -> None:
     """Add the history-management commands to the CLI."""
+    unit_app = typer.Typer(no_args_is_help=True, help="Look after a unit's record in the "
+                                                      "history.")
+    app.add_typer(unit_app, name="unit")
+
+    @unit_app.command("set-model")
+    def set_model_cmd(
+        unit: Annotated[str, typer.Argument(help="The unit.")],
+        model: Annotated[str, typer.Argument(help="Its declaration file (.toml): moved, renamed, or a new version.")],
+        reason: Annotated[Optional[str], typer.Option(help="Why (kept in the audit trail; default: whether the declaration means the same).")] = None,
+        db: DbOpt = "condmon.db",
+        as_json: JsonOpt = False,
+    ) -> None:
+        """Point a unit at its declaration file again: the history keeps the file's
+        text with the unit, and `audit` shows the change."""
+        from condmon.workflows.manage import set_unit_model
+
+        _change(db, as_json, lambda store: set_unit_model(store, unit, model, reason))
 
     @app.command("exclude")
     def exclude_cmd(

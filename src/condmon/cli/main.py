@@ -43,7 +43,7 @@ from condmon.identify.defaults import DEFAULT_FIT_THRESHOLD, list_estimators
 #: look after it.
 WORKFLOW = ("demo", "simulate", "estimate", "baseline", "check", "isolate", "fleet", "watch",
             "history", "units", "forecast", "report", "serve", "exclude", "include", "audit",
-            "rules")
+            "unit", "rules")
 
 
 class _InWorkflowOrder(TyperGroup):

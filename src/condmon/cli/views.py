@@ -185,7 +185,7 @@ def register(app: typer.Typer) -> None:
                             for i in range(0, len(frame), 200)
                             for d in frame_records(frame.iloc[i:i + 200]))
             return
-        name = escape(Path(model).name)
+        name = escape(_declared_name(model))
         if len(isos):
             _print_isolations(unit, name, isos)
         if len(hist) == 0:
@@ -255,7 +255,7 @@ def register(app: typer.Typer) -> None:
                                         "date": 10}.get(col))
         for row in cells:
             table.add_row(*(row[k] for k in visible))
-        out.print(f"History of {escape(unit)} ({escape(Path(model).name)}): change against the "
+        out.print(f"History of {escape(unit)} ({name}): change against the "
                   "baseline [%]", highlight=False)
         out.print(table)
         if hidden:
@@ -321,3 +321,15 @@ def _print_isolations(unit: str, model: str, isos: Any) -> None:
     out.print(table)
     for iid, r in isos.iterrows():
         out.print(f"i{iid} {r['statement']}", highlight=False, markup=False)
+
+
+def _declared_name(model: str) -> str:
+    """A model's declared name (a declaration's ``name``; its file name when it
+    cannot be read)."""
+    from condmon.errors import CondmonError
+    from condmon.models.registry import get_model
+
+    try:
+        return get_model(model).name
+    except CondmonError:
+        return Path(model).name

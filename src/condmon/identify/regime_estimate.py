@@ -282,7 +282,7 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
         rejection = spec.plausibility.check_values(judged, machine.units,
                                                    {k: v for k, v in zip(names, se)
                                                     if k in trended})
-    if rejection is None:
+    if rejection is None and fit.accepted:   # a fit below its threshold says so first
         rejection = spec.plausibility.check_precision(
             {k: v for k, v in zip(names, vals) if k in trended}, machine.units,
             {k: v for k, v in zip(names, se) if k in trended})

@@ -16,6 +16,7 @@ from condmon.errors import ConfigError
 from condmon.io.dates import as_utc
 from condmon.models.regimes import split_key
 from condmon.store import schema as S
+from condmon.store.declarations import keep_declaration, resolved_model
 from condmon.store.engine import SCHEMA_LOCK, actor, redact, run_read, run_write, store_error
 
 __all__ = ["StoreBase", "TOUCHED", "now", "num", "check_name", "as_utc", "utc_column",
@@ -244,8 +245,10 @@ class StoreBase:
                 return int(row.id)
             if not create:
                 raise self._unknown_unit(c, name)
+            digest = keep_declaration(c, model_source, quiet=True) if model_source else None
             res = c.execute(sa.insert(S.units).values(name=name, model=model, created_at=now(),
-                                                      model_source=model_source))
+                                                      model_source=model_source,
+                                                      model_digest=digest))
             uid = int(res.inserted_primary_key[0])  # type: ignore[index]
             self._log(c, "unit created", unit_id=uid, detail={"unit": name, "model": model})
             return uid
@@ -256,25 +259,65 @@ class StoreBase:
             return self._write(run, lock=name)
         return self._read(run)
 
-    def unit_model(self, unit: str) -> str | None:
-        """The unit's model: its declaration file when it is not a shipped model,
-        else its name (None for an unknown unit)."""
+    def unit_model(self, unit: str, conn: sa.Connection | None = None) -> str | None:
+        """The unit's model: its declaration file when it is not a shipped model
+        (the history's kept copy, written to the cache folder, when the file
+        is no longer where it was), else its name (None for an unknown unit).
+
+        Raises
+        ------
+        ConfigError
+            The declaration file is gone and the history keeps no copy.
+        """
+        def run(c: sa.Connection) -> str | None:
+            row = c.execute(sa.select(S.units.c.model, S.units.c.model_source,
+                                      S.units.c.model_digest)
+                            .where(S.units.c.name == unit)).first()
+            return None if row is None else resolved_model(c, str(row[0]), row[1], row[2])
+
+        return run(conn) if conn is not None else self._read(run)
+
+    def unit_declaration(self, unit: str) -> tuple[str | None, str | None]:
+        """The unit's declaration file as it was given, and the digest of the
+        copy the history keeps (None, None for a shipped model)."""
         row = self._read(lambda c: c.execute(
-            sa.select(S.units.c.model, S.units.c.model_source)
+            sa.select(S.units.c.model_source, S.units.c.model_digest)
             .where(S.units.c.name == unit)).first())
-        if row is None:
-            return None
-        return str(row[1]) if row[1] else str(row[0])
+        return (None, None) if row is None else (row[0], row[1])
+
+    def set_unit_model(self, unit: str, source: str, *, name: str, reason: str) -> str:
+        """Point ``unit`` at the declaration ``source`` (kept with the unit),
+        audited as ``model re-pointed`` with the path before and whether the
+        declaration means the same; returns its digest.
+
+        Raises
+        ------
+        ConfigError
+            The file cannot be read (naming it), or the unit is unknown.
+        """
+        def run(c: sa.Connection) -> str:
+            row = self._unit_row(c, unit)
+            if row is None:
+                raise self._unknown_unit(c, unit)
+            digest = keep_declaration(c, source)
+            assert digest is not None
+            c.execute(sa.update(S.units).where(S.units.c.id == row.id).values(
+                model=name[:64], model_source=source, model_digest=digest))
+            self._log(c, "model re-pointed", unit_id=int(row.id), reason=reason,
+                      detail={"from": row.model_source, "to": source,
+                              "same_declaration": row.model_digest == digest,
+                              "digest": digest})
+            return digest
+
+        return self._write(run, lock=unit)
 
     def _ordered(self, unit: str, names: list[str], conn: sa.Connection | None = None
                  ) -> list[str]:
         """Parameter names in the unit's model order (unknown ones last, sorted)."""
-        if conn is not None:
-            row = conn.execute(sa.select(S.units.c.model, S.units.c.model_source)
-                               .where(S.units.c.name == unit)).first()
-            model = None if row is None else str(row[1] or row[0])
-        else:
-            model = self.unit_model(unit)
+        try:
+            model = self.unit_model(unit, conn)
+        except ConfigError:
+            model = None   # no declaration to order by: sorted
         return model_order(model, names)
 
     def parameter_order(self, unit: str, names: list[str]) -> list[str]:

@@ -210,6 +210,7 @@ class BaselinesMixin(StoreBase):
                             .where(S.baseline_values.c.baseline_id == row.id)).all()
         urow = conn.execute(sa.select(S.units.c.model, S.units.c.model_source)
                             .where(S.units.c.name == unit)).first()
+        # the unit's model as it was named: a baseline's values need no declaration
         model = None if urow is None else str(urow[1] or urow[0])
         return stored_baseline(unit, model, row, [tuple(v) for v in vals])
 

@@ -22,9 +22,11 @@ from typing import Any
 
 import sqlalchemy as sa
 
-from condmon.store import schema as S
 from condmon.errors import ConfigError
+from condmon.models.bundle import DeclarationBundle, declaration_bundle
+from condmon.store import schema as S
 from condmon.store.base import TOUCHED, StoreBase, as_utc, audit_row, check_name, now
+from condmon.store.declarations import keep_bundles
 from condmon.store.baselines import (
     DEFAULT_BASELINE, StoredBaseline, baseline_value_rows, members_of, stored_baseline,
 )
@@ -164,6 +166,7 @@ class BulkWriter:
     updates: list[tuple[int, Id, str | None]] = field(default_factory=list)  # group names
     audits: list[tuple[int, dict[str, Any]]] = field(default_factory=list)
     records: list[str] = field(default_factory=list)
+    declarations: dict[str, DeclarationBundle] = field(default_factory=dict)
 
     def record(self, label: str) -> None:
         """The following rows are of the record ``label`` (its file)."""
@@ -179,10 +182,20 @@ class BulkWriter:
         self.audits.append((len(self.records) - 1, audit_row(action, **fields)))
 
     def add_unit(self, name: str, model: str, model_source: str | None) -> Pending:
-        """A new unit (audited as ``unit created``)."""
+        """A new unit (audited as ``unit created``), with its declaration kept."""
         check_name(name)
+        digest = None
+        if model_source:
+            try:
+                bundle = declaration_bundle(model_source)
+            except ConfigError:
+                bundle = None   # unreadable now: kept once `unit set-model` names it
+            if bundle is not None:
+                digest = bundle.digest
+                self.declarations[digest] = bundle
         uid = self._add(S.units, dict(name=name, model=model, created_at=now(),
-                                      model_source=model_source), keyed=True)
+                                      model_source=model_source, model_digest=digest),
+                        keyed=True)
         assert uid is not None
         self._log("unit created", unit_id=uid, detail={"unit": name, "model": model})
         return uid
@@ -274,6 +287,7 @@ class BulkWriter:
             got = conn.execute(sa.select(*[sa.select(sa.func.max(t.c.id)).scalar_subquery()
                                            for t in keyed])).one()
             top = {t.name: int(v or 0) for t, v in zip(keyed, got)}
+        keep_bundles(conn, self.declarations.values())
         for table in _ORDER:
             group = [r for r in rows if r.table is table]
             if not group:

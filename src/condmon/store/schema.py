@@ -10,11 +10,11 @@ import sqlalchemy as sa
 
 __all__ = ["metadata", "units", "tests", "estimates", "baselines", "baseline_values",
            "symptoms", "diagnoses", "diagnosis_faults", "isolations", "isolation_estimates",
-           "audit", "meta", "forecasts", "unit_states", "SCHEMA_VERSION", "MIGRATIONS", "NAME_LENGTH",
-           "PARAMETER_LENGTH"]
+           "audit", "meta", "forecasts", "unit_states", "declarations", "SCHEMA_VERSION",
+           "MIGRATIONS", "NAME_LENGTH", "PARAMETER_LENGTH"]
 
 #: Version of the schema this code writes.
-SCHEMA_VERSION = 11
+SCHEMA_VERSION = 12
 
 #: Longest unit, fault or baseline name the store keeps (the same on every back-end).
 NAME_LENGTH = 200
@@ -86,6 +86,17 @@ units = sa.Table(
     sa.Column("model_source", sa.Text, nullable=True),        # declaration file, if not shipped
     sa.Column("baseline_name", sa.String(64), nullable=False, server_default="default"),
     sa.Column("group_name", sa.String(NAME_LENGTH), nullable=True),  # v5: peers it is judged with
+    sa.Column("model_digest", sa.String(64), nullable=True),  # v12: its kept declaration
+)
+
+#: v12: each user's declaration a unit was monitored with, kept whole
+#: (condmon.models.bundle), so a history outlives its files.
+declarations = sa.Table(
+    "declarations", metadata,
+    sa.Column("digest", sa.String(64), primary_key=True),
+    sa.Column("name", sa.String(64), nullable=False),
+    sa.Column("files", sa.Text, nullable=False),
+    sa.Column("created_at", TolerantDateTime(), nullable=False),
 )
 
 tests = sa.Table(
@@ -429,8 +440,27 @@ def _v10_to_v11(conn: sa.Connection) -> None:
         conn.execute(sa.text("ALTER TABLE tests ADD COLUMN conditions TEXT"))
 
 
+def _v11_to_v12(conn: sa.Connection) -> None:
+    """Units keep their declaration (the ``declarations`` table, new, made by
+    ``create_all``; ``units.model_digest``). A unit whose declaration file is
+    still where it was gets it kept now; the others keep none until
+    ``condmon unit set-model`` names the file again."""
+    from condmon.store.declarations import keep_declaration
+
+    if "model_digest" not in {c["name"] for c in sa.inspect(conn).get_columns("units")}:
+        conn.execute(sa.text("ALTER TABLE units ADD COLUMN model_digest VARCHAR(64)"))
+    rows = conn.execute(sa.text("SELECT id, model_source FROM units "
+                                "WHERE model_source IS NOT NULL")).all()
+    for uid, source in rows:
+        digest = keep_declaration(conn, str(source), quiet=True)
+        if digest is not None:
+            conn.execute(sa.text("UPDATE units SET model_digest = :d WHERE id = :i"),
+                         {"d": digest, "i": uid})
+
+
 MIGRATIONS: dict[int, Callable[[sa.Connection], None]] = {1: _v1_to_v2, 2: _v2_to_v3,
                                                           3: _v3_to_v4, 4: _v4_to_v5,
                                                           5: _v5_to_v6, 6: _v6_to_v7,
                                                           7: _v7_to_v8, 8: _v8_to_v9,
-                                                          9: _v9_to_v10, 10: _v10_to_v11}
+                                                          9: _v9_to_v10, 10: _v10_to_v11,
+                                                          11: _v11_to_v12}

@@ -209,7 +209,8 @@ class StatesMixin(StoreBase):
         for row in rows:
             r = row if isinstance(row, dict) else row._mapping
             stamp = as_utc(r["latest_date"])
-            out.append({"unit": r["name"], "model": r["model_source"] or r["model"],
+            out.append({"unit": r["name"], "model": r["model"],
+                        "model_source": r["model_source"],
                         "tests": int(r["tests"] or 0), "isolations": int(r["isolations"] or 0),
                         "latest_source": r["latest_source"],
                         "latest_date": None if stamp is None else stamp.isoformat(),

@@ -236,3 +236,45 @@ def _why_unusable(hist: Any, test_id: int, unit: str) -> str:
         # a baseline of changed tests would hide the very change it is there to show
         return f"a check judged {status}; a baseline is made of healthy tests"
     return ""
+
+
+def set_unit_model(store: HistoryStore, unit: str, model: str, reason: str | None = None
+                   ) -> ChangeResult:
+    """Point ``unit`` at the declaration file ``model`` (moved, renamed, or a
+    new version of the unit's machine), kept with the unit and audited.
+
+    The file must be a valid declaration of the kind the unit is monitored
+    with (one that estimates, or one that isolates); it must report every
+    parameter the unit's tests have stored. The message says whether it
+    means the same as the unit's kept declaration.
+
+    Raises
+    ------
+    ConfigError
+        The file is not a valid declaration, or it lacks a stored parameter.
+    """
+    from pathlib import Path
+
+    from condmon.models.registry import get_model
+    from condmon.models.regimes import split_key
+    from condmon.store.declarations import bundle_digest
+
+    if Path(model).suffix.lower() != ".toml":
+        raise ConfigError(f"{model}: a unit is re-pointed to a declaration file (.toml); a "
+                          "shipped model is given by name at the unit's first record")
+    machine = get_model(model)
+    store.unit_id(unit)   # an unknown unit: the close names
+    hist = store.history(unit)
+    stored = {split_key(str(c))[0] for c in hist.columns if f"{c}_se" in hist.columns}
+    missing = sorted(stored - set(machine.monitored))
+    if missing:
+        raise ConfigError(f"{model}: does not report {', '.join(missing)}, which the history "
+                          f"of {unit!r} holds; not re-pointed")
+    assert machine.origin is not None
+    _, before = store.unit_declaration(unit)
+    same = before is not None and bundle_digest(machine.origin) == before
+    what = ("the same declaration at a new path" if same else
+            "a declaration that differs from the one the unit's tests were judged with")
+    store.set_unit_model(unit, machine.origin, name=machine.name, reason=reason or what)
+    return ChangeResult(unit, f"{unit} now uses {machine.origin} ({machine.name}): {what}",
+                        store.latest_baseline(unit), False)

@@ -404,10 +404,31 @@ def _unit_options(store: HistoryStore, unit: str, opts: EstimateOptions) -> Esti
     if stored is not None:
         machine = get_model(opts.model)
         if stored not in (machine.name, machine.origin):
-            raise DataError(f"unit {unit!r} is monitored with model {stored!r}; this record "
-                            f"was offered with {opts.model!r} (omit --model to use the "
-                            "unit's)")
+            repoint(store, unit, machine, stored)
     return opts
+
+
+def repoint(store: HistoryStore, unit: str, machine: Machine, stored: str) -> None:
+    """Accept a record offered with another path of the unit's declaration:
+    the same equations, parameters and rules (the digest of their meaning,
+    :mod:`condmon.models.bundle`) at a new path re-point the unit to it
+    (audited); another declaration is refused, naming both and how to
+    re-point on purpose."""
+    from condmon.store.declarations import bundle_digest
+
+    _, kept = store.unit_declaration(unit)
+    new = bundle_digest(machine.origin) if machine.origin else None
+    if kept is not None and new == kept:
+        assert machine.origin is not None
+        store.set_unit_model(unit, machine.origin, name=machine.name,
+                             reason="the same declaration at a new path")
+        return
+    what = ("its equations, parameters or rules differ from the unit's"
+            if kept is not None and new is not None else "another model")
+    raise DataError(f"unit {unit!r} is monitored with model {stored!r}; this record was "
+                    f"offered with {machine.origin or machine.name!r}, {what} (omit --model "
+                    f"to use the unit's; `condmon unit set-model {unit} FILE` re-points the "
+                    "unit on purpose)")
 
 
 def _existing_baseline(store: HistoryStore, unit: str) -> Baseline | None:

@@ -119,10 +119,13 @@ def test_a_check_evaluated_again_is_governed_as_a_new_one(tmp_path: Path) -> Non
     def rec(k: int) -> object:
         return stroke(1.0, seed=k, friction={"Tc": 40.0 * (1 + 0.02 * rng.standard_normal())})
 
-    narrow = MonitorConfig({"Tc": 0.01}, {"Tc": 0.02}, insist=frozenset({"Tc"}))
+    # narrow, but wider than the symptom band (2 sigma of the 3 % scatter), so that
+    # the +4 % change reads high, not both ways (which is no symptom at all)
+    narrow = MonitorConfig({"Tc": 5.0}, {"Tc": 6.0}, insist=frozenset({"Tc"}))
     with open_store(str(tmp_path / "g.db")) as store:
         added = add_baseline_tests(store, "A", [rec(k) for k in range(10)], opts)
-        res = check_test(store, "A", rec(50), opts, monitor=narrow)
+        res = check_test(store, "A", stroke(1.0, seed=50, friction={"Tc": 44.0}), opts,
+                         monitor=narrow)
         assert res.status == "go" and "within the healthy scatter" in res.diagnosis.summary
         ids = [t.test_id for t in added.tests][:9]         # a new version: one test fewer
         version, _ = save_current_baseline(store, "A", ids, reason="one test fewer")

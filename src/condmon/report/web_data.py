@@ -348,8 +348,11 @@ def read_unit(store: HistoryStore, unit: str) -> UnitData:
     isos = store.isolations(unit)
     baseline = store.latest_baseline(unit)
     monitor, units = None, {}
+    source, _ = store.unit_declaration(unit)
+    name = Path(model).name
     try:
         machine = get_model(model)
+        name = machine.name
         units = model_units(machine)
         if len(hist):
             monitor = machine_monitor(machine, None if baseline is None else baseline.baseline)
@@ -368,14 +371,14 @@ def read_unit(store: HistoryStore, unit: str) -> UnitData:
     group = store.unit_group(unit)
     unlike = store.group_flags().get(unit, []) if group else []
     forecast, why = try_forecast(store, unit)
-    overview = {**_overview(unit, model, hist, isos, baseline, group, unlike),
+    overview = {**_overview(unit, name, source, hist, isos, baseline, group, unlike),
                 **json_safe(forecast_fields(forecast, why))}
     return UnitData(unit, model, overview, hist, isos, baseline, advice_test, faults, monitor,
                     tuple(store.baselines(unit)) if len(hist) else (), units, forecast)
 
 
-def _overview(unit: str, model: str, hist: pd.DataFrame, isos: pd.DataFrame,
-              baseline: StoredBaseline | None, group: str | None,
+def _overview(unit: str, model: str, source: str | None, hist: pd.DataFrame,
+              isos: pd.DataFrame, baseline: StoredBaseline | None, group: str | None,
               unlike: list[dict[str, Any]]) -> dict[str, Any]:
     """The unit's entry of :meth:`HistoryStore.unit_summaries`, from what the page
     has read anyway (that method reads every unit: seconds for a large fleet);
@@ -404,7 +407,8 @@ def _overview(unit: str, model: str, hist: pd.DataFrame, isos: pd.DataFrame,
             status, source, when = str(last["status"]), last["source"], last["date"]
             summary, regime = last["statement"], None
     doc: dict[str, Any] = json_safe({
-        "unit": unit, "model": model, "tests": len(hist), "isolations": len(isos),
+        "unit": unit, "model": model, "model_source": source, "tests": len(hist),
+        "isolations": len(isos),
         "latest_source": source, "latest_date": None if when is None else when.isoformat(),
         "status": status, "summary": summary if isinstance(summary, str) else None,
         "latest_regime": regime, "group": group,

@@ -26,7 +26,7 @@ from condmon.errors import ConfigError
 from condmon.models.bundle import DeclarationBundle, declaration_bundle
 from condmon.store import schema as S
 from condmon.store.base import TOUCHED, StoreBase, as_utc, audit_row, check_name, now
-from condmon.store.declarations import keep_bundles
+from condmon.store.declarations import keep_bundles, resolved_model
 from condmon.store.baselines import (
     DEFAULT_BASELINE, StoredBaseline, baseline_value_rows, members_of, stored_baseline,
 )
@@ -354,7 +354,8 @@ class BulkMixin(StoreBase):
             # each unit with its active baseline's latest version and that one's values
             rows = c.execute(
                 sa.select(u.c.id.label("uid"), u.c.name.label("unit"), u.c.model,
-                          u.c.model_source, u.c.baseline_name, u.c.group_name,
+                          u.c.model_source, u.c.model_digest, u.c.baseline_name,
+                          u.c.group_name,
                           *[col.label(f"b_{col.name}") for col in b.c],
                           v.c.parameter.label("p"), v.c.mean.label("m"), v.c.std.label("s"),
                           v.c.n.label("pn"))
@@ -402,7 +403,7 @@ class BulkMixin(StoreBase):
                         t.c.id.in_(wanted[k:k + _CHUNK]), t.c.conditions.is_not(None))):
                     conds[int(tid)] = condition_pairs(doc)
             return {str(r.unit): UnitState(
-                uid, str(r.unit), str(r.model), r.model_source,
+                uid, str(r.unit), str(r.model), _source(c, r),
                 str(r.baseline_name or DEFAULT_BASELINE), r.group_name, latest[uid],
                 tuple(usable.get(uid, {}).items()),
                 {i: est.get(i, {}) for i in members[uid]},
@@ -482,3 +483,14 @@ class BulkMixin(StoreBase):
             except sa.exc.SQLAlchemyError as err:
                 raise BulkWriteError(f"{label}: {store_error(err, self.url, self.timeout)}",
                                      k) from None
+
+
+def _source(conn: sa.Connection, row: Any) -> str | None:
+    """A unit's declaration file, or the history's kept copy of it when the
+    file is gone (as given when neither is there: the unit's record says why)."""
+    if not row.model_source:
+        return None
+    try:
+        return resolved_model(conn, str(row.model), row.model_source, row.model_digest)
+    except ConfigError:
+        return str(row.model_source)

@@ -445,17 +445,27 @@ def _v11_to_v12(conn: sa.Connection) -> None:
     ``create_all``; ``units.model_digest``). A unit whose declaration file is
     still where it was gets it kept now; the others keep none until
     ``condmon unit set-model`` names the file again."""
-    from condmon.store.declarations import keep_declaration
+    from datetime import datetime, timezone
+
+    from condmon.errors import ConfigError
+    from condmon.models.bundle import declaration_bundle
 
     if "model_digest" not in {c["name"] for c in sa.inspect(conn).get_columns("units")}:
         conn.execute(sa.text("ALTER TABLE units ADD COLUMN model_digest VARCHAR(64)"))
     rows = conn.execute(sa.text("SELECT id, model_source FROM units "
                                 "WHERE model_source IS NOT NULL")).all()
     for uid, source in rows:
-        digest = keep_declaration(conn, str(source), quiet=True)
-        if digest is not None:
-            conn.execute(sa.text("UPDATE units SET model_digest = :d WHERE id = :i"),
-                         {"d": digest, "i": uid})
+        try:
+            bundle = declaration_bundle(str(source))
+        except ConfigError:
+            continue   # gone or unreadable: `condmon unit set-model` names it again
+        if conn.execute(sa.select(declarations.c.digest).where(
+                declarations.c.digest == bundle.digest)).first() is None:
+            conn.execute(sa.insert(declarations).values(
+                digest=bundle.digest, name=bundle.name[:64], files=bundle.to_json(),
+                created_at=datetime.now(timezone.utc)))
+        conn.execute(sa.text("UPDATE units SET model_digest = :d WHERE id = :i"),
+                     {"d": bundle.digest, "i": uid})
 
 
 MIGRATIONS: dict[int, Callable[[sa.Connection], None]] = {1: _v1_to_v2, 2: _v2_to_v3,

@@ -377,7 +377,7 @@ def read_unit(store: HistoryStore, unit: str) -> UnitData:
                     tuple(store.baselines(unit)) if len(hist) else (), units, forecast)
 
 
-def _overview(unit: str, model: str, source: str | None, hist: pd.DataFrame,
+def _overview(unit: str, model: str, model_source: str | None, hist: pd.DataFrame,
               isos: pd.DataFrame, baseline: StoredBaseline | None, group: str | None,
               unlike: list[dict[str, Any]]) -> dict[str, Any]:
     """The unit's entry of :meth:`HistoryStore.unit_summaries`, from what the page
@@ -407,7 +407,7 @@ def _overview(unit: str, model: str, source: str | None, hist: pd.DataFrame,
             status, source, when = str(last["status"]), last["source"], last["date"]
             summary, regime = last["statement"], None
     doc: dict[str, Any] = json_safe({
-        "unit": unit, "model": model, "model_source": source, "tests": len(hist),
+        "unit": unit, "model": model, "model_source": model_source, "tests": len(hist),
         "isolations": len(isos),
         "latest_source": source, "latest_date": None if when is None else when.isoformat(),
         "status": status, "summary": summary if isinstance(summary, str) else None,

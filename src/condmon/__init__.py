@@ -4,6 +4,10 @@ From a short test record, estimate the physical parameters of a machine
 (refined instrumental-variable identification, exact zero-order-hold inverse),
 check the fit, and report each parameter with its standard error.
 
+Monitoring a unit over time goes through :class:`History` (a SQLite file or
+a PostgreSQL URL): ``baseline_add``, ``check``, ``history``, ``forecast``,
+``units``; plant models with residuals through :func:`isolate`.
+
 Example
 -------
 >>> import condmon
@@ -27,11 +31,14 @@ if TYPE_CHECKING:
     from condmon.identify import EstimateResult, estimate
     from condmon.io import read_record
     from condmon.simulate import load_actuator_rig, simulate_actuator
+    from condmon.workflows.api import Forecast, History, isolate, load_model
+    from condmon.workflows.checks import CheckResult
 
 __version__ = "0.1.0"
 
 __all__ = [
     "estimate", "EstimateResult", "read_record", "simulate_actuator", "load_actuator_rig",
+    "History", "CheckResult", "Forecast", "isolate", "load_model",
     "CondmonError", "DataError", "ConfigError", "ModelError", "ConversionError",
     "EstimationError", "CondmonWarning", "DataWarning", "ConvergenceWarning",
     "__version__",
@@ -40,7 +47,9 @@ __all__ = [
 # Imported on first use (PEP 562): ``import condmon`` stays cheap.
 _EXPORTS = {"estimate": "condmon.identify", "EstimateResult": "condmon.identify",
             "read_record": "condmon.io", "simulate_actuator": "condmon.simulate",
-            "load_actuator_rig": "condmon.simulate"}
+            "load_actuator_rig": "condmon.simulate", "History": "condmon.workflows.api",
+            "Forecast": "condmon.workflows.api", "isolate": "condmon.workflows.api",
+            "load_model": "condmon.workflows.api", "CheckResult": "condmon.workflows.checks"}
 
 
 def __getattr__(name: str) -> Any:

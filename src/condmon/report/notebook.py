@@ -14,12 +14,15 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from condmon.report.figures import STATUS_COLOURS, new_figure
-from condmon.report.tables import CSS as STYLE
-from condmon.report.tables import badge, esc
+from condmon.report.tables import CSS, badge, esc
 
 if TYPE_CHECKING:
     from condmon.monitor.unit_forecast import UnitForecast
     from condmon.store.db import HistoryStore
+
+#: The status badges' style alone: a notebook keeps its own page style.
+STYLE = "\n".join(line for line in CSS.splitlines() if line.startswith((".status", ".go",
+                                                                           ".baseline")))
 
 __all__ = ["html_table", "check_html", "change_figure", "forecast_html", "unit_trend_figure"]
 
@@ -46,7 +49,8 @@ def check_html(unit: str, test_id: int, status: str, summary: str,
                parameters: Mapping[str, float], std_errors: Mapping[str, float],
                units: Mapping[str, str], changes: Mapping[str, float]) -> str:
     """One check as HTML: its status badge, summary and table of changes."""
-    rows = [(p, _number(v), _number(std_errors.get(p, float("nan"))), units.get(p, ""),
+    rows = [(p, _number(v), _number(std_errors.get(p, float("nan"))),
+             units.get(p, units.get(p.split("@")[0], "")),
              _number(changes[p]) if p in changes else "—")
             for p, v in parameters.items()]
     tid = f"#{test_id}" if test_id >= 0 else "(not stored)"

@@ -117,6 +117,28 @@ class CheckResult:
     not_judged: str | None = None
     judgement: tuple[str, ...] = ()
 
+    @property
+    def summary(self) -> str:
+        """One line: the diagnosis, or why the test is not judged or retested."""
+        return (self.diagnosis.summary if self.diagnosis is not None else
+                f"not judged: {self.not_judged}" if self.not_judged else
+                f"retest: {self.estimate.reason}")
+
+    def _repr_html_(self) -> str:
+        from condmon.report.notebook import check_html
+
+        return check_html(self.unit, self.test_id, self.status, self.summary,
+                          self.estimate.stored_values_flat(), self.estimate.stored_errors(),
+                          self.estimate.units, self.percent_change)
+
+    def plot(self) -> Any:
+        """Each parameter's change against the baseline [%], coloured by its
+        own symptom. A matplotlib Figure."""
+        from condmon.report.notebook import change_figure
+
+        return change_figure(f"{self.unit}: {self.status}", self.percent_change,
+                             self.symptoms, self.status)
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready result (the ``condmon check --json`` document)."""
         est = self.estimate.to_dict()
@@ -136,9 +158,7 @@ class CheckResult:
             "symptoms": self.symptoms,
             "faults": ([] if self.diagnosis is None else
                        [f.to_dict() for f in self.diagnosis.faults]),
-            "summary": (self.diagnosis.summary if self.diagnosis is not None else
-                        f"not judged: {self.not_judged}" if self.not_judged else
-                        f"retest: {self.estimate.reason}"),
+            "summary": self.summary,
             "not_judged": self.not_judged,
             "judgement": list(self.judgement),
             "conditions": est.get("conditions", {}),

@@ -109,6 +109,18 @@ class BaselineAddResult:
     units: dict[str, str] = field(default_factory=dict)
     info: tuple[dict[str, Any], ...] = ()
 
+    def _repr_html_(self) -> str:
+        from condmon.report.notebook import html_table
+        from condmon.report.tables import esc
+
+        rows = [(t.source, t.test_id if t.test_id >= 0 else "—",
+                 "refused" if t.refused else "already there" if t.duplicate else
+                 "accepted" if t.accepted else "rejected", t.reason or "")
+                for t in self.tests]
+        warn = "".join(f"<p>warning: {esc(f.get('message', f))}</p>" for f in self.flags)
+        return (f"<p>{esc(self.message)}</p>" + warn
+                + html_table(["record", "test", "outcome", "reason"], rows))
+
 
 def unit_monitor(store: HistoryStore, unit: str, baseline: Baseline | None = None
                  ) -> MonitorConfig:

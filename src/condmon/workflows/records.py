@@ -199,7 +199,8 @@ class EstimateOptions:
         from condmon.models.registry import get_model
 
         plant = get_model(self.model or "dc-motor").plant
-        columns = {c.name: (c.unit, c.description) for c in (*plant.sensors, *plant.inputs)}
+        columns = {c.name: (c.unit, c.description) for c in plant.sensors}
+        columns.update({u.name: (u.unit, u.description) for u in plant.inputs})
         found = unit_suspects(df, columns, lambda cols: self.estimate_parsed(cols, source),
                               accept, reference)
         return f"; {suspect_text(found)}" if found else ""

@@ -105,7 +105,7 @@ def register(app: typer.Typer, baseline_app: typer.Typer) -> None:
         as_json: JsonOpt = False,
     ) -> None:
         """Point a unit at its declaration file again: the history keeps the file's
-        text with the unit, and `audit` shows the change."""
+        text with the unit, and the audit trail shows the change."""
         from condmon.workflows.manage import set_unit_model
 
         _change(db, as_json, lambda store: set_unit_model(store, unit, model, reason))

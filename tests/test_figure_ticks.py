@@ -30,18 +30,37 @@ def _trend(n: int, dated: bool) -> TrendData:
                      2.0)
 
 
-def _boxes(fig: object) -> list[tuple[float, float, float, float]]:
-    """Every visible, non-empty text's box on the canvas (tick labels and annotations)."""
+def _texts(fig: object) -> tuple[list[tuple[float, float, float, float]], int]:
+    """Every visible, non-empty upright text's box on the canvas (tick labels
+    and point annotations), and how many slanted tick labels sit closer than
+    their own height to the next one (parallel lines of text: their upright
+    boxes overlap while the text does not)."""
+    import math
+
     fig.canvas.draw()   # type: ignore[attr-defined]
     renderer = fig.canvas.get_renderer()   # type: ignore[attr-defined]
-    out = []
+    upright, crowded = [], 0
     for ax in fig.axes:   # type: ignore[attr-defined]
-        texts = [t for t in ax.get_xticklabels() if t.get_visible() and t.get_text()]
+        if not ax.get_visible():
+            continue
+        slanted = []
+        lo, hi = sorted(ax.get_xlim())
+        ticks = [t for t, at in zip(ax.get_xticklabels(), ax.get_xticks())
+                 if lo <= at <= hi]   # matplotlib draws no label beyond the limits
+        texts = [t for t in ticks if t.get_visible() and t.get_text()]
         texts += [t for t in ax.texts if t.get_visible() and t.get_text()]
         for t in texts:
             b = t.get_window_extent(renderer)
-            out.append((b.x0, b.y0, b.x1, b.y1))
-    return out
+            if t.get_rotation() % 180:
+                slanted.append((b.x0, t.get_rotation(), t.get_fontsize() * fig.dpi / 72))
+            else:
+                upright.append((b.x0, b.y0, b.x1, b.y1))
+        slanted.sort()
+        for (x0, angle, height), (x1, _, _) in zip(slanted, slanted[1:]):
+            if (x1 - x0) * math.sin(math.radians(angle)) < 0.9 * height:
+                crowded += 1
+        upright += [(x, 0.0, x + 1.0, 1.0) for x, _, _ in slanted[:1]]   # counted as there
+    return upright, crowded
 
 
 def _overlaps(boxes: list[tuple[float, float, float, float]]) -> int:
@@ -59,6 +78,30 @@ def test_trend_and_fit_labels_never_overlap(n: int, dated: bool) -> None:
     trend = _trend(n, dated)
     fit = FitData(trend.test_ids, trend.x, trend.xlabel, np.full(n, 95.0), ("go",) * n)
     for fig in (trend_figure([trend]), fit_figure(fit, 90.0)):
-        boxes = _boxes(fig)
+        boxes, crowded = _texts(fig)
         assert len(boxes) >= 3, "there are labels to read"
-        assert _overlaps(boxes) == 0
+        assert _overlaps(boxes) == 0 and crowded == 0
+
+
+def test_each_panel_is_coloured_by_its_own_symptom() -> None:
+    """A check made no-go by friction alone does not paint R red."""
+    from matplotlib.colors import to_hex
+
+    from condmon.report.figures import STATUS_COLOURS
+
+    n = 3
+    status = ("go", "no-go", "no-go")
+    r = TrendData("R", (4, 5, 6), np.arange(4.0, 7.0), "test #", np.array([0.5, 1.0, 0.2]),
+                  np.full(n, 2.0), np.full(n, 0.5), np.zeros(n), np.zeros(n), status, 4.0,
+                  15.0, 30.0, 2.0)
+    d = TrendData("D", (4, 5, 6), np.arange(4.0, 7.0), "test #", np.array([1.0, 80.0, 90.0]),
+                  np.full(n, 2.0), np.full(n, 0.5), np.array([0.0, 1.0, 1.0]), np.zeros(n),
+                  status, 4.0, 15.0, 30.0, 2.0)
+    assert r.panel_status == ("go", "go", "go") and d.panel_status == status
+    fig = trend_figure([r, d])
+    colours = []
+    for ax in fig.axes[:1]:   # R's panel: every marker green
+        for line in ax.get_lines():
+            if line.get_marker() == "o":
+                colours.append(to_hex(line.get_markeredgecolor()))
+    assert colours and set(colours) == {STATUS_COLOURS["go"]}

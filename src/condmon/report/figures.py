@@ -7,7 +7,9 @@ axis. The trend figure draws what a check's status depends on: the r1/r2
 bands, the active baseline's spread (±k·σ) around 0, and for each check the
 symptom half-width ±k·max(σ, SE) of its evaluation as its error bar (the one
 error bar of every figure and page, :func:`condmon.report.trends.error_bar`); each point
-is coloured by the status stored for it and filled when this parameter's
+is coloured by the status stored for it (green, go, on a panel whose own
+symptom is 0: another parameter made the check advisory or no-go) and filled
+when this parameter's
 symptom is above 0, so the picture agrees with the table; a parameter trending
 towards no-go gets its forecast: the fitted trend continued from the last check
 to the no-go change (dotted: where a check turns no-go, short of r2) with its
@@ -125,16 +127,53 @@ def _label_tests(axes: Sequence[Any], x: np.ndarray[Any, Any], ids: Sequence[int
     point (``y`` per axis) on a date axis."""
     if not len(ids):
         return
+    every = _label_every(axes[0], x, max(len(f"{prefix}{i}") for i in ids),
+                         7.0 if not _dated(x) else 6.0)
     if not _dated(x):
+        from matplotlib.ticker import FuncFormatter, MaxNLocator
+
         for ax in axes:
-            ax.set_xticks(x)
-            ax.set_xticklabels([f"{prefix}{i}" for i in ids], fontsize=7)
+            if every == 1:
+                ax.set_xticks(x)
+                ax.set_xticklabels([f"{prefix}{i}" for i in ids], fontsize=7)
+                continue
+            # an id axis: whole ids at a readable spacing, not one per test
+            span = float(np.ptp(x)) or 1.0
+            ax.xaxis.set_major_locator(MaxNLocator(nbins=max(2, int(len(x) / every)),
+                                                   integer=True, min_n_ticks=2))
+            ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{prefix}{v:.0f}"))
+            ax.tick_params(axis="x", labelsize=7)
+            ax.set_xlim(float(np.min(x)) - 0.02 * span, float(np.max(x)) + 0.02 * span)
         return
     for ax, yy in zip(axes, y or []):
-        for xi, yi, i in zip(x, yy, ids):
-            if np.isfinite(yi):
+        for k, (xi, yi, i) in enumerate(zip(x, yy, ids)):
+            if np.isfinite(yi) and k % every == 0:
                 ax.annotate(f"{prefix}{i}", (xi, yi), xytext=(3, 3),
                             textcoords="offset points", fontsize=6, color="0.25")
+
+
+def _label_every(ax: Any, x: np.ndarray[Any, Any], chars: int, fontsize: float) -> int:
+    """Label one point in this many so that labels of ``chars`` characters
+    never touch: the axes' width over the points' spacing, with a character
+    about 0.6 of the font size wide and one character of gap."""
+    n = len(x)
+    if n < 2:
+        return 1
+    fig = ax.get_figure()
+    width_in = fig.get_size_inches()[0] * ax.get_position().width * 0.9
+    # the points may fill only part of the axis (a forecast drawn beyond them)
+    if _dated(x):
+        from matplotlib.dates import date2num
+
+        xs = date2num(x.astype("datetime64[ms]").astype(object))
+    else:
+        xs = np.asarray(x, dtype=np.float64)
+    lo, hi = ax.get_xlim()
+    if hi > lo and np.ptp(xs) > 0:
+        width_in *= min(1.0, float(np.ptp(xs)) / (hi - lo))
+    label_in = (chars + 2) * 0.65 * fontsize / 72.0
+    room = max(1, int(width_in / label_in))
+    return 1 if n <= room else int(np.ceil(n / room))
 
 
 def _bands(ax: Any, r1: float, r2: float, top: float, steps: int = 6) -> None:
@@ -216,9 +255,10 @@ def trend_figure(trends: Sequence[TrendData], bands: Sequence[ForecastBand] = ()
         ax.axhline(0, color="0.5", lw=0.8)
         ax.plot(d.x, d.change, "-", color="0.6", lw=0.8, zorder=2)
         filled = d.reaches_r1
-        for status in dict.fromkeys(d.status):
+        shown = d.panel_status   # coloured by this parameter's own symptom
+        for status in dict.fromkeys(shown):
             statuses[status] = None
-            sel = np.array([s == status for s in d.status], dtype=bool)
+            sel = np.array([s == status for s in shown], dtype=bool)
             colour = STATUS_COLOURS.get(status, "k")
             ax.errorbar(d.x[sel], d.change[sel], yerr=np.nan_to_num(d.width[sel]), fmt="none",
                         ecolor=colour, capsize=2, lw=0.8, zorder=3)

@@ -158,7 +158,8 @@ def _tests_part(store: HistoryStore, unit: str, hist: Any, cfg: MonitorConfig, s
                 F.plot_symptoms(trends, out / f"{name}-symptoms.png")]
         body.append(
             "<p class='sub'>Each check's change against its baseline, coloured by its "
-            f"status; {esc(error_bar(cfg.k, words=True))} (filled marker: above 0). Blue: "
+            "status where this parameter's symptom is above 0, green where it is not; "
+            f"{esc(error_bar(cfg.k, words=True))} (filled marker: above 0). Blue: "
             f"the active baseline's ±{cfg.k:g}·σ. Excluded and rejected tests are not "
             "drawn." + (f" Purple ({FORECAST_LABEL}): the fitted trend of "
                         f"{esc(', '.join(b.parameter for b in bands))} continued from the last "

@@ -183,7 +183,18 @@ class TrendData:
         to [0, 1] (the monitor's triangle-and-ramp composition). [-]
         """
         ramp = (np.abs(self.change) + self.width - self.r1) / (self.width + self.r2 - self.r1)
-        return np.nan_to_num(np.clip(ramp, 0.0, 1.0))
+        # a bar that reaches both +r1 and -r1 measures no direction: no symptom
+        both = self.width - np.abs(self.change) > self.r1
+        return np.where(both, 0.0, np.nan_to_num(np.clip(ramp, 0.0, 1.0)))
+
+    @property
+    def panel_status(self) -> tuple[str, ...]:
+        """The status this parameter's panel shows for each check: the check's
+        own where this parameter's symptom is above 0, ``go`` where it is not
+        (another parameter made the check advisory or no-go; this one is not
+        to blame)."""
+        return tuple("go" if st in ("advisory", "no-go") and not sym > 0 else st
+                     for st, sym in zip(self.status, self.symptom))
 
     @property
     def reaches_r1(self) -> np.ndarray[Any, np.dtype[np.bool_]]:

@@ -177,8 +177,8 @@ def _trends(data: UnitData) -> _Trends:
         r2 = cfg.r2.get(p, math.nan) if cfg is not None else math.nan
         d = trend_data(hist, p, by_id, r1, r2, k, active)
         drawn.append(d)
-        pts += [(i, float(c), float(w), s, False)
-                for i, c, w, s in zip(d.test_ids, d.change, d.width, d.status)]
+        pts += [(i, float(c), float(w), s, False)   # coloured by this parameter's symptom
+                for i, c, w, s in zip(d.test_ids, d.change, d.width, d.panel_status)]
         pts = [t for t in pts if math.isfinite(t[1])]
         spread = k * std * scale if math.isfinite(std * scale) else 0.0
         reach = [abs(c) + (e if math.isfinite(e) else 0.0) for _, c, e, _, _ in pts]

@@ -165,7 +165,8 @@ def _label_every(ax: Any, x: np.ndarray[Any, Any], chars: int, fontsize: float) 
     if _dated(x):
         from matplotlib.dates import date2num
 
-        xs = date2num(x.astype("datetime64[ms]").astype(object))
+        xs = np.asarray(date2num(x.astype("datetime64[ms]").astype(object)),  # type: ignore[no-untyped-call]
+                        dtype=np.float64)
     else:
         xs = np.asarray(x, dtype=np.float64)
     lo, hi = ax.get_xlim()

@@ -105,3 +105,13 @@ def test_each_panel_is_coloured_by_its_own_symptom() -> None:
             if line.get_marker() == "o":
                 colours.append(to_hex(line.get_markeredgecolor()))
     assert colours and set(colours) == {STATUS_COLOURS["go"]}
+
+
+def test_a_ran_away_or_non_finite_estimate_is_shown_as_such() -> None:
+    from condmon.report.tables import SuspectCell, estimate_text
+
+    cell = SuspectCell("Dm", 4.6e47, 8.2e-5, "m^3/rad", 5.6e53, 3.0, False, False)
+    assert cell.row[1] == "ran away" and cell.row[4] == "ran away"
+    assert "e+47" not in " ".join(cell.row)
+    assert estimate_text(float("nan"), None) == "not finite"
+    assert estimate_text(1.05e-4, 28.0) == "0.000105"

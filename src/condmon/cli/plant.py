@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Optional
 
@@ -13,6 +12,7 @@ from rich.table import Table
 
 from condmon.cli._console import err, fmt, out, progress, write_json
 from condmon.cli._options import greedy_command
+from condmon.report.tables import estimate_text, percent_text
 
 if TYPE_CHECKING:
     from condmon.diagnose.isolation import IsolationResult
@@ -187,12 +187,12 @@ def _print_isolation(res: IsolationResult) -> None:
                          overflow="fold")
     for p in sorted(res.suspects, key=lambda p: res.errors.get(p, float("inf"))):
         e = res.estimates[p]
-        change = "" if e.change_percent is None or not math.isfinite(e.change_percent) else (
-            f"{e.change_percent:+.1f}" if abs(e.change_percent) < 1e4 else "ran away")
+        change = "" if e.change_percent is None else percent_text(e.change_percent)
         cons = "" if e.consistency is None else f"{e.consistency:.2f}"
         error = f"{res.errors[p]:.2f}" if p in res.errors else "—"
         name = f"[bold]{p}[/]" if p in res.isolated else p
-        table.add_row(name, fmt(e.value), fmt(e.nominal), escape(res.units.get(p, "")), change,
+        table.add_row(name, estimate_text(e.value, e.change_percent), fmt(e.nominal),
+                      escape(res.units.get(p, "")), change,
                       cons,
                       "rejected" if p in res.rejected else error)
     out.print(table)

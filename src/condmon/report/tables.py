@@ -238,9 +238,40 @@ def with_unit(value: Any, unit: str | None, fmt: str = ".4g") -> str:
     return f"{value:{fmt}}" + (f" {unit}" if unit and unit != "-" else "")
 
 
-def _percent(value: float) -> str:
-    """A change in percent, signed: one decimal, or 3 significant digits when huge."""
-    return f"{value:+.1f}" if abs(value) < 1e4 else f"{value:+.3g}"
+#: A change beyond this is an estimate that ran away (a search beyond a factor
+#: of 100 of its nominal), not a measured change. [%]
+RAN_AWAY = 1e4
+
+
+def percent_text(value: float) -> str:
+    """A change in percent, signed, one decimal; ``ran away`` beyond
+    :data:`RAN_AWAY`, ``not finite`` when it is not."""
+    import math
+
+    if not math.isfinite(value):
+        return "not finite"
+    return f"{value:+.1f}" if abs(value) < RAN_AWAY else "ran away"
+
+
+def estimate_text(value: float | None, change: float | None, fmt: str = ".4g") -> str:
+    """An estimate's cell: its value, ``ran away`` when its change against
+    nominal is beyond :data:`RAN_AWAY` (4.6e+47 is no estimate), ``not
+    finite`` when it is not, ``—`` when there is none.
+
+    Example
+    -------
+    >>> estimate_text(4.6e47, 4.6e49), estimate_text(1.25, 25.0), estimate_text(float("inf"), None)
+    ('ran away', '1.25', 'not finite')
+    """
+    import math
+
+    if value is None:
+        return "—"
+    if not math.isfinite(value):
+        return "not finite"
+    if change is not None and math.isfinite(change) and abs(change) >= RAN_AWAY:
+        return "ran away"
+    return f"{value:{fmt}}"
 
 
 @dataclass(frozen=True)
@@ -278,7 +309,7 @@ class SuspectCell:
         if self.rejected:
             return "rejected"
         if self.change is not None:
-            return f"{_percent(self.change)} %"
+            return f"{percent_text(self.change)} %"
         return f"= {with_unit(self.estimate, self.unit)}" if self.estimate is not None else ""
 
     @property
@@ -299,8 +330,9 @@ class SuspectCell:
         def g(v: float | None, fmt: str) -> str:
             return "—" if v is None else f"{v:{fmt}}"
 
-        return (self.name, g(self.estimate, ".4g"), g(self.nominal, ".4g"), self.unit,
-                "—" if self.change is None else _percent(self.change), g(self.error, ".2g"),
+        return (self.name, estimate_text(self.estimate, self.change), g(self.nominal, ".4g"),
+                self.unit,
+                "—" if self.change is None else percent_text(self.change), g(self.error, ".2g"),
                 "rejected" if self.rejected else "isolated" if self.isolated else "")
 
 

@@ -115,3 +115,23 @@ def test_a_ran_away_or_non_finite_estimate_is_shown_as_such() -> None:
     assert "e+47" not in " ".join(cell.row)
     assert estimate_text(float("nan"), None) == "not finite"
     assert estimate_text(1.05e-4, 28.0) == "0.000105"
+
+
+def test_no_samples_since_is_read_from_the_samples() -> None:
+    """The live page's stale line gives the last sample's arrival, not the
+    page's start; a unit heard of only by its retained status says so."""
+    import time
+
+    from condmon.report.live import LiveFeed
+
+    feed = LiveFeed.offline(stale_after=5.0)
+    feed.take("condmon/A/status", b'{"unit": "A", "status": "go"}')
+    feed.take("condmon/B/status", b'{"unit": "B", "status": "go"}')
+    feed.take("condmon/A/samples", b"{}")
+    feed._sampled["A"] = time.time() - 3600.0   # its last sample: an hour ago
+    feed.mark_stale(time.monotonic() + 60.0)
+    a, b = feed.status("A"), feed.status("B")
+    assert a is not None and b is not None
+    hour_ago = time.strftime("%Y-%m-%d %H:%M", time.gmtime(time.time() - 3600.0))
+    assert a["status"] == "stale" and f"no samples since {hour_ago}" in a["reason"]
+    assert "since this page started" in b["reason"] and "not known" in b["reason"]

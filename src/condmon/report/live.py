@@ -93,6 +93,8 @@ class LiveFeed:
     refused: int = 0
     _state: dict[str, dict[str, Any]] = field(default_factory=dict, repr=False)
     _seen: dict[str, float] = field(default_factory=dict, repr=False)
+    _sampled: dict[str, float] = field(default_factory=dict, repr=False)   # wall clock [s]
+    _started: float = field(default_factory=time.time, repr=False)         # wall clock [s]
     _changes: list[tuple[int, dict[str, Any]]] = field(default_factory=list, repr=False)
     _cond: threading.Condition = field(default_factory=threading.Condition, repr=False)
     _client: Any = field(default=None, repr=False)
@@ -158,6 +160,7 @@ class LiveFeed:
                                 "already ([stream] max_units)")
         if kind == "samples":
             self._seen[unit] = time.monotonic()
+            self._sampled[unit] = time.time()
             last = self._state.get(unit)
             if last is not None and last.get("status") == "stale":
                 self._change(unit, dict(last.get("was") or {"unit": unit, "status": "go"}))
@@ -206,20 +209,31 @@ class LiveFeed:
         while not self._halt.wait(min(1.0, self.stale_after / 4)):
             self.mark_stale(time.monotonic())
 
+    def _silent_since(self, unit: str) -> str:
+        """Since when a unit sent no samples: its last sample's arrival, or,
+        for a unit only its retained status was heard of, the page's start
+        (the last sample before it is not known)."""
+        if unit in self._sampled:
+            return f"no samples since {_utc(self._sampled[unit])}"
+        return (f"no samples since this page started at {_utc(self._started)} (the last "
+                "one before is not known)")
+
     def mark_stale(self, now: float) -> None:
         """Mark units silent since before ``now - stale_after`` as stale."""
         for unit, seen in list(self._seen.items()):
             last = self._state.get(unit)
             if now - seen > self.stale_after and last is not None \
                     and last.get("status") != "stale":
-                since = time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime(
-                    time.time() - (now - seen)))
                 self._change(unit, {"unit": unit, "status": "stale", "was": last,
-                                    "reason": f"no samples since {since} (stale after "
+                                    "reason": f"{self._silent_since(unit)} (stale after "
                                               f"{self.stale_after:g} s); last: "
                                               f"{last.get('status')}",
                                     "time": None, "isolated": last.get("isolated"),
                                     "kind": "stale", "t": None})
+
+
+def _utc(stamp: float) -> str:
+    return time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime(stamp))
 
 
 def with_live(units: list[dict[str, Any]], live: LiveFeed | None) -> list[dict[str, Any]]:

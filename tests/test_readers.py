@@ -561,3 +561,24 @@ def test_an_excel_error_cell_is_a_missing_value_at_its_own_row(tmp_path: Path) -
     p.write_text("t;V\n0,000;1,5\n0,001;#NV\n0,002;2,5\n")
     frame = read_record(p)
     assert frame["V"].tolist()[0] == 1.5 and np.isnan(frame["V"].tolist()[1])
+
+
+def test_a_scaled_column_names_its_real_bad_row_and_never_a_python_repr() -> None:
+    """An empty cell before a text cell in a scaled column was reported as
+    'not numeric (row 49: nan)': the empty cell's row and numpy's repr."""
+    import pandas as pd
+
+    from condmon.io.rig import RecordSettings, apply_record_settings
+
+    values: list[object] = [float(i) for i in range(80)]
+    values[49] = None          # an empty cell: missing, named later at its own row
+    values[59] = "x1"          # text: not a number
+    df = pd.DataFrame({"t": np.arange(80) * 1e-3, "p": values})
+    settings = RecordSettings(scale={"p": 2.0})
+    with pytest.raises(DataError) as err:
+        apply_record_settings(df, settings, "rig.txt")
+    assert "column 'p' is not numeric (row 59: 'x1')" in str(err.value)
+    assert "nan" not in str(err.value).lower() and "np." not in str(err.value)
+    df.loc[59, "p"] = 59.0
+    out = apply_record_settings(df, settings, "rig.txt")
+    assert np.isnan(out["p"].iloc[49]) and out["p"].iloc[59] == 118.0

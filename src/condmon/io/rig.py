@@ -377,10 +377,15 @@ def apply_record_settings(df: pd.DataFrame, settings: RecordSettings | None,
                             f"record does not have; its columns are "
                             f"{list(map(str, out.columns))}")
         values = pd.to_numeric(out[name], errors="coerce")
-        if values.isna().any() and not out[name].isna().all():
-            row = int(np.flatnonzero(values.isna().to_numpy())[0])
-            raise DataError(f"{src}: column {name!r} is not numeric (row {row}: "
-                            f"{out[name].iloc[row]!r}); it cannot be scaled")
+        # a missing cell stays missing (the record's checks name it); only text
+        # that is no number is refused here, quoted as the file has it
+        text = values.isna().to_numpy() & ~out[name].isna().to_numpy()
+        if text.any():
+            row = int(np.flatnonzero(text)[0])
+            file_col = settings.columns.get(name, name)
+            named = f"{name!r}" + (f" (file column {file_col!r})" if file_col != name else "")
+            raise DataError(f"{src}: column {named} is not numeric (row {row}: "
+                            f"{str(out[name].iloc[row])!r}); it cannot be scaled")
         out[name] = (values.to_numpy(dtype=np.float64) * settings.scale.get(name, 1.0)
                      + settings.offset.get(name, 0.0))
     if settings.sample_rate is not None:

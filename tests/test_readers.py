@@ -582,3 +582,18 @@ def test_a_scaled_column_names_its_real_bad_row_and_never_a_python_repr() -> Non
     df.loc[59, "p"] = 59.0
     out = apply_record_settings(df, settings, "rig.txt")
     assert np.isnan(out["p"].iloc[49]) and out["p"].iloc[59] == 118.0
+
+
+def test_a_remapped_t_takes_its_new_column_s_own_scale() -> None:
+    """The stand's declaration reads t from a sample counter at 250 Hz; mapped
+    to a column of seconds on the command line, t was silently still divided
+    by 250."""
+    from condmon.workflows.records import EstimateOptions
+
+    model = str(Path(__file__).resolve().parents[1] / "examples" / "hydraulic-actuator"
+                / "rotary-actuator.toml")
+    assert EstimateOptions(model=model).settings().sample_rate == 250.0
+    moved = EstimateOptions(model=model, columns={"t": "secs", "pA": "pa_si"}).settings()
+    assert moved.sample_rate is None and moved.columns["t"] == "secs"
+    assert "pA" not in moved.scale and "pA" not in moved.accuracy
+    assert moved.scale.get("pB") == EstimateOptions(model=model).settings().scale["pB"]

@@ -105,17 +105,27 @@ class RecordSettings:
         >>> m = a.merged(b)
         >>> m.columns, m.scale, m.sample_rate
         ({'V': 'volts'}, {'V': 3.0}, 10.0)
+        >>> b.merged(RecordSettings(columns={"t": "seconds"})).sample_rate is None
+        True
         """
         if later is None or later.empty:
             return self if not (later and later.sources) else replace(
                 self, sources=(*self.sources, *later.sources))
+        # a column mapped to another file column takes that column's own scale,
+        # offset, accuracy (and, for t, sample rate): none of the earlier ones
+        moved = {k for k, v in later.columns.items() if self.columns.get(k, k) != v}
+
+        def kept(table: Mapping[str, Any]) -> dict[str, Any]:
+            return {k: v for k, v in table.items() if k not in moved}
+
+        rate = later.sample_rate if later.sample_rate is not None else (
+            None if "t" in moved else self.sample_rate)
         return RecordSettings(
-            {**self.columns, **later.columns},
-            later.sample_rate if later.sample_rate is not None else self.sample_rate,
-            {**self.scale, **later.scale}, {**self.offset, **later.offset},
+            {**self.columns, **later.columns}, rate,
+            {**kept(self.scale), **later.scale}, {**kept(self.offset), **later.offset},
             tuple(dict.fromkeys((*self.ignore, *later.ignore))),
             tuple(dict.fromkeys((*self.sources, *later.sources))),
-            {**self.accuracy, **later.accuracy})
+            {**kept(self.accuracy), **later.accuracy})
 
     def describe(self, dropped: int | None = None) -> str:
         """One line saying what the settings do (for notes); ``dropped``: how

@@ -597,3 +597,19 @@ def test_a_remapped_t_takes_its_new_column_s_own_scale() -> None:
     assert moved.sample_rate is None and moved.columns["t"] == "secs"
     assert "pA" not in moved.scale and "pA" not in moved.accuracy
     assert moved.scale.get("pB") == EstimateOptions(model=model).settings().scale["pB"]
+
+
+def test_columns_naming_a_state_says_so_and_names_its_sensor(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`--columns x=...` for a state said 'for more than one column'."""
+    from condmon.cli.main import main
+
+    template = Path(__file__).resolve().parents[1] / "examples" / "template.toml"
+    rec = tmp_path / "r.csv"
+    assert main(["simulate", "plant", str(template), "--out", str(rec), "--duration",
+                 "3"]) == 0
+    capsys.readouterr()
+    assert main(["estimate", str(rec), "--model", str(template), "--columns", "x=pos"]) == 2
+    err = capsys.readouterr().err
+    assert "'x' is a state of model 'my-machine', not a record column" in err
+    assert "write pos=pos" in err and len(err.strip().splitlines()) == 1

@@ -135,7 +135,10 @@ class EstimateOptions:
         :attr:`record`, then :attr:`columns`."""
         from condmon.models.registry import get_model
 
-        return get_model(self.model or "dc-motor").record.merged(self.record).merged(
+        machine = get_model(self.model or "dc-motor")
+        if self.columns:
+            _check_mapped(machine, self.columns)
+        return machine.record.merged(self.record).merged(
             RecordSettings(dict(self.columns or {}), sources=("--columns",) if self.columns
                            else ()))
 
@@ -219,3 +222,21 @@ class EstimateOptions:
     def with_hold(self, hold: Mapping[str, float] | None) -> EstimateOptions:
         """These options holding unidentified unknowns at ``hold`` (a baseline's means)."""
         return dataclasses.replace(self, hold=dict(hold) if hold else None)
+
+
+def _check_mapped(machine: Any, columns: Mapping[str, str]) -> None:
+    """Refuse ``--columns`` naming a state or a parameter: a record holds ``t``,
+    the sensors and the inputs, which are what a file column maps to."""
+    plant = machine.plant
+    record = ["t", *plant.sensor_names, *(u.name for u in plant.inputs)]
+    for name in columns:
+        what = ("a state" if name in {x.name for x in plant.states} else
+                "a parameter" if name in plant.parameter_names else None)
+        if what is None:
+            continue
+        measured = [sn.name for sn in plant.sensors if sn.measures == name]
+        hint = (f"; its sensor is {measured[0]!r}: write {measured[0]}={columns[name]}"
+                if measured else "")
+        raise DataError(f"--columns {name}={columns[name]}: {name!r} is {what} of model "
+                        f"{machine.name!r}, not a record column; a record holds "
+                        f"{', '.join(record)}{hint}")

@@ -169,3 +169,22 @@ def test_spreading_leaves_the_commands_own_words() -> None:
     assert spread_values(["--workers", "2", "hst", "r.csv", "--healthy", "a", "b", "c"],
                          greedy, flags, 2) == ["--workers", "2", "hst", "r.csv", "--healthy",
                                                "a", "--healthy", "b", "--healthy", "c"]
+
+
+def test_isolate_reads_a_record_as_the_rig_writes_it(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`simulate plant` writes a declaration's record as its [record] table says
+    the rig writes it; `isolate` ignored that table, so the README's own pair
+    failed for such a machine. It now reads records as `estimate` does."""
+    hst = Path(__file__).resolve().parents[1] / "src" / "condmon" / "data" / "hst.toml"
+    decl = tmp_path / "hst-rig.toml"
+    decl.write_text(hst.read_text() + '\n[record]\nsample_rate = 100.0\n\n[record.columns]\n'
+                    't = "n"\nPs = { column = "p_bar", scale = 1.0e5 }\n'
+                    'omega_m = { column = "rpm", scale = 0.10471975511965977 }\n')
+    rec = tmp_path / "rig.csv"
+    assert main(["simulate", "plant", str(decl), "--out", str(rec), "--fault",
+                 "Dm=-25%@10s", "--seed", "1"]) == 0
+    assert rec.read_text().splitlines()[0].split(",")[:3] == ["n", "p_bar", "rpm"]
+    capsys.readouterr()
+    assert main(["isolate", str(decl), str(rec)]) == 0
+    assert "fault isolated: Dm" in capsys.readouterr().out

@@ -12,6 +12,7 @@ from rich.table import Table
 
 from condmon.cli._console import err, fmt, out, progress, write_json
 from condmon.cli._options import greedy_command
+from condmon.cli.estimation import IgnoreOpt, OffsetOpt, RateOpt, ScaleOpt, options
 from condmon.report.tables import estimate_text, percent_text
 
 if TYPE_CHECKING:
@@ -61,24 +62,32 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
         unit: Annotated[Optional[str], typer.Option("--unit", help="Store the isolation in this unit's history (with --db).")] = None,
         db: Annotated[str, typer.Option("--db", help="History database for --unit: a SQLite file or a postgresql:// URL.")] = "condmon.db",
         date: Annotated[Optional[str], typer.Option(help="When the test was run, ISO 8601 (UTC unless a zone is given); default: the record's own date, if any.")] = None,
+        sample_rate: RateOpt = None,
+        scale: ScaleOpt = None,
+        offset: OffsetOpt = None,
+        ignore: IgnoreOpt = None,
         as_json: Annotated[bool, typer.Option("--json", help="Print the result as JSON.")] = False,
     ) -> None:
         """Detect a fault, estimate each suspect at steady state and isolate it by
-        parallel multi-model simulation; with --unit, keep it in the unit's history."""
+        parallel multi-model simulation; with --unit, keep it in the unit's history.
+
+        Records are read as `estimate` and `check` read them: the model's
+        [record] table (the rig's column names and raw units), then --columns,
+        --sample-rate, --scale, --offset and --ignore."""
         from condmon.diagnose.isolation import IsolationSettings, healthy_normalisation, isolate
         from condmon.diagnose.structure import RESIDUAL_KINDS
         from condmon.errors import ConfigError
         from condmon.io.columns import column_matrix
-        from condmon.io.records import parse_column_map
         from condmon.models.registry import load_plant_model
         from condmon.models.registry import recognised_records
 
-        mapping = parse_column_map(columns) or None
+        reader = options("sriv", None, "auto", columns, 0.0, model, sample_rate=sample_rate,
+                         scale=scale, offset=offset, ignore=ignore)
         if residuals not in RESIDUAL_KINDS:
             raise ConfigError(f"unknown --residuals {residuals!r}; allowed: {', '.join(RESIDUAL_KINDS)}")
         plant = load_plant_model(model, params)
         cfg = IsolationSettings.load(settings)
-        rec = _read(record, mapping)
+        rec = reader.read(record)
         if unit is not None:
             from condmon.store.base import check_name
             from condmon.io.dates import parse_date
@@ -89,7 +98,7 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
         with progress() as prog:
             if healthy:
                 task = prog.add_task("learning the normalisation", total=None)
-                norm = healthy_normalisation(plant, [_read(h, mapping) for h in healthy],
+                norm = healthy_normalisation(plant, [reader.read(h) for h in healthy],
                                              residuals, cfg.detection,  # type: ignore[arg-type]
                                              record=cfg.record, limits=cfg.simulation,
                                              sources=[str(h) for h in healthy])
@@ -128,15 +137,6 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
             what = ("already in the history of" if kept.duplicate else "stored in the history of")
             out.print(f"isolation i{kept.isolation_id} {what} {kept.unit!r} ({redact(db)})",
                       highlight=False, markup=False)
-
-
-def _read(path: Path, mapping: dict[str, str] | None) -> Any:
-    """A record file: a plain CSV file without pandas, any other with it."""
-    from condmon.io.columns import read_plain_csv
-    from condmon.io.records import read_record
-
-    plain = read_plain_csv(path, mapping)
-    return plain if plain is not None else read_record(path, mapping)
 
 
 def _simulate(model: str, out_path: Path, fault: list[str] | None, params: Path | None,

@@ -16,6 +16,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -361,3 +362,38 @@ def test_a_full_queue_refuses_in_bytes_and_says_so_at_once(broker: Broker,
     kept = StreamJournal(summary.journal)
     assert summary.overflow + summary.counters.received + len(kept) == 60
     kept.close()
+
+
+def test_a_stream_in_model_columns_is_read_as_si_for_a_rig_layout_machine(
+        tmp_path: Path) -> None:
+    """A machine whose declaration reads its rig's files ([record]: other names,
+    raw units) had its live tests refused in the documented format (model
+    columns in SI): the file's mapping was applied to them."""
+    from condmon.io.rig import rig_layout
+    from condmon.io.stream import Chunk
+    from condmon.workflows.monitoring import add_baseline_tests
+    from condmon.workflows.records import EstimateOptions
+
+    shipped = Path(__file__).resolve().parents[1] / "src" / "condmon" / "data"
+    decl = tmp_path / "rig-motor.toml"
+    text = (shipped / "dc-motor.toml").read_text().replace('rules = "', f'rules = "{shipped}/')
+    text = text.replace('breakpoints = "', f'breakpoints = "{shipped}/')
+    decl.write_text(text + '\n[record.columns]\nV = "volts"\nI = { column = "milliamps", '
+                    'scale = 1.0e-3 }\nomega = { column = "rpm", scale = 0.10471975511965977 }\n')
+    plant = load_plant_model(str(decl))
+    rig = EstimateOptions(model=str(decl)).settings()
+    with open_store(str(tmp_path / "h.db")) as store:
+        files = []
+        for s in (1, 2, 3):
+            p = tmp_path / f"b{s}.csv"
+            rig_layout(simulate_plant(plant, (), seed=s), rig).to_csv(p, index=False)
+            files.append(p)
+        assert add_baseline_tests(store, "M", files, EstimateOptions(model=str(decl))).baseline
+        w, events = Watcher(store, model=str(decl)), []
+        w.publish = events.append
+        si = simulate_plant(plant, (), seed=7)
+        cols = {c: si[c].to_numpy(dtype=np.float64) for c in ("t", "V", "I", "omega")}
+        w.handle(Chunk("M", cols))
+        w.handle(Chunk("M", {}, end=True))
+        assert w.counters.checks == 1, [e.reason for e in events]
+        assert events[-1].status == "go", events[-1].reason

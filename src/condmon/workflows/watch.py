@@ -490,6 +490,7 @@ class Watcher:
         frame = pd.DataFrame({c: np.concatenate([p[c] for p in parts if c in p])
                               for c in parts[0]})
         frame.attrs["source"] = f"{chunk.unit} stream"
+        _mark_si(frame, self.machine_of(chunk.unit)[1])
         try:
             event = self._check(chunk.unit, name, frame)
         except StoreError:
@@ -541,3 +542,15 @@ class Watcher:
                            else stream_time)
         self.publish(event)
         return event
+
+
+def _mark_si(frame: pd.DataFrame, machine: Machine) -> None:
+    """A streamed test in the model's own columns (``t`` and every sensor under
+    the model's names, none of the rig's file names) is in SI units, as the
+    stream contract says: the declaration's ``[record]`` table (the rig's file
+    names and raw units) is not applied to it. A test in the rig's columns is
+    read as its files are."""
+    names = {"t", *machine.plant.sensor_names}
+    rig = {f for k, f in machine.record.columns.items() if f != k}
+    if names <= set(frame.columns) and not rig & set(frame.columns):
+        frame.attrs["record_settings"] = "model columns in SI, as streamed"

@@ -33,6 +33,17 @@ def _declaration(folder: Path) -> Path:
     return path
 
 
+def _unit_in_sqlite(tmp_path: Path, records: list[str], monkeypatch: pytest.MonkeyPatch
+                    ) -> tuple[Path, Path]:
+    """Unit U's baseline in a SQLite history, with its declaration in ``site/``."""
+    monkeypatch.setenv("CONDMON_CACHE", str(tmp_path / "cache"))
+    decl = _declaration(tmp_path / "site" / "models")
+    db = tmp_path / "h.db"
+    assert main(["baseline", "add", *records[:3], "--unit", "U", "--model", str(decl),
+                 "--db", str(db)]) == 0
+    return db, decl
+
+
 @pytest.fixture(scope="module")
 def records(tmp_path_factory: pytest.TempPathFactory) -> list[str]:
     tmp = tmp_path_factory.mktemp("msd-records")
@@ -103,11 +114,7 @@ def test_a_unit_whose_file_is_gone_and_not_kept_says_how_to_mend(
     """A history written before declarations were kept (v11) names the fix."""
     import sqlite3
 
-    monkeypatch.setenv("CONDMON_CACHE", str(tmp_path / "cache"))
-    decl = _declaration(tmp_path / "site" / "models")
-    db = tmp_path / "h.db"
-    assert main(["baseline", "add", *records[:3], "--unit", "U", "--model", str(decl),
-                 "--db", str(db)]) == 0
+    db, _ = _unit_in_sqlite(tmp_path, records, monkeypatch)
     with sqlite3.connect(db) as c:
         c.execute("UPDATE units SET model_digest = NULL")
     shutil.rmtree(tmp_path / "site")
@@ -125,11 +132,7 @@ def test_a_v11_history_keeps_the_declarations_still_found(
 
     from condmon.store.db import open_store
 
-    monkeypatch.setenv("CONDMON_CACHE", str(tmp_path / "cache"))
-    decl = _declaration(tmp_path / "site" / "models")
-    db = tmp_path / "v11.db"
-    assert main(["baseline", "add", *records[:3], "--unit", "U", "--model", str(decl),
-                 "--db", str(db)]) == 0
+    db, decl = _unit_in_sqlite(tmp_path, records, monkeypatch)
     with sqlite3.connect(db) as c:
         c.execute("ALTER TABLE units DROP COLUMN model_digest")
         c.execute("DROP TABLE declarations")

@@ -144,3 +144,40 @@ def test_a_v11_history_keeps_the_declarations_still_found(
     with open_store(str(db)) as store:
         kept = Path(str(store.unit_model("U")))
     assert kept.is_file() and kept.is_relative_to(tmp_path / "cache")
+
+
+def test_a_declared_model_s_fleet_prior_finds_its_peers(
+        tmp_path: Path, records: list[str]) -> None:
+    """Peers were looked up by the unit's declaration file while the history
+    keeps the model's declared name: 'no fleet history' with failed units of
+    the same model. Two units whose files sit at different paths are peers."""
+    from condmon.store.db import open_store
+    from condmon.store.forecasts import FleetHistory
+    from condmon.workflows.checks import check_test
+    from condmon.workflows.monitoring import add_baseline_tests
+    from condmon.workflows.records import EstimateOptions
+
+    paths = []
+    for where in ("a", "b"):
+        p = tmp_path / where / "msd.toml"
+        p.parent.mkdir()
+        shutil.copy(TEMPLATE, p)
+        paths.append(p)
+    worn = []
+    for k, damping in enumerate((6.5, 8.0, 10.0)):
+        p = tmp_path / f"worn{k}.csv"
+        assert main(["simulate", "plant", str(TEMPLATE), "--out", str(p), "--seed",
+                     str(20 + k), "--duration", "4", "--fault", f"c={damping}@0s"]) == 0
+        worn.append(str(p))
+    with open_store(str(tmp_path / "h.db")) as store:
+        for unit, path in (("OLD1", paths[0]), ("OLD2", paths[1]), ("NEW", paths[1])):
+            opts = EstimateOptions(model=str(path))
+            add_baseline_tests(store, unit, records[:3], opts)
+            if unit != "NEW":
+                for i, rec in enumerate(worn):
+                    check_test(store, unit, rec, opts, test_date=f"2026-01-0{2 + i}")
+        assert store.unit_model_name("OLD1") == store.unit_model_name("NEW") == "my-machine"
+        assert store.degraded_among(["OLD1", "OLD2", "NEW"]) == {"OLD1", "OLD2"}
+        fleet = FleetHistory(store)
+        assert sorted(fleet.learning_peers("NEW")) == ["OLD1", "OLD2"]
+        assert fleet.peer_count("NEW") == 2

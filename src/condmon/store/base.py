@@ -277,6 +277,14 @@ class StoreBase:
 
         return run(conn) if conn is not None else self._read(run)
 
+    def unit_model_name(self, unit: str) -> str | None:
+        """The unit's model as the history names it: a shipped model's name or
+        a declaration's declared ``name`` (what peers of the same model share;
+        None for an unknown unit)."""
+        row = self._read(lambda c: c.execute(
+            sa.select(S.units.c.model).where(S.units.c.name == unit)).first())
+        return None if row is None else str(row[0])
+
     def unit_declaration(self, unit: str) -> tuple[str | None, str | None]:
         """The unit's declaration file as it was given, and the digest of the
         copy the history keeps (None, None for a shipped model)."""

@@ -91,7 +91,8 @@ class FleetHistory:
         (and group), ``unit`` left out (``generic-monitor.toml``), so a
         forecast's cost does not grow with the fleet; their kept rates
         (:meth:`rates_of`, kept with their forecasts) are read in one query."""
-        model, group = self.store.unit_model(unit), self.store.unit_group(unit)
+        # peers share the model's stored name (a declaration's file may differ per unit)
+        model, group = self.store.unit_model_name(unit), self.store.unit_group(unit)
         self._limit = self._limit or prior_units()
         key = (str(model), group)
         if key not in self._recent:   # one more: the unit itself may be among them
@@ -160,7 +161,7 @@ class FleetHistory:
         ``unit`` left out (``model`` and ``group``: the unit's, when known;
         its model's stored name, not a declaration's file)."""
         if model is None:
-            model, group = self.store.unit_model(unit), self.store.unit_group(unit)
+            model, group = self.store.unit_model_name(unit), self.store.unit_group(unit)
         if self._counts is None:
             self._counts = self.store.degraded_counts()
         n = sum(k for (m, g), k in self._counts.items()

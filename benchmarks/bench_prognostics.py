@@ -77,9 +77,9 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from _common import table, write_json
-from condmon.monitor.forecast import MIN_TESTS, fleet_wear_prior, forecast_series
+from condmon.forecast.series import MIN_TESTS, fleet_wear_prior, forecast_series
 from condmon.models.registry import get_model
-from condmon.monitor.unit_forecast import NoGo
+from condmon.forecast.unit import NoGo
 from condmon.simulate import load_actuator_rig, simulate_actuator
 from condmon.store import open_store
 from condmon.store.forecasts import machine_nogo

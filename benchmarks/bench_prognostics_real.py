@@ -11,12 +11,12 @@ life at cycle k is that cycle less k.
 Rolling forecasts from 30 % of each cell's life on, every 5th cycle, each
 from the cycles up to it only, by:
 
-- **condmon**: :func:`condmon.monitor.forecast.forecast_series` on the change
+- **condmon**: :func:`condmon.forecast.series.forecast_series` on the change
   of capacity against a healthy baseline (the first 5 cycles: their mean and
   standard deviation, which is also each cycle's standard error: the data
   give none), to the change that is the end of life; whole cycles (``step=1``).
   This is what a user gets today by making one check per cycle.
-- **condmon, Wiener path** (:mod:`condmon.monitor.wiener`, not yet what
+- **condmon, Wiener path** (:mod:`condmon.forecast.wiener`, not yet what
   ``condmon forecast`` gives): the capacity as a Wiener process with drift,
   fitted to every cycle so far, its first passage of the end-of-life level
   (inverse Gaussian), with the drift's and diffusion's uncertainty drawn.
@@ -53,8 +53,8 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _common import table, write_json  # noqa: E402
 
 from condmon.errors import CondmonError  # noqa: E402
-from condmon.monitor.forecast import forecast_series  # noqa: E402
-from condmon.monitor.wiener import wiener_forecast  # noqa: E402
+from condmon.forecast.series import forecast_series  # noqa: E402
+from condmon.forecast.wiener import wiener_forecast  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "external" / "batteries" / "nasa"
 #: End of life per cell [Ah] (the data set's README).
@@ -98,7 +98,7 @@ def condmon_forecast(cycle: np.ndarray, capacity: np.ndarray, k: int, level: flo
 def wiener_row(cycle: np.ndarray, capacity: np.ndarray, k: int, level: float
                ) -> tuple[float, float, float] | None:
     """The Wiener-path model's remaining cycles (median, 5 %, 95 %) from the cycles
-    up to ``k`` (:func:`condmon.monitor.wiener.wiener_forecast`, to the absolute level)."""
+    up to ``k`` (:func:`condmon.forecast.wiener.wiener_forecast`, to the absolute level)."""
     try:
         return wiener_forecast(cycle[:k + 1], capacity[:k + 1], level, seed=k).remaining
     except CondmonError:

@@ -11,7 +11,7 @@ import pytest
 
 from condmon.cli.main import main
 from condmon.errors import DataError
-from condmon.monitor.forecast import _median_interval, forecast_series
+from condmon.forecast.series import _median_interval, forecast_series
 from condmon.simulate import simulate_actuator
 from condmon.store import open_store
 from condmon.workflows.checks import check_test
@@ -152,7 +152,7 @@ def test_a_past_no_go_date_says_the_unit_is_due_a_check(
     in November, its median no-go date is past, and a note says so."""
     import pandas as pd
 
-    from condmon.monitor.unit_forecast import forecast_checks
+    from condmon.forecast.unit import forecast_checks
     from condmon.store.forecasts import FleetHistory
 
     with open_store(str(wearing[0])) as store:
@@ -295,7 +295,7 @@ def test_units_sort_by_urgency(wearing: tuple[Path, float],
     """Fast wear first, slow wear next, the stable unit last; the table says when."""
     from _tables import row
 
-    from condmon.monitor.unit_forecast import remaining_text
+    from condmon.forecast.unit import remaining_text
 
     db = str(wearing[0])
     capsys.readouterr()
@@ -526,7 +526,7 @@ def test_the_axis_says_why_it_does_not_count_hours() -> None:
     """Operating hours that go back (a counter read wrong) leave the forecast in days, and say so."""
     import pandas as pd
 
-    from condmon.monitor.unit_forecast import forecast_axis
+    from condmon.forecast.unit import forecast_axis
 
     checks = pd.DataFrame({"test_date": ["2026-01-01", "2026-01-02", "2026-01-03"],
                            "hours": [1120.0, 1960.0, 100.0]}, index=[5, 6, 7])
@@ -573,7 +573,7 @@ def test_the_first_check_past_no_go_is_searched_from_where_it_can_pass() -> None
     of no-go), and its distribution is the one of reading every check."""
     import math
 
-    from condmon.monitor.forecast import _left
+    from condmon.forecast.series import _left
 
     coef = np.array([0.0, 0.2])
 
@@ -609,7 +609,7 @@ def test_no_go_that_cannot_come_is_no_trend() -> None:
     most), and with no major rule on its fall it cannot turn a check no-go
     at all: both are "no trend" with the reason, never a date; a rise of a
     parameter whose own rule is minor (advisory at most) likewise."""
-    from condmon.monitor.unit_forecast import NoGo, forecast_checks
+    from condmon.forecast.unit import NoGo, forecast_checks
 
     checks, baseline = _falling([-20.0, -40.0, -60.0, -80.0, -95.0])
     cases = {"past its plausible values": (NoGo(300.0, 600.0, lower=0.0), "end at -100 %"),
@@ -645,7 +645,7 @@ def test_the_machine_says_where_each_parameter_turns_a_check_no_go() -> None:
 def test_a_peer_that_wore_another_way_teaches_nothing() -> None:
     """Peers whose friction rose teach a rising unit; one whose friction fell,
     or did not move (it degraded on another parameter), is left out."""
-    from condmon.monitor.prior import prior_from_wear, unit_wear
+    from condmon.forecast.prior import prior_from_wear, unit_wear
 
     x = np.arange(1.0, 21.0)
     rng = np.random.default_rng(3)
@@ -696,7 +696,7 @@ def test_no_go_the_way_the_last_checks_point_cannot_come_so_the_other_way_is_for
     """A change that climbs from -30 % at +4 %/day, its last three checks still
     below 0: a fall of it names no rule, so the rise's no-go is forecast; a
     parameter whose rise and fall both name none says so."""
-    from condmon.monitor.unit_forecast import NoGo, forecast_checks
+    from condmon.forecast.unit import NoGo, forecast_checks
 
     checks, baseline = _falling([-30.0, -26.0, -22.0, -18.0, -14.0, -10.0, -6.0, -2.0])
     f = forecast_checks("U", checks, baseline, {"D": NoGo(20.0, 40.0, fall=float("inf"))},
@@ -740,7 +740,7 @@ def test_a_steady_move_sets_the_way_not_the_last_checks() -> None:
     below 0, where both a rise and a fall can turn a check no-go: the rise's
     no-go is forecast (the slope's interval is clear of 0); a flat series
     whose last checks dip heads for the fall's, and says "no trend"."""
-    from condmon.monitor.unit_forecast import NoGo, forecast_checks
+    from condmon.forecast.unit import NoGo, forecast_checks
 
     checks, baseline = _falling([-30.0, -26.0, -22.0, -18.0, -14.0, -10.0, -6.0, -2.0])
     f = forecast_checks("U", checks, baseline, {"D": NoGo(20.0, 40.0)}, {}).parameters[0]
@@ -791,7 +791,7 @@ def test_a_fault_of_two_symptoms_turns_no_go_when_the_later_comes() -> None:
     the rule named with its partner. With Kt steady, Ke's fall cannot make a
     check no-go: "no trend", and why."""
     from condmon.models.registry import get_model
-    from condmon.monitor.unit_forecast import forecast_checks
+    from condmon.forecast.unit import forecast_checks
     from condmon.store.forecasts import machine_nogo
 
     nogo, rules = machine_nogo(get_model("dc-motor"))
@@ -825,7 +825,7 @@ def test_a_series_whose_last_check_measured_past_no_go_is_at_no_go_now() -> None
     g = forecast_series(x, np.r_[11.0 * x[:-1], 100.0], np.full(10, 1.0), 2.0, threshold=105.0,
                         step=None)
     assert not g.at_nogo
-    from condmon.monitor.unit_forecast import remaining_text
+    from condmon.forecast.unit import remaining_text
     zero = {"median": 0.0, "low": 0.0, "high": 0.0, "by": "days"}
     assert remaining_text({**zero, "at_no_go": True}) == "at no-go now"
     assert remaining_text(zero) == "due now (its trend is past no-go)"
@@ -852,7 +852,7 @@ def test_the_report_index_lists_units_by_urgency(wearing: tuple[Path, float],
 def test_a_check_past_its_no_go_change_whose_status_is_not_no_go_is_due_now() -> None:
     """Its measured change passed the no-go change, but its own (wider) symptom
     kept it advisory: the unit is due now, not at no-go now."""
-    from condmon.monitor.unit_forecast import NoGo, forecast_checks
+    from condmon.forecast.unit import NoGo, forecast_checks
 
     checks, baseline = _falling([-10.0, -20.0, -30.0, -40.0, -45.0])
     for status, at in (("advisory", False), ("no-go", True)):
@@ -885,7 +885,7 @@ def test_a_wiener_path_s_first_passage_interval_covers_at_its_level() -> None:
     and diffusion drawn per path, 20 to 60 points seen), the 90 % interval of
     the first passage holds the true one in 80-97 % of the paths; a path
     that drifts away is said to cross with a probability below 1."""
-    from condmon.monitor.wiener import wiener_forecast
+    from condmon.forecast.wiener import wiener_forecast
 
     rng = np.random.default_rng(42)
     hits = []

@@ -1,7 +1,7 @@
 """The house's layout: stages import one way, and no module imports itself back round a circle.
 
-io -> models -> simulate -> features -> identify -> monitor -> diagnose -> store -> report
--> workflows -> cli: a stage may import an earlier one, never a later one
+io -> models -> simulate -> features -> identify -> monitor -> forecast -> diagnose -> store
+-> report -> workflows -> cli: a stage may import an earlier one, never a later one
 (function-level imports included; ``if TYPE_CHECKING:`` blocks are for the
 type checker and left out). The package's top level (errors, the BLAS
 limiter) is below every stage.
@@ -15,8 +15,8 @@ from pathlib import Path
 import condmon
 
 SRC = Path(condmon.__file__).resolve().parent
-STAGES = ("io", "models", "simulate", "features", "identify", "monitor", "diagnose", "store", "report",
-          "workflows", "cli")
+STAGES = ("io", "models", "simulate", "features", "identify", "monitor", "forecast", "diagnose",
+          "store", "report", "workflows", "cli")
 
 
 def _graph() -> dict[str, set[str]]:

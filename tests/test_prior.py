@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from condmon.errors import DataError
-from condmon.monitor.forecast import (
+from condmon.forecast.series import (
     FleetPrior, RatePrior, fleet_prior, fleet_wear_prior, forecast_series, prior_from_wear,
     unit_wear,
 )
@@ -276,7 +276,7 @@ def test_the_evidence_is_the_integral_it_stands_for() -> None:
     normal) and its posterior mean of k, against numerical integration."""
     from scipy.integrate import dblquad
 
-    from condmon.monitor.degradation import _normal_evidence
+    from condmon.forecast.degradation import _normal_evidence
 
     x = np.arange(1.0, 7.0)
     y = np.array([1.0, 3.5, 4.0, 7.5, 8.0, 11.0])
@@ -338,7 +338,7 @@ def test_a_fleet_whose_lines_bent_teaches_the_bend() -> None:
 def test_the_bent_line_is_recovered_both_ways() -> None:
     """The bent line's slope at the origin and its bend, up and down, and a
     straight line's bend of 0 within its error."""
-    from condmon.monitor.degradation import bent_fit
+    from condmon.forecast.degradation import bent_fit
 
     x = np.arange(1.0, 21.0)
     for b in (-0.04, 0.0, 0.05):

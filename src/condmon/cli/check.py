@@ -154,7 +154,7 @@ def register(app: typer.Typer) -> None:
 
 def _print_forecast(ahead: dict[str, Any]) -> None:
     """The unit's earliest forecast to no-go after a check (none on a dry run)."""
-    from condmon.monitor.unit_forecast import date_past, remaining_text
+    from condmon.forecast.unit import date_past, remaining_text
 
     f = ahead.get("forecast")
     if f:

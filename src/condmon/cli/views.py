@@ -42,7 +42,7 @@ def register(app: typer.Typer) -> None:
         from condmon.monitor.generic import load_generic_settings
         from condmon.store.db import open_store
         from condmon.store.engine import redact
-        from condmon.monitor.unit_forecast import NO_TREND, remaining_text
+        from condmon.forecast.unit import NO_TREND, remaining_text
         from condmon.report.web_data import fleet_document
 
         from condmon.report.web_data import SORTS

@@ -337,7 +337,7 @@ def nogo_degree(rules: RuleBase | None = None) -> float:
 
     A parameter whose own symptom names a major fault turns a check no-go at
     this degree of its symptom, short of ``r2`` where the degree is 1
-    (:class:`condmon.monitor.unit_forecast.NoGo`).
+    (:class:`condmon.forecast.unit.NoGo`).
 
     Example
     -------

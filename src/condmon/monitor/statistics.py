@@ -388,7 +388,7 @@ def _scatter_check(earlier: FloatArray, S: FloatArray, n: int, distinct: int
 
 #: Where the generic monitor's symptom reaches the no-go degree, in scatters of
 #: the baseline (r1 - k + 0.727 (k + r2 - r1) with r1, r2, k = 4, 8, 2; see
-#: condmon.monitor.unit_forecast.NoGo): the change a governing test must be able to confirm.
+#: condmon.forecast.unit.NoGo): the change a governing test must be able to confirm.
 NOGO_SCATTERS = 6.36
 
 

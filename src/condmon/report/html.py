@@ -281,7 +281,7 @@ def write_fleet_index(store: HistoryStore, out_dir: str | Path, title: str = "Fl
         The index file. A unit whose page is not in ``out_dir`` is listed
         without a link.
     """
-    from condmon.monitor.unit_forecast import remaining_text
+    from condmon.forecast.unit import remaining_text
     from condmon.store.forecasts import attach_forecasts, by_urgency
 
     out = Path(out_dir)

@@ -17,7 +17,7 @@ from condmon.report.figures import STATUS_COLOURS, new_figure
 from condmon.report.tables import CSS, badge, esc
 
 if TYPE_CHECKING:
-    from condmon.monitor.unit_forecast import UnitForecast
+    from condmon.forecast.unit import UnitForecast
     from condmon.store.db import HistoryStore
 
 #: The status badges' style alone: a notebook keeps its own page style.

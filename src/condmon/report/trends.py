@@ -30,7 +30,7 @@ from condmon.monitor.baseline import Baseline
 from condmon.monitor.fuzzy import symptom_width
 
 if TYPE_CHECKING:
-    from condmon.monitor.unit_forecast import ParameterForecast, UnitForecast
+    from condmon.forecast.unit import ParameterForecast, UnitForecast
 
 __all__ = ["TrendData", "FitData", "IsolationTrend", "ForecastBand", "trend_data", "fit_data",
            "isolation_trend", "unexplained", "axis_label", "error_bar", "forecast_band",
@@ -444,7 +444,7 @@ def forecast_band(forecast: ParameterForecast, by: str, points: int = 40) -> For
 
     From the last check to past the median crossing (to the 95 % point of
     the tests (days) left, at most twice the median), the fitted trend and
-    its 90 % band (:meth:`condmon.monitor.forecast.Forecast.band`). None
+    its 90 % band (:meth:`condmon.forecast.series.Forecast.band`). None
     without a trend.
 
     Parameters

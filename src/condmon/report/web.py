@@ -57,7 +57,7 @@ from werkzeug.exceptions import HTTPException
 from werkzeug.routing import BaseConverter
 
 from condmon.errors import CondmonError
-from condmon.monitor.unit_forecast import remaining_text
+from condmon.forecast.unit import remaining_text
 from condmon.report.figures import STATUS_COLOURS
 from condmon.report.live import LiveFeed, with_live
 from condmon.report.tables import unit_of

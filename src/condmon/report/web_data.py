@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     import pandas as pd
 
     from condmon.monitor.fuzzy import MonitorConfig
-    from condmon.monitor.unit_forecast import UnitForecast
+    from condmon.forecast.unit import UnitForecast
     from condmon.store.baselines import StoredBaseline
     from condmon.store.db import HistoryStore
 

@@ -1,6 +1,6 @@
 """A unit's forecasts to no-go, read from the history (the store-level reader).
 
-:func:`read_forecast` gathers what :func:`condmon.monitor.unit_forecast.
+:func:`read_forecast` gathers what :func:`condmon.forecast.unit.
 forecast_checks` needs from the store (the current baseline, the checks since
 it, the model's breakpoints and fault rules) and forecasts; ``condmon
 forecast``, ``condmon check``, the report and the fleet page all forecast
@@ -20,8 +20,8 @@ import pandas as pd
 
 from condmon.errors import CondmonError, DataError
 from condmon.monitor.baseline import MIN_BASELINE_TESTS, Baseline
-from condmon.monitor.prior import FleetPrior, UnitWear, prior_from_wear, unit_wear
-from condmon.monitor.unit_forecast import (
+from condmon.forecast.prior import FleetPrior, UnitWear, prior_from_wear, unit_wear
+from condmon.forecast.unit import (
     NO_TREND, NoGo, UnitForecast, forecast_axis, forecast_checks, in_test_order,
     parameter_series,
 )
@@ -52,7 +52,7 @@ class FleetHistory:
     no-go; its change series since its current baseline give the prior on
     the degradation of a unit of the same model (and group, when the unit is
     in one): its shape (how many peers wore exponentially) and each shape's
-    rate (:func:`condmon.monitor.prior.prior_from_wear`), each unit left out
+    rate (:func:`condmon.forecast.prior.prior_from_wear`), each unit left out
     of its own prior. What is read of them does not grow with the fleet: their
     counts by model and group (one aggregate), whether the units at hand
     have degraded, and the most recently changed peers a prior learns from
@@ -255,7 +255,7 @@ def machine_nogo(machine: Machine, baseline: Baseline | None = None,
                  systematic: Mapping[str, float] | None = None
                  ) -> tuple[dict[str, NoGo], dict[str, str]]:
     """Where each of a machine's parameters turns a check no-go on its own
-    (:class:`~condmon.monitor.unit_forecast.NoGo`: its breakpoints and symptom
+    (:class:`~condmon.forecast.unit.NoGo`: its breakpoints and symptom
     width from its monitor, the diagnoser's no-go degree when a major rule
     names its rise or fall, alone or with another symptom (``low(Ke) and
     low(Kt)``: the partner is kept, :func:`~condmon.diagnose.diagnoser.joint_faults`),
@@ -339,7 +339,7 @@ def forecast_fields(res: UnitForecast | None, reason: str | None) -> dict[str, A
     """``{"forecast", "forecast_reason"}`` of a unit's listing (and of ``check --json``).
 
     ``forecast`` is the earliest forecast to no-go
-    (:meth:`~condmon.monitor.unit_forecast.UnitForecast.summary`:
+    (:meth:`~condmon.forecast.unit.UnitForecast.summary`:
     ``parameter, unit, by, median, low, high, date, rule``) or None;
     ``forecast_reason`` says why it is None (``no baseline yet``, ``not
     enough tests to forecast: ...``, ``no trend towards no-go``), else None.

@@ -40,7 +40,7 @@ from condmon.workflows.records import EstimateOptions, RecordLike
 if TYPE_CHECKING:
     from condmon.diagnose.isolation import IsolationResult
     from condmon.models.machine import Machine
-    from condmon.monitor.unit_forecast import UnitForecast
+    from condmon.forecast.unit import UnitForecast
     from condmon.store.db import HistoryStore
     from condmon.workflows.manage import ChangeResult
 
@@ -54,7 +54,7 @@ class Forecast:
     Attributes
     ----------
     result : UnitForecast
-        Every parameter's forecast (:class:`condmon.monitor.unit_forecast.UnitForecast`):
+        Every parameter's forecast (:class:`condmon.forecast.unit.UnitForecast`):
         remaining life in ``result.by`` (tests, days or hours) with its 90 %
         interval.
     """

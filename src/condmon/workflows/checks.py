@@ -37,7 +37,7 @@ from condmon.monitor.group import GroupBaseline, group_baseline
 from condmon.monitor.statistics import (
     CheckStatistics, StatisticsConfig, check_statistics, checked_alpha,
 )
-from condmon.monitor.unit_forecast import in_test_order
+from condmon.forecast.unit import in_test_order
 from condmon.store.db import HistoryStore
 from condmon.store.forecasts import keep_forecast
 from condmon.workflows.monitoring import (

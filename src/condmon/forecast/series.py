@@ -32,14 +32,14 @@ is (a check turns no-go, not the time between two). Its 90 % interval then
 ends at the mid-p quantiles (a check at an end counts half), which hold close
 to 90 % on average: the 5 % and 95 % points of a few whole checks hold 97-98 %.
 The fits' residuals give their scale, with the tests' stated variance as a
-prior worth two tests (:func:`~condmon.monitor.degradation.residual_scale`);
+prior worth two tests (:func:`~condmon.forecast.degradation.residual_scale`);
 a trend must stand out of the stated variance at least, and of checks that
-drift together (:func:`~condmon.monitor.degradation.serial_factor`). A slope whose 90 % interval holds 0,
+drift together (:func:`~condmon.forecast.degradation.serial_factor`). A slope whose 90 % interval holds 0,
 or points away from the threshold, is "no trend": then no number of tests is
 given.
 
 A **fleet prior**, built from units of the same model that have already
-degraded (:mod:`condmon.monitor.prior`), is combined with the unit's own
+degraded (:mod:`condmon.forecast.prior`), is combined with the unit's own
 tests by Bayesian updating (Gebraeel 2006, and the degradation models of
 MATLAB's Predictive Maintenance Toolbox, fit such priors on a fleet):
 
@@ -51,7 +51,7 @@ MATLAB's Predictive Maintenance Toolbox, fit such priors on a fleet):
   amplitude ``A`` (of ``c + A·(exp(b·x) − 1)``, Gebraeel's two priors), and
   the line's slope ``s`` and bend ``b`` (of ``c + s·(exp(b·x) − 1)/b``, ``b``
   near 0: the fleet's lines may bend a little) by their exact posteriors,
-  ``b`` on a grid (:func:`~condmon.monitor.degradation.fleet_posteriors`:
+  ``b`` on a grid (:func:`~condmon.forecast.degradation.fleet_posteriors`:
   for a given ``b`` each shape is linear, so the level and ``A`` or ``s``
   are integrated out in closed form), and the two shapes weighted by the
   fleet's odds of the exponential times the Bayes factor of the unit's
@@ -62,7 +62,7 @@ MATLAB's Predictive Maintenance Toolbox, fit such priors on a fleet):
   line's bend or the curve's amplitude (fewer than 2 peers give them), the
   line's slope is updated alone and the exponential's rate is weighed
   against a line with a flat slope
-  (:func:`~condmon.monitor.degradation.rate_posterior`).
+  (:func:`~condmon.forecast.degradation.rate_posterior`).
 
 After a few tests the fleet carries the forecast; after many, the unit's own
 tests. With no fleet history the prior is vague, the forecast the unit's
@@ -85,12 +85,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from condmon.errors import DataError
-from condmon.monitor.degradation import (
+from condmon.forecast.degradation import (
     MIN_TESTS, Z90, Fit, RatePosterior, aicc_weights, checked_series, fleet_posteriors, growth,
     rate_posterior, residual_scale, trend_sd, weights,
 )
-from condmon.monitor.degradation import fits as degradation_fits
-from condmon.monitor.prior import (
+from condmon.forecast.degradation import fits as degradation_fits
+from condmon.forecast.prior import (
     FleetPrior, Prior, RatePrior, fleet_prior, fleet_wear_prior, prior_from_rates,
     prior_from_wear, unit_rate, unit_wear, updated,
 )
@@ -352,7 +352,7 @@ def _slope(fit: Fit, kind: str, scale: float, xa: FloatArray, ya: FloatArray, w:
            sign: float) -> tuple[float, tuple[float, float]]:
     """A fit's slope at the last test, towards the threshold for the
     exponential's, and its 90 % interval as a trend test takes it
-    (:func:`~condmon.monitor.degradation.trend_sd`). [% per x]"""
+    (:func:`~condmon.forecast.degradation.trend_sd`). [% per x]"""
     coef, cov, _ = fit
     slope = float(coef[1])
     if kind == "exponential":   # β at the last test, towards the threshold
@@ -379,11 +379,11 @@ def _with_shape(prior: FleetPrior, found: dict[str, Fit], xa: FloatArray, ya: Fl
     slope and bend, the exponential's rate and amplitude), the exponential's
     weight is its posterior probability: the fleet's odds times the Bayes
     factor of the unit's tests between the fleet's line and the fleet's
-    curve (:func:`~condmon.monitor.degradation.fleet_posteriors`), and both
+    curve (:func:`~condmon.forecast.degradation.fleet_posteriors`), and both
     are drawn from their posteriors: a unit whose start looks straight but
     far slower than the peers' lines is weighed against their curve too.
     With the growth rate alone, the factor is against the line with a flat
-    slope (:func:`~condmon.monitor.degradation.rate_posterior`). Without it,
+    slope (:func:`~condmon.forecast.degradation.rate_posterior`). Without it,
     the Akaike weights times the fleet's odds (Burnham and Anderson's prior
     model probabilities)."""
     p = prior.p_exponential

@@ -4,7 +4,7 @@
 baseline (a frame of :meth:`~condmon.store.HistoryStore.history`'s rows), the
 baseline, each parameter's no-go change ``r2`` and the fault rules named by
 their one-symptom condition, it forecasts every parameter (and operating
-regime) with :func:`condmon.monitor.forecast.forecast_series`: the crossing
+regime) with :func:`condmon.forecast.series.forecast_series`: the crossing
 of ``r2`` in the trend's direction. What ``x`` counts is chosen once, by
 :func:`forecast_axis`: the days since the first check when every check carries
 a date (increasing, none twice), else the checks' count.
@@ -28,21 +28,15 @@ from numpy.typing import NDArray
 
 from condmon.errors import DataError
 from condmon.monitor.baseline import Baseline
-from condmon.monitor.degradation import steady_direction
-from condmon.monitor.forecast import (
+from condmon.forecast.axis import Axis, Series, forecast_axis, in_test_order, parameter_series
+from condmon.forecast.degradation import steady_direction
+from condmon.forecast.series import (
     MIN_TESTS, Forecast, Prior, checked_horizon, forecast_series,
 )
 
 __all__ = ["ParameterForecast", "UnitForecast", "forecast_checks", "forecast_axis", "Axis", "NoGo",
            "in_test_order",
            "remaining_text", "date_past", "NO_TREND", "parameter_series", "Series"]
-
-#: One parameter's change series: x [test (or d)], change [%], each test's
-#: standard error and the baseline's spread [% of the baseline mean].
-Series = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float]
-
-#: The farthest crossing given a date. [d]
-_MAX_DAYS = 36525.0
 
 #: Why a unit with enough checks has no forecast.
 NO_TREND = "no trend towards no-go"
@@ -248,157 +242,6 @@ class UnitForecast:
                 "at_no_go": e.forecast.at_nogo}
 
 
-@dataclass(frozen=True)
-class Axis:
-    """What a unit's forecasts count, and where each check stands on it.
-
-    Attributes
-    ----------
-    by : {"tests", "days", "hours"}
-        Checks counted, days since the first check, or the unit's operating
-        hours since the first check.
-    dates : Series
-        Each check's test date (NaT: unknown), by test id.
-    hours : Series
-        Each check's operating hours (NaN: not given), by test id. [h]
-    note : str or None
-        Why the forecast does not count hours (or days) that some checks give.
-    """
-
-    by: str
-    dates: pd.Series
-    hours: pd.Series
-    note: str | None = None
-
-    def values(self, rows: pd.Index) -> NDArray[np.float64]:
-        """``x`` of the checks ``rows`` (a subset of the checks, in order):
-        their count from 1, or the days (hours) since the first check.
-        [test (or d, h)]"""
-        if self.by == "tests":
-            return np.arange(1.0, len(rows) + 1.0)
-        if self.by == "days":
-            days = (self.dates[rows] - self.dates.iloc[0]).dt.total_seconds() / 86400.0
-            return np.asarray(days.to_numpy(), dtype=np.float64)
-        return np.asarray((self.hours[rows] - self.hours.iloc[0]).to_numpy(), dtype=np.float64)
-
-    @property
-    def dated(self) -> bool:
-        """Every check carries a date, in order, none twice."""
-        return _increasing(self.dates)
-
-    def date_after(self, row: Any, ahead: float) -> str | None:
-        """The date ``ahead`` tests (days, hours) after check ``row``: for
-        hours, at the unit's usage over its dated checks [h per day]; None
-        when not dated (tests), or beyond a century."""
-        if not self.dated or self.by == "tests" or not ahead >= 0:
-            return None
-        days = ahead
-        if self.by == "hours":
-            span_h = float(self.hours.iloc[-1] - self.hours.iloc[0])
-            span_d = (self.dates.iloc[-1] - self.dates.iloc[0]).total_seconds() / 86400.0
-            if not (span_h > 0 and span_d > 0):
-                return None
-            days = ahead * span_d / span_h
-        if days >= _MAX_DAYS:   # a crossing beyond a century is no date (nor a timestamp)
-            return None
-        return str((self.dates[row] + pd.Timedelta(days=days)).round("s").isoformat())
-
-
-def in_test_order(checks: pd.DataFrame) -> pd.DataFrame:
-    """The checks in the order they were tested: by test date when every check
-    carries one (a record checked late goes where it was tested; checks of
-    one date keep the order they were stored in), else as stored.
-
-    Example
-    -------
-    >>> c = pd.DataFrame({"test_date": ["2026-09-10", "2026-09-30", "2026-09-20"]},
-    ...                  index=[5, 6, 7])
-    >>> list(in_test_order(c).index), list(in_test_order(c.iloc[:2]).index)
-    ([5, 7, 6], [5, 6])
-    """
-    if "test_date" not in checks or len(checks) < 2:
-        return checks
-    dates = pd.to_datetime(checks["test_date"], utc=True, errors="coerce")
-    if bool(dates.isna().any()) or bool(dates.is_monotonic_increasing):
-        return checks
-    return checks.iloc[np.argsort(dates.to_numpy(), kind="stable")]
-
-
-def _increasing(values: pd.Series) -> bool:
-    return bool(values.notna().all()) and bool(values.is_monotonic_increasing) \
-        and values.nunique() == len(values)
-
-
-def forecast_axis(checks: pd.DataFrame) -> Axis:
-    """What a unit's forecasts count: the one place the x axis is chosen.
-
-    Operating hours when every check carries them (the ``hours`` column),
-    increasing, none twice: wear follows use. Else days when every check
-    carries a test date, in order and none twice. Else tests (their count).
-
-    Parameters
-    ----------
-    checks : DataFrame
-        The checks, oldest first, with a ``test_date`` and optionally an
-        ``hours`` column.
-
-    Example
-    -------
-    >>> c = pd.DataFrame({"test_date": ["2026-01-02", "2026-01-05", None],
-    ...                   "hours": [120.0, 190.5, 260.0]})
-    >>> forecast_axis(c).by, forecast_axis(c.drop(columns="hours").iloc[:2]).by
-    ('hours', 'days')
-    >>> forecast_axis(c.drop(columns="hours")).by
-    'tests'
-    """
-    dates = pd.to_datetime(checks["test_date"], utc=True, errors="coerce")
-    hours = pd.to_numeric(checks["hours"], errors="coerce") if "hours" in checks \
-        else pd.Series(np.nan, index=checks.index, dtype=np.float64)
-    by = "hours" if _increasing(hours) else "days" if _increasing(dates) else "tests"
-    note = None
-    if by != "hours" and hours.notna().any():
-        note = f"counted in {by}, not operating hours: {_why_not(hours, 'hours', ' h')}"
-    elif by == "tests" and dates.notna().any():
-        note = f"counted in tests, not days: {_why_not(dates, 'a date', '')}"
-    return Axis(by, dates, hours, note)
-
-
-def _why_not(values: pd.Series, what: str, unit: str) -> str:
-    """Why ``values`` (by test id) cannot be a forecast's axis, in a clause."""
-    missing = values[values.isna()]
-    if len(missing):
-        return f"test #{missing.index[0]} has no {what.removeprefix('a ')}"
-    prev = values.shift(1)
-    back = values[values <= prev]
-    i = back.index[0]
-
-    def show(v: Any) -> str:
-        return f"{v:g}{unit}" if unit else str(v)
-
-    return (f"test #{i} has {show(values[i])}, not after the check before it "
-            f"({show(prev[i])})")
-
-
-def parameter_series(checks: pd.DataFrame, baseline: Baseline, key: str, axis: Axis
-                     ) -> tuple[Series, pd.Index] | None:
-    """The change series of parameter ``key`` (``Tc@forward`` for a regime's)
-    in ``checks``, and the checks it is in; None when fewer than 3 checks have
-    it or the baseline lacks it."""
-    col = f"{key}_change"   # a regime's parameter has columns of its own (Tc@forward)
-    if col not in checks or key not in baseline.parameters:
-        return None
-    i = baseline.parameters.index(key)
-    mean, std = baseline.mean[i], baseline.std[i]
-    rows = checks[checks[col].notna()]
-    if len(rows) < MIN_TESTS:
-        return None
-    change = rows[col].to_numpy(dtype=np.float64)
-    se = 100.0 * rows[f"{key}_se"].to_numpy(dtype=np.float64) / abs(mean) \
-        if f"{key}_se" in rows and mean else np.zeros(len(rows))
-    return (axis.values(rows.index), change, np.nan_to_num(se),
-            100.0 * std / abs(mean) if mean else 0.0), rows.index
-
-
 def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
                     r2: Mapping[str, float | NoGo], rules: Mapping[str, str],
                     units: Mapping[str, str] | None = None, horizon: float | None = None,
@@ -434,7 +277,7 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
         Seed of the predictive draws.
     priors : mapping of str (or (str, ±1.0)) to RatePrior or FleetPrior, optional
         The fleet's prior on each parameter key's degradation (its rate, or
-        its shape and rates: :func:`~condmon.monitor.prior.fleet_wear_prior`),
+        its shape and rates: :func:`~condmon.forecast.prior.fleet_wear_prior`),
         by key, or by key and the direction the series heads (+1.0 rising,
         -1.0 falling: peers that wore the other way teach nothing); a key
         without one is forecast from its own tests alone.

@@ -1,6 +1,6 @@
 """Degradation models of one change series, fitted test by test.
 
-The fits :mod:`condmon.monitor.forecast` and :mod:`condmon.monitor.prior`
+The fits :mod:`condmon.forecast.series` and :mod:`condmon.forecast.prior`
 share: the weighted straight line, the exponential with an offset written from
 the last test (``|change| = α + β·(exp(b·t) − 1)/b``, ``t = x − x_last``), the
 small-sample Akaike weights that compare them, and the exponential's posterior
@@ -174,7 +174,7 @@ def fits(xa: FloatArray, ya: FloatArray, sa: FloatArray, spread: float,
 
 def checked_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
              spread: float) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """One series as arrays, refused as :func:`~condmon.monitor.forecast.forecast_series` says."""
+    """One series as arrays, refused as :func:`~condmon.forecast.series.forecast_series` says."""
     xa, ya, sa = (np.asarray(v, dtype=np.float64) for v in (x, change, se))
     if not (len(xa) == len(ya) == len(sa)):
         raise DataError("forecast: x, change and se differ in length")

@@ -14,7 +14,7 @@ Maintenance Toolbox, fit their priors on such an ensemble):
   of the peers that wore linearly, and the growth-rate and amplitude priors
   of those that wore exponentially (Gebraeel's two priors). A unit whose
   peers wore exponentially is forecast with that shape, rate and amplitude
-  (:func:`condmon.monitor.forecast.forecast_series` weighs the models by
+  (:func:`condmon.forecast.series.forecast_series` weighs the models by
   that prior and the unit's own evidence).
 
 :func:`unit_wear` reads one peer's series once; :func:`prior_from_wear`
@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from condmon.errors import DataError
-from condmon.monitor.degradation import (
+from condmon.forecast.degradation import (
     MIN_TESTS, Z90, Fit, FloatArray, aicc_weights, bent_fit, checked_series, fits, weights,
 )
 
@@ -109,7 +109,7 @@ def fleet_prior(series: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike, float]],
     """The prior on the degradation rate from units that have already degraded.
 
     Each unit's own rate is its weighted fit of ``model`` (as in
-    :func:`~condmon.monitor.forecast.forecast_series`); the prior is their
+    :func:`~condmon.forecast.series.forecast_series`); the prior is their
     mean, with the spread of a new unit's true rate about it
     (:func:`prior_from_rates`: the units' differences, their estimation error
     taken out, plus the mean's own error).
@@ -118,7 +118,7 @@ def fleet_prior(series: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike, float]],
     ----------
     series : sequence of (x, change, se, spread)
         Each unit's series, the leading arguments of
-        :func:`~condmon.monitor.forecast.forecast_series`: the tests' times [test (or d, h)], changes [%], standard errors and
+        :func:`~condmon.forecast.series.forecast_series`: the tests' times [test (or d, h)], changes [%], standard errors and
         baseline spread [% of the baseline mean].
     model : {"linear", "exponential"}
         The model whose slope is wanted. A unit that no growing exponential
@@ -135,7 +135,7 @@ def fleet_prior(series: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike, float]],
     ------
     DataError
         An unknown model; a series that
-        :func:`~condmon.monitor.forecast.forecast_series` would refuse.
+        :func:`~condmon.forecast.series.forecast_series` would refuse.
 
     References
     ----------
@@ -232,7 +232,7 @@ class UnitWear:
         The series as a bent line ``c + s·(exp(b·x) − 1)/b``, towards the side
         it moved to: its slope ``s`` at the origin [% per x] and its bend
         ``b`` [1 per x], signed (a line that bows down bends below 0), each
-        with its variance (:func:`~condmon.monitor.degradation.bent_fit`;
+        with its variance (:func:`~condmon.forecast.degradation.bent_fit`;
         None: it did not move).
     span : float or None
         ``x`` of the last test less that of the first. [test (or d, h)]
@@ -269,7 +269,7 @@ def unit_wear(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float) -> 
     Raises
     ------
     DataError
-        A series :func:`~condmon.monitor.forecast.forecast_series` would refuse.
+        A series :func:`~condmon.forecast.series.forecast_series` would refuse.
     """
     xa, ya, sa = checked_series(x, change, se, spread)
     sign = 1.0 if float(np.mean(ya[-MIN_TESTS:])) >= 0 else -1.0
@@ -289,7 +289,7 @@ def unit_wear(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float) -> 
 def _bent_line(x: FloatArray, y: FloatArray, w: FloatArray
                ) -> tuple[tuple[float, float] | None, tuple[float, float] | None]:
     """The slope at the origin and the bend of the bent line
-    (:func:`~condmon.monitor.degradation.bent_fit`), each with its variance;
+    (:func:`~condmon.forecast.degradation.bent_fit`), each with its variance;
     None for both where the series has fewer than 4 tests or does not rise
     (its slope not above its own error)."""
     if len(x) < 4:
@@ -398,7 +398,7 @@ class FleetPrior:
                 "start": plain(self.start)}
 
 
-#: A prior :func:`~condmon.monitor.forecast.forecast_series` takes.
+#: A prior :func:`~condmon.forecast.series.forecast_series` takes.
 Prior = RatePrior | FleetPrior
 
 

@@ -191,9 +191,7 @@ def _print_isolation(res: IsolationResult) -> None:
         cons = "" if e.consistency is None else f"{e.consistency:.2f}"
         error = f"{res.errors[p]:.2f}" if p in res.errors else "—"
         name = f"[bold]{p}[/]" if p in res.isolated else p
-        shown = estimate_text(e.value, e.change_percent)   # "ran away", "not finite"
-        table.add_row(name, fmt(e.value) if shown[:1].isdigit() or shown[:1] == "-" else shown,
-                      fmt(e.nominal),
+        table.add_row(name, estimate_text(e.value, e.change_percent, fmt), fmt(e.nominal),
                       escape(res.units.get(p, "")), change,
                       cons,
                       "rejected" if p in res.rejected else error)

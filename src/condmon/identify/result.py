@@ -203,14 +203,6 @@ class EstimateResult:
         """Whether any regime's estimate is accepted (the record is trended)."""
         return any(p.accepted for p in self.regimes)
 
-    def stored_values_flat(self) -> dict[str, float]:
-        """:meth:`stored_values`' values alone. [parameter units]"""
-        return {k: v for k, (v, _) in self.stored_values().items()}
-
-    def stored_errors(self) -> dict[str, float]:
-        """:meth:`stored_values`' standard errors alone. [parameter units]"""
-        return {k: se for k, (_, se) in self.stored_values().items()}
-
     def stored_values(self) -> dict[str, tuple[float, float]]:
         """What the history keeps: ``{name: (value, std_error)}``, a regime's
         parameters named ``Tc@forward``. For a usable record the identified

@@ -30,7 +30,7 @@ __all__ = ["UnitSuspect", "unit_suspects", "unit_alternatives", "suspect_text"]
 
 # A user's declaration may write its units as it likes; these spellings are
 # the same unit as the table's keys.
-_SPELLINGS = {"ohm": "ohm", "amp": "A", "amps": "A", "volt": "V", "volts": "V",
+_SPELLINGS = {"amp": "A", "amps": "A", "volt": "V", "volts": "V",
               "n*m": "N m", "nm": "N m", "n.m": "N m", "rad/sec": "rad/s",
               "pascal": "Pa", "m3/s": "m^3/s", "m**3/s": "m^3/s"}
 

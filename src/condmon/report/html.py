@@ -235,12 +235,10 @@ def write_report(store: HistoryStore, unit: str, out_dir: str | Path,
         machine = get_model(model)
         units = model_units(machine)
     if len(hist):
-        from condmon.monitor.generic import machine_monitor, typical_systematic, with_scatter
+        from condmon.report.reading import judged_monitor
 
-        base = stored.baseline if stored is not None else None
-        cfg = monitor or machine_monitor(machine, base)
-        cfg = cfg if base is None else with_scatter(cfg, base, typical_systematic(hist))
-        cfg = cfg.keyed([c for c in hist.columns if f"{c}_se" in hist.columns])
+        cfg = judged_monitor(machine, stored.baseline if stored is not None else None, hist,
+                             monitor)
         part, figs, trends, fits, notes = _tests_part(store, unit, hist, cfg, stored, out, name,
                                                       fit_threshold, units)
         body += part

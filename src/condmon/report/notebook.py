@@ -46,13 +46,13 @@ def _number(v: float) -> str:
 
 
 def check_html(unit: str, test_id: int, status: str, summary: str,
-               parameters: Mapping[str, float], std_errors: Mapping[str, float],
-               units: Mapping[str, str], changes: Mapping[str, float]) -> str:
-    """One check as HTML: its status badge, summary and table of changes."""
-    rows = [(p, _number(v), _number(std_errors.get(p, float("nan"))),
-             units.get(p, units.get(p.split("@")[0], "")),
+               values: Mapping[str, tuple[float, float]], units: Mapping[str, str],
+               changes: Mapping[str, float]) -> str:
+    """One check as HTML: its status badge, summary and table of changes
+    (``values``: ``{name: (value, standard error)}`` as the history keeps them)."""
+    rows = [(p, _number(v), _number(se), units.get(p, units.get(p.split("@")[0], "")),
              _number(changes[p]) if p in changes else "—")
-            for p, v in parameters.items()]
+            for p, (v, se) in values.items()]
     tid = f"#{test_id}" if test_id >= 0 else "(not stored)"
     return (f"<style>{STYLE}</style><p><b>{esc(unit)}</b> check {esc(tid)}: {badge(status)} "
             f"{esc(summary)}</p>"
@@ -112,18 +112,15 @@ def unit_trend_figure(store: HistoryStore, unit: str) -> Any:
     """
     from condmon.errors import DataError
     from condmon.models.registry import get_model
-    from condmon.monitor.generic import machine_monitor, typical_systematic, with_scatter
     from condmon.report.figures import trend_figure
+    from condmon.report.reading import judged_monitor
     from condmon.report.trends import forecast_bands, trend_data
     from condmon.store.forecasts import try_forecast
 
     hist = store.history(unit)
     stored = store.latest_baseline(unit)
     machine = get_model(store.unit_model(unit) or "dc-motor")
-    base = stored.baseline if stored is not None else None
-    cfg = machine_monitor(machine, base)
-    cfg = cfg if base is None else with_scatter(cfg, base, typical_systematic(hist))
-    cfg = cfg.keyed([c for c in hist.columns if f"{c}_se" in hist.columns])
+    cfg = judged_monitor(machine, stored.baseline if stored is not None else None, hist)
     by_id = {b.id: b.baseline for b in store.baselines(unit)}
     trends = tuple(trend_data(hist, p, by_id, cfg.r1[p], cfg.r2[p], cfg.k,
                               None if stored is None else stored.id)

@@ -70,3 +70,15 @@ def model_units(machine: Any) -> dict[str, str]:
     (:func:`condmon.models.regimes.split_key`).
     """
     return {**machine.plant.parameter_units(), **machine.monitored_units}
+
+
+def judged_monitor(machine: Any, baseline: Any, hist: Any, monitor: Any = None) -> Any:
+    """The breakpoints a unit's checks were judged with, for its figures: the
+    model's monitor (or ``monitor``), raised to the baseline's scatter with
+    the checks' typical systematic part, keyed by the history's parameters.
+    ``baseline``: the unit's active :class:`~condmon.monitor.baseline.Baseline` (or None)."""
+    from condmon.monitor.generic import machine_monitor, typical_systematic, with_scatter
+
+    cfg = monitor or machine_monitor(machine, baseline)
+    cfg = cfg if baseline is None else with_scatter(cfg, baseline, typical_systematic(hist))
+    return cfg.keyed([c for c in hist.columns if f"{c}_se" in hist.columns])

@@ -8,7 +8,7 @@ their id (``#12``, anchor ``t12``), isolations by theirs (``i3``).
 from __future__ import annotations
 
 import html
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -253,8 +253,9 @@ def percent_text(value: float) -> str:
     return f"{value:+.1f}" if abs(value) < RAN_AWAY else "ran away"
 
 
-def estimate_text(value: float | None, change: float | None, fmt: str = ".4g") -> str:
-    """An estimate's cell: its value, ``ran away`` when its change against
+def estimate_text(value: float | None, change: float | None,
+                  number: Callable[[float], str] = lambda v: f"{v:.4g}") -> str:
+    """An estimate's cell: its value (written by ``number``), ``ran away`` when its change against
     nominal is beyond :data:`RAN_AWAY` (4.6e+47 is no estimate), ``not
     finite`` when it is not, ``—`` when there is none.
 
@@ -271,7 +272,7 @@ def estimate_text(value: float | None, change: float | None, fmt: str = ".4g") -
         return "not finite"
     if change is not None and math.isfinite(change) and abs(change) >= RAN_AWAY:
         return "ran away"
-    return f"{value:{fmt}}"
+    return number(value)
 
 
 @dataclass(frozen=True)

@@ -337,8 +337,7 @@ def read_unit(store: HistoryStore, unit: str) -> UnitData:
         No such unit in the history.
     """
     from condmon.models.registry import get_model
-    from condmon.monitor.generic import machine_monitor, typical_systematic, with_scatter
-    from condmon.report.reading import model_units
+    from condmon.report.reading import judged_monitor, model_units
     from condmon.store.forecasts import forecast_fields, try_forecast
 
     model = store.unit_model(unit)
@@ -354,11 +353,9 @@ def read_unit(store: HistoryStore, unit: str) -> UnitData:
         machine = get_model(model)
         name = machine.name
         units = model_units(machine)
-        if len(hist):
-            monitor = machine_monitor(machine, None if baseline is None else baseline.baseline)
-            if baseline is not None:   # the breakpoints its checks were judged with
-                monitor = with_scatter(monitor, baseline.baseline, typical_systematic(hist))
-            monitor = monitor.keyed([c for c in hist.columns if f"{c}_se" in hist.columns])
+        if len(hist):   # the breakpoints its checks were judged with
+            monitor = judged_monitor(machine, None if baseline is None else baseline.baseline,
+                                     hist)
     except CondmonError:  # a declaration file moved away: trends without bands or units
         monitor = None
     checks = hist[(hist["role"] == "check") & ~hist["excluded"]] if len(hist) else hist

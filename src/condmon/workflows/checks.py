@@ -128,8 +128,8 @@ class CheckResult:
         from condmon.report.notebook import check_html
 
         return check_html(self.unit, self.test_id, self.status, self.summary,
-                          self.estimate.stored_values_flat(), self.estimate.stored_errors(),
-                          self.estimate.units, self.percent_change)
+                          self.estimate.stored_values(), self.estimate.units,
+                          self.percent_change)
 
     def plot(self) -> Any:
         """Each parameter's change against the baseline [%], coloured by its

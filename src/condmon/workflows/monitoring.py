@@ -502,7 +502,7 @@ def estimate_judged(opts: EstimateOptions, record: RecordLike,
             raise type(err)(f"{err}{hint}") from None
         raise
     why = _unit_error(res, baseline) if baseline is not None and res.usable else None
-    if why is None and res.usable:
+    if why is None and (res.usable or not _scale_sensitive(res)):
         return res, key, None
     hint = held.unit_hint(df, source, believable, reference)
     if why is not None:
@@ -510,6 +510,16 @@ def estimate_judged(opts: EstimateOptions, record: RecordLike,
     if hint:
         res = dataclasses.replace(res, rejection=f"{res.reason}{hint}")
     return res, key, None
+
+
+def _scale_sensitive(res: EstimateResult) -> bool:
+    """Whether a rejection could come from a column in the wrong unit: a value
+    outside its physical bounds, or one the record does not measure. A fit
+    below its threshold, or an unknown the record does not identify, reads
+    the same whatever a column's scale, so no re-reading is tried for them
+    (each would cost a whole estimate)."""
+    return any((p.rejection or "").startswith(("not physically possible", "not a measurement"))
+               for p in res.regimes)
 
 
 def _held(baseline: Baseline | None) -> dict[str, float] | None:

@@ -138,7 +138,7 @@ def test_a_v11_history_keeps_the_declarations_still_found(
         c.execute("DROP TABLE declarations")
         c.execute("UPDATE condmon_meta SET value = '11' WHERE key = 'schema_version'")
     with open_store(str(db)) as store:
-        assert store.schema_version == 12
+        assert store.schema_version == 13
         assert store.unit_declaration("U")[1] == declaration_bundle(decl).digest
     shutil.rmtree(tmp_path / "site")
     with open_store(str(db)) as store:

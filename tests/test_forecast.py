@@ -11,7 +11,7 @@ import pytest
 
 from condmon.cli.main import main
 from condmon.errors import DataError
-from condmon.forecast.series import _median_interval, forecast_series
+from condmon.forecast.series import median_interval, forecast_series
 from condmon.simulate import simulate_actuator
 from condmon.store import open_store
 from condmon.workflows.checks import check_test
@@ -729,10 +729,10 @@ def test_the_whole_check_interval_ends_at_its_mid_p_quantiles() -> None:
     90 % a whole-check interval can hold), where the 5 % and 95 % quantiles
     would give [3, 5] (100 %)."""
     left = np.repeat([3.0, 4.0, 5.0], [8, 84, 8])
-    assert _median_interval(left, whole=True) == (4.0, 4.0, 4.0)
-    assert _median_interval(left, whole=False) == (4.0, 3.0, 5.0)
+    assert median_interval(left, whole=True) == (4.0, 4.0, 4.0)
+    assert median_interval(left, whole=False) == (4.0, 3.0, 5.0)
     left = np.repeat([3.0, 4.0, 5.0, np.inf], [2, 30, 50, 18])   # inf: never
-    assert _median_interval(left, whole=True) == (5.0, 4.0, np.inf)
+    assert median_interval(left, whole=True) == (5.0, 4.0, np.inf)
 
 
 def test_a_steady_move_sets_the_way_not_the_last_checks() -> None:

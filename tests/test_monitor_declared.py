@@ -68,7 +68,7 @@ def test_a_version_1_history_is_migrated(tmp_path: Path,
     db = tmp_path / "history.db"
     shutil.copy(DATA / "history-v1.db", db)
     with open_store(str(db)) as store:
-        assert store.schema_version == 12
+        assert store.schema_version == 13
         ids, table = store.accepted_estimates("EMA-v1")
         assert ids == [1, 2, 3] and list(table.columns) == ["R", "L", "Ke", "Kt", "J", "D"]
         hist = store.history("EMA-v1")

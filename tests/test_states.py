@@ -227,7 +227,7 @@ def test_a_v7_history_gets_its_states_on_opening(tmp_path: Path, fleet_db: Path)
         c.execute("DROP TABLE unit_states")
         c.execute("UPDATE condmon_meta SET value = '7' WHERE key = 'schema_version'")
     with open_store(str(db)) as store:
-        assert store.schema_version == schema.SCHEMA_VERSION == 12
+        assert store.schema_version == schema.SCHEMA_VERSION == 13
         assert store.unit_summaries() == before and _kept(store) == _worked_out(store)
 
 

@@ -105,7 +105,7 @@ def test_baseline_snapshots(store_url: str, results: list) -> None:  # type: ign
 def test_schema_version_and_migration(store_url: str, monkeypatch: pytest.MonkeyPatch) -> None:
     current = schema.SCHEMA_VERSION
     store = open_store(store_url)
-    assert store.schema_version == current == 12
+    assert store.schema_version == current == 13
     store.close()
 
     def add_operator(conn: sa.Connection) -> None:
@@ -156,7 +156,7 @@ def test_a_v6_history_without_its_later_columns_is_completed(tmp_path: Path) -> 
         c.execute("ALTER TABLE forecasts DROP COLUMN crossing_date")
         c.execute("UPDATE condmon_meta SET value = '6' WHERE key = 'schema_version'")
     with open_store(str(db)) as store:
-        assert store.schema_version == 12
+        assert store.schema_version == 13
     with sqlite3.connect(db) as c:
         assert "hours" in {r[1] for r in c.execute("PRAGMA table_info(tests)")}
         assert {"median", "crossing_date"} <= {r[1] for r in
@@ -176,7 +176,7 @@ def test_a_v10_history_gets_the_systematic_and_conditions_columns(tmp_path: Path
         c.execute("ALTER TABLE tests DROP COLUMN conditions")
         c.execute("UPDATE condmon_meta SET value = '10' WHERE key = 'schema_version'")
     with open_store(str(db)) as store:
-        assert store.schema_version == 12
+        assert store.schema_version == 13
         assert store.systematic_of([]).empty
     with sqlite3.connect(db) as c:
         assert "systematic" in {r[1] for r in c.execute("PRAGMA table_info(estimates)")}
@@ -201,6 +201,6 @@ def test_a_v8_history_gets_the_content_hash_index(tmp_path: Path) -> None:
     with sqlite3.connect(db) as c:
         assert "SCAN tests" in " ".join(str(r) for r in c.execute(plan))
     with open_store(str(db)) as store:
-        assert store.schema_version == 12
+        assert store.schema_version == 13
     with sqlite3.connect(db) as c:
         assert "ix_tests_record_hash" in " ".join(str(r) for r in c.execute(plan))

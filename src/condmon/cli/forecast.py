@@ -55,9 +55,10 @@ def register(app: typer.Typer) -> None:
         if as_json:
             write_json(res.to_dict())
             return
-        left = {"tests": "tests left", "days": "days left", "hours": "hours left"}[res.by]
-        per = {"tests": "%/test", "days": "%/day", "hours": "%/h"}[res.by]
-        span = {"tests": " tests", "days": " d", "hours": " h"}[res.by]
+        left = {"tests": "tests left", "days": "days left", "hours": "hours left",
+                "cycles": "cycles left"}[res.by]
+        per = {"tests": "%/test", "days": "%/day", "hours": "%/h", "cycles": "%/cycle"}[res.by]
+        span = {"tests": " tests", "days": " d", "hours": " h", "cycles": " cycles"}[res.by]
         table = Table(title=f"{unit}: forecast to no-go from {res.checks} checks since the "
                       "baseline", title_justify="left")
         hours = res.by == "hours"
@@ -79,7 +80,8 @@ def register(app: typer.Typer) -> None:
                    "at no-go now" if f.at_nogo else
                    "due now" if f.remaining[2] == 0 else
                    f"{n(f.remaining[0])} ({n(f.remaining[1])}–{n(f.remaining[2])})"
-                   + (" exp." if f.model == "exponential" else ""))
+                   + (" exp." if f.model == "exponential" else
+                      " path" if f.model == "path" else ""))
             # no trend: the no-go change of the way it can come (its sign follows noise
             # where both can)
             at = ("none (see --json)" if f.unreachable else
@@ -90,7 +92,9 @@ def register(app: typer.Typer) -> None:
                             if horizon is not None else []), at)
         out.print(table)
         out.print(f"slope: the trend at the last check, {per} of the baseline mean; "
-                  f"{left}: median and 90 % interval (exp.: an exponential trend); no trend: "
+                  f"{left}: median and 90 % interval (exp.: an exponential trend; path: a "
+                  "measured degradation path, its interval's measured coverage in --json "
+                  "notes); no trend: "
                   "the slope's 90 % interval holds 0, or no-go cannot come the way it moves "
                   "(see --json)", markup=False,
                   highlight=False, soft_wrap=True)

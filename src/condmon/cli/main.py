@@ -29,6 +29,7 @@ from condmon.cli.estimation import (
 from condmon.cli.fleet import register as register_fleet_commands
 from condmon.cli.forecast import register as register_forecast_command
 from condmon.cli.history import print_flags
+from condmon.cli.imports import register as register_import_command
 from condmon.cli.history import register as register_history_commands
 from condmon.cli.plant import register as register_plant_commands
 from condmon.cli.rules import register as register_rules_commands
@@ -67,6 +68,7 @@ register_serve_command(app)
 register_fleet_commands(app)
 register_watch_command(app)
 register_forecast_command(app)
+register_import_command(app)
 
 
 

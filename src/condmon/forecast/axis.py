@@ -1,7 +1,8 @@
-"""A unit's checks on one axis: tests counted, days, or operating hours.
+"""A unit's checks on one axis: tests counted, days, operating hours or cycles.
 
-A forecast counts what the checks give: operating hours when every check
-gives them, else days when every check is dated, else the checks themselves
+A forecast counts what the checks give: the unit's cycles when every check
+stands at one (imported values per charge cycle), else operating hours when
+every check gives them, else days when every check is dated, else the checks themselves
 (:func:`forecast_axis`); :func:`parameter_series` reads one parameter's
 change series on that axis from a unit's history.
 """
@@ -34,9 +35,9 @@ class Axis:
 
     Attributes
     ----------
-    by : {"tests", "days", "hours"}
+    by : {"tests", "days", "hours", "cycles"}
         Checks counted, days since the first check, or the unit's operating
-        hours since the first check.
+        hours (cycles) since the first check.
     dates : Series
         Each check's test date (NaT: unknown), by test id.
     hours : Series
@@ -49,6 +50,7 @@ class Axis:
     dates: pd.Series
     hours: pd.Series
     note: str | None = None
+    cycles: pd.Series | None = None
 
     def values(self, rows: pd.Index) -> NDArray[np.float64]:
         """``x`` of the checks ``rows`` (a subset of the checks, in order):
@@ -59,6 +61,9 @@ class Axis:
         if self.by == "days":
             days = (self.dates[rows] - self.dates.iloc[0]).dt.total_seconds() / 86400.0
             return np.asarray(days.to_numpy(), dtype=np.float64)
+        if self.by == "cycles" and self.cycles is not None:
+            return np.asarray((self.cycles[rows] - self.cycles.iloc[0]).to_numpy(),
+                              dtype=np.float64)
         return np.asarray((self.hours[rows] - self.hours.iloc[0]).to_numpy(), dtype=np.float64)
 
     @property
@@ -70,7 +75,7 @@ class Axis:
         """The date ``ahead`` tests (days, hours) after check ``row``: for
         hours, at the unit's usage over its dated checks [h per day]; None
         when not dated (tests), or beyond a century."""
-        if not self.dated or self.by == "tests" or not ahead >= 0:
+        if not self.dated or self.by in ("tests", "cycles") or not ahead >= 0:
             return None
         days = ahead
         if self.by == "hours":
@@ -112,7 +117,9 @@ def _increasing(values: pd.Series) -> bool:
 def forecast_axis(checks: pd.DataFrame) -> Axis:
     """What a unit's forecasts count: the one place the x axis is chosen.
 
-    Operating hours when every check carries them (the ``hours`` column),
+    The unit's cycles when every check stands at one (the ``cycle`` column,
+    increasing, none twice: imported values per charge cycle). Operating
+    hours when every check carries them (the ``hours`` column),
     increasing, none twice: wear follows use. Else days when every check
     carries a test date, in order and none twice. Else tests (their count).
 
@@ -134,6 +141,10 @@ def forecast_axis(checks: pd.DataFrame) -> Axis:
     dates = pd.to_datetime(checks["test_date"], utc=True, errors="coerce")
     hours = pd.to_numeric(checks["hours"], errors="coerce") if "hours" in checks \
         else pd.Series(np.nan, index=checks.index, dtype=np.float64)
+    cycles = pd.to_numeric(checks["cycle"], errors="coerce") if "cycle" in checks \
+        else pd.Series(np.nan, index=checks.index, dtype=np.float64)
+    if _increasing(cycles):
+        return Axis("cycles", dates, hours, None, cycles)
     by = "hours" if _increasing(hours) else "days" if _increasing(dates) else "tests"
     note = None
     if by != "hours" and hours.notna().any():

@@ -90,12 +90,13 @@ from condmon.forecast.degradation import (
     rate_posterior, residual_scale, trend_sd, weights,
 )
 from condmon.forecast.degradation import fits as degradation_fits
+from condmon.forecast.path import path_band
 from condmon.forecast.prior import (
     FleetPrior, Prior, RatePrior, fleet_prior, fleet_wear_prior, prior_from_rates,
     prior_from_wear, unit_rate, unit_wear, updated,
 )
 
-__all__ = ["Forecast", "forecast_series", "MIN_TESTS", "checked_horizon", "RatePrior",
+__all__ = ["Forecast", "forecast_series", "MIN_TESTS", "checked_horizon", "median_interval", "RatePrior",
            "fleet_prior", "unit_rate", "prior_from_rates", "FleetPrior", "fleet_wear_prior",
            "prior_from_wear", "unit_wear", "Prior"]
 
@@ -111,7 +112,8 @@ class Forecast:
 
     Attributes
     ----------
-    model : {"linear", "exponential", "no trend"}
+    model : {"linear", "exponential", "path", "no trend"}
+        "path": a measured degradation path (:mod:`condmon.forecast.path`).
     threshold : float
         The change at which a check turns no-go, signed. [%]
     slope : float
@@ -133,8 +135,9 @@ class Forecast:
         The chosen model's fitted coefficients: ``(a, b)`` of ``change = a +
         b·x`` (linear; also for "no trend"), or ``(α, β, r)`` of ``|change| =
         α + β·(exp(r·t) − 1)/r`` with ``t = x − last`` (exponential, and a
-        line bent as its fleet's lines were). [%, % per x (linear); %, % per
-        x, 1 per x (exponential)]
+        line bent as its fleet's lines were), or ``(a, b, φ, walk, deviation,
+        scatter, step, span)`` of a path (:meth:`~condmon.forecast.path.PathFit.summary`).
+        [%, % per x (linear); %, % per x, 1 per x (exponential)]
     cov : tuple of tuple of float
         Their covariance matrix.
     last : float
@@ -195,6 +198,8 @@ class Forecast:
         t = np.asarray(ahead, dtype=np.float64)
         coef = np.asarray(self.coef, dtype=np.float64)
         cov = np.asarray(self.cov, dtype=np.float64)
+        if self.model == "path":
+            return path_band(coef, cov, t)
         if len(coef) == 2:   # the straight line (a line bent as its fleet's has three)
             x = self.last + t
             a, b = coef
@@ -325,7 +330,7 @@ def _left(model: str, draw: Callable[[np.random.Generator, int], FloatArray], sc
     return out
 
 
-def _median_interval(left: FloatArray, whole: bool) -> tuple[float, float, float]:
+def median_interval(left: FloatArray, whole: bool) -> tuple[float, float, float]:
     """The median and the 90 % interval of drawn tests (days, hours) left.
 
     The order statistics themselves: a draw that never crosses is inf, not
@@ -569,7 +574,7 @@ def forecast_series(x: ArrayLike, change: ArrayLike, se: ArrayLike,
                    step)
              for m in sorted(weight)]
     left = np.concatenate(lefts)
-    med, lo, hi = _median_interval(left, whole=step is not None)
+    med, lo, hi = median_interval(left, whole=step is not None)
     p = float(np.mean(left <= horizon)) if horizon is not None else None
     return Forecast(model, threshold, slope, interval, (med, lo, hi), p, n, tuple(notes),
                     *_fitted(fits[model]), last)

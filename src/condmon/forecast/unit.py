@@ -30,9 +30,8 @@ from condmon.errors import DataError
 from condmon.monitor.baseline import Baseline
 from condmon.forecast.axis import Axis, Series, forecast_axis, in_test_order, parameter_series
 from condmon.forecast.degradation import steady_direction
-from condmon.forecast.series import (
-    MIN_TESTS, Forecast, Prior, checked_horizon, forecast_series,
-)
+from condmon.forecast.measured import forecast_by
+from condmon.forecast.series import MIN_TESTS, Forecast, Prior, checked_horizon
 
 __all__ = ["ParameterForecast", "UnitForecast", "forecast_checks", "forecast_axis", "Axis", "NoGo",
            "in_test_order",
@@ -185,8 +184,8 @@ class UnitForecast:
     Attributes
     ----------
     unit : str
-    by : {"tests", "days", "hours"}
-        What ``remaining`` counts (operating hours when every check gives them).
+    by : {"tests", "days", "hours", "cycles"}
+        What ``remaining`` counts (cycles, or operating hours, when every check gives them).
     checks : int
         Checks since the baseline.
     parameters : tuple of ParameterForecast
@@ -247,7 +246,7 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
                     units: Mapping[str, str] | None = None, horizon: float | None = None,
                     seed: int = 0,
                     priors: Mapping[str | tuple[str, float], Prior] | None = None,
-                    now: pd.Timestamp | None = None) -> UnitForecast:
+                    now: pd.Timestamp | None = None, method: str = "trend") -> UnitForecast:
     """Forecast every parameter of a unit to no-go from its checks since the baseline.
 
     Parameters
@@ -284,6 +283,8 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
     now : Timestamp, optional
         The time a dated forecast is read at (default: the clock): a median
         no-go date already past gets a note that the unit is due a check.
+    method : {"trend", "path"}
+        How each series is forecast (:func:`~condmon.forecast.measured.forecast_by`).
 
     Returns
     -------
@@ -320,9 +321,9 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
             # crossing itself)
             prior = (priors or {}).get((key, 1.0 if threshold > 0 else -1.0),
                                        (priors or {}).get(key))
-            return forecast_series(x, change, se, spread, threshold, horizon, seed, prior=prior,
-                                   step=1.0 if axis.by == "tests" else None,
-                                   unreachable=unreachable)
+            return forecast_by(method, x, change, se, spread, threshold, horizon, seed,
+                               prior=prior, step=1.0 if axis.by in ("tests", "cycles") else None,
+                               unreachable=unreachable)
 
         f = heading(threshold, never)
         if never and not f.trend and not f.unreachable:
@@ -451,7 +452,9 @@ def remaining_text(f: dict[str, Any] | None, reason: str | None = None,
             return "∞"
         return f"{v:.0f}" if abs(v) >= 10 else f"{v:.2g}"
 
-    per = {"days": "d", "hours": "h"}.get(f["by"], "test" if f["median"] == 1 else "tests")
+    per = {"days": "d", "hours": "h"}.get(f["by"], ("cycle" if f["median"] == 1 else "cycles")
+                                          if f["by"] == "cycles" else
+                                          "test" if f["median"] == 1 else "tests")
     flag = ", date past" if past and date_past(f, now) else ""
     return f"{n(f['median'])} {per} ({n(f['low'])}–{n(f['high'])}){flag}"
 

@@ -28,6 +28,7 @@ from condmon.store.engine import (
     sqlite_path, store_error,
 )
 from condmon.store.history import DuplicateTestError, TestsMixin
+from condmon.store.imports import ImportsMixin
 from condmon.store.isolations import IsolationsMixin
 from condmon.store.states import StatesMixin, write_states
 from condmon.store.views import ForecastCacheMixin, ViewsMixin
@@ -42,7 +43,7 @@ def frame_hash(df: pd.DataFrame) -> str:
 
 
 class HistoryStore(TestsMixin, GroupsMixin, IsolationsMixin, StatesMixin, ViewsMixin,
-                   ForecastCacheMixin, BulkMixin):
+                   ForecastCacheMixin, BulkMixin, ImportsMixin):
     """A history database. Open with :func:`open_store`.
 
     Use it as a context manager (or call :meth:`close`) so that its connections

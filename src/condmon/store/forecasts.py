@@ -29,6 +29,7 @@ from condmon.store.baselines import baseline_members, current_baseline
 from condmon.store.states import DEGRADED
 
 if TYPE_CHECKING:
+    from condmon.models.indicators import IndicatorModel
     from condmon.models.machine import Machine
     from condmon.store.db import HistoryStore
 
@@ -241,6 +242,11 @@ def read_forecast(store: HistoryStore, unit: str, horizon: float | None = None,
         if _isolated_only(store, unit):
             raise DataError(f"{unit}: {ISOLATED}") from None
         raise
+    indicators = store.indicator_model(unit)
+    if indicators is not None:
+        nogo, rules = indicator_nogo(indicators, baseline)
+        return forecast_checks(unit, checks, baseline, nogo, rules, indicators.units, horizon,
+                               seed, None, method=indicators.method)
     machine = get_model(store.unit_model(unit) or "dc-motor")
     priors = (fleet.priors(unit, baseline.parameters, forecast_axis(checks).by)
               if len(checks) else {})
@@ -249,6 +255,38 @@ def read_forecast(store: HistoryStore, unit: str, horizon: float | None = None,
     nogo, rules = machine_nogo(machine, baseline, typical_systematic(checks))
     return forecast_checks(unit, checks, baseline, nogo, rules, machine.monitored_units,
                            horizon, seed, priors)
+
+
+def indicator_nogo(model: IndicatorModel, baseline: Baseline
+                   ) -> tuple[dict[str, NoGo], dict[str, str]]:
+    """Where each imported indicator turns a check no-go: its end of life
+    as a change from the baseline's mean, crisp (no symptom width, degree
+    1), the other way never; and the fault each names. [%]
+
+    Example
+    -------
+    >>> from condmon.models.indicators import Indicator, IndicatorModel, parse_end_of_life
+    >>> m = IndicatorModel("cell", (Indicator("capacity", "Ah", parse_end_of_life(
+    ...     "< 1.4", "capacity", "Ah"), fault="capacity fade"),))
+    >>> nogo, rules = indicator_nogo(m, Baseline(("capacity",), (2.0,), (0.01,), 5))
+    >>> round(nogo["capacity"].r2, 6), round(nogo["capacity"].towards(False, [0.0], 0.5)[0], 6)
+    (30.0, -30.0)
+    >>> rules
+    {'low(capacity)': 'capacity fade'}
+    """
+    out, rules = {}, {}
+    for ind in model.indicators:
+        if ind.name not in baseline.parameters:
+            continue
+        mean = float(baseline.mean[baseline.parameters.index(ind.name)])
+        end = ind.end_of_life.change(mean, ind.rated)
+        if not math.isfinite(end) or end == 0:
+            continue
+        below = end < 0
+        out[ind.name] = NoGo(abs(end), abs(end), 0.0, math.inf if below else 1.0,
+                             1.0 if below else math.inf)
+        rules[f"{'low' if below else 'high'}({ind.name})"] = ind.fault
+    return out, rules
 
 
 def machine_nogo(machine: Machine, baseline: Baseline | None = None,

@@ -14,7 +14,7 @@ __all__ = ["metadata", "units", "tests", "estimates", "baselines", "baseline_val
            "MIGRATIONS", "NAME_LENGTH", "PARAMETER_LENGTH"]
 
 #: Version of the schema this code writes.
-SCHEMA_VERSION = 12
+SCHEMA_VERSION = 13
 
 #: Longest unit, fault or baseline name the store keeps (the same on every back-end).
 NAME_LENGTH = 200
@@ -87,6 +87,7 @@ units = sa.Table(
     sa.Column("baseline_name", sa.String(64), nullable=False, server_default="default"),
     sa.Column("group_name", sa.String(NAME_LENGTH), nullable=True),  # v5: peers it is judged with
     sa.Column("model_digest", sa.String(64), nullable=True),  # v12: its kept declaration
+    sa.Column("end_of_life", sa.Text, nullable=True),  # v13: JSON {indicator: "< 0.88"}
 )
 
 #: v12: each user's declaration a unit was monitored with, kept whole
@@ -127,6 +128,7 @@ tests = sa.Table(
     # v5: the operating regime(s) of the windows estimated ("" or NULL: none declared)
     sa.Column("regime", sa.Text, nullable=True),
     sa.Column("hours", TolerantFloat(), nullable=True),       # v6: operating hours at the test [h]
+    sa.Column("cycle", TolerantFloat(), nullable=True),       # v13: the unit's cycle at the test
     sa.UniqueConstraint("unit_id", "file_hash", name="uq_test_file"),
     sa.Index("uq_test_record", "unit_id", "record_hash", unique=True),
     # v9: a record filed under another unit is looked up by its hash at every
@@ -468,9 +470,19 @@ def _v11_to_v12(conn: sa.Connection) -> None:
                      {"d": bundle.digest, "i": uid})
 
 
+def _v12_to_v13(conn: sa.Connection) -> None:
+    """A test may stand at a cycle of its unit (``tests.cycle``: an imported
+    value per charge cycle), and a unit may have its own end of life
+    (``units.end_of_life``); NULL for what was stored before."""
+    if "cycle" not in {c["name"] for c in sa.inspect(conn).get_columns("tests")}:
+        conn.execute(sa.text("ALTER TABLE tests ADD COLUMN cycle FLOAT"))
+    if "end_of_life" not in {c["name"] for c in sa.inspect(conn).get_columns("units")}:
+        conn.execute(sa.text("ALTER TABLE units ADD COLUMN end_of_life TEXT"))
+
+
 MIGRATIONS: dict[int, Callable[[sa.Connection], None]] = {1: _v1_to_v2, 2: _v2_to_v3,
                                                           3: _v3_to_v4, 4: _v4_to_v5,
                                                           5: _v5_to_v6, 6: _v6_to_v7,
                                                           7: _v7_to_v8, 8: _v8_to_v9,
                                                           9: _v9_to_v10, 10: _v10_to_v11,
-                                                          11: _v11_to_v12}
+                                                          11: _v11_to_v12, 12: _v12_to_v13}

@@ -84,7 +84,7 @@ class ViewsMixin(StoreBase):
                 sa.select(t.c.id, t.c.created_at, t.c.test_date, t.c.source, t.c.role,
                           t.c.accepted, t.c.excluded, t.c.excluded_reason, t.c.reason,
                           t.c.fit_percent, t.c.fits, t.c.method, d.c.status, d.c.summary,
-                          d.c.baseline_id, t.c.regime, t.c.hours)
+                          d.c.baseline_id, t.c.regime, t.c.hours, t.c.cycle)
                 .select_from(t.outerjoin(d, sa.and_(d.c.test_id == t.c.id,
                                                     d.c.baseline_id == bid_d)))
                 .where(t.c.unit_id == urow.id).order_by(t.c.id)).all()
@@ -103,9 +103,10 @@ class ViewsMixin(StoreBase):
         base, est, sym = self._read(run)
         cols = ["test_id", "created_at", "test_date", "source", "role", "accepted", "excluded",
                 "excluded_reason", "reason", "fit_percent", "fits", "method", "status",
-                "summary", "baseline_id", "regime", "hours"]
+                "summary", "baseline_id", "regime", "hours", "cycle"]
         df = pd.DataFrame(base, columns=cols).set_index("test_id")
         df["hours"] = pd.to_numeric(df["hours"], errors="coerce")
+        df["cycle"] = pd.to_numeric(df["cycle"], errors="coerce")
         df["created_at"] = utc_column(df["created_at"])
         df["test_date"] = utc_column(df["test_date"])
         df.insert(2, "date", df["test_date"].fillna(df["created_at"]))

@@ -1,0 +1,173 @@
+"""A change series forecast as a measured degradation path, and what each
+forecast method's interval covered on data with known ends.
+
+:func:`forecast_path` is :func:`~condmon.forecast.series.forecast_series`'s
+counterpart for the "path" method (:mod:`condmon.forecast.path`): the same
+arguments, the same :class:`~condmon.forecast.series.Forecast`, the same
+"no trend" and "at no-go now" answers, so a unit's forecast, its page and
+``condmon forecast`` read either alike. :func:`coverage_note` states, with
+every forecast, how often its method's 90 % interval held the truth where
+the truth is known (``data/coverage.toml``: real run-to-failure series and
+simulated fleets, each with its source).
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from functools import cache
+from importlib import resources
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from condmon.errors import DataError
+from condmon.forecast.path import PATH_MIN_TESTS, Z90, fit_path, path_remaining
+from condmon.forecast.series import (
+    Forecast, Prior, checked_horizon, forecast_series, median_interval,
+)
+
+__all__ = ["METHODS", "forecast_path", "forecast_by", "coverage_note", "measured_coverage"]
+
+#: The forecast methods: "trend" (a line or an exponential, chosen by
+#: evidence, with the fleet's priors) and "path" (a measured degradation path).
+METHODS = ("trend", "path")
+
+
+@cache
+def measured_coverage() -> dict[str, Any]:
+    """``data/coverage.toml``: each method's measured 90 % interval coverage.
+
+    Example
+    -------
+    >>> sorted(measured_coverage())
+    ['path', 'trend']
+    """
+    text = resources.files("condmon.data").joinpath("coverage.toml").read_text("utf-8")
+    return tomllib.loads(text)
+
+
+def coverage_note(method: str) -> str:
+    """How often ``method``'s 90 % interval held the truth, where measured.
+
+    Example
+    -------
+    >>> coverage_note("path").startswith("its 90 % interval held the true remaining life")
+    True
+    """
+    found = measured_coverage().get(method, {})
+    parts = [f"{100 * v['coverage']:.0f} % of {v['forecasts']} forecasts on {v['data']}"
+             for v in found.values()]
+    if not parts:
+        return ""
+    return "its 90 % interval held the true remaining life in " + "; ".join(parts)
+
+
+def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
+                  threshold: float, horizon: float | None = None, seed: int = 0, *,
+                  prior: Prior | None = None, step: float | None = None,
+                  unreachable: str | None = None) -> Forecast:
+    """Forecast when a change series crosses ``threshold``, as a measured path.
+
+    The arguments are :func:`~condmon.forecast.series.forecast_series`'s.
+    The path's deviations and wandering rate come from the series itself,
+    so ``se`` and ``spread`` serve only a series too short for a path
+    (fewer than :data:`~condmon.forecast.path.PATH_MIN_TESTS` points: the
+    trend method, with a note), and ``step`` is the series' usual spacing
+    (the remaining life is the first check at that spacing to measure past
+    the threshold). A fleet ``prior`` is not used by this method (a note
+    says so).
+
+    Raises
+    ------
+    DataError
+        Non-finite values, ``x`` not increasing, a horizon <= 0, a 0 threshold.
+
+    Example
+    -------
+    A capacity's change falling 0.3 % a cycle, with recoveries, 60 cycles in;
+    the no-go at −30 % lies about 40 cycles ahead:
+
+    >>> x = np.arange(1.0, 61.0)
+    >>> y = -0.3 * x + 0.5 * np.sin(x / 3.0)
+    >>> f = forecast_path(x, y, np.zeros(60), 0.5, -30.0)
+    >>> f.model, 30 < f.remaining[0] < 50, f.remaining[1] < f.remaining[0] < f.remaining[2]
+    ('path', True, True)
+    """
+    xa = np.asarray(x, dtype=np.float64).ravel()
+    ya = np.asarray(change, dtype=np.float64).ravel()
+    checked_horizon(horizon)
+    if threshold == 0:
+        raise DataError("forecast: the no-go threshold is 0 %")
+    if xa.size < PATH_MIN_TESTS:
+        f = forecast_series(x, change, se, spread, threshold, horizon, seed, prior=prior,
+                            step=step, unreachable=unreachable)
+        note = (f"{xa.size} checks: too few for a degradation path (it needs "
+                f"{PATH_MIN_TESTS}), forecast as a trend")
+        return Forecast(f.model, f.threshold, f.slope, f.slope_interval, f.remaining,
+                        f.p_within, f.n, (note, *f.notes), f.coef, f.cov, f.last,
+                        f.unreachable, f.at_nogo)
+    fit = fit_path(xa, ya)
+    sign = 1.0 if threshold > 0 else -1.0
+    slope = fit.coef[1]
+    sd = math.sqrt(max(fit.cov[1][1], 0.0))
+    interval = (slope - Z90 * sd, slope + Z90 * sd)
+    notes = [f"degradation path: rate {slope:.3g} %/x now (90 % interval "
+             f"[{interval[0]:.3g}, {interval[1]:.3g}]), recoveries fading at φ = "
+             f"{fit.phi:.2f} a check, the rate wandering {100 * math.sqrt(fit.walk):.2g} % "
+             "per √x"]
+    if prior is not None:
+        notes.append("the fleet's prior is not used by the path method")
+    towards = interval[0] > 0 if sign > 0 else interval[1] < 0
+    coef, cov = fit.summary, fit.cov
+    last = float(xa[-1])
+    if not towards:
+        notes.append(f"the slope's 90 % interval [{interval[0]:.3g}, {interval[1]:.3g}] "
+                     "holds no steady move towards the threshold")
+        return Forecast("no trend", threshold, slope, interval, None,
+                        0.0 if horizon is not None else None, fit.n, tuple(notes),
+                        coef, cov, last)
+    if unreachable:
+        notes.append(unreachable)
+        return Forecast("no trend", threshold, slope, interval, None,
+                        0.0 if horizon is not None else None, fit.n, tuple(notes),
+                        coef, cov, last, unreachable)
+    if sign * ya[-1] >= abs(threshold):
+        notes.append("the last check measured past the no-go change: at no-go now")
+        return Forecast("path", threshold, slope, interval, (0.0, 0.0, 0.0),
+                        1.0 if horizon is not None else None, fit.n, tuple(notes),
+                        coef, cov, last, at_nogo=True)
+    left, _ = path_remaining(fit, threshold, seed, horizon)
+    med, lo, hi = median_interval(left, whole=True)
+    said = coverage_note("path")
+    if said:
+        notes.append(said)
+    p = float(np.mean(left <= horizon)) if horizon is not None else None
+    return Forecast("path", threshold, slope, interval, (med, lo, hi), p, fit.n,
+                    tuple(notes), coef, cov, last)
+
+
+def forecast_by(method: str, x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
+                threshold: float, horizon: float | None = None, seed: int = 0, *,
+                prior: Prior | None = None, step: float | None = None,
+                unreachable: str | None = None) -> Forecast:
+    """:func:`forecast_path` or :func:`~condmon.forecast.series.forecast_series`
+    by ``method`` (one of :data:`METHODS`).
+
+    Raises
+    ------
+    DataError
+        An unknown method, and as the method does.
+    """
+    if method == "path":
+        return forecast_path(x, change, se, spread, threshold, horizon, seed, prior=prior,
+                             step=step, unreachable=unreachable)
+    if method != "trend":
+        raise DataError(f"forecast method {method!r}: the methods are {', '.join(METHODS)}")
+    f = forecast_series(x, change, se, spread, threshold, horizon, seed, prior=prior, step=step,
+                        unreachable=unreachable)
+    said = coverage_note("trend") if f.remaining is not None and not f.at_nogo else ""
+    return Forecast(f.model, f.threshold, f.slope, f.slope_interval, f.remaining, f.p_within,
+                    f.n, (*f.notes, said) if said else f.notes, f.coef, f.cov, f.last,
+                    f.unreachable, f.at_nogo)

@@ -49,7 +49,7 @@ from progpy.state_estimators import KalmanFilter
 from progpy.uncertain_data import MultivariateNormalDist
 
 sys.path.insert(0, str(Path(__file__).parent))
-from bench_prognostics_real import DATA, EOL, end_of_life, read_cell, score  # noqa: E402
+from bench_prognostics_real import DATA, EOL, end_of_life, read_cell, score  # noqa: E402,F401
 
 N_SAMPLES = 1000   # Monte Carlo samples per forecast
 HORIZON = 4.0      # prediction horizon, in multiples of the cycles seen so far

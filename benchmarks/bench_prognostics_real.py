@@ -1,32 +1,40 @@
 """Prognostics on real run-to-failure data: NASA's Li-ion cells, side by side with peers.
 
-    python benchmarks/bench_prognostics_real.py [--data DIR] [--every 5] [--start 0.3]
+    python benchmarks/bench_prognostics_real.py [--data DIR] [--level 1.4]
+                                                [--level-for B0007=1.5] [--every 5] [--start 0.3]
+    pip install '.[bench]'      # ProgPy (and SIPPY): the peer is skipped with a note without it
 
 The cells B0005, B0006, B0007 and B0018 (``../shared/external/batteries/nasa/``,
 one ``cycle,capacity`` table each) were cycled until their capacity fell 30 %,
 from 2 Ah to 1.4 Ah. End of life, as that data set's README states it: the
 first cycle below 1.4 Ah (B0007 never gets there: 1.5 Ah). The true remaining
-life at cycle k is that cycle less k.
+life at cycle k is that cycle less k. Another data set: ``--data DIR`` (every
+``*.csv`` in it, each a unit's ``cycle,capacity``), ``--level`` its README's
+end of life and ``--level-for CELL=LEVEL`` its exceptions.
 
 Rolling forecasts from 30 % of each cell's life on, every 5th cycle, each
 from the cycles up to it only, by:
 
-- **condmon**: :func:`condmon.forecast.series.forecast_series` on the change
-  of capacity against a healthy baseline (the first 5 cycles: their mean and
-  standard deviation, which is also each cycle's standard error: the data
-  give none), to the change that is the end of life; whole cycles (``step=1``).
-  This is what a user gets today by making one check per cycle.
-- **condmon, Wiener path** (:mod:`condmon.forecast.wiener`, not yet what
-  ``condmon forecast`` gives): the capacity as a Wiener process with drift,
-  fitted to every cycle so far, its first passage of the end-of-life level
-  (inverse Gaussian), with the drift's and diffusion's uncertainty drawn.
+- **condmon**: what ``condmon import`` then ``condmon forecast`` give with the
+  shipped declaration ``examples/batteries/li-ion-18650.toml`` (its method
+  "path", :func:`condmon.forecast.measured.forecast_path`): the capacity's
+  change against the baseline of the first 5 cycles, to the end of life's
+  change, in whole cycles.
+- **condmon, recalibrated on the other cells**: the same forecast read at
+  the levels where the other cells' true lives fell in their own forecasts
+  (leave-one-out: each cell's peers are the other cells; Kuleshov, Fenner
+  and Ermon 2018): what the fleet's failed units change.
+- **condmon, trend method**: the line or exponential chosen by evidence
+  (:func:`condmon.forecast.series.forecast_series`), what estimated
+  parameters are forecast with.
 - **a straight line**: least squares of capacity on cycle over every cycle so
   far, its crossing of the end-of-life level, the 90 % interval from the
   coefficients' covariance and the residuals' scatter (5 % and 95 % points of
   4,000 draws of the cycle a measurement first reads below the level).
-- **NASA ProgPy**: not run here unless installed (``pip install progpy``); its
-  figures on the same 77 points, as measured when these cells were added
-  (the data set's README), are printed as published figures.
+- **NASA ProgPy 1.9** (``_progpy_peer.py``, when installed): a linear fade
+  with a random-walk rate, its Kalman filter, then Monte Carlo to the event.
+- **ProgPy, published**: the figures the data set's README gives for these
+  cells (its own run: 77 forecasts).
 
 Printed, per method: the 90 % interval's coverage of the true remaining life,
 α-λ accuracy (α = 0.2: the share of forecasts whose median lies within ±20 %
@@ -53,16 +61,17 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _common import table, write_json  # noqa: E402
 
 from condmon.errors import CondmonError  # noqa: E402
+from condmon.forecast.measured import forecast_path  # noqa: E402
+from condmon.forecast.calibration import Calibration, calibrate, path_pits  # noqa: E402
 from condmon.forecast.series import forecast_series  # noqa: E402
-from condmon.forecast.wiener import wiener_forecast  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "external" / "batteries" / "nasa"
-#: End of life per cell [Ah] (the data set's README).
+#: End of life per cell [Ah] (the NASA data set's README).
 EOL = {"B0005": 1.4, "B0006": 1.4, "B0007": 1.5, "B0018": 1.4}
-BASELINE = 5          # healthy cycles that make the baseline
+BASELINE = 5          # healthy cycles that make the baseline (condmon import's default)
 ALPHA = 0.2           # the α of α-λ
-#: ProgPy 1.9 (Kalman filter + Monte Carlo) on these cells and points, as measured
-#: when they were added (../shared/external/batteries/README.md).
+#: ProgPy 1.9 (Kalman filter + Monte Carlo) on these cells, as the data set's README
+#: gives it (../shared/external/batteries/README.md: its own run, 77 forecasts).
 PROGPY = {"coverage": 0.84, "alpha_lambda_rolling": 0.31}
 
 
@@ -79,30 +88,52 @@ def end_of_life(cycle: np.ndarray, capacity: np.ndarray, level: float) -> float:
     return float(cycle[below[0]]) if below.size else float(cycle[-1])
 
 
-def condmon_forecast(cycle: np.ndarray, capacity: np.ndarray, k: int, level: float
-                     ) -> tuple[float, float, float] | None:
-    """condmon's remaining cycles (median, 5 %, 95 %) from the cycles up to index ``k``."""
+def _change(cycle: np.ndarray, capacity: np.ndarray, k: int, level: float
+            ) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """The checks after the baseline up to ``k``: x, change [%], the baseline's
+    spread [%] and the end of life's change [%]."""
     base = capacity[:BASELINE]
     mean, std = float(base.mean()), float(base.std(ddof=1))
-    spread = 100.0 * std / mean
     x = cycle[BASELINE:k + 1]
-    change = 100.0 * (capacity[BASELINE:k + 1] - mean) / mean
-    threshold = 100.0 * (level - mean) / mean
+    return (x, 100.0 * (capacity[BASELINE:k + 1] - mean) / mean, 100.0 * std / mean,
+            100.0 * (level - mean) / mean)
+
+
+def condmon_row(cycle: np.ndarray, capacity: np.ndarray, k: int, level: float,
+                levels: Calibration | None = None) -> tuple[float, float, float] | None:
+    """condmon's remaining cycles (median, 5 %, 95 %) from the cycles up to index
+    ``k``, as ``condmon forecast`` gives them after ``condmon import``; read at
+    ``levels`` when recalibrated on the fleet's failed units."""
+    x, change, spread, threshold = _change(cycle, capacity, k, level)
+    try:
+        if levels is None:
+            f = forecast_path(x, change, np.zeros(x.size), spread, threshold, step=1.0, seed=k)
+            return f.remaining
+        f = forecast_path(x, change, np.zeros(x.size), spread, threshold, step=1.0, seed=k,
+                          calibration=levels)
+    except CondmonError:
+        return None
+    return f.remaining
+
+
+def trend_row(cycle: np.ndarray, capacity: np.ndarray, k: int, level: float
+              ) -> tuple[float, float, float] | None:
+    """condmon's trend method (a line or an exponential), the same series."""
+    x, change, spread, threshold = _change(cycle, capacity, k, level)
     try:
         f = forecast_series(x, change, np.full(x.size, spread), spread, threshold, step=1.0)
     except CondmonError:
         return None
-    return None if f.remaining is None else tuple(map(float, f.remaining))  # type: ignore[return-value]
+    return f.remaining
 
 
-def wiener_row(cycle: np.ndarray, capacity: np.ndarray, k: int, level: float
-               ) -> tuple[float, float, float] | None:
-    """The Wiener-path model's remaining cycles (median, 5 %, 95 %) from the cycles
-    up to ``k`` (:func:`condmon.forecast.wiener.wiener_forecast`, to the absolute level)."""
-    try:
-        return wiener_forecast(cycle[:k + 1], capacity[:k + 1], level, seed=k).remaining
-    except CondmonError:
-        return None
+def peer_pits(cycle: np.ndarray, capacity: np.ndarray, level: float) -> list[float]:
+    """Where a failed peer's true remaining life fell in condmon's forecasts
+    along its series, as ``condmon forecast`` reads its peers
+    (:func:`condmon.forecast.calibration.path_pits`)."""
+    end = int(np.searchsorted(cycle, end_of_life(cycle, capacity, level)))
+    x, change, _, threshold = _change(cycle, capacity, end, level)
+    return path_pits(x, change, threshold)
 
 
 def line_forecast(cycle: np.ndarray, capacity: np.ndarray, k: int, level: float,
@@ -122,8 +153,8 @@ def line_forecast(cycle: np.ndarray, capacity: np.ndarray, k: int, level: float,
     cross = np.where(falling, (level - noise - draws[:, 0])
                      / np.where(falling, draws[:, 1], 1.0), np.inf)
     left = np.maximum(cross - x[-1], 0.0)
-    return (float(np.median(left)), float(np.quantile(left, 0.05)),
-            float(np.quantile(left, 0.95)))
+    return (float(np.median(left)), float(np.quantile(left, 0.05, method="inverted_cdf")),
+            float(np.quantile(left, 0.95, method="inverted_cdf")))
 
 
 def score(rows: list[dict[str, Any]]) -> dict[str, float]:
@@ -145,7 +176,8 @@ def score(rows: list[dict[str, Any]]) -> dict[str, float]:
             picks.append(min(mine, key=lambda i: abs(done[i]["cycle"] - target)))
         return float(np.mean(within[picks]))
 
-    width = np.where(np.isfinite(hi - lo), (hi - lo) / truth, np.inf)
+    with np.errstate(invalid="ignore"):
+        width = np.where(np.isfinite(hi), (hi - lo) / truth, np.inf)
     return {"forecasts": len(done), "missing": len(rows) - len(done),
             "coverage": float(np.mean((lo <= truth) & (truth <= hi))),
             "alpha_lambda_rolling": float(np.mean(within)),
@@ -154,54 +186,98 @@ def score(rows: list[dict[str, Any]]) -> dict[str, float]:
             "too_early": float(np.mean(med < truth))}
 
 
+def _levels(text: list[str]) -> dict[str, float]:
+    out = {}
+    for item in text:
+        cell, _, value = item.partition("=")
+        out[cell.strip()] = float(value)
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=DATA)
+    ap.add_argument("--level", type=float, default=None,
+                    help="end of life of every cell [Ah] (default: NASA's, per its README)")
+    ap.add_argument("--level-for", action="append", default=[], metavar="CELL=LEVEL",
+                    help="a cell's own end of life [Ah]")
     ap.add_argument("--every", type=int, default=5, help="cycles between forecasts")
     ap.add_argument("--start", type=float, default=0.3, help="first forecast, fraction of life")
+    ap.add_argument("--no-progpy", action="store_true", help="skip the ProgPy peer")
     args = ap.parse_args()
     if not args.data.is_dir():
         sys.exit(f"{args.data}: no such folder (give --data DIR with B0005.csv ...)")
+    files = sorted(args.data.glob("*.csv"))
+    own = _levels(args.level_for)
+    levels = {f.stem: own.get(f.stem, args.level if args.level is not None
+                              else EOL.get(f.stem, 1.4)) for f in files}
+    cells = {f.stem: read_cell(f) for f in files}
+    progpy = None
+    if not args.no_progpy:
+        try:
+            from _progpy_peer import progpy_forecast
+            progpy = progpy_forecast
+        except ImportError:
+            print("ProgPy not installed (pip install '.[bench]'): its measured row is skipped")
     load = os.getloadavg()
     rng = np.random.default_rng(0)
-    rows: dict[str, list[dict[str, Any]]] = {"condmon": [], "condmon Wiener path": [],
-                                             "straight line": []}
+    names = ["condmon", "condmon, recalibrated on the other cells", "condmon, trend method",
+             "straight line"] + (["ProgPy 1.9 (measured here)"] if progpy else [])
+    rows: dict[str, list[dict[str, Any]]] = {m: [] for m in names}
     started = time.perf_counter()
-    for cell, level in EOL.items():
-        cycle, capacity = read_cell(args.data / f"{cell}.csv")
+    pits = {c: peer_pits(*cells[c], levels[c]) for c in cells}
+    timing = {m: 0.0 for m in names}
+    for cell, (cycle, capacity) in cells.items():
+        level = levels[cell]
         life = end_of_life(cycle, capacity, level)
+        recal = calibrate([p for c in cells if c != cell for p in pits[c]], len(cells) - 1)
         first = math.ceil(args.start * life)
         for c in np.arange(first, life, args.every):
             k = int(np.searchsorted(cycle, c))
             truth = life - float(cycle[k])
             common = {"cell": cell, "cycle": float(cycle[k]), "life": life, "truth": truth}
-            rows["condmon"].append({**common, "forecast": condmon_forecast(
-                cycle, capacity, k, level)})
-            rows["condmon Wiener path"].append({**common, "forecast": wiener_row(
-                cycle, capacity, k, level)})
-            rows["straight line"].append({**common, "forecast": line_forecast(
-                cycle, capacity, k, level, rng)})
+            made = {
+                "condmon": lambda: condmon_row(cycle, capacity, k, level),
+                "condmon, recalibrated on the other cells": lambda: condmon_row(
+                    cycle, capacity, k, level, recal) if recal else None,
+                "condmon, trend method": lambda: trend_row(cycle, capacity, k, level),
+                "straight line": lambda: line_forecast(cycle, capacity, k, level, rng),
+                "ProgPy 1.9 (measured here)": lambda: progpy(cycle, capacity, k, level, seed=k)
+                if progpy else None}
+            for m in names:
+                t0 = time.perf_counter()
+                rows[m].append({**common, "forecast": made[m]()})
+                timing[m] += time.perf_counter() - t0
     elapsed = time.perf_counter() - started
-    scores = [{"method": m, **score(r)} for m, r in rows.items()]
-    scores.append({"method": "ProgPy 1.9 (published, same points)", "forecasts": 77,
+    scores = [{"method": m, **score(r), "seconds": timing[m]} for m, r in rows.items()]
+    scores.append({"method": "ProgPy 1.9 (published, 77 forecasts)", "forecasts": 77,
                    "missing": 0, "coverage": PROGPY["coverage"],
                    "alpha_lambda_rolling": PROGPY["alpha_lambda_rolling"],
                    "alpha_lambda_0.5": math.nan, "alpha_lambda_0.75": math.nan,
-                   "median_relative_width": math.nan, "too_early": math.nan})
+                   "median_relative_width": math.nan, "too_early": math.nan,
+                   "seconds": math.nan})
     keys = ["method", "forecasts", "missing", "coverage", "alpha_lambda_rolling",
-            "alpha_lambda_0.5", "alpha_lambda_0.75", "median_relative_width", "too_early"]
+            "alpha_lambda_0.5", "alpha_lambda_0.75", "median_relative_width", "too_early",
+            "seconds"]
     shown = [{k: s.get(k, math.nan) for k in keys} for s in scores]
-    print(table(shown, f"NASA Li-ion cells, rolling forecasts every {args.every} cycles from "
-                       f"{args.start:.0%} of life (load {load[0]:.2f} {load[1]:.2f} "
-                       f"{load[2]:.2f}; {elapsed:.1f} s)"))
-    best = max(s["alpha_lambda_rolling"] for s in scores[2:])
-    for ours in scores[:2]:
-        print(f"\n{ours['method']} / best peer, rolling α-λ: "
-              f"{ours['alpha_lambda_rolling'] / best:.2f}; coverage (target 0.80-0.97): "
-              f"{ours['coverage']:.2f}", end="")
+    end = os.getloadavg()
+    print(table(shown, f"{args.data.name} cells, rolling forecasts every {args.every} cycles "
+                       f"from {args.start:.0%} of life (load {load[0]:.2f} at the start, "
+                       f"{end[0]:.2f} at the end; {elapsed:.1f} s)"))
+    peers = [s for s in scores if s["method"] in ("straight line", "ProgPy 1.9 (measured here)",
+                                                   "ProgPy 1.9 (published, 77 forecasts)")]
+    best = max(s["alpha_lambda_rolling"] for s in peers)
+    measured = [s for s in peers if s["method"] == "ProgPy 1.9 (measured here)"]
+    for ours in scores[:3]:
+        line = (f"\n{ours['method']}: rolling α-λ / best peer's {ours['alpha_lambda_rolling'] / best:.2f}; "
+                f"coverage {ours['coverage']:.2f} (target 0.80-0.97)")
+        if measured:
+            line += (f"; median width / ProgPy's "
+                     f"{ours['median_relative_width'] / measured[0]['median_relative_width']:.2f}")
+        print(line, end="")
     print()
-    path = write_json("prognostics_real", {"load": load, "seconds": elapsed, "scores": scores,
-                                           "forecasts": rows})
+    path = write_json("prognostics_real", {"load": [load, end], "seconds": elapsed,
+                                           "levels": levels, "scores": scores, "forecasts": rows})
     print(f"wrote {path}")
 
 

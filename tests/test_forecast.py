@@ -878,28 +878,3 @@ def test_check_prints_no_interval_words_for_a_unit_at_no_go(
     now, later = capsys.readouterr().out.splitlines()
     assert "at no-go now (friction increase)" in now and "interval" not in now
     assert "no-go in 4 tests (3–6)" in later and "median (90 % interval)" in later
-
-
-def test_a_wiener_path_s_first_passage_interval_covers_at_its_level() -> None:
-    """On 300 simulated Wiener paths with drift (the model's own truth: drift
-    and diffusion drawn per path, 20 to 60 points seen), the 90 % interval of
-    the first passage holds the true one in 80-97 % of the paths; a path
-    that drifts away is said to cross with a probability below 1."""
-    from condmon.forecast.wiener import wiener_forecast
-
-    rng = np.random.default_rng(42)
-    hits = []
-    for i in range(300):
-        mu, sigma = -rng.uniform(0.002, 0.01), rng.uniform(0.003, 0.015)
-        seen = int(rng.integers(20, 61))
-        path = 1.9 + np.concatenate([[0.0], np.cumsum(mu + sigma * rng.standard_normal(4000))])
-        first = int(np.argmax(path < 1.4))
-        if first <= seen:
-            continue   # already past the level in what is seen
-        f = wiener_forecast(np.arange(seen + 1.0), path[:seen + 1], 1.4, seed=i)
-        hits.append(f.remaining[1] <= first - seen <= f.remaining[2])
-    assert len(hits) > 250
-    assert 0.80 <= np.mean(hits) <= 0.97, np.mean(hits)
-    rising = 1.9 + 0.01 * np.arange(30.0) + 0.002 * (-1.0) ** np.arange(30)
-    away = wiener_forecast(np.arange(30.0), rising, 1.4)
-    assert away.p_never > 0.9 and away.remaining[0] == np.inf

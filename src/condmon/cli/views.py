@@ -123,9 +123,10 @@ def register(app: typer.Typer) -> None:
                       f"{doc['total']} in all); --page N for another", markup=False,
                       highlight=False)
         if ahead:
-            out.print("no-go in: the earliest forecast to no-go, tests (days, hours) left, median "
-                      "(90 % interval; date past: its median date is before today, the unit "
-                      "is due a check); `condmon forecast --unit U` for every parameter",
+            out.print("no-go in: the earliest forecast to no-go, tests (days, hours, cycles) "
+                      "left, median (90 % interval; date past: its median date is before "
+                      "today, the unit is due a check); `condmon forecast --unit U` for every "
+                      "parameter",
                       markup=False, highlight=False, soft_wrap=True)
         if flagged:
             err.print(f"warning: baseline flagged for {', '.join(flagged)} (`condmon baseline list "

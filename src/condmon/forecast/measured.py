@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from condmon.errors import DataError
+from condmon.forecast.calibration import Calibration
 from condmon.forecast.path import PATH_MIN_TESTS, Z90, fit_path, path_remaining
 from condmon.forecast.series import (
     Forecast, Prior, checked_horizon, forecast_series, median_interval,
@@ -48,8 +49,9 @@ def measured_coverage() -> dict[str, Any]:
     return tomllib.loads(text)
 
 
-def coverage_note(method: str) -> str:
-    """How often ``method``'s 90 % interval held the truth, where measured.
+def coverage_note(method: str, recalibrated: bool = False) -> str:
+    """How often ``method``'s 90 % interval held the truth, where measured
+    (``recalibrated``: read at its fleet's levels).
 
     Example
     -------
@@ -58,7 +60,7 @@ def coverage_note(method: str) -> str:
     """
     found = measured_coverage().get(method, {})
     parts = [f"{100 * v['coverage']:.0f} % of {v['forecasts']} forecasts on {v['data']}"
-             for v in found.values()]
+             for v in found.values() if bool(v.get("recalibrated", False)) == recalibrated]
     if not parts:
         return ""
     return "its 90 % interval held the true remaining life in " + "; ".join(parts)
@@ -67,7 +69,8 @@ def coverage_note(method: str) -> str:
 def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
                   threshold: float, horizon: float | None = None, seed: int = 0, *,
                   prior: Prior | None = None, step: float | None = None,
-                  unreachable: str | None = None) -> Forecast:
+                  unreachable: str | None = None,
+                  calibration: Calibration | None = None, per: str = "x") -> Forecast:
     """Forecast when a change series crosses ``threshold``, as a measured path.
 
     The arguments are :func:`~condmon.forecast.series.forecast_series`'s.
@@ -77,7 +80,8 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
     trend method, with a note), and ``step`` is the series' usual spacing
     (the remaining life is the first check at that spacing to measure past
     the threshold). A fleet ``prior`` is not used by this method (a note
-    says so).
+    says so). With a ``calibration`` from the fleet's failed units
+    (:mod:`condmon.forecast.calibration`) the draws are read at its levels.
 
     Raises
     ------
@@ -113,10 +117,10 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
     slope = fit.coef[1]
     sd = math.sqrt(max(fit.cov[1][1], 0.0))
     interval = (slope - Z90 * sd, slope + Z90 * sd)
-    notes = [f"degradation path: rate {slope:.3g} %/x now (90 % interval "
+    notes = [f"degradation path: rate {slope:.3g} %/{per} now (90 % interval "
              f"[{interval[0]:.3g}, {interval[1]:.3g}]), recoveries fading at φ = "
              f"{fit.phi:.2f} a check, the rate wandering {100 * math.sqrt(fit.walk):.2g} % "
-             "per √x"]
+             f"per √{per}"]
     if prior is not None:
         notes.append("the fleet's prior is not used by the path method")
     towards = interval[0] > 0 if sign > 0 else interval[1] < 0
@@ -139,8 +143,13 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
                         1.0 if horizon is not None else None, fit.n, tuple(notes),
                         coef, cov, last, at_nogo=True)
     left, _ = path_remaining(fit, threshold, seed, horizon)
-    med, lo, hi = median_interval(left, whole=True)
-    said = coverage_note("path")
+    if calibration is None:
+        med, lo, hi = median_interval(left, whole=True)
+    else:
+        med, lo, hi = (float(np.quantile(left, q, method="inverted_cdf")) for q in (
+            calibration.median, calibration.low, calibration.high))
+        notes.append(calibration.describe())
+    said = coverage_note("path", calibration is not None)
     if said:
         notes.append(said)
     p = float(np.mean(left <= horizon)) if horizon is not None else None
@@ -151,9 +160,11 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
 def forecast_by(method: str, x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
                 threshold: float, horizon: float | None = None, seed: int = 0, *,
                 prior: Prior | None = None, step: float | None = None,
-                unreachable: str | None = None) -> Forecast:
+                unreachable: str | None = None,
+                calibration: Calibration | None = None, per: str = "x") -> Forecast:
     """:func:`forecast_path` or :func:`~condmon.forecast.series.forecast_series`
-    by ``method`` (one of :data:`METHODS`).
+    by ``method`` (one of :data:`METHODS`); ``per`` names a unit of ``x``
+    in the path's notes ("cycle").
 
     Raises
     ------
@@ -162,7 +173,8 @@ def forecast_by(method: str, x: ArrayLike, change: ArrayLike, se: ArrayLike, spr
     """
     if method == "path":
         return forecast_path(x, change, se, spread, threshold, horizon, seed, prior=prior,
-                             step=step, unreachable=unreachable)
+                             step=step, unreachable=unreachable, calibration=calibration,
+                             per=per)
     if method != "trend":
         raise DataError(f"forecast method {method!r}: the methods are {', '.join(METHODS)}")
     f = forecast_series(x, change, se, spread, threshold, horizon, seed, prior=prior, step=step,

@@ -30,6 +30,7 @@ from condmon.errors import DataError
 from condmon.monitor.baseline import Baseline
 from condmon.forecast.axis import Axis, Series, forecast_axis, in_test_order, parameter_series
 from condmon.forecast.degradation import steady_direction
+from condmon.forecast.calibration import Calibration
 from condmon.forecast.measured import forecast_by
 from condmon.forecast.series import MIN_TESTS, Forecast, Prior, checked_horizon
 
@@ -246,7 +247,8 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
                     units: Mapping[str, str] | None = None, horizon: float | None = None,
                     seed: int = 0,
                     priors: Mapping[str | tuple[str, float], Prior] | None = None,
-                    now: pd.Timestamp | None = None, method: str = "trend") -> UnitForecast:
+                    now: pd.Timestamp | None = None, method: str = "trend",
+                    calibrations: Mapping[str, Calibration] | None = None) -> UnitForecast:
     """Forecast every parameter of a unit to no-go from its checks since the baseline.
 
     Parameters
@@ -285,6 +287,9 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
         no-go date already past gets a note that the unit is due a check.
     method : {"trend", "path"}
         How each series is forecast (:func:`~condmon.forecast.measured.forecast_by`).
+    calibrations : mapping of str to Calibration, optional
+        A path forecast's levels per parameter key, from the fleet's failed
+        units (:mod:`condmon.forecast.calibration`).
 
     Returns
     -------
@@ -323,7 +328,9 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
                                        (priors or {}).get(key))
             return forecast_by(method, x, change, se, spread, threshold, horizon, seed,
                                prior=prior, step=1.0 if axis.by in ("tests", "cycles") else None,
-                               unreachable=unreachable)
+                               unreachable=unreachable,
+                               calibration=(calibrations or {}).get(key),
+                               per={"hours": "h", "days": "day"}.get(axis.by, axis.by[:-1]))
 
         f = heading(threshold, never)
         if never and not f.trend and not f.unreachable:

@@ -20,6 +20,7 @@ import pandas as pd
 
 from condmon.errors import CondmonError, DataError
 from condmon.monitor.baseline import MIN_BASELINE_TESTS, Baseline
+from condmon.forecast.calibration import Calibration, calibrate, path_pits
 from condmon.forecast.prior import FleetPrior, UnitWear, prior_from_wear, unit_wear
 from condmon.forecast.unit import (
     NO_TREND, NoGo, UnitForecast, forecast_axis, forecast_checks, in_test_order,
@@ -71,6 +72,7 @@ class FleetHistory:
         self._current: set[str] = set()   # peers whose kept rates are up to date
         self._limit = 0
         self._recent: dict[tuple[str, str | None], list[str]] = {}
+        self._pits: dict[str, dict[str, list[float]]] = {}
 
     def know(self, units: Sequence[str]) -> None:
         """Read whether each of ``units`` has degraded, in one query (a page's
@@ -186,6 +188,45 @@ class FleetHistory:
             self._wear[(unit, key, by)] = found
         return self._wear[(unit, key, by)]
 
+    def calibrations(self, unit: str) -> dict[str, Calibration]:
+        """The recalibration of each indicator's path forecast for ``unit``
+        from its failed peers (:mod:`condmon.forecast.calibration`): where
+        their true lives fell in the forecasts made along their own series,
+        each to its own end of life. The peers are :meth:`learning_peers`,
+        at most :data:`CALIBRATION_PEERS` of them; an indicator whose peers
+        give fewer than :data:`~condmon.forecast.calibration.MIN_PITS`
+        forecasts gets none."""
+        pits: dict[str, list[float]] = {}
+        peers: dict[str, int] = {}
+        for p in self.learning_peers(unit)[:CALIBRATION_PEERS]:
+            for key, found in self._peer_pits(p).items():
+                if found:   # a peer short of its end of life teaches no life
+                    pits.setdefault(key, []).extend(found)
+                    peers[key] = peers.get(key, 0) + 1
+        return {k: c for k, v in pits.items() if (c := calibrate(v, peers[k])) is not None}
+
+    def _peer_pits(self, peer: str) -> dict[str, list[float]]:
+        if peer not in self._pits:
+            found: dict[str, list[float]] = {}
+            try:
+                model = self.store.indicator_model(peer)
+                baseline, checks = self.checks(peer) if model is not None else (None, None)
+            except CondmonError:
+                model = None
+            if model is not None and baseline is not None and checks is not None \
+                    and len(checks):
+                axis = forecast_axis(checks)
+                nogo, _ = indicator_nogo(model, baseline)
+                for key, limit in nogo.items():
+                    series = parameter_series(checks, baseline, key, axis)
+                    if series is None:
+                        continue
+                    (x, change, _, _), _ = series
+                    way = -1.0 if math.isinf(limit.rise) else 1.0
+                    found[key] = path_pits(x, change, way * limit.r2)
+            self._pits[peer] = found
+        return self._pits[peer]
+
     def priors(self, unit: str, keys: Sequence[str], by: str
                ) -> dict[str | tuple[str, float], FleetPrior]:
         """The fleet prior (shape and rates) of each parameter key for
@@ -204,6 +245,11 @@ class FleetHistory:
                     FleetPrior.vague(per, f"none of {len(peers)} degraded peer(s) has {key} "
                                           f"counted in {by}")
         return out
+
+
+#: Most failed peers a path forecast is recalibrated on (20 forecasts along
+#: each: 100 PITs place the 5 % and 95 % points to about ±2 %).
+CALIBRATION_PEERS = 5
 
 
 def read_forecast(store: HistoryStore, unit: str, horizon: float | None = None,
@@ -246,7 +292,9 @@ def read_forecast(store: HistoryStore, unit: str, horizon: float | None = None,
     if indicators is not None:
         nogo, rules = indicator_nogo(indicators, baseline)
         return forecast_checks(unit, checks, baseline, nogo, rules, indicators.units, horizon,
-                               seed, None, method=indicators.method)
+                               seed, None, method=indicators.method,
+                               calibrations=fleet.calibrations(unit)
+                               if indicators.method == "path" else None)
     machine = get_model(store.unit_model(unit) or "dc-motor")
     priors = (fleet.priors(unit, baseline.parameters, forecast_axis(checks).by)
               if len(checks) else {})

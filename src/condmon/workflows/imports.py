@@ -321,6 +321,12 @@ def _import_unit(store: HistoryStore, unit: str, table: pd.DataFrame, model: Ind
                             "nothing was stored") from None
         n_base = baseline_rows
         first = table.iloc[fresh[:n_base]]
+        for n in names:
+            if float(first[n].mean()) == 0.0:
+                raise DataError(f"{path}: rows {int(first['row'].iloc[0])}-"
+                                f"{int(first['row'].iloc[-1])} (the baseline of unit {unit!r}), "
+                                f"column {n!r}: their mean is 0, so a change from it is "
+                                "undefined; nothing was stored")
         new_base = make_baseline([{n: float(r[n]) for n in names} for _, r in first.iterrows()])
         base, baseline_id = new_base, None
     tests = []

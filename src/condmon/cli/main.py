@@ -42,9 +42,9 @@ from condmon.identify.defaults import DEFAULT_FIT_THRESHOLD, list_estimators
 #: ``condmon --help`` lists the commands in the order of a user's work: try it,
 #: estimate, baseline and check a unit, a fleet and live units, read the history,
 #: look after it.
-WORKFLOW = ("demo", "simulate", "estimate", "baseline", "check", "isolate", "fleet", "watch",
-            "history", "units", "forecast", "report", "serve", "exclude", "include", "audit",
-            "unit", "rules")
+WORKFLOW = ("demo", "simulate", "estimate", "baseline", "check", "import", "isolate", "fleet",
+            "watch", "history", "units", "forecast", "report", "serve", "exclude", "include",
+            "audit", "unit", "rules")
 
 
 class _InWorkflowOrder(TyperGroup):

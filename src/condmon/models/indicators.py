@@ -35,7 +35,7 @@ from typing import Any
 from condmon.errors import ConfigError
 
 __all__ = ["EndOfLife", "Indicator", "IndicatorModel", "parse_end_of_life", "is_indicator_doc",
-           "indicators_from_doc", "load_indicators", "override_end_of_life", "with_end_of_life"]
+           "indicators_from_doc", "load_indicators", "override_end_of_life", "with_end_of_life", "indicator_machine"]
 
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _LEVEL = re.compile(rf"^\s*([<>])\s*({_NUMBER})\s*(.*?)\s*$")
@@ -305,6 +305,23 @@ def load_indicators(path: str | Path) -> IndicatorModel:
         raise ConfigError(f"{p}: not an indicator declaration (it has no [indicators] table, "
                           "or has [states]: a model condmon estimates)")
     return indicators_from_doc(doc, str(p))
+
+
+def indicator_machine(model: IndicatorModel, origin: str | None) -> Any:
+    """The :class:`~condmon.models.machine.Machine` an indicator declaration
+    is to the rest of condmon: its indicators are the plant's parameters
+    (candidate faults, at their rated values) and what is monitored; it has
+    no equations, nothing to estimate (``require_estimation`` says to
+    import), and generic monitoring."""
+    from condmon.models.declared import BuiltInTest, Parameter, PlantModel
+    from condmon.models.machine import EstimationSpec, Machine
+
+    plant = PlantModel(model.name, model.description, tuple(
+        Parameter(i.name, i.rated if i.rated is not None else 1.0, i.unit, i.description,
+                  fault=True) for i in model.indicators), (), (), (), (),
+        BuiltInTest(1.0, 1.0), model.source)
+    return Machine(plant, EstimationSpec(unknowns=(), report=model.names), origin,
+                   indicators=model)
 
 
 def with_end_of_life(model: IndicatorModel, overrides: Mapping[str, EndOfLife]

@@ -131,7 +131,10 @@ class Machine:
     (the ``[record]`` table); ``regimes`` its operating regimes; ``features``
     the signal features it declares (``[features]``, :mod:`condmon.models.features`);
     ``conditions`` its operating conditions (``[conditions]``), the covariates
-    a healthy value is fitted against (:mod:`condmon.monitor.conditions`).
+    a healthy value is fitted against (:mod:`condmon.monitor.conditions`);
+    ``indicators`` the :class:`~condmon.models.indicators.IndicatorModel` of
+    an indicator declaration (its indicators are the plant's parameters,
+    nothing is estimated: values are imported).
 
     Example
     -------
@@ -152,6 +155,7 @@ class Machine:
     regimes: RegimeSpec = field(default_factory=RegimeSpec)
     features: tuple[FeatureSpec, ...] = ()
     conditions: tuple[ConditionSpec, ...] = ()
+    indicators: Any = None
 
     @property
     def monitored_generically(self) -> bool:
@@ -203,6 +207,11 @@ class Machine:
 
     def require_estimation(self) -> None:
         """Raise :class:`ModelError` when the declaration says nothing to estimate."""
+        if self.indicators is not None:
+            raise ModelError(f"model {self.name!r} ({self.plant.source}) is an indicator "
+                             "declaration: its values are measured elsewhere and stored with "
+                             f"`condmon import TABLE --model {self.origin or self.name}`, not "
+                             "estimated from records")
         if not self.spec.unknowns:
             faults = [p.name for p in self.plant.parameters if p.fault]
             isolate = (f"; its fault candidates ({', '.join(faults)}) are found by running "

@@ -19,6 +19,7 @@ from typing import Any
 from condmon.errors import CondmonError, ConfigError, MissingColumnsError, ModelError
 from condmon.io.config import load_default, load_toml
 from condmon.models.declared import PlantModel, plant_from_doc
+from condmon.models.indicators import indicator_machine, indicators_from_doc, is_indicator_doc
 from condmon.models.limits import equation_limits
 from condmon.models.machine import Machine
 from condmon.models.machine_doc import machine_from_doc
@@ -110,6 +111,8 @@ def _load(path: Path) -> Machine:
 
 def _machine(doc: dict[str, Any], source: str, shipped: bool = False) -> Machine:
     origin = None if shipped else str(Path(source).resolve())
+    if is_indicator_doc(doc):
+        return indicator_machine(indicators_from_doc(doc, source), origin)
     with _time_limit(equation_limits().time_limit, source):
         return machine_from_doc(plant_from_doc(doc, source), doc, origin)
 

@@ -407,6 +407,8 @@ def _unit_options(store: HistoryStore, unit: str, opts: EstimateOptions) -> Esti
     """Options with the unit's model filled in; refuses a record offered with
     another model than the one the unit's history was started with."""
     stored = store.unit_model(unit)
+    if stored is not None and get_model(stored).indicators is not None:
+        get_model(stored).require_estimation()   # says: imported, not estimated
     if stored is not None and not get_model(stored).spec.unknowns:
         raise DataError(f"unit {unit!r} is monitored with plant model {stored!r}: its records "
                         f"are isolated (`condmon isolate {stored} REC --unit {unit}`), not "

@@ -30,9 +30,12 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from condmon.errors import ConfigError
+
+if TYPE_CHECKING:
+    from condmon.models.machine import Machine
 
 __all__ = ["EndOfLife", "Indicator", "IndicatorModel", "parse_end_of_life", "is_indicator_doc",
            "indicators_from_doc", "load_indicators", "override_end_of_life", "with_end_of_life", "indicator_machine"]
@@ -307,7 +310,7 @@ def load_indicators(path: str | Path) -> IndicatorModel:
     return indicators_from_doc(doc, str(p))
 
 
-def indicator_machine(model: IndicatorModel, origin: str | None) -> Any:
+def indicator_machine(model: IndicatorModel, origin: str | None) -> Machine:
     """The :class:`~condmon.models.machine.Machine` an indicator declaration
     is to the rest of condmon: its indicators are the plant's parameters
     (candidate faults, at their rated values) and what is monitored; it has

@@ -41,11 +41,12 @@ from condmon.forecast.unit import in_test_order
 from condmon.store.db import HistoryStore
 from condmon.store.forecasts import keep_forecast
 from condmon.workflows.monitoring import (
-    _existing_baseline, _held, _unit_error, _unit_options, conditioning, current_baseline,
+    _existing_baseline, _held, _unit_error, conditioning, current_baseline,
     estimate_judged, evaluate, filed_elsewhere, governed, monitoring_of, no_baseline_yet,
     restricted, save_current_baseline,
 )
 from condmon.workflows.records import EstimateOptions, RecordLike
+from condmon.workflows.unit_model import unit_options
 
 __all__ = ["CheckResult", "check_test", "unit_statistics", "Reference", "reference_for", "resolve_against",
            "group_reference", "judgement_notes"]
@@ -345,7 +346,7 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
     widened: tuple[str, ...] = ()
     override = {k: checked_alpha(v, f"--{k.replace('_', '-')}")
                 for k, v in (("alpha", alpha), ("drift_alpha", drift_alpha)) if v is not None}
-    opts = _unit_options(store, unit, options or EstimateOptions())
+    opts = unit_options(store, unit, options or EstimateOptions())
     machine = get_model(opts.model or "dc-motor")
     ref = reference_for(store, unit, machine, against, group)
     if ref is None:

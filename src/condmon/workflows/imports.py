@@ -91,7 +91,8 @@ def _read(path: Path) -> pd.DataFrame:
             return pd.read_parquet(path)
         return pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
     except (OSError, ValueError, ImportError) as err:
-        raise DataError(f"{path}: cannot be read as a table ({err})") from None
+        raise DataError(f"{path}: cannot be read as a table ({err}); nothing was stored"
+                        ) from None
 
 
 def _numbers(path: Path, df: pd.DataFrame, col: str, *, nonneg: bool = False) -> np.ndarray:

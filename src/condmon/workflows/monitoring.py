@@ -44,6 +44,7 @@ from condmon.store.baselines import (  # read from the store only; kept here for
 )
 from condmon.store.db import DuplicateTestError, HistoryStore
 from condmon.workflows.records import EstimateOptions, RecordKey, RecordLike, record_key
+from condmon.workflows.unit_model import unit_options
 
 __all__ = ["EstimateOptions", "AddedTest", "BaselineAddResult", "RecordKey",
            "add_baseline_tests", "current_baseline", "RecordLike",
@@ -403,48 +404,6 @@ def no_baseline_yet(keys: Sequence[str], baseline: Baseline) -> str:
             "healthy tests of them with `condmon baseline add`")
 
 
-def _unit_options(store: HistoryStore, unit: str, opts: EstimateOptions) -> EstimateOptions:
-    """Options with the unit's model filled in; refuses a record offered with
-    another model than the one the unit's history was started with."""
-    stored = store.unit_model(unit)
-    if stored is not None and get_model(stored).indicators is not None:
-        get_model(stored).require_estimation()   # says: imported, not estimated
-    if stored is not None and not get_model(stored).spec.unknowns:
-        raise DataError(f"unit {unit!r} is monitored with plant model {stored!r}: its records "
-                        f"are isolated (`condmon isolate {stored} REC --unit {unit}`), not "
-                        "estimated")
-    if opts.model is None:
-        return dataclasses.replace(opts, model=stored or "dc-motor")
-    if stored is not None:
-        machine = get_model(opts.model)
-        if stored not in (machine.name, machine.origin):
-            repoint(store, unit, machine, stored)
-    return opts
-
-
-def repoint(store: HistoryStore, unit: str, machine: Machine, stored: str) -> None:
-    """Accept a record offered with another path of the unit's declaration:
-    the same equations, parameters and rules (the digest of their meaning,
-    :mod:`condmon.models.bundle`) at a new path re-point the unit to it
-    (audited); another declaration is refused, naming both and how to
-    re-point on purpose."""
-    from condmon.store.declarations import bundle_digest
-
-    _, kept = store.unit_declaration(unit)
-    new = bundle_digest(machine.origin) if machine.origin else None
-    if kept is not None and new == kept:
-        assert machine.origin is not None
-        store.set_unit_model(unit, machine.origin, name=machine.name,
-                             reason="the same declaration at a new path")
-        return
-    what = ("its equations, parameters or rules differ from the unit's"
-            if kept is not None and new is not None else "another model")
-    raise DataError(f"unit {unit!r} is monitored with model {stored!r}; this record was "
-                    f"offered with {machine.origin or machine.name!r}, {what} (omit --model "
-                    f"to use the unit's; `condmon unit set-model {unit} FILE` re-points the "
-                    "unit on purpose)")
-
-
 def _existing_baseline(store: HistoryStore, unit: str) -> Baseline | None:
     """The unit's current baseline, or None while it has fewer than 3 healthy tests."""
     if store.unit_model(unit) is None:
@@ -545,7 +504,7 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
     if its metadata has one). ``group``: put the unit in this group of peers
     (once a test of it is stored).
     """
-    opts = _unit_options(store, unit, options or EstimateOptions())
+    opts = unit_options(store, unit, options or EstimateOptions())
     if group is not None:
         from condmon.store.base import check_name
 

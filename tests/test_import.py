@@ -225,3 +225,17 @@ def test_the_shipped_nasa_csv_goes_in_as_it_is(tmp_path: Path) -> None:
         checks = hist[hist["role"] == "check"]
         first_nogo = checks.index[checks["status"] == "no-go"][0]
         assert hist.loc[first_nogo, "cycle"] == 125   # the README's first cycle below 1.4 Ah
+
+
+def test_a_parquet_table_goes_in_through_the_notebook_api(tmp_path: Path) -> None:
+    import pandas as pd
+
+    import condmon
+
+    table = tmp_path / "cells.parquet"
+    pd.DataFrame({"unit": ["P1"] * 12, "hours": np.arange(1.0, 13.0) * 10.0,
+                  "capacity": 1.9 - 0.01 * np.arange(12)}).to_parquet(table)
+    with condmon.History(tmp_path / "h.db") as h:
+        got = h.import_table(table, DECL)
+        assert [(u.unit, u.added, u.axis) for u in got] == [("P1", 12, "hours")]
+        assert h.forecast("P1").result.by == "hours"

@@ -5,8 +5,9 @@ From a short test record, estimate the physical parameters of a machine
 check the fit, and report each parameter with its standard error.
 
 Monitoring a unit over time goes through :class:`History` (a SQLite file or
-a PostgreSQL URL): ``baseline_add``, ``check``, ``history``, ``forecast``,
-``units``; plant models with residuals through :func:`isolate`.
+a PostgreSQL URL): ``baseline_add``, ``check``, ``import_table`` (measured
+indicators), ``history``, ``forecast``, ``units``; plant models with
+residuals through :func:`isolate`.
 
 Example
 -------

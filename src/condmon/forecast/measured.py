@@ -119,8 +119,10 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
     interval = (slope - Z90 * sd, slope + Z90 * sd)
     notes = [f"degradation path: rate {slope:.3g} %/{per} now (90 % interval "
              f"[{interval[0]:.3g}, {interval[1]:.3g}]), recoveries fading at φ = "
-             f"{fit.phi:.2f} a check, the rate wandering {100 * math.sqrt(fit.walk):.2g} % "
-             f"per √{per}"]
+             f"{fit.phi:.2f} a check, " + (
+                 f"the rate wandering {100 * math.sqrt(fit.walk):.2g} % per √{per}"
+                 if fit.walk > 0 else "the quarters' rates within their own error (their "
+                 "wander drawn from it)")]
     if prior is not None:
         notes.append("the fleet's prior is not used by the path method")
     towards = interval[0] > 0 if sign > 0 else interval[1] < 0

@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Any
 import pandas as pd
 
 from condmon.workflows.checks import CheckResult, check_test
+from condmon.workflows.imports import ImportedUnit, import_table
 from condmon.workflows.monitoring import BaselineAddResult, add_baseline_tests
 from condmon.workflows.records import EstimateOptions, RecordLike
 
@@ -135,6 +136,14 @@ class History:
         opts = options or EstimateOptions(model=model)
         return check_test(self.store, unit, record, opts, test_date=test_date,
                           against=against, dry_run=dry_run)
+
+    def import_table(self, table: str | Path, model: str | Path, *, unit: str | None = None,
+                     indicator: str | None = None, no_go: Sequence[str] = (),
+                     baseline: int = 5) -> list[ImportedUnit]:
+        """Store a table of already-measured indicator values as units' checks
+        (``condmon import``, :func:`condmon.workflows.imports.import_table`)."""
+        return import_table(self.store, table, model, unit=unit, indicator=indicator,
+                            no_go=no_go, baseline_rows=baseline)
 
     # -- what the history holds ---------------------------------------------------------
 

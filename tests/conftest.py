@@ -6,6 +6,7 @@ import atexit
 import dataclasses
 import os
 import shutil
+import signal
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
@@ -21,6 +22,12 @@ from condmon.simulate import ActuatorRig, load_actuator_rig, simulate_actuator
 # a pass is not luck), and keep no example database between runs.
 hypothesis_settings.register_profile("condmon", derandomize=True, database=None)
 hypothesis_settings.load_profile("condmon")
+
+# A run started in the background by a shell without job control (a CI script's
+# `cmd &`) inherits Ctrl-C ignored, and so would every command a test starts:
+# the tests of what Ctrl-C does would then wait on commands that cannot hear it.
+if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 # The derived-structure cache of this run: a fresh folder (the structures are
 # derived once, then restored, as on a user's machine), never the user's own.

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import sqlite3
 from pathlib import Path
 
@@ -196,9 +197,8 @@ def test_the_shipped_declaration_reads() -> None:
                           st.text(max_size=4)), min_size=8, max_size=30))
 def test_any_column_of_cells_is_stored_whole_or_refused_with_its_row(
         tmp_path: Path, cells: list[object]) -> None:
-    """Whatever the cells hold, the import stores every row or refuses naming
-    a row and a column (or that the file is no table: an unclosed quote),
-    and then stores nothing."""
+    """Whatever the cells hold, the import stores every row or refuses, naming
+    the file (and the row and column of a bad cell), and then stores nothing."""
     table = tmp_path / "t.csv"
     # (a comma, a line feed or a carriage return would make other cells or rows)
     text = ["cycle,capacity"] + [f"{k},{str(c).replace(',', ';').replace(chr(10), ' ')}"
@@ -208,9 +208,8 @@ def test_any_column_of_cells_is_stored_whole_or_refused_with_its_row(
         try:
             got = import_table(store, table, DECL, unit="U")
         except DataError as err:
-            msg = str(err)   # a cell's row and column, or a table CSV cannot parse
-            assert ("row" in msg and "column 'capacity'" in msg) or (
-                "cannot be read as a table" in msg and "nothing was stored" in msg), msg
+            msg = str(err)   # a cell's row and column, the baseline's, or the file's
+            assert "t.csv" in msg and "nothing was stored" in msg, msg
             assert store.imported_hashes("U") == set()
         else:
             assert got[0].added == len(cells)
@@ -239,3 +238,45 @@ def test_a_parquet_table_goes_in_through_the_notebook_api(tmp_path: Path) -> Non
         got = h.import_table(table, DECL)
         assert [(u.unit, u.added, u.axis) for u in got] == [("P1", 12, "hours")]
         assert h.forecast("P1").result.by == "hours"
+
+
+@pytest.mark.parametrize("content, needle", [
+    ("cycle,capacity\n" + "".join(f"{k},{1.85 - 0.001 * k}\n" for k in range(1, 11))
+     + "11,1824.6\n", "row 11 (line 12), column 'capacity': 1824.6 is 988 times its baseline"),
+    ("cycle,capacity\n" + "".join(f"{k},{1.85 - 0.001 * k}\n" for k in range(1, 11))
+     + "11,0\n", "of the other sign than its baseline, or 0"),
+    ("cycle,capacity\n" + "".join(f"{k},{1.85 - 0.001 * k}\n" for k in range(1, 11))
+     + "11,1e300\n", "row 11 (line 12), column 'capacity': '1e300' is beyond 1e+15"),
+    ("date,capacity\n" + "".join(f"{k:02d}/01/2024,{1.85 - 0.001 * k}\n"
+                                   for k in range(1, 11)), "is not an ISO 8601 date"),
+    ("Cycle,capacity\n1,1.9\n", "names are case-sensitive: 'Cycle'"),
+    ("cycle,capacity\n", "no rows under the header"),
+])
+def test_values_a_unit_cannot_have_are_refused(tmp_path: Path, content: str,
+                                               needle: str) -> None:
+    """A value in other units (mAh for Ah), a missing reading written as 0, a
+    huge number, a day-first date, a header in other case, no rows."""
+    bad = tmp_path / "bad.csv"
+    bad.write_text(content)
+    with open_store("sqlite://") as store:
+        with pytest.raises(DataError, match=re.escape(needle)):
+            import_table(store, bad, DECL, unit="C1")
+        assert store.imported_hashes("C1") == set()
+
+
+def test_a_table_must_keep_its_unit_s_axis_and_end_of_life(tmp_path: Path) -> None:
+    cell = _cell(tmp_path / "c.csv", n=20)
+    by_hours = tmp_path / "h.csv"
+    by_hours.write_text("hours,capacity\n1000,1.7\n1010,1.69\n")
+    past = tmp_path / "p.csv"
+    with open_store("sqlite://") as store:
+        import_table(store, cell, DECL, unit="C1")
+        with pytest.raises(DataError, match="is counted in cycle"):
+            import_table(store, by_hours, DECL, unit="C1")
+        with pytest.raises(DataError, match="already past its end of life"):
+            import_table(store, cell, DECL, unit="C2", no_go="capacity>1.5")
+        assert store.imported_hashes("C2") == set()
+    past.write_text("cycle;capacity\n" + "".join(f"{k};{1.85 - 0.001 * k:.4f}".replace(".", ",")
+                                                  + "\n" for k in range(1, 11)))
+    with open_store("sqlite://") as store:   # a ';' table with decimal commas reads
+        assert import_table(store, past, DECL, unit="S")[0].added == 10

@@ -36,7 +36,7 @@ from condmon.errors import CondmonError, ConfigError, DataError
 from condmon.models.indicators import (
     IndicatorModel, load_indicators, override_end_of_life, parse_end_of_life, with_end_of_life,
 )
-from condmon.monitor.baseline import Baseline, make_baseline
+from condmon.monitor.baseline import MIN_BASELINE_TESTS, Baseline, make_baseline
 from condmon.monitor.indicators import judge_indicators
 from condmon.store.baselines import current_baseline
 from condmon.store.db import HistoryStore
@@ -83,35 +83,54 @@ class ImportedUnit:
                 "axis": self.axis, "end_of_life": self.end_of_life}
 
 
+#: The largest magnitude a value may have (as records'). [-]
+_HUGE = 1e15
+
+
 def _read(path: Path) -> pd.DataFrame:
+    if path.is_dir():
+        raise DataError(f"{path}: a folder, not a table")
     if not path.is_file():
         raise DataError(f"{path}: no such file")
     try:
         if path.suffix.lower() in (".parquet", ".pq"):
             return pd.read_parquet(path)
-        return pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
+        with path.open("r", encoding="utf-8-sig", errors="replace") as fh:
+            header = fh.readline()
+        # a table written with ';' between cells (and ',' for the decimal point)
+        semi = ";" in header and "," not in header
+        return pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True,
+                           sep=";" if semi else ",", encoding="utf-8-sig")
     except (OSError, ValueError, ImportError) as err:
-        raise DataError(f"{path}: cannot be read as a table ({err}); nothing was stored"
+        why = " ".join(str(err).split())
+        raise DataError(f"{path}: cannot be read as a table ({why}); nothing was stored"
                         ) from None
 
 
 def _numbers(path: Path, df: pd.DataFrame, col: str, *, nonneg: bool = False) -> np.ndarray:
-    """A column as float64, every cell a finite number (the first bad one named)."""
+    """A column as float64, every cell a finite number of sane size (the first
+    bad one named by the table's row). A decimal comma ("1,856" in a table
+    of ';') reads as a point."""
     raw = df[col]
-    vals = pd.to_numeric(raw.astype(str).str.strip() if raw.dtype == object else raw,
-                         errors="coerce").to_numpy(dtype=np.float64)
-    bad = ~np.isfinite(vals) | ((vals < 0) if nonneg else False)
+    text = raw if pd.api.types.is_numeric_dtype(raw) else \
+        raw.astype(str).str.strip().str.replace(",", ".", regex=False)
+    vals = pd.to_numeric(text, errors="coerce").to_numpy(dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        bad = ~np.isfinite(vals) | (np.abs(vals) > _HUGE) | ((vals < 0) if nonneg else False)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         shown = raw.iloc[i]
-        what = "a negative standard error" if nonneg and np.isfinite(vals[i]) else \
-            "empty" if str(shown).strip() == "" else "not a finite number"
-        raise DataError(f"{path}: row {i + 1} (line {i + 2}), column {col!r}: {shown!r} is "
+        what = "a negative standard error" if nonneg and np.isfinite(vals[i]) and vals[i] < 0 \
+            else "empty" if str(shown).strip() == "" else \
+            f"beyond {_HUGE:.0e}" if np.isfinite(vals[i]) else "not a finite number"
+        row = int(df["row"].iloc[i]) if "row" in df else i + 1
+        raise DataError(f"{path}: row {row} (line {row + 1}), column {col!r}: {shown!r} is "
                         f"{what}; nothing was stored")
     return vals
 
 
-def read_indicator_table(path: str | Path, model: IndicatorModel, unit: str | None = None,
+def read_indicator_table(path: str | Path | pd.DataFrame, model: IndicatorModel,
+                         unit: str | None = None,
                          indicator: str | None = None) -> dict[str, pd.DataFrame]:
     """A table's rows per unit, checked (see the module).
 
@@ -131,15 +150,28 @@ def read_indicator_table(path: str | Path, model: IndicatorModel, unit: str | No
     ConfigError
         ``indicator`` not declared.
     """
-    p = Path(path)
-    df = _read(p)
+    if isinstance(path, pd.DataFrame):
+        p, df = Path("table"), path.copy()
+    else:
+        p = Path(path)
+        df = _read(p)
     df.columns = [str(c).strip() for c in df.columns]
+    if not len(df):
+        raise DataError(f"{p}: no rows under the header; nothing was stored")
     axes = [a for a in AXES if a in df.columns]
-    if not axes:
-        raise DataError(f"{p}: no axis column; a table needs one of {', '.join(AXES)}")
     names = model.names
+    if not axes:
+        near = [c for c in df.columns if c.lower() in (*AXES, *names)]
+        hint = (f" (names are case-sensitive: {', '.join(repr(c) for c in near)})" if near
+                else "")
+        raise DataError(f"{p}: no axis column; a table needs one of {', '.join(AXES)}, and "
+                        f"has {', '.join(repr(c) for c in df.columns)}{hint}")
     if indicator is not None:
         model.indicator(indicator)
+        clash = [c for c in df.columns if c in (*names, "unit")]
+        if clash:
+            raise DataError(f"{p}: column {clash[0]!r} in a table of a column per unit "
+                            f"(--indicator {indicator}): name each column by its unit")
         units = [c for c in df.columns if c not in axes]
         if not units:
             raise DataError(f"{p}: no unit columns beside {', '.join(axes)}")
@@ -147,12 +179,17 @@ def read_indicator_table(path: str | Path, model: IndicatorModel, unit: str | No
         long["row"] = np.tile(np.arange(1, len(df) + 1), len(units))
         groups = {u: long[long["unit"] == u].drop(columns="unit") for u in units}
     else:
+        if unit is not None and "unit" in df.columns:
+            raise DataError(f"{p}: the table has a 'unit' column; omit --unit {unit} (each "
+                            "row names its unit)")
         allowed = [*axes, *names, *(f"{n}_se" for n in names)] + ([] if unit else ["unit"])
         unknown = [c for c in df.columns if c not in allowed]
         if unknown:
+            wide = (" (a column per unit? give --indicator NAME)"
+                    if len(model.names) == 1 and not any(n in df.columns for n in names) else "")
             raise DataError(f"{p}: column {unknown[0]!r} is not one of the declaration's "
                             f"indicators ({model.source or model.name}); the columns allowed "
-                            f"are {', '.join(allowed)}")
+                            f"are {', '.join(allowed)}{wide}")
         if not any(n in df.columns for n in names):
             raise DataError(f"{p}: no indicator column; the declaration names "
                             f"{', '.join(names)}")
@@ -184,13 +221,16 @@ def _checked(path: Path, g: pd.DataFrame, axes: list[str], names: Sequence[str]
     for a in axes:
         if a == "date":
             raw = g[a].astype(str).str.strip()
-            vals = pd.to_datetime(raw, utc=True, errors="coerce", format="mixed")
+            # ISO 8601 only: 01/02/2024 is the 2nd of January in one country, the
+            # 1st of February in another
+            vals = pd.to_datetime(raw, utc=True, errors="coerce", format="ISO8601")
             bad = np.flatnonzero(vals.isna().to_numpy())
             if bad.size:
                 raise DataError(f"{path}: {at(int(bad[0]))}, column 'date': "
-                                f"{raw.iloc[int(bad[0])]!r} is not a date; nothing was stored")
+                                f"{raw.iloc[int(bad[0])]!r} is not an ISO 8601 date "
+                                "(2024-01-12, or 2024-01-12T08:30); nothing was stored")
             out[a] = vals.to_numpy()
-            step = np.diff(vals.to_numpy().astype("datetime64[ns]").astype(np.int64))
+            step = np.diff((vals - vals.iloc[0]).dt.total_seconds().to_numpy())
         else:
             out[a] = _numbers(path, g, a)
             step = np.diff(out[a].to_numpy())
@@ -210,8 +250,13 @@ def _checked(path: Path, g: pd.DataFrame, axes: list[str], names: Sequence[str]
 
 def _after_stored(store: HistoryStore, unit: str, first: pd.Series, axes: Sequence[str],
                   path: Path) -> None:
-    """Refuse new rows that go back against the unit's stored tests."""
+    """Refuse new rows that go back against the unit's stored tests, or that
+    lack the axis its stored tests are counted on."""
     hist = store.history(unit)
+    for a, col in (("cycle", "cycle"), ("hours", "hours")):
+        if col in hist and hist[col].notna().any() and a not in axes:
+            raise DataError(f"{path}: unit {unit!r} is counted in {a} (its stored tests have "
+                            f"a {a}), and this table has no {a!r} column; nothing was stored")
     for a, col in (("cycle", "cycle"), ("hours", "hours"), ("date", "test_date")):
         if a not in axes or col not in hist or not hist[col].notna().any():
             continue
@@ -230,24 +275,24 @@ def _hash(unit: str, model: str, row: pd.Series, names: Sequence[str]) -> str:
     return hashlib.sha256("|".join(map(str, parts)).encode("utf-8")).hexdigest()
 
 
-def import_table(store: HistoryStore, path: str | Path, model_path: str | Path, *,
-                 unit: str | None = None, indicator: str | None = None,
-                 no_go: Sequence[str] = (), baseline_rows: int = DEFAULT_BASELINE_ROWS
-                 ) -> list[ImportedUnit]:
+def import_table(store: HistoryStore, path: str | Path | pd.DataFrame,
+                 model_path: str | Path, *, unit: str | None = None,
+                 indicator: str | None = None, no_go: str | Sequence[str] = (),
+                 baseline_rows: int = DEFAULT_BASELINE_ROWS) -> list[ImportedUnit]:
     """Import a table's indicator values as its units' checks (see the module).
 
     Parameters
     ----------
     store : HistoryStore
-    path : str or Path
-        The table (``.csv``, or ``.parquet``).
+    path : str, Path or DataFrame
+        The table (``.csv``, or ``.parquet``), or a frame of its columns.
     model_path : str or Path
         The indicator declaration (:mod:`condmon.models.indicators`).
     unit : str, optional
         The one unit the table holds.
     indicator : str, optional
         A table with a column per unit of this indicator.
-    no_go : sequence of str
+    no_go : str or sequence of str
         The units' own end of life, ``"capacity<0.88"`` (kept for them).
     baseline_rows : int
         Rows that make a new unit's baseline (at least 2).
@@ -274,27 +319,45 @@ def import_table(store: HistoryStore, path: str | Path, model_path: str | Path, 
     ...     [u.added for u in import_table(store, d / "c1.csv", d / "cell.toml", unit="C1")]
     [40]
     """
-    if baseline_rows < 2:
-        raise ConfigError(f"--baseline {baseline_rows}: a baseline needs 2 rows at least")
+    if baseline_rows < MIN_BASELINE_TESTS:
+        raise ConfigError(f"--baseline {baseline_rows}: a baseline needs "
+                          f"{MIN_BASELINE_TESTS} rows at least")
     model = load_indicators(model_path)
-    own = dict(override_end_of_life(model, t) for t in no_go)
+    own = dict(override_end_of_life(model, t) for t in ([no_go] if isinstance(no_go, str)
+                                                         else no_go))
     tables = read_indicator_table(path, model, unit, indicator)
     source = str(Path(model_path).resolve())
-    done = []
-    for name, table in tables.items():
-        done.append(_import_unit(store, name, table, model, own, source, Path(path),
-                                 baseline_rows))
-    return done
+    where = Path("table") if isinstance(path, pd.DataFrame) else Path(path)
+    # every unit's rows are checked before any is stored
+    plans = [_plan_unit(store, name, table, model, own, where, baseline_rows)
+             for name, table in tables.items()]
+    return [_store_unit(store, plan, model, own, source) for plan in plans]
 
 
-def _import_unit(store: HistoryStore, unit: str, table: pd.DataFrame, model: IndicatorModel,
-                 own: dict[str, Any], source: str, path: Path, baseline_rows: int
-                 ) -> ImportedUnit:
-    stored_own = {}
-    try:
-        stored_own = store.end_of_life(unit)
-    except CondmonError:
-        pass
+#: The largest believable change of an imported value from its unit's
+#: baseline, times or divided by (a "likely unit or sign error" beyond, as
+#: ``[estimation.max_change]`` of a declaration whose parameters are estimated).
+MAX_CHANGE = 3.0
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """One unit's rows, checked and judged, ready to store."""
+
+    unit: str
+    tests: list[ImportedTest]
+    base: Baseline | None
+    baseline_id: int | None
+    n_base: int
+    skipped: int
+    status: str
+    axis: str
+    eol: dict[str, str]
+
+
+def _plan_unit(store: HistoryStore, unit: str, table: pd.DataFrame, model: IndicatorModel,
+               own: dict[str, Any], path: Path, baseline_rows: int) -> _Plan:
+    stored_own = store.end_of_life(unit)
     mine = with_end_of_life(model, {**{k: parse_end_of_life(v, k, model.indicator(k).unit,
                                                             model.indicator(k).rated)
                                        for k, v in stored_own.items() if k in model.names},
@@ -304,9 +367,11 @@ def _import_unit(store: HistoryStore, unit: str, table: pd.DataFrame, model: Ind
     hashes = [_hash(unit, model.name, r, names) for _, r in table.iterrows()]
     fresh = [i for i, h in enumerate(hashes) if h not in seen]
     axes = [a for a in AXES if a in table.columns]
-    eol = {i.name: i.end_of_life.text for i in mine.indicators}
+    eol = {i.name: i.end_of_life.text + (f" {i.unit}" if i.end_of_life.kind == "level"
+                                         and not i.end_of_life.text.rstrip().endswith(i.unit)
+                                         else "") for i in mine.indicators}
     if not fresh:
-        return ImportedUnit(unit, 0, len(table), 0, "", ", ".join(axes), eol)
+        return _Plan(unit, [], None, None, 0, len(table), "", ", ".join(axes), eol)
     if seen:
         _after_stored(store, unit, table.iloc[fresh[0]], axes, path)
     try:
@@ -330,6 +395,9 @@ def _import_unit(store: HistoryStore, unit: str, table: pd.DataFrame, model: Ind
                                 "undefined; nothing was stored")
         new_base = make_baseline([{n: float(r[n]) for n in names} for _, r in first.iterrows()])
         base, baseline_id = new_base, None
+    for ind in mine.indicators:
+        if ind.name in names and ind.name in base.parameters:
+            _believable(path, unit, table.iloc[fresh], ind, base)
     tests = []
     last = ""
     for k, i in enumerate(fresh):
@@ -348,8 +416,42 @@ def _import_unit(store: HistoryStore, unit: str, table: pd.DataFrame, model: Ind
             float(r["cycle"]) if "cycle" in r.index else None,
             float(r["hours"]) if "hours" in r.index else None,
             pd.Timestamp(r["date"]).to_pydatetime() if "date" in r.index else None, judged))
-    store.add_imported(unit, model.name, source, tests, baseline=new_base,
-                       baseline_id=baseline_id,
-                       end_of_life={k: v.text for k, v in own.items()} or None)
-    return ImportedUnit(unit, len(fresh), len(table) - len(fresh), n_base, last,
-                        ", ".join(axes), eol)
+    return _Plan(unit, tests, new_base, baseline_id, n_base, len(table) - len(fresh), last,
+                 ", ".join(axes), eol)
+
+
+def _believable(path: Path, unit: str, rows: pd.DataFrame, ind: Any, base: Baseline) -> None:
+    """Refuse rows whose value cannot be the unit's: its sign flipped, or beyond
+    :data:`MAX_CHANGE` times (or a fraction) of the baseline mean (a unit or
+    sign error, a missing reading written as 0); and an end of life the
+    baseline is already past."""
+    mean = float(base.mean[base.parameters.index(ind.name)])
+    level = ind.end_of_life.level(mean, ind.rated)
+    if ind.end_of_life.reached(mean, mean, ind.rated):
+        raise DataError(f"{path}: unit {unit!r}: its baseline {ind.name} {mean:.4g} {ind.unit} "
+                        f"is already past its end of life ({ind.end_of_life.text}, "
+                        f"{level:.4g} {ind.unit}): check the end of life's direction and "
+                        "level; nothing was stored")
+    v = rows[ind.name].to_numpy(dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = v / mean
+    odd = np.flatnonzero((ratio <= 0) | (ratio > MAX_CHANGE) | (ratio < 1.0 / MAX_CHANGE))
+    if odd.size:
+        i = int(odd[0])
+        row = int(rows["row"].iloc[i])
+        why = ("of the other sign than its baseline, or 0: a sign error or a missing "
+               "reading" if ratio[i] <= 0 else f"{ratio[i]:.3g} times its baseline mean "
+               f"({mean:.4g} {ind.unit}): likely a unit error")
+        raise DataError(f"{path}: row {row} (line {row + 1}), column {ind.name!r}: {v[i]:g} is "
+                        f"{why} (more than {MAX_CHANGE:g}x either way is refused); nothing was "
+                        "stored")
+
+
+def _store_unit(store: HistoryStore, plan: _Plan, model: IndicatorModel,
+                own: dict[str, Any], source: str) -> ImportedUnit:
+    if plan.tests:
+        store.add_imported(plan.unit, model.name, source, plan.tests, baseline=plan.base,
+                           baseline_id=plan.baseline_id,
+                           end_of_life={k: v.text for k, v in own.items()} or None)
+    return ImportedUnit(plan.unit, len(plan.tests), plan.skipped, plan.n_base, plan.status,
+                        plan.axis, plan.eol)

@@ -62,6 +62,7 @@ def test_a_steady_fade_is_forecast_where_it_ends() -> None:
     assert abs(med - 50.0) <= 5.0 and lo <= 50.0 <= hi
     mid, low, high = f.band(np.array([0.0, 50.0]))
     assert low[1] < -30.0 < high[1] and abs(mid[1] + 30.0) < 3.0
+    assert high[1] < high[0]   # drawn paths of a fade: the band does not rise
 
 
 def test_a_series_heading_away_or_past_its_end_is_said_so() -> None:

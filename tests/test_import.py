@@ -64,6 +64,9 @@ def test_import_then_forecast_to_an_absolute_end_of_life(tmp_path: Path,
     r = p["remaining"]
     assert r["low"] <= truth <= r["high"] and abs(r["median"] - truth) < 0.3 * truth
     assert any("held the true remaining life" in n for n in p["notes"])
+    assert main(["history", "--unit", "C1", "--db", str(db)]) == 0
+    header = [ln for ln in capsys.readouterr().out.splitlines() if "status" in ln][0]
+    assert "cycle" in header and "capacity" in header and "fit %" not in header
     assert main(["units", "--db", str(db), "--json"]) == 0
     units = json.loads(capsys.readouterr().out)
     row = units["units"][0] if isinstance(units, dict) else units[0]

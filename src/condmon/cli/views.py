@@ -198,12 +198,16 @@ def register(app: typer.Typer) -> None:
         from condmon.models.regimes import regime_key, split_key
 
         keyed = [c for c in hist.columns if f"{c}_se" in hist.columns]
-        params = [p for p in get_model(model).spec.unknowns
+        machine = get_model(model)
+        imported = machine.indicators is not None   # its values' axis, not a fit
+        params = [p for p in (machine.spec.report if imported else machine.spec.unknowns)
                   if any(split_key(c)[0] == p for c in keyed)]
+        axis = next((a for a in ("cycle", "hours") if imported and a in hist
+                     and hist[a].notna().any()), "")
         regimes = bool(hist["regime"].notna().any())
         dated = hist["test_date"].notna().any()
         cols = ("#", *(("date",) if dated else ()), "source", *(("regime",) if regimes else ()),
-                "fit %", "status", *params)
+                axis or "fit %", "status", *params)
         cells = []
         moved = dict.fromkeys(params, 0.0)   # each parameter's largest change shown [%]
         notes = []
@@ -223,7 +227,8 @@ def register(app: typer.Typer) -> None:
                 if found:
                     moved[p] = max(moved[p], abs(float(found[0])))
             changes += [""] * (len(params) - len(changes))
-            fit = f"{r['fit_percent']:.1f}" if pd.notna(r["fit_percent"]) else "—"
+            fit = (f"{r[axis]:g}" if axis and pd.notna(r[axis]) else
+                   f"{r['fit_percent']:.1f}" if pd.notna(r["fit_percent"]) else "—")
             when = ((f"{r['test_date']:%Y-%m-%d}" if pd.notna(r["test_date"]) else "—",)
                     if dated else ())
             cells.append((str(tid), *when, escape(Path(str(r["source"])).name),
@@ -240,7 +245,8 @@ def register(app: typer.Typer) -> None:
                 notes.append(f"#{tid} rejected: {r['reason']}")
         # fits 80 columns with a date and five parameters; a narrower terminal cuts the
         # record's name, then leaves out the parameters that moved least, and says which
-        least = {"#": 3, "fit %": 5, "status": 8, "date": 10, "source": 8,
+        least = {"#": 3, "fit %": 5, "cycle": 5, "hours": 5, "status": 8, "date": 10,
+                 "source": 8,
                  **{p: 5 for p in params}}
         room, hidden = fitted_widths(cols, cells, out.width, [("source", 8)], least,
                                      drop=sorted(params, key=lambda p: moved[p]))

@@ -320,12 +320,12 @@ def path_remaining(fit: PathFit, threshold: float, seed: int = 0,
     return left, fit.step
 
 
-def path_band(coef: ArrayLike, cov: ArrayLike, ahead: ArrayLike
+def path_band(coef: ArrayLike, cov: ArrayLike, ahead: ArrayLike, seed: int = 0
               ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """The path's median and 90 % band at ``ahead`` after the last point, in
-    the normal approximation: the trend, the last deviation fading at ``φ``,
-    and the variances of the line, of the deviations and of the wandering
-    rate (the walk's average over the span and the horizon). [y]
+    """The drawn paths' median and 90 % band at ``ahead`` after the last point:
+    1,000 paths of the trend (its line drawn from ``cov``), its rate wandering
+    at the fitted walk and the last deviation fading at ``φ`` with the
+    deviations' scatter, read at each point; what a trend figure draws. [y]
 
     ``coef`` is :meth:`PathFit.summary`'s and ``cov`` the line's covariance.
 
@@ -340,9 +340,23 @@ def path_band(coef: ArrayLike, cov: ArrayLike, ahead: ArrayLike
     a, b, phi, walk, dev, scatter, step, span = (float(v) for v in np.asarray(coef).ravel())
     c = np.asarray(cov, dtype=np.float64)
     t = np.asarray(ahead, dtype=np.float64)
-    fade = phi ** (2.0 * t / step)
-    mid = a + b * t + dev * np.sqrt(fade)
-    var = (c[0, 0] + 2.0 * t * c[0, 1] + t * t * c[1, 1] + scatter ** 2 * (1.0 - fade)
-           + (b * t) ** 2 * walk * (span + t) / 3.0)
-    half = Z90 * np.sqrt(np.maximum(var, 0.0))
-    return mid, mid - half, mid + half
+    flat = t.reshape(-1)
+    steps = int(math.ceil(max(float(flat.max(initial=0.0)), 0.0) / step)) + 1
+    rng = np.random.default_rng(seed)
+    n = 1000
+    line = rng.multivariate_normal([a, b], c, size=n, method="eigh")
+    level, rate = line[:, 0], line[:, 1] * step
+    w = rng.normal(0.0, math.sqrt(walk * span / 3.0), n)
+    e = np.full(n, dev)
+    sd = scatter * math.sqrt(max(1.0 - phi * phi, 0.0))
+    paths = np.empty((n, steps + 1))
+    paths[:, 0] = level + e
+    for k in range(1, steps + 1):
+        w = w + rng.normal(0.0, math.sqrt(walk * step), n)
+        level = level + rate * np.exp(np.minimum(w, _EXP_MAX))
+        e = phi * e + rng.normal(0.0, sd, n)
+        paths[:, k] = level + e
+    grid = np.arange(steps + 1) * step
+    q = np.quantile(paths, [0.5, 0.05, 0.95], axis=0)
+    med, lo, hi = (np.interp(flat, grid, row).reshape(t.shape) for row in q)
+    return med, lo, hi

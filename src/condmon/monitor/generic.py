@@ -34,7 +34,7 @@ from condmon.monitor.fuzzy import MonitorConfig, load_statistics
 from condmon.monitor.statistics import StatisticsConfig
 
 __all__ = ["GenericSettings", "load_generic_settings", "spread_breakpoints", "generic_config",
-           "describe_generic", "StatusPoints", "machine_monitor", "peer_monitor",
+           "indicator_r2", "describe_generic", "StatusPoints", "machine_monitor", "peer_monitor",
            "yardstick", "judged_config", "with_scatter", "typical_systematic", "peer_spread"]
 
 #: Membership functions of the status (go, advisory, no-go) on [0, 1]: 3 or 4 points each.
@@ -168,12 +168,44 @@ def machine_monitor(machine: Machine, baseline: Baseline | None = None) -> Monit
     if machine.breakpoints is not None:
         return load_monitor_config(machine.breakpoints)
     cfg = load_generic_settings()
+    if machine.indicators is not None and baseline is not None:
+        # an imported indicator: detected past r1, no-go at its end of life
+        g = generic_config(baseline, cfg)
+        return dataclasses.replace(g, r2={**g.r2, **indicator_r2(machine.indicators, baseline,
+                                                                  g.r1)},
+                                   source="generic monitoring to each indicator's end of life")
     if baseline is None:
         floor = {p: cfg.min_relative_spread for p in machine.monitored}
         return MonitorConfig({p: cfg.r1_sigma * v for p, v in floor.items()},
                              {p: cfg.r2_sigma * v for p, v in floor.items()}, cfg.k,
                              "generic monitoring (no baseline yet)", cfg.baseline, cfg.statistics)
     return generic_config(baseline, cfg)
+
+
+def indicator_r2(indicators: Any, baseline: Baseline, r1: Mapping[str, float]
+                 ) -> dict[str, float]:
+    """Each imported indicator's ``r2``: the size of its end of life's change
+    from ``baseline`` (:class:`~condmon.models.indicators.IndicatorModel`),
+    beyond ``r1`` at least. [%]
+
+    Example
+    -------
+    >>> from condmon.models.indicators import Indicator, IndicatorModel, parse_end_of_life
+    >>> m = IndicatorModel("cell", (Indicator("capacity", "Ah",
+    ...                     parse_end_of_life("< 1.4", "capacity", "Ah")),))
+    >>> round(indicator_r2(m, Baseline(("capacity",), (2.0,), (0.01,), 5), {"capacity": 4.0})
+    ...       ["capacity"], 6)
+    30.0
+    """
+    out = {}
+    for ind in indicators.indicators:
+        if ind.name not in baseline.parameters or ind.name not in r1:
+            continue
+        mean = float(baseline.mean[baseline.parameters.index(ind.name)])
+        end = ind.end_of_life.change(mean, ind.rated)
+        out[ind.name] = (max(abs(end), r1[ind.name] * 1.000001) if math.isfinite(end)
+                         else 2.0 * r1[ind.name])
+    return out
 
 
 def peer_monitor(machine: Machine, reference: Baseline) -> MonitorConfig:

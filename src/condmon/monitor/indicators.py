@@ -19,15 +19,14 @@ about 6 times in 100,000 checks.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from condmon.models.indicators import Indicator
+from condmon.models.indicators import Indicator, IndicatorModel
 from condmon.monitor.baseline import Baseline
 from condmon.monitor.fuzzy import MonitorConfig, compute_symptoms
-from condmon.monitor.generic import load_generic_settings, spread_breakpoints
+from condmon.monitor.generic import indicator_r2, load_generic_settings, spread_breakpoints
 
 __all__ = ["IndicatorFault", "IndicatorJudgement", "judge_indicators"]
 
@@ -91,6 +90,7 @@ def judge_indicators(values: dict[str, float], std_errors: dict[str, float],
     settings = load_generic_settings()
     r1, _ = spread_breakpoints(baseline, settings)
     names = [i.name for i in indicators if i.name in baseline.parameters and i.name in values]
+    reaches = indicator_r2(IndicatorModel("", indicators), baseline, r1)
     symptoms: dict[str, dict[str, float]] = {}
     faults: list[IndicatorFault] = []
     advisories: list[str] = []
@@ -100,8 +100,7 @@ def judge_indicators(values: dict[str, float], std_errors: dict[str, float],
             continue
         mean = float(baseline.mean[baseline.parameters.index(ind.name)])
         eol = ind.end_of_life
-        end = eol.change(mean, ind.rated)
-        reach = max(abs(end), r1[ind.name] * 1.000001) if math.isfinite(end) else r1[ind.name] * 2
+        reach = reaches[ind.name]
         one = Baseline((ind.name,), (mean,), (baseline.std[baseline.parameters.index(ind.name)],),
                        baseline.n)
         sym = compute_symptoms(np.array([[values[ind.name]]]), one,
@@ -119,7 +118,10 @@ def judge_indicators(values: dict[str, float], std_errors: dict[str, float],
         elif (change <= -r1[ind.name]) if eol.below else (change >= r1[ind.name]):
             advisories.append(f"{ind.name} {change:+.1f} % from its baseline, towards its end "
                               f"of life at {level:.4g} {ind.unit}")
-            faults.append(IndicatorFault(ind.fault, float(towards), "minor", ind.advice))
+            # (the declaration's advice is for the end of life itself)
+            faults.append(IndicatorFault(ind.fault, float(towards), "minor", (
+                f"{ind.name} has moved past its detection limit towards its end of life "
+                f"({eol.text}): follow its forecast (condmon forecast)")))
             condition = max(condition, float(towards))
         else:
             condition = max(condition, float(towards))

@@ -143,7 +143,9 @@ def _label_tests(axes: Sequence[Any], x: np.ndarray[Any, Any], ids: Sequence[int
                                                    integer=True, min_n_ticks=2))
             ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{prefix}{v:.0f}"))
             ax.tick_params(axis="x", labelsize=7)
-            ax.set_xlim(float(np.min(x)) - 0.02 * span, float(np.max(x)) + 0.02 * span)
+            # (a forecast drawn past the last check keeps its room)
+            ax.set_xlim(float(np.min(x)) - 0.02 * span,
+                        max(float(np.max(x)) + 0.02 * span, float(ax.get_xlim()[1])))
         return
     for ax, yy in zip(axes, y or []):
         for k, (xi, yi, i) in enumerate(zip(x, yy, ids)):

@@ -450,8 +450,9 @@ def forecast_band(forecast: ParameterForecast, by: str, points: int = 40) -> For
     Parameters
     ----------
     forecast : ParameterForecast
-    by : {"tests", "days"}
-        What the unit's forecasts count.
+    by : {"tests", "days", "hours", "cycles"}
+        What the unit's forecasts count (hours and cycles drawn against the
+        checks, at their mean spacing).
     points : int
         Points along the band.
     """
@@ -462,7 +463,7 @@ def forecast_band(forecast: ParameterForecast, by: str, points: int = 40) -> For
     end = min(high, 2.0 * med) if np.isfinite(med) else max(f.last, 1.0)
     ahead = np.linspace(0.0, max(float(end), 1e-9), points)
     mid, lo, hi = f.band(ahead)
-    if by == "hours":   # drawn against the checks: their mean usage a check
+    if by in ("hours", "cycles"):   # drawn against the checks: their mean usage a check
         per_check = forecast.span / max(len(forecast.test_ids) - 1, 1)
         if not per_check > 0:
             return None

@@ -240,6 +240,24 @@ def test_smoothing_replaces_the_non_smooth_functions() -> None:
     assert smoothed(expr, 0.0) == expr
 
 
+def test_smoothed_guards_keep_their_sign() -> None:
+    """max(x, 0) stays >= 0 and min(x, 0) <= 0 for every x once smoothed (the
+    tanh form made max(x, 0) negative below 0), so sqrt(max(x, 0)) is finite:
+    the guard a user writes for Torricelli's outflow guards."""
+    import numpy as np
+    import sympy as sp
+
+    x = sp.Symbol("x", real=True)
+    xs = np.concatenate([-np.logspace(-9, 3, 400), [0.0], np.logspace(-9, 3, 400)])
+    for eps in (1e-6, 1e-3, 0.1):
+        hi = sp.lambdify(x, smoothed(sp.Max(x, 0), eps), "numpy")(xs)
+        lo = sp.lambdify(x, smoothed(sp.Min(x, 0), eps), "numpy")(xs)
+        root = sp.lambdify(x, smoothed(sp.sqrt(sp.Max(x, 0)), eps), "numpy")(xs)
+        assert np.all(hi >= 0) and np.all(lo <= 0) and np.all(np.isfinite(root))
+        assert np.all(hi >= xs) and np.all(lo <= xs)             # never below (above) x
+        assert np.max(np.abs(hi - np.maximum(xs, 0))) <= eps / 2 + 1e-15
+
+
 def test_coulomb_friction_simulates_in_bounded_time(tmp_path: Path) -> None:
     path = tmp_path / "coulomb.toml"
     path.write_text(COULOMB)

@@ -12,8 +12,10 @@ equations, used by the fault signature matrix, is unchanged):
 
 - ``sign(x)`` → ``tanh(x/eps)``
 - ``abs(x)`` → ``x*tanh(x/eps)``
-- ``max(a, b)`` → ``(a + b + |a − b|)/2`` and ``min(a, b)`` → ``(a + b − |a − b|)/2``,
-  with the smooth ``|·|``.
+- ``max(a, b)`` → ``(a + b + √((a − b)² + eps²))/2`` and ``min(a, b)`` →
+  ``(a + b − √((a − b)² + eps²))/2``: never below (above) either argument, so
+  a guard keeps its sign (``max(x, 0)`` is positive for every x, and
+  ``sqrt(max(x, 0))`` finite), at most ``eps/2`` off at the kink.
 """
 
 from __future__ import annotations
@@ -212,11 +214,13 @@ def smoothed(expr: sp.Expr, eps: float) -> sp.Expr:
     def smooth_abs(a: sp.Expr) -> sp.Expr:
         return a * sp.tanh(a / e)
 
+    # max and min from the hyperbolic |d| ≈ √(d² + eps²) ≥ |d|: the tanh form,
+    # d·tanh(d/eps) ≤ |d|, made max(x, 0) negative for every x < 0
     def smooth_max(a: sp.Expr, b: sp.Expr) -> sp.Expr:
-        return (a + b + smooth_abs(a - b)) / 2
+        return (a + b + sp.sqrt((a - b) ** 2 + e ** 2)) / 2
 
     def smooth_min(a: sp.Expr, b: sp.Expr) -> sp.Expr:
-        return (a + b - smooth_abs(a - b)) / 2
+        return (a + b - sp.sqrt((a - b) ** 2 + e ** 2)) / 2
 
     out = expr.replace(sp.Max, lambda *args: functools.reduce(smooth_max, args))
     out = out.replace(sp.Min, lambda *args: functools.reduce(smooth_min, args))

@@ -59,7 +59,7 @@ def test_import_then_forecast_to_an_absolute_end_of_life(tmp_path: Path,
     assert doc["by"] == "cycles"
     p = doc["parameters"][0]
     assert p["parameter"] == "capacity" and p["unit"] == "Ah" and p["model"] == "path"
-    assert p["rule"] == "capacity fade"
+    assert p["rule"] == "capacity fade at < 1.4 Ah"
     truth = (1.9 - 1.4) / 0.006 - 60
     r = p["remaining"]
     assert r["low"] <= truth <= r["high"] and abs(r["median"] - truth) < 0.3 * truth
@@ -283,3 +283,20 @@ def test_a_table_must_keep_its_unit_s_axis_and_end_of_life(tmp_path: Path) -> No
                                                   + "\n" for k in range(1, 11)))
     with open_store("sqlite://") as store:   # a ';' table with decimal commas reads
         assert import_table(store, past, DECL, unit="S")[0].added == 10
+
+
+def test_another_declaration_of_the_same_name_is_refused_for_a_unit(tmp_path: Path) -> None:
+    """A copy of the declaration with another end of life, imported into a unit
+    of the shipped one, would change its end of life without a word."""
+    copy = tmp_path / "cell.toml"
+    copy.write_text(DECL.read_text().replace('end_of_life = "< 1.4 Ah"',
+                                             'end_of_life = "< 1.7 Ah"'))
+    full = _cell(tmp_path / "c.csv", n=30)
+    part = tmp_path / "p.csv"
+    part.write_text("".join(full.read_text().splitlines(keepends=True)[:21]))
+    with open_store("sqlite://") as store:
+        import_table(store, part, DECL, unit="C1")
+        with pytest.raises(DataError, match="another declaration of 'li-ion-18650'"):
+            import_table(store, full, copy, unit="C1")
+        assert len(store.history("C1")) == 20
+        assert import_table(store, full, DECL, unit="C1")[0].added == 10

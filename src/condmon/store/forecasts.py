@@ -320,7 +320,7 @@ def indicator_nogo(model: IndicatorModel, baseline: Baseline
     >>> round(nogo["capacity"].r2, 6), round(nogo["capacity"].towards(False, [0.0], 0.5)[0], 6)
     (30.0, -30.0)
     >>> rules
-    {'low(capacity)': 'capacity fade'}
+    {'low(capacity)': 'capacity fade at < 1.4 Ah'}
     """
     out, rules = {}, {}
     for ind in model.indicators:
@@ -333,7 +333,9 @@ def indicator_nogo(model: IndicatorModel, baseline: Baseline
         below = end < 0
         out[ind.name] = NoGo(abs(end), abs(end), 0.0, math.inf if below else 1.0,
                              1.0 if below else math.inf)
-        rules[f"{'low' if below else 'high'}({ind.name})"] = ind.fault
+        level = ind.end_of_life.level(mean, ind.rated)
+        rules[f"{'low' if below else 'high'}({ind.name})"] = (
+            f"{ind.fault} at {'<' if below else '>'} {level:.4g} {ind.unit}".rstrip())
     return out, rules
 
 

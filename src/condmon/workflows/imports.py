@@ -248,6 +248,20 @@ def _checked(path: Path, g: pd.DataFrame, axes: list[str], names: Sequence[str]
     return out
 
 
+def _same_declaration(store: HistoryStore, unit: str, model: IndicatorModel) -> None:
+    """Refuse another declaration of the same name for a unit (its end of
+    life or units differ): as a record offered with another model is."""
+    from condmon.store.declarations import bundle_digest
+
+    source, kept = store.unit_declaration(unit)
+    new = bundle_digest(model.source) if model.source else None
+    if kept is not None and new is not None and new != kept:
+        raise DataError(f"unit {unit!r} is monitored with {source!r}; {model.source!r} is "
+                        f"another declaration of {model.name!r} (its indicators, units or end "
+                        f"of life differ): import with the unit's own, or `condmon unit "
+                        f"set-model {unit} FILE` to re-point it on purpose; nothing was stored")
+
+
 def _after_stored(store: HistoryStore, unit: str, first: pd.Series, axes: Sequence[str],
                   path: Path) -> None:
     """Refuse new rows that go back against the unit's stored tests, or that
@@ -374,6 +388,7 @@ def _plan_unit(store: HistoryStore, unit: str, table: pd.DataFrame, model: Indic
         return _Plan(unit, [], None, None, 0, len(table), "", ", ".join(axes), eol)
     if seen:
         _after_stored(store, unit, table.iloc[fresh[0]], axes, path)
+        _same_declaration(store, unit, model)
     try:
         base, _ = current_baseline(store, unit)
         latest = store.latest_baseline(unit)

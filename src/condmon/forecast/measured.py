@@ -13,6 +13,7 @@ simulated fleets, each with its source).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import tomllib
 from functools import cache
@@ -109,9 +110,7 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
                             step=step, unreachable=unreachable)
         note = (f"{xa.size} checks: too few for a degradation path (it needs "
                 f"{PATH_MIN_TESTS}), forecast as a trend")
-        return Forecast(f.model, f.threshold, f.slope, f.slope_interval, f.remaining,
-                        f.p_within, f.n, (note, *f.notes), f.coef, f.cov, f.last,
-                        f.unreachable, f.at_nogo)
+        return dataclasses.replace(f, notes=(note, *f.notes))
     fit = fit_path(xa, ya)
     sign = 1.0 if threshold > 0 else -1.0
     slope = fit.coef[1]
@@ -182,6 +181,4 @@ def forecast_by(method: str, x: ArrayLike, change: ArrayLike, se: ArrayLike, spr
     f = forecast_series(x, change, se, spread, threshold, horizon, seed, prior=prior, step=step,
                         unreachable=unreachable)
     said = coverage_note("trend") if f.remaining is not None and not f.at_nogo else ""
-    return Forecast(f.model, f.threshold, f.slope, f.slope_interval, f.remaining, f.p_within,
-                    f.n, (*f.notes, said) if said else f.notes, f.coef, f.cov, f.last,
-                    f.unreachable, f.at_nogo)
+    return dataclasses.replace(f, notes=(*f.notes, said)) if said else f

@@ -38,7 +38,8 @@ if TYPE_CHECKING:
     from condmon.models.machine import Machine
 
 __all__ = ["EndOfLife", "Indicator", "IndicatorModel", "parse_end_of_life", "is_indicator_doc",
-           "indicators_from_doc", "load_indicators", "override_end_of_life", "with_end_of_life", "indicator_machine"]
+           "indicators_from_doc", "load_indicators", "override_end_of_life", "with_end_of_life", "with_own_end_of_life",
+           "indicator_machine"]
 
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _LEVEL = re.compile(rf"^\s*([<>])\s*({_NUMBER})\s*(.*?)\s*$")
@@ -308,6 +309,22 @@ def load_indicators(path: str | Path) -> IndicatorModel:
         raise ConfigError(f"{p}: not an indicator declaration (it has no [indicators] table, "
                           "or has [states]: a model condmon estimates)")
     return indicators_from_doc(doc, str(p))
+
+
+def with_own_end_of_life(model: IndicatorModel, own: Mapping[str, str], where: str = ""
+                         ) -> IndicatorModel:
+    """``model`` with a unit's own end of life per indicator, as written
+    (``{"capacity": "<0.88"}``; an indicator the model lacks is ignored).
+
+    Raises
+    ------
+    ConfigError
+        An end of life the indicator cannot take.
+    """
+    return with_end_of_life(model, {
+        k: parse_end_of_life(v, k, model.indicator(k).unit, model.indicator(k).rated,
+                             f"{where}: end of life of {k!r}" if where else "")
+        for k, v in own.items() if k in model.names})
 
 
 def indicator_machine(model: IndicatorModel, origin: str | None) -> Machine:

@@ -15,7 +15,7 @@ from condmon.store import schema as S
 from condmon.store.base import StoreBase, as_utc, check_name, now, num
 
 __all__ = ["TestsMixin", "DuplicateTestError", "TestInfo", "test_values", "stored_estimates",
-           "estimate_rows", "evaluation_rows"]
+           "estimate_rows", "evaluation_rows", "insert_evaluation"]
 
 
 class DuplicateTestError(CondmonError, ValueError):
@@ -109,6 +109,15 @@ def evaluation_rows(tid: Any, baseline_id: Any, symptoms: Mapping[str, Mapping[s
                   "condition": float(diagnosis.condition), "summary": diagnosis.summary}], [
         {"test_id": tid, "baseline_id": baseline_id, "name": f.name, "degree": float(f.degree),
          "severity": f.severity, "advice": f.advice} for f in diagnosis.faults]
+
+
+def insert_evaluation(conn: sa.Connection, tid: int, baseline_id: int,
+                      symptoms: Mapping[str, Mapping[str, float]], diagnosis: Any) -> None:
+    """Write a check's evaluation (:func:`evaluation_rows`) inside ``conn``'s transaction."""
+    for table, rows in zip((S.symptoms, S.diagnoses, S.diagnosis_faults),
+                           evaluation_rows(tid, baseline_id, symptoms, diagnosis)):
+        if rows:
+            conn.execute(sa.insert(table), rows)
 
 
 class TestInfo(dict):  # type: ignore[type-arg]
@@ -223,10 +232,7 @@ class TestsMixin(StoreBase):
 
     def _insert_evaluation(self, conn: sa.Connection, tid: int, baseline_id: int,
                            symptoms: Mapping[str, Mapping[str, float]], diagnosis: Any) -> None:
-        for table, rows in zip((S.symptoms, S.diagnoses, S.diagnosis_faults),
-                               evaluation_rows(tid, baseline_id, symptoms, diagnosis)):
-            if rows:
-                conn.execute(sa.insert(table), rows)
+        insert_evaluation(conn, tid, baseline_id, symptoms, diagnosis)
 
     def save_evaluation(self, unit: str, test_id: int, baseline_id: int,
                         symptoms: Mapping[str, Mapping[str, float]], diagnosis: Any) -> bool:

@@ -14,7 +14,6 @@ import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime
-from pathlib import Path
 from typing import Any
 
 import sqlalchemy as sa
@@ -23,7 +22,7 @@ from condmon.errors import ConfigError
 from condmon.store import schema as S
 from condmon.store.base import StoreBase, as_utc, check_name, now, num
 from condmon.store.baselines import DEFAULT_BASELINE, baseline_value_rows
-from condmon.store.history import estimate_rows, evaluation_rows
+from condmon.store.history import estimate_rows, insert_evaluation
 
 __all__ = ["ImportedTest", "ImportsMixin"]
 
@@ -137,13 +136,8 @@ class ImportsMixin(StoreBase):
                 self._log(conn, "baseline saved", unit_id=uid, baseline_id=bid,
                           reason="imported", detail={"name": label, "test_ids": members})
             for tid, t in zip(ids, tests):
-                if t.evaluation is None or bid is None:
-                    continue
-                for table, rows in zip((S.symptoms, S.diagnoses, S.diagnosis_faults),
-                                       evaluation_rows(tid, bid, t.evaluation.symptoms,
-                                                       t.evaluation)):
-                    if rows:
-                        conn.execute(sa.insert(table), rows)
+                if t.evaluation is not None and bid is not None:
+                    insert_evaluation(conn, tid, bid, t.evaluation.symptoms, t.evaluation)
             if ids:
                 self._log(conn, "tests imported", unit_id=uid, test_id=ids[-1],
                           detail={"tests": len(ids), "first": tests[0].source,
@@ -162,24 +156,19 @@ class ImportsMixin(StoreBase):
         ConfigError
             Its declaration or its own end of life cannot be read.
         """
-        from condmon.io.config import load_toml
-        from condmon.models.indicators import (
-            is_indicator_doc, load_indicators, parse_end_of_life, with_end_of_life,
-        )
+        from condmon.models.indicators import with_own_end_of_life
+        from condmon.models.registry import get_model
 
         try:
             source = self.unit_model(unit)
         except ConfigError:
             return None
-        if not source or not str(source).lower().endswith(".toml") or not Path(source).is_file():
+        if not source:
             return None
-        if not is_indicator_doc(load_toml(Path(source))):
+        model = get_model(source).indicators   # (the registry's cache: read once)
+        if model is None:
             return None
-        model = load_indicators(source)
-        own = {k: v for k, v in self.end_of_life(unit).items() if k in model.names}
-        return with_end_of_life(model, {k: parse_end_of_life(
-            v, k, model.indicator(k).unit, model.indicator(k).rated, f"unit {unit!r}: end of "
-            f"life of {k!r}") for k, v in own.items()})
+        return with_own_end_of_life(model, self.end_of_life(unit), f"unit {unit!r}")
 
     def end_of_life(self, unit: str) -> dict[str, str]:
         """The unit's own end of life per indicator, as written (none: {})."""

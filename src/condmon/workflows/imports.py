@@ -34,7 +34,8 @@ import pandas as pd
 
 from condmon.errors import CondmonError, ConfigError, DataError
 from condmon.models.indicators import (
-    IndicatorModel, load_indicators, override_end_of_life, parse_end_of_life, with_end_of_life,
+    IndicatorModel, load_indicators, override_end_of_life, with_end_of_life,
+    with_own_end_of_life,
 )
 from condmon.monitor.baseline import MIN_BASELINE_TESTS, Baseline, make_baseline
 from condmon.monitor.indicators import judge_indicators
@@ -371,11 +372,8 @@ class _Plan:
 
 def _plan_unit(store: HistoryStore, unit: str, table: pd.DataFrame, model: IndicatorModel,
                own: dict[str, Any], path: Path, baseline_rows: int) -> _Plan:
-    stored_own = store.end_of_life(unit)
-    mine = with_end_of_life(model, {**{k: parse_end_of_life(v, k, model.indicator(k).unit,
-                                                            model.indicator(k).rated)
-                                       for k, v in stored_own.items() if k in model.names},
-                                    **own})
+    mine = with_end_of_life(with_own_end_of_life(model, store.end_of_life(unit),
+                                                 f"unit {unit!r}"), own)
     names = [n for n in model.names if n in table.columns]
     seen = store.imported_hashes(unit)
     hashes = [_hash(unit, model.name, r, names) for _, r in table.iterrows()]

@@ -18,7 +18,7 @@ __all__ = ["options", "parse_metadata", "ModelOpt", "UnitModelOpt", "RouteOpt", 
 
 ModelOpt = Annotated[str, typer.Option(help="Machine model: a shipped name (dc-motor) or a declaration file (.toml).")]
 UnitModelOpt = Annotated[Optional[str], typer.Option("--model", help="Machine model (name or declaration file); default: the unit's, else dc-motor.")]
-RouteOpt = Annotated[Optional[str], typer.Option(help="Estimation route: auto, linear, inverse, oe or steady (default: the declaration's).")]
+RouteOpt = Annotated[Optional[str], typer.Option(help="Estimation route: auto, linear, inverse, oe, steady or simulation (default: the declaration's).")]
 ConstOpt = Annotated[Optional[str], typer.Option(help="Known constants overriding the declaration's, NAME=VALUE,... e.g. gamma=0.9; naming an unknown fixes it for the run (reported, not estimated).")]
 RateOpt = Annotated[Optional[float], typer.Option("--sample-rate", help="Samples per second when t counts samples or is absent [Hz] (over the model's [record] table).")]
 ScaleOpt = Annotated[Optional[str], typer.Option("--scale", help="Scale per column NAME=FACTOR,...: value = raw*FACTOR + OFFSET (raw counts to SI units).")]

@@ -21,7 +21,7 @@ from condmon._threads import one_blas_thread
 from condmon.errors import CondmonError, DataError, ModelError
 from condmon.identify.defaults import list_estimators
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD, FitCheck
-from condmon.identify.greybox import choose_route
+from condmon.identify.greybox import auto_reason, choose_route
 from condmon.identify.regime_estimate import (
     ESTIMATOR_FUNCTIONS, estimate_regime, has_balances, plan, unusable,
 )
@@ -72,6 +72,8 @@ def _varies(record: pd.DataFrame | Columns, column: str) -> bool:
 
 def _required_columns(machine: Machine, route: str) -> tuple[str, ...]:
     """Record columns a route needs (inputs, then sensors)."""
+    if route == "simulation" or (route == "steady" and not has_balances(machine)):
+        return (*machine.plant.input_names, *machine.plant.sensor_names)
     if route == "oe":
         from condmon.models.semilinear import semilinear_structure  # sympy: only for this route
 
@@ -80,8 +82,6 @@ def _required_columns(machine: Machine, route: str) -> tuple[str, ...]:
     if route == "linear":
         lin = machine.linear()
         return (lin.input, *lin.outputs)
-    if route == "steady" and not has_balances(machine):
-        return machine.plant.sensor_names
     return machine.inverse().columns
 
 
@@ -482,6 +482,8 @@ def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-m
         spec.plausibility.check_timing(r.dt, r.dt * len(r), r.source, machine.name)
     chosen = choose_route(machine, route)
     notes = list(notes)
+    if chosen == "simulation" and spec.route == "auto" and auto_reason(machine):
+        notes.append(str(auto_reason(machine)))
     if len(records) > 1:
         if chosen == "linear":
             chosen = choose_route(machine, "oe")

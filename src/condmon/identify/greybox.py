@@ -45,15 +45,17 @@ from condmon.models.transfer import ContinuousTF
 # sympy and scipy are imported by the routes and fall-backs that use them: the
 # linear route of a cached declaration (condmon.models.derived_cache) needs neither.
 
-__all__ = ["LinearRouteResult", "RouteResult", "linear_route", "choose_route"]
+__all__ = ["LinearRouteResult", "RouteResult", "linear_route", "choose_route", "auto_reason"]
 
 FloatArray = NDArray[np.float64]
 
 
 def choose_route(machine: Machine, route: str | None = None) -> str:
     """The route to take: the one asked for, or the declaration's; "auto" picks
-    "linear" when the model is linear, else "inverse"; "oe" (output error on a
-    semi-linear model) is taken only when asked for.
+    "linear" when the model is linear, else "inverse" when every state the
+    equations need is measured, else "simulation" (simulation error, which
+    fits any declared model: :func:`auto_reason` says why it was taken); "oe"
+    (output error on a semi-linear model) is taken only when asked for.
 
     Raises
     ------
@@ -63,6 +65,8 @@ def choose_route(machine: Machine, route: str | None = None) -> str:
     want = route or machine.spec.route
     if want == "steady":  # balances of measured signals, else the model's whole steady state
         return "steady"
+    if want == "simulation":
+        return "simulation"
     if want == "oe":
         from condmon.models.semilinear import semilinear_structure
 
@@ -75,17 +79,32 @@ def choose_route(machine: Machine, route: str | None = None) -> str:
         machine.inverse()
         return "inverse"
     if want != "auto":
-        raise ModelError(f"unknown route {want!r}; allowed: auto, linear, inverse, oe, steady")
+        raise ModelError(f"unknown route {want!r}; allowed: auto, linear, inverse, oe, steady, "
+                         "simulation")
+    if _linear_error(machine) is None:
+        return "linear"
+    return "inverse" if auto_reason(machine) is None else "simulation"
+
+
+def _linear_error(machine: Machine) -> str | None:
     try:
         machine.linear()
-        return "linear"
-    except ModelError as lin_err:
-        try:
-            machine.inverse()
-        except ModelError as inv_err:
-            raise ModelError(f"{machine.plant.source}: no estimation route fits this model: "
-                             f"{lin_err}; {inv_err}") from None
-        return "inverse"
+    except ModelError as err:
+        return str(err)
+    return None
+
+
+def auto_reason(machine: Machine) -> str | None:
+    """Why "auto" takes the simulation-error route (None when a cheaper one fits)."""
+    lin = _linear_error(machine)
+    if lin is None:
+        return None
+    try:
+        machine.inverse()
+    except ModelError as inv_err:
+        return (f"route auto took the simulation error: not linear ({lin}); no inverse model "
+                f"({inv_err})")
+    return None
 
 
 @dataclass(frozen=True, eq=False)

@@ -180,6 +180,7 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
     rejection = None
     idf: Identifiability | None = None
     unsteady: dict[tuple[int, int], str] = {}
+    initial_states: dict[str, tuple[float, float, str]] = {}
     try:
         with np.errstate(over="raise", invalid="raise", divide="raise"):
             if chosen == "linear":
@@ -203,6 +204,17 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
                 notes.append(f"output error: the declared model simulated with its "
                              f"linear part exact (ZOH), started from {how}, "
                              f"{oe_res.evaluations} optimiser evaluations")
+            elif chosen == "simulation":
+                from condmon.identify.simulation_route import simulation_route
+
+                recs = [_slice(p, regime, sliced) for p in plans]
+                start = {k: held_at[k] for k in spec.unknowns if k not in fixed}
+                sim = simulation_route(recs, machine, start, constants=consts,
+                                       fit_threshold=fit_threshold)
+                values, ucov, fit, idf = sim.values, sim.covariance, sim.fit, sim.identifiability
+                diagnostics = sim.diagnostics()
+                initial_states = sim.initial
+                notes += sim.notes
             elif chosen == "steady":
                 from condmon.identify.steady_route import steady_output_error, steady_route
 
@@ -313,4 +325,5 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
         std_errors={k: float(v) for k, v in zip(names, se)},
         covariance=pcov, fit=fit, discrete=discrete, continuous=cont, rejection=rejection,
         notes=tuple(notes), diagnostics=diagnostics, regime=regime, windows=tuple(listed),
-        identifiability=idf, held=held, trended=trended, **common)
+        identifiability=idf, held=held, trended=trended, initial_states=initial_states,
+        **common)

@@ -112,6 +112,10 @@ class EstimateResult:
         (:func:`condmon.monitor.generic.judged_config`). ``std_errors`` is the
         record's own noise and says nothing of it. A value no stated accuracy
         moves (a feature of a channel without one) has none. [same units]
+    initial_states : dict of str to (float, float, str)
+        Simulation-error route: each state's initial value in the record, its
+        standard error and how it was set ("estimated", "first sample",
+        "declared"); what ``condmon validate`` starts from. [state units]
     """
 
     parameters: dict[str, float]
@@ -139,6 +143,7 @@ class EstimateResult:
     feature_units: dict[str, str] = field(default_factory=dict)
     systematic: dict[str, float] = field(default_factory=dict)
     conditions: dict[str, tuple[float, float]] = field(default_factory=dict)
+    initial_states: dict[str, tuple[float, float, str]] = field(default_factory=dict)
 
     @property
     def model_key(self) -> str:
@@ -293,6 +298,10 @@ class EstimateResult:
             doc["other_regimes"] = [o.to_dict() for o in self.others]
         if self.systematic:
             doc["systematic"] = _clean(self.systematic)
+        if self.initial_states:
+            doc["initial_states"] = {k: {"value": _clean({"v": v})["v"],
+                                         "std_error": _clean({"s": se})["s"], "from": how}
+                                     for k, (v, se, how) in self.initial_states.items()}
         if self.conditions:
             doc["conditions"] = {k: {"value": _clean({"v": v})["v"],
                                      "std_error": _clean({"s": se})["s"]}

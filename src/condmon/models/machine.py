@@ -33,6 +33,7 @@ from condmon.models.plausibility import (
 )
 from condmon.models.features import ConditionSpec, FeatureSpec
 from condmon.models.regimes import RegimeSpec
+from condmon.models.shooting import SimulationSettings
 
 if TYPE_CHECKING:
     import sympy as sp
@@ -51,7 +52,7 @@ FloatArray = NDArray[np.float64]
 DATA_DIR = Path(__file__).resolve().parents[1] / "data"
 
 #: Estimation routes a declaration may ask for.
-ROUTES = ("auto", "linear", "inverse", "oe", "steady")
+ROUTES = ("auto", "linear", "inverse", "oe", "steady", "simulation")
 
 
 @dataclass(frozen=True)
@@ -66,9 +67,11 @@ class EstimationSpec:
         Quantities reported, in order (unknowns and derived).
     derived : dict of str to (str, str)
         ``name -> (equation, unit)`` of quantities computed from parameters.
-    route : {"auto", "linear", "inverse", "oe", "steady"}
+    route : {"auto", "linear", "inverse", "oe", "steady", "simulation"}
         "steady": the state equations as balances (derivatives zero) over
-        the steady windows of a record (:mod:`condmon.identify.steady_route`).
+        the steady windows of a record (:mod:`condmon.identify.steady_route`);
+        "simulation": the simulation error of any declared model, unmeasured
+        states included (:mod:`condmon.identify.simulation_route`).
     order : int or None
         Discrete model order for the linear route (default: number of states).
     excitation : tuple of str
@@ -92,6 +95,9 @@ class EstimationSpec:
         Steady route: a window whose derivative terms (``J dω/dt`` with the
         held or nominal ``J``) exceed this fraction of the balance's RMS is not
         steady and not used. [-]
+    simulation : SimulationSettings
+        Simulation-error route: initial states, shooting segments, starts
+        (:mod:`condmon.models.shooting`).
     deadband : float
         Inverse route: rows where the argument of a ``sign``/``abs`` is within
         this fraction of its RMS are left out (static friction at standstill
@@ -118,6 +124,7 @@ class EstimationSpec:
     structure_hint: str = ""
     identifiability: IdentifiabilityLimits = IdentifiabilityLimits()
     steady_tolerance: float = 0.1
+    simulation: SimulationSettings = SimulationSettings()
 
 
 @dataclass(frozen=True, eq=False)

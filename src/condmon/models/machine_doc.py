@@ -16,6 +16,7 @@ from condmon.models.machine import (
 )
 from condmon.models.plausibility import parse_identifiability_limits, parse_plausibility
 from condmon.models.regimes import parse_regimes
+from condmon.models.shooting import parse_simulation_settings
 
 __all__ = ["machine_from_doc"]
 
@@ -85,7 +86,7 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any],
     allowed = {"estimate", "report", "derived", "route", "order", "excitation", "cutoff",
                "decimate", "plausible", "max_change", "min_duration", "sample_interval",
                "max_residual_correlation", "deadband", "residual_warning", "structure_hint",
-               "identifiability", "steady_tolerance"}
+               "identifiability", "steady_tolerance", "initial", "segments", "starts"}
     unknown = set(est) - allowed
     if unknown:
         raise ConfigError(f"{src}[estimation]: unknown key {sorted(unknown)[0]!r}; "
@@ -140,7 +141,13 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any],
         _fraction(est.get("residual_warning", 0.15), f"{src}[estimation].residual_warning"),
         str(est.get("structure_hint", "")),
         parse_identifiability_limits(est.get("identifiability"), src),
-        _fraction(est.get("steady_tolerance", 0.1), f"{src}[estimation].steady_tolerance"))
+        _fraction(est.get("steady_tolerance", 0.1), f"{src}[estimation].steady_tolerance"),
+        parse_simulation_settings(est, plant.state_names, _sensed_states(plant), src))
     machine = Machine(plant, spec, **files)
     derived_numeric(machine)  # every derived equation parses
     return machine
+
+
+def _sensed_states(plant: PlantModel) -> set[str]:
+    """States a sensor reads as they are (``measures = "x2"``)."""
+    return {s.measures.strip() for s in plant.sensors if s.measures.strip() in plant.state_names}

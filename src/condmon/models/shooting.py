@@ -1,0 +1,128 @@
+"""How the simulation-error route treats initial states, segments and starts.
+
+A declaration's ``[estimation]`` table may hold, for the simulation-error
+route (:mod:`condmon.identify.simulation_route`)::
+
+    segments = 1          # multiple shooting: the record cut in this many segments
+    starts = 4            # optimiser starts (the declared values, then draws)
+
+    [estimation.initial]  # per state; default "estimate"
+    x1 = { ge = 0.0, le = 12.0 }   # estimated, within these bounds [state unit]
+    x2 = "first-sample"            # the sensor's first reading (a state a sensor reads)
+    x3 = "declared"                # the declared initial value, not estimated
+
+As MATLAB's ``nlgreyest`` does (``InitialStates``: estimate, fixed, or zero),
+an initial state is an unknown of its own by default, and is reported with
+its standard error.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from condmon.errors import ConfigError
+
+__all__ = ["InitialState", "SimulationSettings", "parse_simulation_settings", "INITIAL_MODES"]
+
+#: How an initial state may be set.
+INITIAL_MODES = ("estimate", "first-sample", "declared")
+_MAX_SEGMENTS = 500
+_MAX_STARTS = 50
+
+
+@dataclass(frozen=True)
+class InitialState:
+    """One state's initial value: ``mode`` one of :data:`INITIAL_MODES`; an
+    estimated one stays within ``[low, high]``. [state unit]"""
+
+    mode: str = "estimate"
+    low: float = -math.inf
+    high: float = math.inf
+
+
+@dataclass(frozen=True)
+class SimulationSettings:
+    """The simulation-error route's settings (``segments``, ``starts`` and
+    ``[estimation.initial]``); a state not named is estimated, unbounded."""
+
+    initial: dict[str, InitialState] = field(default_factory=dict)
+    segments: int = 1
+    starts: int = 4
+
+    def of(self, state: str) -> InitialState:
+        """The setting of one state."""
+        return self.initial.get(state, InitialState())
+
+
+def _count(value: Any, where: str, high: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= high:
+        raise ConfigError(f"{where} must be an integer from 1 to {high}, got {value!r}")
+    return value
+
+
+def parse_simulation_settings(est: Mapping[str, Any], states: tuple[str, ...], sensed: set[str],
+                              src: str) -> SimulationSettings:
+    """Read ``segments``, ``starts`` and ``[estimation.initial]``.
+
+    Parameters
+    ----------
+    est : mapping
+        The ``[estimation]`` table.
+    states : tuple of str
+        The declared states.
+    sensed : set of str
+        The states a sensor reads directly (``measures = "x2"``): only these
+        may start from their first sample.
+    src : str
+        The declaration, named in errors.
+
+    Raises
+    ------
+    ConfigError
+        Naming the key and the allowed values.
+
+    Example
+    -------
+    >>> s = parse_simulation_settings({"initial": {"x1": {"ge": 0.0}}}, ("x1", "x2"), {"x2"}, "t")
+    >>> s.of("x1"), s.of("x2").mode
+    (InitialState(mode='estimate', low=0.0, high=inf), 'estimate')
+    """
+    where = f"{src}[estimation]"
+    segments = _count(est.get("segments", 1), f"{where}.segments", _MAX_SEGMENTS)
+    starts = _count(est.get("starts", 4), f"{where}.starts", _MAX_STARTS)
+    table = est.get("initial", {})
+    if not isinstance(table, dict):
+        raise ConfigError(f"{where}.initial must be a table of states")
+    out: dict[str, InitialState] = {}
+    for name, entry in table.items():
+        w = f"{src}[estimation.initial.{name}]"
+        if name not in states:
+            raise ConfigError(f"{w}: {name!r} is not a state of the model; allowed: "
+                              f"{', '.join(states)}")
+        if isinstance(entry, str):
+            if entry not in INITIAL_MODES:
+                raise ConfigError(f"{w}: unknown setting {entry!r}; allowed: "
+                                  f"{', '.join(INITIAL_MODES)}, or a table of bounds "
+                                  "{ ge = ..., le = ... }")
+            if entry == "first-sample" and name not in sensed:
+                raise ConfigError(f"{w}: 'first-sample' needs a sensor that reads {name!r} "
+                                  "directly; no sensor does")
+            out[name] = InitialState(entry)
+            continue
+        if not isinstance(entry, dict) or set(entry) - {"ge", "gt", "le", "lt"}:
+            raise ConfigError(f"{w} must be one of {', '.join(INITIAL_MODES)} or a table of "
+                              "bounds with keys ge/gt, le/lt")
+        vals = {}
+        for k, v in entry.items():
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ConfigError(f"{w}.{k} must be a finite number, got {v!r}")
+            vals[k] = float(v)
+        low = vals.get("ge", vals.get("gt", -math.inf))
+        high = vals.get("le", vals.get("lt", math.inf))
+        if not low < high:
+            raise ConfigError(f"{w}: the lower bound {low:g} is not below the upper {high:g}")
+        out[name] = InitialState("estimate", low, high)
+    return SimulationSettings(out, segments, starts)

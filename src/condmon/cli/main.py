@@ -30,6 +30,7 @@ from condmon.cli.fleet import register as register_fleet_commands
 from condmon.cli.forecast import register as register_forecast_command
 from condmon.cli.history import print_flags
 from condmon.cli.imports import register as register_import_command
+from condmon.cli.validate import register as register_validate_commands
 from condmon.cli.history import register as register_history_commands
 from condmon.cli.plant import register as register_plant_commands
 from condmon.cli.rules import register as register_rules_commands
@@ -42,7 +43,7 @@ from condmon.identify.defaults import DEFAULT_FIT_THRESHOLD, list_estimators
 #: ``condmon --help`` lists the commands in the order of a user's work: try it,
 #: estimate, baseline and check a unit, a fleet and live units, read the history,
 #: look after it.
-WORKFLOW = ("demo", "simulate", "estimate", "baseline", "check", "import", "isolate", "fleet",
+WORKFLOW = ("demo", "simulate", "estimate", "validate", "baseline", "check", "import", "isolate", "fleet",
             "watch", "history", "units", "forecast", "report", "serve", "exclude", "include",
             "audit", "unit", "rules")
 
@@ -69,6 +70,7 @@ register_fleet_commands(app)
 register_watch_command(app)
 register_forecast_command(app)
 register_import_command(app)
+register_validate_commands(app, simulate_app)
 
 
 
@@ -127,7 +129,8 @@ def estimate_cmd(
                   highlight=False, markup=False, soft_wrap=True)
 
 
-_HOW = {"inverse": "inverse model", "oe": "output error", "steady": "steady balances"}
+_HOW = {"inverse": "inverse model", "oe": "output error", "steady": "steady balances",
+        "simulation": "simulation error"}
 
 
 def _print_estimate(res: Any, record: str, systematic: dict[str, float] | None = None) -> None:

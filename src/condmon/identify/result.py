@@ -188,10 +188,12 @@ class EstimateResult:
 
     @property
     def method(self) -> str:
-        """Estimator used ("idim-ls" for the inverse route, "steady" for the steady one)."""
+        """Estimator used ("idim-ls" for the inverse route, "steady" for the steady
+        one, "simulation-error" for the simulation route)."""
         if self.discrete is not None:
             return self.discrete.method
-        return {"oe": "oe", "steady": "steady"}.get(self.route, "idim-ls")
+        return {"oe": "oe", "steady": "steady",
+                "simulation": "simulation-error"}.get(self.route, "idim-ls")
 
     @property
     def closed_loop_instruments(self) -> bool:

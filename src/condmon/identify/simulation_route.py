@@ -49,6 +49,7 @@ from condmon.identify.greybox import RouteResult
 from condmon.identify.identifiability import assess_identifiability
 from condmon.io.records import Record
 from condmon.models.machine import Machine
+from condmon.models.shooting import state_readers
 from condmon.simulate.recorded import choose_substeps, simulate_copies
 
 __all__ = ["SimulationRouteResult", "simulation_route", "bounds_of"]
@@ -182,14 +183,15 @@ def _layout(records: Sequence[Record], machine: Machine, start: Mapping[str, flo
     base = np.array([values[n] for n in plant.parameter_names], dtype=np.float64)
     pidx = [plant.parameter_names.index(k) for k in free]
     settings = spec.simulation
-    reads = {s.measures.strip(): s.name for s in plant.sensors}
+    readers = state_readers(plant)
     est0 = [j for j, n in enumerate(plant.state_names) if settings.of(n).mode == "estimate"]
     x_first = []
     for r in records:
         x = np.array([s.initial for s in plant.states], dtype=np.float64)
         for j, n in enumerate(plant.state_names):
-            if settings.of(n).mode in ("first-sample", "estimate") and n in reads:
-                x[j] = float(r[reads[n]][0])
+            if settings.of(n).mode in ("first-sample", "estimate") and n in readers:
+                sensor, fn = readers[n]
+                x[j] = float(fn(r[plant.sensor_names[sensor]][0], base))
         x_first.append(x)
     seg: list[tuple[int, int, int]] = []
     for i, r in enumerate(records):
@@ -212,7 +214,8 @@ def _layout(records: Sequence[Record], machine: Machine, start: Mapping[str, flo
 def simulation_route(rec: Record | Sequence[Record], machine: Machine,
                      start: Mapping[str, float], *, constants: Mapping[str, float] | None = None,
                      fit_threshold: float = 90.0, seed: int = 0,
-                     held: Sequence[str] = ()) -> SimulationRouteResult:
+                     held: Sequence[str] = (), starts: int | None = None
+                     ) -> SimulationRouteResult:
     """Simulation-error estimate of any declared model from one record or several.
 
     Parameters
@@ -231,7 +234,9 @@ def simulation_route(rec: Record | Sequence[Record], machine: Machine,
     held : sequence of str
         Unknowns held at their ``start`` value (not estimated). An unknown the
         record does not identify (on the optimum's Jacobian) is held, and the
-        others are estimated again.
+        others are estimated again, from their optimum, with one start.
+    starts : int, optional
+        Optimiser starts (default: the declaration's ``starts``).
 
     Returns
     -------
@@ -268,15 +273,15 @@ def simulation_route(rec: Record | Sequence[Record], machine: Machine,
     z0 = _start_vector(prob, single, z1)
     lo, hi = _bounds(prob)
     rng = np.random.default_rng(seed)
-    starts = [z0]
+    points = [z0]
     nf = len(prob.free)
-    for _ in range(settings.starts - 1):
+    for _ in range((settings.starts if starts is None else starts) - 1):
         z = z0.copy()
         z[:nf] = z0[:nf] * np.exp(rng.normal(0.0, 0.5, nf))
-        starts.append(np.clip(z, lo, hi))
+        points.append(np.clip(z, lo, hi))
     evaluations = 0
     runs = []
-    for z in starts:
+    for z in points:
         sol = _solve(prob, z, lo, hi, sigma, xscale, _SHORT_RUN)
         evaluations += sol[2]
         runs.append(sol)
@@ -313,11 +318,19 @@ def simulation_route(rec: Record | Sequence[Record], machine: Machine,
     weak = [k for k in prob.free if k not in idf.identifiable]
     if not weak or len(weak) == len(prob.free):
         return res
-    again = simulation_route(records, machine, start, constants=constants,
-                             fit_threshold=fit_threshold, seed=seed, held=(*held, *weak))
+    moved = {**start, **{k: v for k, v in res.values.items() if k not in weak and k in start}}
+    again = simulation_route(records, machine, moved, constants=constants,
+                             fit_threshold=fit_threshold, seed=seed, held=(*held, *weak),
+                             starts=1)
     kept = dataclasses.replace(idf, identifiable=tuple(k for k in idf.parameters
                                                        if k not in weak and k not in held))
-    return dataclasses.replace(again, identifiability=kept)
+    said = (f"{', '.join(weak)} held at {'its' if len(weak) == 1 else 'their'} start "
+            f"value{'s' if len(weak) > 1 else ''} (not identified at the optimum); the others "
+            f"estimated again from it: normalised RMS error {again.start_costs[0]:.4g}, "
+            f"{again.evaluations} more evaluations")
+    return dataclasses.replace(again, identifiability=kept, start_costs=res.start_costs,
+                               spread=res.spread, evaluations=res.evaluations + again.evaluations,
+                               notes=(*res.notes, said))
 
 
 def _start_vector(prob: _Problem, single: _Problem | None = None,
@@ -334,15 +347,15 @@ def _start_vector(prob: _Problem, single: _Problem | None = None,
         assert single is not None and z1 is not None
         xs = single.run(z1[:, None])[0][:, :, :, 0]
         plant = prob.machine.plant
-        reads = {s.measures.strip(): j for j, s in enumerate(plant.sensors)}
+        readers = state_readers(plant)
         for i in cont:
             r, a, _ = prob.seg[i]
             first_seg = next(k for k, s in enumerate(single.seg) if s[0] == r)
             x = xs[a, :, first_seg] if a < xs.shape[0] else xs[-1, :, first_seg]
             x = np.where(np.isfinite(x), x, prob.x_first[r])
             for j, n in enumerate(plant.state_names):
-                if n in reads:
-                    x[j] = prob.y[i][0, reads[n]]
+                if n in readers:
+                    x[j] = float(readers[n][1](prob.y[i][0, readers[n][0]], prob.base))
             z.append(x)
     return np.clip(np.concatenate(z), lo, hi)
 

@@ -16,7 +16,7 @@ from condmon.models.machine import (
 )
 from condmon.models.plausibility import parse_identifiability_limits, parse_plausibility
 from condmon.models.regimes import parse_regimes
-from condmon.models.shooting import parse_simulation_settings
+from condmon.models.shooting import parse_simulation_settings, state_readers
 
 __all__ = ["machine_from_doc"]
 
@@ -142,12 +142,9 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any],
         str(est.get("structure_hint", "")),
         parse_identifiability_limits(est.get("identifiability"), src),
         _fraction(est.get("steady_tolerance", 0.1), f"{src}[estimation].steady_tolerance"),
-        parse_simulation_settings(est, plant.state_names, _sensed_states(plant), src))
+        parse_simulation_settings(est, plant.state_names, lambda: set(state_readers(plant)),
+                                  src))
     machine = Machine(plant, spec, **files)
     derived_numeric(machine)  # every derived equation parses
     return machine
 
-
-def _sensed_states(plant: PlantModel) -> set[str]:
-    """States a sensor reads as they are (``measures = "x2"``)."""
-    return {s.measures.strip() for s in plant.sensors if s.measures.strip() in plant.state_names}

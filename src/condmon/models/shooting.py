@@ -18,14 +18,19 @@ its standard error.
 
 from __future__ import annotations
 
+import functools
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from condmon.errors import ConfigError
 
-__all__ = ["InitialState", "SimulationSettings", "parse_simulation_settings", "INITIAL_MODES"]
+if TYPE_CHECKING:
+    from condmon.models.declared import PlantModel
+
+__all__ = ["InitialState", "SimulationSettings", "parse_simulation_settings", "INITIAL_MODES",
+           "state_readers"]
 
 #: How an initial state may be set.
 INITIAL_MODES = ("estimate", "first-sample", "declared")
@@ -63,8 +68,8 @@ def _count(value: Any, where: str, high: int) -> int:
     return value
 
 
-def parse_simulation_settings(est: Mapping[str, Any], states: tuple[str, ...], sensed: set[str],
-                              src: str) -> SimulationSettings:
+def parse_simulation_settings(est: Mapping[str, Any], states: tuple[str, ...],
+                              sensed: Callable[[], set[str]], src: str) -> SimulationSettings:
     """Read ``segments``, ``starts`` and ``[estimation.initial]``.
 
     Parameters
@@ -73,9 +78,9 @@ def parse_simulation_settings(est: Mapping[str, Any], states: tuple[str, ...], s
         The ``[estimation]`` table.
     states : tuple of str
         The declared states.
-    sensed : set of str
-        The states a sensor reads directly (``measures = "x2"``): only these
-        may start from their first sample.
+    sensed : callable
+        Gives the states a sensor's reading gives back (:func:`state_readers`):
+        only these may start from their first sample (asked only then).
     src : str
         The declaration, named in errors.
 
@@ -86,7 +91,8 @@ def parse_simulation_settings(est: Mapping[str, Any], states: tuple[str, ...], s
 
     Example
     -------
-    >>> s = parse_simulation_settings({"initial": {"x1": {"ge": 0.0}}}, ("x1", "x2"), {"x2"}, "t")
+    >>> s = parse_simulation_settings({"initial": {"x1": {"ge": 0.0}}}, ("x1", "x2"),
+    ...                               lambda: {"x2"}, "t")
     >>> s.of("x1"), s.of("x2").mode
     (InitialState(mode='estimate', low=0.0, high=inf), 'estimate')
     """
@@ -107,9 +113,9 @@ def parse_simulation_settings(est: Mapping[str, Any], states: tuple[str, ...], s
                 raise ConfigError(f"{w}: unknown setting {entry!r}; allowed: "
                                   f"{', '.join(INITIAL_MODES)}, or a table of bounds "
                                   "{ ge = ..., le = ... }")
-            if entry == "first-sample" and name not in sensed:
-                raise ConfigError(f"{w}: 'first-sample' needs a sensor that reads {name!r} "
-                                  "directly; no sensor does")
+            if entry == "first-sample" and name not in sensed():
+                raise ConfigError(f"{w}: 'first-sample' needs a sensor whose reading gives "
+                                  f"{name!r} back; no sensor's does")
             out[name] = InitialState(entry)
             continue
         if not isinstance(entry, dict) or set(entry) - {"ge", "gt", "le", "lt"}:
@@ -126,3 +132,46 @@ def parse_simulation_settings(est: Mapping[str, Any], states: tuple[str, ...], s
             raise ConfigError(f"{w}: the lower bound {low:g} is not below the upper {high:g}")
         out[name] = InitialState("estimate", low, high)
     return SimulationSettings(out, segments, starts)
+
+
+def state_readers(plant: PlantModel) -> dict[str, tuple[int, Callable[..., Any]]]:
+    """States a sensor's reading gives back: ``state -> (sensor index,
+    fn(reading, parameter vector) -> state value)``.
+
+    A sensor reads a state when its equation holds that one state and no
+    other, and sympy solves it for the state in one way (``x2 + y0``: yes;
+    ``x**2``: two ways, no). [state units]
+
+    Example
+    -------
+    >>> from condmon.models.registry import load_plant_model
+    >>> readers = state_readers(load_plant_model("dc-motor"))
+    >>> sorted(readers)
+    ['I', 'omega']
+    """
+    return _readers(plant)
+
+
+@functools.lru_cache(maxsize=32)
+def _readers(plant: PlantModel) -> dict[str, tuple[int, Callable[..., Any]]]:
+    import sympy as sp
+
+    from condmon.models.declared import substituted_equations, symbols_of
+
+    sym = symbols_of(plant)
+    states = {sym[n]: n for n in plant.state_names}
+    params = [sym[n] for n in plant.parameter_names]
+    reading = sp.Symbol("_reading", real=True)
+    out: dict[str, tuple[int, Callable[..., Any]]] = {}
+    for j, (_, expr) in enumerate(substituted_equations(plant)[2].items()):
+        held = [s for s in expr.free_symbols if s in states]
+        if len(held) != 1 or any(s.name in plant.input_names for s in expr.free_symbols):
+            continue
+        x = held[0]
+        try:
+            sol = sp.solve(sp.Eq(expr, reading), x)
+        except (NotImplementedError, ValueError, TypeError):
+            continue
+        if len(sol) == 1 and states[x] not in out:
+            out[states[x]] = (j, sp.lambdify((reading, params), sol[0], modules="numpy"))
+    return out

@@ -78,6 +78,14 @@ def _oe_start(rec: Sequence[Record], machine: Machine, consts: Mapping[str, floa
     return machine.nominal(), "the declared values"
 
 
+def _has_inverse(machine: Machine) -> bool:
+    try:
+        machine.inverse()
+    except ModelError:
+        return False
+    return True
+
+
 @dataclass(frozen=True)
 class Plan:
     """One record's route signals (inverse and steady routes) and windows.
@@ -208,9 +216,12 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
                 from condmon.identify.simulation_route import simulation_route
 
                 recs = [_slice(p, regime, sliced) for p in plans]
-                start = {k: held_at[k] for k in spec.unknowns if k not in fixed}
+                start, how = {k: held_at[k] for k in spec.unknowns}, "the declared values"
+                if _has_inverse(machine):   # a nearby start for the simulation error
+                    start, how = _oe_start(recs, machine, consts, fit_threshold)
                 sim = simulation_route(recs, machine, start, constants=consts,
                                        fit_threshold=fit_threshold)
+                notes.append(f"simulation error started from {how}")
                 values, ucov, fit, idf = sim.values, sim.covariance, sim.fit, sim.identifiability
                 diagnostics = sim.diagnostics()
                 initial_states = sim.initial

@@ -59,6 +59,10 @@ _DEFECT_WEIGHT = 30.0   # a segment's jump counts as this many noise levels per 
 _SHORT_RUN = 10         # optimiser evaluations of each start before the best is polished
 _POLISH = 200
 _SAME_COST = 0.01       # starts within 1 % of the best cost reached it
+# The whole record is simulated from the segments' optimum and kept when its error stays
+# within a quarter of theirs: a right model's errors are the noise either way, while a
+# drift (an integrator, an unmodelled slow effect) grows with the time simulated.
+_WHOLE_RECORD = 1.25
 
 
 @dataclass(frozen=True, eq=False)
@@ -84,6 +88,11 @@ class SimulationRouteResult(RouteResult):
         Simulations run by the optimiser.
     notes : tuple of str
         How the fit was made: integration, starts and their costs, shooting.
+    cost : float
+        RMS of the output residuals at the optimum, each divided by its
+        output's spread in the record. [-]
+    dof : int
+        Output residuals less the unknowns fitted (initial states included).
     """
 
     initial: dict[str, tuple[float, float, str]]
@@ -93,6 +102,8 @@ class SimulationRouteResult(RouteResult):
     segments: int
     evaluations: int
     notes: tuple[str, ...] = ()
+    cost: float = math.nan
+    dof: int = 0
 
 
 def bounds_of(machine: Machine, names: Sequence[str]) -> tuple[FloatArray, FloatArray]:
@@ -297,19 +308,21 @@ def simulation_route(rec: Record | Sequence[Record], machine: Machine,
     spread = {k: (float(np.ptp([v[i] for v in near]) / max(abs(z[i]), 1e-300))
                   if len(near) > 1 else 0.0) for i, k in enumerate(prob.free)}
     if prob is not single:
-        zs = np.concatenate([z[:nf], _first_initials(prob, z)])
-        try:
-            zs2, cost2, n2 = _solve(single, np.clip(zs, *_bounds(single)), *_bounds(single),
-                                    sigma, xscale, 50)
-        except EstimationError:
-            cost2 = math.inf
-        if math.isfinite(cost2):
+        zs = np.clip(np.concatenate([z[:nf], _first_initials(prob, z)]), *_bounds(single))
+        r_single = _residuals(single, zs[:, None], sigma, xscale)[0][:, 0]
+        ms_cost = math.sqrt(float(np.mean(_residuals(prob, z[:, None], sigma, xscale)[0]
+                                          [:sum(y.size for y in prob.y), 0] ** 2)))
+        whole = math.sqrt(float(np.mean(r_single ** 2))) if np.all(np.isfinite(r_single)) \
+            else math.inf
+        if whole <= _WHOLE_RECORD * ms_cost:
+            zs2, cost2, n2 = _solve(single, zs, *_bounds(single), sigma, xscale, 50)
             prob, z, evaluations = single, zs2, evaluations + n2
             notes.append(f"multiple shooting over {settings.segments} segments per record, "
                          "then single shooting from its optimum")
         else:
             notes.append(f"multiple shooting over {settings.segments} segments per record; "
-                         "the whole record does not simulate from its optimum, so the "
+                         f"the whole record simulated from its optimum misses by "
+                         f"{whole / ms_cost:.3g} times the segments' error (a drift), so the "
                          "figures are the segments'")
     res = _result(prob, z, sigma, xscale, fit_threshold, runs, spread, evaluations, notes,
                   start, machine)
@@ -318,6 +331,30 @@ def simulation_route(rec: Record | Sequence[Record], machine: Machine,
     weak = [k for k in prob.free if k not in idf.identifiable]
     if not weak or len(weak) == len(prob.free):
         return res
+    # Held only when the data allow it: the Wald test of "each one is at its start
+    # value" on the full fit's covariance (the likelihood-ratio test to first
+    # order), at 1 %. A collinear set the record still determines (a small noise)
+    # stays estimated, and its standard errors carry the collinearity.
+    from scipy.stats import chi2
+
+    unknowns = machine.spec.unknowns
+    pos = [unknowns.index(k) for k in weak]
+    d = np.array([res.values[k] - float(start[k]) for k in weak])
+    try:
+        wald = float(d @ np.linalg.solve(res.covariance[np.ix_(pos, pos)], d))
+    except np.linalg.LinAlgError:
+        wald = math.inf
+    limit = float(chi2.ppf(0.99, len(weak)))
+    if not wald <= limit:
+        said = (f"{', '.join(weak)}: {'; '.join(idf.reasons[k] for k in weak)}; but "
+                f"{'it is' if len(weak) == 1 else 'they are'} away from the start value by more "
+                f"than the noise allows (Wald statistic {wald:.3g} > {limit:.3g}, 1 %): the "
+                "record determines them, and their standard errors carry the collinearity")
+        full = dataclasses.replace(idf, identifiable=tuple(k for k in idf.parameters
+                                                           if k not in held),
+                                   reasons={k: v for k, v in idf.reasons.items()
+                                            if k not in weak})
+        return dataclasses.replace(res, identifiability=full, notes=(*res.notes, said))
     moved = {**start, **{k: v for k, v in res.values.items() if k not in weak and k in start}}
     again = simulation_route(records, machine, moved, constants=constants,
                              fit_threshold=fit_threshold, seed=seed, held=(*held, *weak),
@@ -325,13 +362,13 @@ def simulation_route(rec: Record | Sequence[Record], machine: Machine,
     kept = dataclasses.replace(idf, identifiable=tuple(k for k in idf.parameters
                                                        if k not in weak and k not in held))
     said = (f"{', '.join(weak)} held at {'its' if len(weak) == 1 else 'their'} start "
-            f"value{'s' if len(weak) > 1 else ''} (not identified at the optimum); the others "
-            f"estimated again from it: normalised RMS error {again.start_costs[0]:.4g}, "
-            f"{again.evaluations} more evaluations")
+            f"value{'s' if len(weak) > 1 else ''} (not identified at the optimum, and within "
+            f"the noise of {'it' if len(weak) == 1 else 'them'}: Wald statistic {wald:.3g} <= "
+            f"{limit:.3g}); the others estimated again from it: "
+            f"normalised RMS error {again.cost:.4g}, {again.evaluations} more evaluations")
     return dataclasses.replace(again, identifiability=kept, start_costs=res.start_costs,
                                spread=res.spread, evaluations=res.evaluations + again.evaluations,
                                notes=(*res.notes, said))
-
 
 def _start_vector(prob: _Problem, single: _Problem | None = None,
                   z1: FloatArray | None = None) -> FloatArray:
@@ -496,6 +533,7 @@ def _result(prob: _Problem, z: FloatArray, sigma: FloatArray, xscale: FloatArray
     plant = machine.plant
     r, xs = _residuals(prob, z[:, None], sigma, xscale)
     n_out = sum(y.size for y in prob.y)
+    cost = math.sqrt(float(np.mean(r[:n_out, 0] ** 2)))
     e = r[:n_out, 0].reshape(-1, len(sigma)) * sigma  # the error in sensor units, stacked
     y = np.vstack(prob.y)
     resid_sd = np.maximum(np.std(e, axis=0), 1e-300)
@@ -551,4 +589,5 @@ def _result(prob: _Problem, z: FloatArray, sigma: FloatArray, xscale: FloatArray
                     if reached > 1 else ""))
     return SimulationRouteResult(values, cov, fit, nrmse, white, initial, costs, spread,
                                  prob.substeps, max(1, len(prob.seg) // len(prob.x_first)),
-                                 evaluations, tuple(notes), identifiability=idf)
+                                 evaluations, tuple(notes), cost, n_out - z.size,
+                                 identifiability=idf)

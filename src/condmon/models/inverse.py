@@ -101,7 +101,7 @@ def inverse_structure(machine: Machine) -> InverseStructure:
         known = sp.Integer(0)
         for term in sp.Add.make_args(resid):
             ps = term.free_symbols & unknown_syms
-            if len(ps) > 1 or (ps and sp.degree(term, next(iter(ps))) != 1):
+            if len(ps) > 1 or (ps and not _linear_in(term, next(iter(ps)))):
                 raise ModelError(f"{where}: d{name}/dt = {e} is not linear in the unknowns "
                                  f"(term {term})")
             if not ps:
@@ -135,3 +135,14 @@ def inverse_structure(machine: Machine) -> InverseStructure:
     columns = (*(u for u in plant.input_names if u in used),
                *(name for name, e in readings.items() if str(e) in signals))
     return InverseStructure(tuple(equations), signals, derivation, columns)
+
+
+def _linear_in(term: sp.Expr, p: sp.Symbol) -> bool:
+    """Whether ``term`` is ``p`` times something free of ``p`` (an unknown inside
+    ``max``, ``sqrt`` or ``sign`` is not)."""
+    import sympy as sp
+
+    try:
+        return bool(sp.degree(term, p) == 1) and not sp.diff(term, p).has(p)
+    except sp.PolynomialError:
+        return False

@@ -1,0 +1,256 @@
+"""The simulation-error route and ``condmon validate``: known truth, unmeasured states,
+multiple shooting, and bad input refused with one line."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from condmon import estimate
+from condmon.cli.main import main
+from condmon.errors import ConfigError, DataError
+from condmon.models.registry import get_model
+from condmon.simulate.recorded import Diverged, simulate_recorded
+from condmon.workflows.validation import validate_file
+
+TANKS = """
+name = "two-tanks"
+[parameters]
+k = { value = 0.04, unit = "V/(V s)" }
+a = { value = 0.03, unit = "1/s" }
+b = { value = 0.03, unit = "V^0.5/s" }
+[inputs]
+u = { nominal = 3.0, unit = "V" }
+[states]
+x1 = { derivative = "k*u - a*x1", initial = 4.0, unit = "V" }
+x2 = { derivative = "a*x1 - b*sqrt(max(x2, 0))", initial = 4.0, unit = "V" }
+[sensors]
+y = { measures = "x2", noise = 0.005, unit = "V" }
+[test]
+duration = 1000.0
+sample_rate = 0.5
+[estimation]
+estimate = ["k", "a", "b"]
+starts = 2
+sample_interval = [0.1, 10.0]
+[estimation.initial]
+x1 = { ge = 0.0, le = 30.0 }
+[estimation.plausible]
+k = { gt = 0.0, lt = 1.0 }
+a = { gt = 0.0, lt = 1.0 }
+b = { gt = 0.0, lt = 1.0 }
+"""
+TRUTH = {"k": 0.05, "a": 0.02, "b": 0.04}
+X0 = np.array([6.0, 2.5])
+
+
+def _input(n: int, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return np.repeat(2.0 + 2.0 * rng.random(n // 25 + 1), 25)[:n]
+
+
+def _record(path: Path, model: Path, seed: int = 0, n: int = 500, noise: float = 0.005,
+            u_name: str = "u", y_name: str = "y") -> Path:
+    m = get_model(str(model))
+    c = m.plant.compile()
+    u = _input(n, seed)
+    sim = simulate_recorded(c, u[:, None], 2.0, X0, c.parameter_vector(TRUTH), substeps=8)
+    y = sim.outputs[:, 0] + noise * np.random.default_rng(seed + 100).standard_normal(n)
+    pd.DataFrame({"t": 2.0 * np.arange(n), u_name: u, y_name: y}).to_csv(path, index=False)
+    return path
+
+
+@pytest.fixture()
+def tanks(tmp_path: Path) -> Path:
+    p = tmp_path / "two-tanks.toml"
+    p.write_text(TANKS)
+    return p
+
+
+def test_an_unmeasured_state_is_estimated_by_simulation_error(tanks: Path,
+                                                             tmp_path: Path) -> None:
+    rec = _record(tmp_path / "r.csv", tanks)
+    res = estimate(pd.read_csv(rec), str(tanks))
+    assert res.route == "simulation" and res.accepted, res.reason
+    assert any("route auto took the simulation error" in n and "x1" in n for n in res.notes), \
+        res.notes
+    for k, v in TRUTH.items():   # truth within four standard errors, and close
+        assert abs(res.parameters[k] - v) < 4 * res.std_errors[k] + 1e-9, (k, res.parameters)
+        assert abs(res.parameters[k] / v - 1) < 0.05
+        assert res.std_errors[k] > 0
+    x1, se1, how = res.initial_states["x1"]
+    assert how == "estimated" and abs(x1 - X0[0]) < 4 * se1 + 0.05
+    assert any("start(s) reached" in n for n in res.notes)
+
+
+def test_validate_on_a_record_it_was_not_fitted_on_gives_the_noise(tanks: Path,
+                                                                  tmp_path: Path) -> None:
+    est = tmp_path / "est.json"
+    est.write_text(json.dumps({"model": "two-tanks", "parameters": TRUTH,
+                               "initial_states": {"x1": {"value": 6.0}, "x2": {"value": 2.5}}}))
+    rec = _record(tmp_path / "v.csv", tanks, seed=3, noise=0.01)
+    c, fig = validate_file(rec, str(tanks), params=est, figure=tmp_path / "v.png")
+    assert c.rmse["y"] == pytest.approx(0.01, rel=0.15)   # the sensor noise, nothing more
+    assert c.fit_percent["y"] > 98
+    assert c.initial["x1"] == (6.0, "estimated") and fig is not None and fig.stat().st_size
+    first, _ = validate_file(rec, str(tanks), params=est, initial="first-sample")
+    assert first.initial["x2"][1] == "first sample"
+    assert first.initial["x1"] == (6.0, "estimated")
+
+
+def test_validate_cli_json_and_a_given_initial_state(tanks: Path, tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    est = tmp_path / "est.json"
+    est.write_text(json.dumps({"model": "two-tanks", "parameters": TRUTH}))
+    rec = _record(tmp_path / "v.csv", tanks, seed=4, u_name="pump", y_name="level")
+    assert main(["validate", str(rec), "--model", str(tanks), "--params", str(est),
+                 "--columns", "u=pump,y=level", "--initial", "x1=6.0", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["rmse"]["y"] < 0.02 and doc["initial_states"]["x1"] == {"value": 6.0,
+                                                                       "from": "given"}
+    assert Path(doc["figure"]).exists()
+    out = tmp_path / "sim.csv"
+    assert main(["simulate", "record", str(rec), "--model", str(tanks), "--params", str(est),
+                 "--columns", "u=pump,y=level", "--initial", "x1=6.0", "--out", str(out)]) == 0
+    sim = pd.read_csv(out)
+    assert list(sim.columns) == ["t", "u", "y_sim", "y"]
+    assert np.sqrt(np.mean((sim.y_sim - sim.y) ** 2)) == pytest.approx(doc["rmse"]["y"])
+
+
+@pytest.mark.parametrize("case, needle", [
+    ("other-model", "of model 'emps', not of 'two-tanks'"),
+    ("no-input", "u"),
+    ("bad-state", "'x9'"),
+    ("diverges", "diverged at t = "),
+])
+def test_bad_input_gets_one_line_and_exit_2(tanks: Path, tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str], case: str,
+                                            needle: str) -> None:
+    rec = _record(tmp_path / "v.csv", tanks, n=100)
+    est = tmp_path / "est.json"
+    est.write_text(json.dumps({"model": "two-tanks", "parameters": TRUTH}))
+    args = ["validate", str(rec), "--model", str(tanks), "--params", str(est)]
+    if case == "other-model":
+        est.write_text(json.dumps({"model": "emps", "parameters": {"M": 95.0}}))
+    elif case == "no-input":
+        pd.read_csv(rec).drop(columns="u").to_csv(rec, index=False)
+    elif case == "bad-state":
+        args += ["--initial", "x9=1.0"]
+    else:   # a negative outflow coefficient: the lower level grows without bound
+        args += ["--set", "b=-1e6,a=1e6"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert needle in err, err
+    assert len(err.strip().splitlines()) <= 3, err
+
+
+def test_a_divergence_names_the_time_and_the_state(tanks: Path) -> None:
+    c = get_model(str(tanks)).plant.compile()
+    with pytest.raises(Diverged) as info:
+        simulate_recorded(c, np.full((50, 1), 3.0), 2.0, np.array([1.0, 1.0]),
+                          c.parameter_vector({"a": -5.0}), substeps=2)
+    assert info.value.state in ("x1", "x2") and info.value.at > 0
+    assert f"t = {info.value.at:g} s" in str(info.value)
+
+
+def test_multiple_shooting_recovers_an_integrating_axis(tmp_path: Path) -> None:
+    """A mass driven by a force with viscous friction and an offset, position
+    measured: open loop it drifts away; 10 shooting segments recover the truth."""
+    decl = tmp_path / "axis.toml"
+    decl.write_text("""
+name = "axis"
+[parameters]
+m = { value = 8.0, unit = "kg" }
+c = { value = 30.0, unit = "N s/m" }
+f0 = { value = 0.0, unit = "N" }
+[inputs]
+F = { nominal = 0.0, unit = "N" }
+[states]
+q = { derivative = "v", unit = "m" }
+v = { derivative = "(F - c*v - f0)/m", unit = "m/s" }
+[sensors]
+qm = { measures = "q", noise = 1e-5, unit = "m" }
+[test]
+duration = 10.0
+sample_rate = 100.0
+[estimation]
+estimate = ["m", "c", "f0"]
+route = "simulation"
+segments = 10
+starts = 1
+sample_interval = [1e-4, 1.0]
+[estimation.plausible]
+m = { gt = 0.0 }
+c = { ge = 0.0 }
+""")
+    m = get_model(str(decl))
+    comp = m.plant.compile()
+    t = np.arange(1000) / 100.0
+    F = 20.0 * np.sin(2 * np.pi * 0.3 * t) + 8.0 * np.sign(np.sin(2 * np.pi * 1.1 * t))
+    truth = {"m": 10.0, "c": 25.0, "f0": 1.5}
+    sim = simulate_recorded(comp, F[:, None], 0.01, np.zeros(2), comp.parameter_vector(truth),
+                            substeps=4)
+    y = sim.outputs[:, 0] + 1e-5 * np.random.default_rng(1).standard_normal(len(t))
+    res = estimate(pd.DataFrame({"t": t, "F": F, "qm": y}), m)
+    assert res.accepted, res.reason
+    for k, v in truth.items():
+        assert abs(res.parameters[k] - v) < 4 * res.std_errors[k] + 1e-3 * abs(v), (k, res.parameters)
+    assert any("multiple shooting over 10 segments" in n for n in res.notes), res.notes
+
+
+def test_initial_state_settings_are_checked(tmp_path: Path) -> None:
+    for table, needle in (('x9 = "estimate"', "'x9' is not a state"),
+                          ('x1 = "first-sample"', "no sensor's does"),
+                          ('x1 = "guess"', "allowed: estimate, first-sample, declared"),
+                          ('x1 = { ge = 5.0, le = 1.0 }', "not below the upper")):
+        p = tmp_path / "m.toml"
+        p.write_text(TANKS.replace("x1 = { ge = 0.0, le = 30.0 }", table))
+        with pytest.raises(ConfigError, match="initial"):
+            get_model(str(p))
+        try:
+            get_model(str(p))
+        except ConfigError as err:
+            assert needle in str(err), err
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(k=st.floats(0.01, 0.2), a=st.floats(0.005, 0.1), b=st.floats(0.01, 0.2),
+       x1=st.floats(0.0, 20.0), x2=st.floats(0.0, 10.0))
+def test_a_model_validated_on_its_own_simulation_fits_exactly(tmp_path: Path, k: float,
+                                                               a: float, b: float, x1: float,
+                                                               x2: float) -> None:
+    p = tmp_path / "m.toml"
+    if not p.exists():
+        p.write_text(TANKS)
+    m = get_model(str(p))
+    c = m.plant.compile()
+    params = {"k": k, "a": a, "b": b}
+    u = _input(80, 0)
+    sim = simulate_recorded(c, u[:, None], 2.0, np.array([x1, x2]), c.parameter_vector(params),
+                            substeps=8)
+    rec = tmp_path / "r.csv"
+    pd.DataFrame({"t": 2.0 * np.arange(80), "u": u, "y": sim.outputs[:, 0]}).to_csv(rec,
+                                                                                   index=False)
+    est = tmp_path / "e.json"
+    est.write_text(json.dumps({"model": "two-tanks", "parameters": params,
+                               "initial_states": {"x1": {"value": x1}, "x2": {"value": x2}}}))
+    cmp_, _ = validate_file(rec, str(p), params=est)
+    assert cmp_.rmse["y"] < 1e-3 * max(1.0, float(np.std(sim.outputs)))
+    assert np.isfinite(cmp_.fit_percent["y"])
+
+
+def test_a_parameter_file_must_be_an_estimate(tanks: Path, tmp_path: Path) -> None:
+    rec = _record(tmp_path / "v.csv", tanks, n=60)
+    bad = tmp_path / "bad.json"
+    bad.write_text("[1, 2]")
+    with pytest.raises(DataError, match="no 'parameters' table"):
+        validate_file(rec, str(tanks), params=bad)
+    bad.write_text("{not json")
+    with pytest.raises(DataError, match="bad.json: not a parameter file"):
+        validate_file(rec, str(tanks), params=bad)

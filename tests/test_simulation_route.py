@@ -254,3 +254,29 @@ def test_a_parameter_file_must_be_an_estimate(tanks: Path, tmp_path: Path) -> No
     bad.write_text("{not json")
     with pytest.raises(DataError, match="bad.json: not a parameter file"):
         validate_file(rec, str(tanks), params=bad)
+
+
+CTS = Path(__file__).resolve().parents[2] / "shared" / "external" / "cascaded_tanks" / \
+    "dataBenchmark.csv"
+CTS_DECL = Path(__file__).resolve().parents[1] / "examples" / "cascaded-tanks" / \
+    "cascaded-tanks.toml"
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not CTS.exists(), reason="the cascaded tanks benchmark is not beside the repository")
+def test_the_cascaded_tanks_acceptance_through_the_cli(tmp_path: Path,
+                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    """Estimation on the estimation part, validation on the validation part from
+    the estimated initial state: RMSE <= 0.25 V (published grey box 0.18 V, best
+    linear approximation 0.75 V), every parameter with a standard error."""
+    assert main(["estimate", str(CTS), "--model", str(CTS_DECL), "--columns", "u=uEst,y=yEst",
+                 "--json"]) == 0
+    est = tmp_path / "est.json"
+    est.write_text(capsys.readouterr().out)
+    doc = json.loads(est.read_text())
+    assert doc["route"] == "simulation" and doc["accepted"]
+    assert all(v > 0 for v in doc["std_errors"].values()), doc["std_errors"]
+    assert main(["validate", str(CTS), "--model", str(CTS_DECL), "--columns", "u=uVal,y=yVal",
+                 "--params", str(est), "--json"]) == 0
+    val = json.loads(capsys.readouterr().out)
+    assert val["rmse"]["y"] <= 0.25 and val["initial_states"]["x1"]["from"] == "estimated"

@@ -206,8 +206,8 @@ def _layout(records: Sequence[Record], machine: Machine, start: Mapping[str, flo
         x_first.append(x)
     seg: list[tuple[int, int, int]] = []
     for i, r in enumerate(records):
-        n = len(r)
-        cuts = np.linspace(0, n, min(segments, max(1, n // 20)) + 1).round().astype(int)
+        size = len(r)
+        cuts = np.linspace(0, size, min(segments, max(1, size // 20)) + 1).round().astype(int)
         seg += [(i, int(a), int(b)) for a, b in zip(cuts[:-1], cuts[1:])]
     length = max(b - a for _, a, b in seg)
     inputs = plant.input_names
@@ -459,15 +459,14 @@ def _jacobian(prob: _Problem, z: FloatArray, sigma: FloatArray, xscale: FloatArr
     J = np.zeros((r.shape[0], z.size))
     for i in range(nf):
         J[:, i] = (r[:, 1 + i] - r[:, 0]) / steps[i]
-    rows = _row_blocks(prob)
+    rows, jumps = _row_blocks(prob)
     for idx, (s, j) in owners.items():
         h = cols[1 + nf + j][idx] - z[idx]
         d = (r[:, 1 + nf + j] - r[:, 0]) / h
         for a, b in rows[s]:
             J[a:b, idx] = d[a:b]
-        if s in prob.cont():  # its own start in the jump before it: exact
-            a = rows["jump", s]
-            J[a + j, idx] = -_DEFECT_WEIGHT / xscale[j]
+        if s in jumps:  # its own start in the jump before it: exact
+            J[jumps[s] + j, idx] = -_DEFECT_WEIGHT / xscale[j]
     return J
 
 
@@ -486,21 +485,20 @@ def _state_owners(prob: _Problem) -> dict[int, tuple[int, int]]:
     return out
 
 
-def _row_blocks(prob: _Problem) -> dict[object, object]:
-    """Rows of each segment (its outputs, the jump at its end) and where each
-    continuing segment's jump rows start (key ``("jump", s)``)."""
-    out: dict[object, object] = {}
+def _row_blocks(prob: _Problem) -> tuple[dict[int, list[tuple[int, int]]], dict[int, int]]:
+    """Rows of each segment (its outputs, the jump at its end), and where each
+    continuing segment's jump rows start."""
+    rows: dict[int, list[tuple[int, int]]] = {}
+    jumps: dict[int, int] = {}
     a = 0
     for k, y in enumerate(prob.y):
-        out[k] = [(a, a + y.size)]
+        rows[k] = [(a, a + y.size)]
         a += y.size
     for i in prob.cont():
-        out[("jump", i)] = a
-        blocks = out[i - 1]
-        assert isinstance(blocks, list)
-        blocks.append((a, a + prob.n_x))
+        jumps[i] = a
+        rows[i - 1].append((a, a + prob.n_x))
         a += prob.n_x
-    return out
+    return rows, jumps
 
 
 def _solve(prob: _Problem, z0: FloatArray, lo: FloatArray, hi: FloatArray, sigma: FloatArray,

@@ -61,5 +61,5 @@ def plot_comparison(c: Comparison, path: str | Path | None = None) -> Any:
             err.tick_params(labelbottom=False)
     legend_below(fig, fig.axes[0].get_legend_handles_labels(), 2)
     if path is not None:
-        save_figure(fig, path)
+        save_figure(fig, str(path))
     return fig

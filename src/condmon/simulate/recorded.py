@@ -203,4 +203,4 @@ def simulate_recorded(compiled: CompiledModel, u: FloatArray, dt: float,
                        f"t = {k * dt:g} s: state {name!r} left the finite numbers "
                        f"({'last ' + format(float(xs[k - 1][compiled.model.state_names.index(name)]), '.4g') if k > 0 else 'at the start'})",
                        k * dt, name)
-    return RecordedSimulation(np.arange(len(u)) * dt, xs, ys, substeps)
+    return RecordedSimulation(np.arange(len(u), dtype=np.float64) * dt, xs, ys, substeps)

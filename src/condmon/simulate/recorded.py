@@ -193,14 +193,13 @@ def simulate_recorded(compiled: CompiledModel, u: FloatArray, dt: float,
     xs, ys = xs[..., 0], ys[..., 0]
     bad = ~np.isfinite(xs)
     if bad.any():
-        k, j = map(int, np.argwhere(bad)[0])
-        # the state that went first: the largest just before
-        name = compiled.model.state_names[j]
-        if k > 0:
-            prev = np.abs(xs[k - 1])
-            name = compiled.model.state_names[int(np.argmax(prev))]
+        k = int(np.argwhere(bad)[0][0])
+        names = [compiled.model.state_names[j] for j in np.flatnonzero(bad[k])]
+        last = ", ".join(f"{n} = {float(xs[k - 1][compiled.model.state_names.index(n)]):.4g}"
+                         for n in names) if k > 0 else ""
         raise Diverged(f"{source + ': ' if source else ''}the simulation diverged at "
-                       f"t = {k * dt:g} s: state {name!r} left the finite numbers "
-                       f"({'last ' + format(float(xs[k - 1][compiled.model.state_names.index(name)]), '.4g') if k > 0 else 'at the start'})",
-                       k * dt, name)
+                       f"t = {k * dt:g} s: state{'s' if len(names) > 1 else ''} "
+                       f"{', '.join(repr(n) for n in names)} left the finite numbers"
+                       + (f" (last finite at t = {(k - 1) * dt:g} s: {last})" if last else ""),
+                       k * dt, names[0])
     return RecordedSimulation(np.arange(len(u), dtype=np.float64) * dt, xs, ys, substeps)

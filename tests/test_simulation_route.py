@@ -280,3 +280,63 @@ def test_the_cascaded_tanks_acceptance_through_the_cli(tmp_path: Path,
                  "--params", str(est), "--json"]) == 0
     val = json.loads(capsys.readouterr().out)
     assert val["rmse"]["y"] <= 0.25 and val["initial_states"]["x1"]["from"] == "estimated"
+
+
+# --- the steady route on a model whose balances need an unmeasured state -------------------
+
+STEADY = TANKS.replace('k = { value = 0.04,', 'k = { value = 0.05,').replace(
+    'a = { value = 0.03,', 'a = { value = 0.02,').replace('estimate = ["k", "a", "b"]\nstarts = 2', 'estimate = ["b"]\nroute = "steady"') \
+    .replace('k = { gt = 0.0, lt = 1.0 }\na = { gt = 0.0, lt = 1.0 }\n', '')
+
+
+def _steps(path: Path, model: Path, u: np.ndarray) -> Path:
+    m = get_model(str(model))
+    c = m.plant.compile()
+    x0 = np.array([TRUTH["k"] * u[0] / TRUTH["a"], (TRUTH["k"] * u[0] / TRUTH["b"]) ** 2])
+    sim = simulate_recorded(c, u[:, None], 2.0, x0, c.parameter_vector(TRUTH), substeps=4)
+    y = sim.outputs[:, 0] + 0.005 * np.random.default_rng(7).standard_normal(len(u))
+    pd.DataFrame({"t": 2.0 * np.arange(len(u)), "u": u, "y": y}).to_csv(path, index=False)
+    return path
+
+
+def test_the_steady_route_reads_the_recorded_input(tmp_path: Path) -> None:
+    """Held input levels far from the declared nominal (3 V): the steady levels
+    give b back only if the route uses the record's input column."""
+    decl = tmp_path / "steady.toml"
+    decl.write_text(STEADY)
+    u = np.repeat([1.5, 2.5, 1.0, 2.0], 700)
+    res = estimate(pd.read_csv(_steps(tmp_path / "r.csv", decl, u)), str(decl))
+    assert res.route == "steady" and res.accepted, res.reason
+    assert res.parameters["b"] == pytest.approx(TRUTH["b"], rel=0.01)
+    assert abs(res.parameters["b"] - TRUTH["b"]) < 4 * res.std_errors["b"] + 1e-4
+    said = next(n for n in res.notes if n.startswith("steady balances over"))
+    windows, samples = (int(v) for v in said.replace(",", "").split()[3::2][:2])
+    assert windows >= 3 and samples < len(u) // 2, said   # each level's settling left out
+
+
+def test_an_excited_record_has_no_steady_window(tmp_path: Path) -> None:
+    decl = tmp_path / "steady.toml"
+    decl.write_text(STEADY)
+    t = np.arange(1600)
+    u = 2.5 + np.sin(2 * np.pi * t / 90.0) + 0.5 * np.sin(2 * np.pi * t / 37.0)
+    res = estimate(pd.read_csv(_steps(tmp_path / "r.csv", decl, u)), str(decl))
+    assert not res.accepted
+    assert "no steady window" in str(res.reason) and "not steady" in str(res.reason), res.reason
+
+
+def test_no_steady_state_is_said_not_called_absent(tmp_path: Path) -> None:
+    """At a start value with no steady state (a lower tank that fills for ever),
+    the reason says so; it used to say the equations do not contain the unknown."""
+    from condmon.identify.steady_state import SteadyWindow, fit_steady_states
+
+    decl = tmp_path / "steady.toml"
+    decl.write_text(STEADY.replace('b = { value = 0.03, unit = "V^0.5/s" }',
+                                   'b = { value = -0.03, unit = "V^0.5/s" }'))
+    plant = get_model(str(decl)).plant
+    w = SteadyWindow(100.0, 200.0, np.array([2.0]), np.array([6.25]), np.array([0.01]),
+                     np.array([5.0, 6.0]))
+    fit = fit_steady_states(plant, ["b"], [w])
+    assert fit.identifiability is not None
+    why = fit.identifiability.reasons["b"]
+    assert "no steady state at the start values in the window 100-200 s" in why, why
+    assert "do not contain" not in why

@@ -252,6 +252,100 @@ def steady_route(signals: Sequence[Mapping[str, FloatArray]],
                              samples=samples, unsteady=unsteady)
 
 
+def steady_spans(u: FloatArray, y: FloatArray, rows: IntArray, sensors: Sequence[str],
+                 t: FloatArray, tolerance: float = 0.1) -> tuple[list[IntArray], str]:
+    """The steady spans of an offered window, and why there is none.
+
+    Steady means the derivatives are near zero: the known inputs stay at one
+    operating point (:func:`~condmon.simulate.plant.operating_segments`, 2 %),
+    so a window is cut where an input moves; and in each piece of at least
+    ``MIN_WINDOW_SAMPLES`` samples the outputs do not drift: the means of its
+    two halves differ by at most 3 standard errors (batch means of the
+    detrended halves), or by at most ``tolerance`` (the declaration's
+    ``steady_tolerance``) of how far the output moves over the same time when
+    the record moves it (the 95th percentile over the record): a drift the
+    noise cannot hide but that is slow beside the machine's own dynamics is
+    steady. Else its first half (the settling) is left out and the rest tested
+    again.
+
+    Example
+    -------
+    >>> t = np.arange(200.0)
+    >>> u = np.r_[np.zeros(100), np.ones(100)][:, None]
+    >>> y = np.r_[np.zeros(100), 1 - np.exp(-np.arange(100) / 15)][:, None]
+    >>> y = y + 0.001 * np.random.default_rng(0).standard_normal(y.shape)
+    >>> spans, _ = steady_spans(u, y, np.arange(200), ["y"], t)
+    >>> [(int(s[0]), int(s[-1])) for s in spans]
+    [(0, 99), (150, 199)]
+    >>> steady_spans(np.sin(t / 3)[:, None], y, np.arange(200), ["y"], t)[1][:28]
+    'the inputs move: no span of '
+    """
+    from condmon.simulate.plant import operating_segments
+
+    if rows.size < MIN_WINDOW_SAMPLES:
+        return [], f"{rows.size} samples (fewer than {MIN_WINDOW_SAMPLES})"
+    starts = operating_segments(u[rows]) if u.shape[1] else np.array([0])
+    pieces = [rows[a:b] for a, b in zip(starts, [*starts[1:], rows.size])]
+    pieces = [p for p in pieces if p.size >= MIN_WINDOW_SAMPLES]
+    if not pieces:
+        return [], (f"the inputs move: no span of {MIN_WINDOW_SAMPLES} samples at one "
+                    f"operating point between {t[rows[0]]:g} and {t[rows[-1]]:g} s")
+    spans: list[IntArray] = []
+    worst = ""
+    for piece in pieces:
+        for part in (piece, piece[piece.size // 2:]):
+            if part.size < MIN_WINDOW_SAMPLES:
+                break
+            drift = _drift(y, part, tolerance)
+            if drift is None:
+                spans.append(part)
+                break
+            c, change, se = drift
+            worst = (f"{sensors[c]} drifts by {change:.3g} within {t[part[0]]:g}-"
+                     f"{t[part[-1]]:g} s (more than 3 standard errors, {3 * se:.3g}): not "
+                     "steady")
+    return spans, ("" if spans else f"the outputs drift in each of the {len(pieces)} span(s) "
+                                    f"at one operating point, e.g. {worst}")
+
+
+def _drift(y: FloatArray, part: IntArray, tolerance: float) -> tuple[int, float, float] | None:
+    """The first output that drifts within ``part`` (see :func:`steady_spans`):
+    (column, difference of the half means, its standard error); None when none does."""
+    half = part.size // 2
+    for c in range(y.shape[1]):
+        a, b = y[part[:half], c], y[part[half:], c]
+        se = float(np.hypot(batch_se(_detrended(a)), batch_se(_detrended(b))))
+        se = max(se, 1e-12 * (float(np.max(np.abs(y[part, c]))) + 1e-300))
+        change = float(np.mean(b) - np.mean(a))
+        if abs(change) <= 3.0 * se:
+            continue
+        moves = np.abs(y[half:, c] - y[:-half, c]) if y.shape[0] > half else np.zeros(1)
+        if abs(change) > tolerance * float(np.percentile(moves, 95)):
+            return c, change, se
+    return None
+
+
+def _settled(spans: list[IntArray], why: str, x: FloatArray, states: Sequence[str],
+             t: FloatArray, tolerance: float) -> tuple[list[IntArray], str]:
+    """The spans in which the model, run on the record's inputs at the held
+    values, has settled: each state moves by at most ``tolerance`` of its range
+    over the record (an input held for less than the machine's time constant
+    leaves the states moving, however still the outputs look)."""
+    span_x = np.ptp(x, axis=0)
+    kept: list[IntArray] = []
+    for rows in spans:
+        moved = np.abs(x[rows[-1]] - x[rows[0]])
+        bad = np.flatnonzero(moved > tolerance * np.where(span_x > 0, span_x, np.inf))
+        if bad.size == 0:
+            kept.append(rows)
+            continue
+        j = int(bad[0])
+        why = (f"the model's state {states[j]} still moves by {moved[j]:.3g} within "
+               f"{t[rows[0]]:g}-{t[rows[-1]]:g} s (more than {100 * tolerance:g} % of its range "
+               f"over the record, {span_x[j]:.3g}): not steady")
+    return kept, ("" if kept else why)
+
+
 def steady_output_error(records: Sequence[Record], windows: Sequence[Sequence[IntArray]],
                         machine: Machine, *, constants: Mapping[str, float] | None = None,
                         hold: Mapping[str, float] | None = None, fit_threshold: float = 90.0,
@@ -290,22 +384,32 @@ def steady_output_error(records: Sequence[Record], windows: Sequence[Sequence[In
     sensors = list(plant.sensor_names)
     steady: list[SteadyWindow] = []
     unsteady: dict[tuple[int, int], str] = {}
+    used = 0
     for i, (rec, wins) in enumerate(zip(records, windows)):
         t = rec["t"]
         frame = pd.DataFrame({k: v for k, v in rec.columns.items() if k in plant.input_names})
         u = input_signals(plant, t, frame)
-        x = integrate(compiled, t, u)
         y = rec.stack(sensors)
-        for j, rows in enumerate(wins):
-            if rows.size < MIN_WINDOW_SAMPLES:
-                unsteady[(i, j)] = f"{rows.size} samples (fewer than {MIN_WINDOW_SAMPLES})"
+        tol = spec.steady_tolerance
+        if not any(steady_spans(u, y, w, sensors, t, tol)[0] for w in wins):
+            for j, w in enumerate(wins):   # no steady span: no need to simulate the record
+                unsteady[(i, j)] = steady_spans(u, y, w, sensors, t, tol)[1]
+            continue
+        x = integrate(compiled, t, u)
+        for j, offered in enumerate(wins):
+            spans, why = steady_spans(u, y, offered, sensors, t, tol)
+            spans, why = _settled(spans, why, x, plant.state_names, t, tol)
+            if not spans:
+                unsteady[(i, j)] = why
                 continue
-            se = np.array([max(batch_se(_detrended(y[rows, c])), 1e-12 * (abs(y[rows, c]).max()
-                                                                         + 1e-300))
-                           for c in range(len(sensors))])
-            steady.append(SteadyWindow(float(t[rows[0]]), float(t[rows[-1]]),
-                                       u[rows].mean(axis=0), y[rows].mean(axis=0), se,
-                                       x[rows[-1]].copy()))
+            for rows in spans:
+                used += rows.size
+                se = np.array([max(batch_se(_detrended(y[rows, c])),
+                                   1e-12 * (abs(y[rows, c]).max() + 1e-300))
+                               for c in range(len(sensors))])
+                steady.append(SteadyWindow(float(t[rows[0]]), float(t[rows[-1]]),
+                                           u[rows].mean(axis=0), y[rows].mean(axis=0), se,
+                                           x[rows[-1]].copy()))
     names = spec.unknowns
     p = len(names)
     if not steady:
@@ -327,7 +431,7 @@ def steady_output_error(records: Sequence[Record], windows: Sequence[Sequence[In
     fit_pct = 100.0 * float(np.mean(list(r2.values())))
     fit = FitCheck(r2, fit_pct, float(fit_threshold),
                    bool(fit_pct >= fit_threshold and fit_.converged))
-    samples = int(sum(w.size for ws in windows for w in ws))
+    samples = used
     return SteadyRouteResult(fit_.values, fit_.covariance, fit, nrmse, {},
                              identifiability=fit_.identifiability, windows=len(steady),
                              samples=samples, unsteady=unsteady)

@@ -209,6 +209,15 @@ def fit_steady_states(model: PlantModel, unknowns: Sequence[str],
     if assess:
         base_misfit = misfit_of(chosen)
         r0 = base_misfit(np.zeros(k))
+        p_start = values_of(np.zeros(k), chosen)
+        lost = next((w for w in windows if _steady_state(compiled, w, p_start, w.guess) is None),
+                    None)
+        if lost is not None:   # no sensitivities to judge by: say so, not "absent"
+            why = (f"the model has no steady state at the start values in the window "
+                   f"{lost.start:g}-{lost.end:g} s (the solver found no root), so the route "
+                   "cannot judge it")
+            idf = Identifiability(tuple(names), (), {n: why for n in names})
+            return SteadyFit(held_values, np.zeros((k, k)), idf, None, False, r0)
         S = np.empty((r0.size, k))
         for j in range(k):
             step = np.zeros(k)

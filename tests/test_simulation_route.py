@@ -56,11 +56,11 @@ def _input(n: int, seed: int) -> np.ndarray:
 
 
 def _record(path: Path, model: Path, seed: int = 0, n: int = 500, noise: float = 0.005,
-            u_name: str = "u", y_name: str = "y") -> Path:
+            u_name: str = "u", y_name: str = "y", x0: np.ndarray = X0) -> Path:
     m = get_model(str(model))
     c = m.plant.compile()
     u = _input(n, seed)
-    sim = simulate_recorded(c, u[:, None], 2.0, X0, c.parameter_vector(TRUTH), substeps=8)
+    sim = simulate_recorded(c, u[:, None], 2.0, x0, c.parameter_vector(TRUTH), substeps=8)
     y = sim.outputs[:, 0] + noise * np.random.default_rng(seed + 100).standard_normal(n)
     pd.DataFrame({"t": 2.0 * np.arange(n), u_name: u, y_name: y}).to_csv(path, index=False)
     return path
@@ -119,7 +119,8 @@ def test_validate_cli_json_and_a_given_initial_state(tanks: Path, tmp_path: Path
     assert main(["simulate", "record", str(rec), "--model", str(tanks), "--params", str(est),
                  "--columns", "u=pump,y=level", "--initial", "x1=6.0", "--out", str(out)]) == 0
     sim = pd.read_csv(out)
-    assert list(sim.columns) == ["t", "u", "y_sim", "y"]
+    assert list(sim.columns) == ["t", "u", "y_sim", "y", "x1_sim", "x2_sim"]
+    assert sim.x1_sim[0] == 6.0 and sim.x2_sim[0] == pytest.approx(sim.y_sim[0])
     assert np.sqrt(np.mean((sim.y_sim - sim.y) ** 2)) == pytest.approx(doc["rmse"]["y"])
 
 
@@ -128,6 +129,7 @@ def test_validate_cli_json_and_a_given_initial_state(tanks: Path, tmp_path: Path
     ("no-input", "u"),
     ("bad-state", "'x9'"),
     ("diverges", "diverged at t = "),
+    ("short", "5 samples are too few; need at least 30"),
 ])
 def test_bad_input_gets_one_line_and_exit_2(tanks: Path, tmp_path: Path,
                                             capsys: pytest.CaptureFixture[str], case: str,
@@ -142,12 +144,44 @@ def test_bad_input_gets_one_line_and_exit_2(tanks: Path, tmp_path: Path,
         pd.read_csv(rec).drop(columns="u").to_csv(rec, index=False)
     elif case == "bad-state":
         args += ["--initial", "x9=1.0"]
+    elif case == "short":
+        pd.read_csv(rec).head(5).to_csv(rec, index=False)
     else:   # a negative outflow coefficient: the lower level grows without bound
         args += ["--set", "b=-1e6,a=1e6"]
     assert main(args) == 2
     err = capsys.readouterr().err
     assert needle in err, err
     assert len(err.strip().splitlines()) <= 3, err
+
+
+def test_a_record_that_starts_elsewhere_is_said_and_its_states_can_be_fitted(
+        tanks: Path, tmp_path: Path) -> None:
+    est = tmp_path / "est.json"
+    est.write_text(json.dumps({"model": "two-tanks", "parameters": TRUTH,
+                               "initial_states": {"x1": {"value": 6.0}, "x2": {"value": 2.5}}}))
+    rec = _record(tmp_path / "v.csv", tanks, seed=3, x0=np.array([9.0, 1.5]))
+    c, _ = validate_file(rec, str(tanks), params=est)
+    said = " ".join(c.notes)
+    assert "x2 starts at 2.5 (estimated) but this record's first reading gives 1.5" in said
+    assert "--initial fit" in said and c.rmse["y"] > 0.05
+    fitted, _ = validate_file(rec, str(tanks), params=est, initial="fit")
+    assert fitted.rmse["y"] == pytest.approx(0.005, rel=0.2)     # the noise again
+    assert fitted.initial["x1"][0] == pytest.approx(9.0, abs=0.1)
+    assert fitted.initial["x1"][1].startswith("fitted on this record, standard error")
+    assert "starts at" not in " ".join(fitted.notes)
+
+
+def test_validate_says_what_it_took_from_the_declaration(tanks: Path, tmp_path: Path) -> None:
+    est = tmp_path / "est.json"
+    est.write_text(json.dumps({"model": "two-tanks", "parameters": {"k": 0.05, "a": 0.02}}))
+    rec = _record(tmp_path / "v.csv", tanks)
+    c, _ = validate_file(rec, str(tanks), params=est, set_values="a=2.5", initial="x1=6")
+    said = " ".join(c.notes)
+    assert f"not in {est}: the declaration's values of b = 0.03" in said
+    assert "--set a=2.5 lies outside [estimation.plausible]: a must be < 1" in said
+    bare, _ = validate_file(rec, str(tanks), initial="x1=6")
+    assert "no parameter file (--params): the declaration's values of k = 0.04, a = 0.03, " \
+        "b = 0.03" in " ".join(bare.notes)
 
 
 def test_a_divergence_names_the_time_and_the_state(tanks: Path) -> None:
@@ -217,6 +251,9 @@ def test_initial_state_settings_are_checked(tmp_path: Path) -> None:
             get_model(str(p))
         except ConfigError as err:
             assert needle in str(err), err
+    p.write_text(TANKS.replace("x1 = { ge = 0.0, le = 30.0 }", 'x1 = "estimated"\nx2 = "declared"'))
+    settings_ = get_model(str(p)).spec.simulation
+    assert settings_.of("x1").mode == "estimate" and settings_.of("x2").mode == "declared"
 
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -340,3 +377,71 @@ def test_no_steady_state_is_said_not_called_absent(tmp_path: Path) -> None:
     why = fit.identifiability.reasons["b"]
     assert "no steady state at the start values in the window 100-200 s" in why, why
     assert "do not contain" not in why
+
+
+LEAKY = """
+name = "leaky"
+[parameters]
+k = { value = 0.5, unit = "1/s" }
+a = { value = 0.2, unit = "1/s" }
+c = { value = CVAL, unit = "1/(V s)" }
+[inputs]
+u = { nominal = 3.0, unit = "V" }
+[states]
+x = { derivative = "k*u - a*x - c*x**2", initial = 5.0, unit = "V" }
+[sensors]
+y = { measures = "x", noise = 0.01, unit = "V" }
+[test]
+duration = 400.0
+sample_rate = 2.0
+[estimation]
+estimate = ["k", "a", "c"]
+starts = 1
+sample_interval = [0.1, 10.0]
+[estimation.plausible]
+k = { gt = 0.0, lt = 10.0 }
+a = { gt = 0.0, lt = 10.0 }
+c = { ge = 0.0, lt = 10.0 }
+"""
+
+
+@pytest.mark.parametrize(("declared", "held"), [("0.01", True), ("0.03", False)])
+def test_a_collinear_unknown_is_held_only_where_the_data_allow(tmp_path: Path, declared: str,
+                                                               held: bool) -> None:
+    # a and c trade with k over the small range x covers; the truth is c = 0.01. Declared at
+    # the truth, holding a and c costs nothing and they are held; declared at three times
+    # the truth, holding would bias k, and all three stay estimated
+    p = tmp_path / "leaky.toml"
+    p.write_text(LEAKY.replace("CVAL", declared))
+    c = get_model(str(p)).plant.compile()
+    n = 800
+    u = np.repeat(2.0 + np.random.default_rng(0).random(n // 40 + 1), 40)[:n]
+    truth = {"k": 0.5, "a": 0.2, "c": 0.01}
+    sim = simulate_recorded(c, u[:, None], 0.5, np.array([5.0]), c.parameter_vector(truth),
+                            substeps=4)
+    y = sim.outputs[:, 0] + 0.01 * np.random.default_rng(5).standard_normal(n)
+    res = estimate(pd.DataFrame({"t": 0.5 * np.arange(n), "u": u, "y": y}), str(p),
+                   route="simulation")
+    assert res.accepted, res.rejection
+    assert bool(res.held) is held, res.notes
+    for k, v in truth.items():
+        se = res.std_errors[k]
+        assert abs(res.parameters[k] - v) <= max(4 * se, 1e-9 * v), (k, res.parameters, se)
+    said = " ".join(res.notes)
+    assert ("likelihood ratio" in said) is held and ("Wald statistic" in said)
+
+
+@pytest.mark.parametrize(("x1", "warned"), [("6.0", False), ("4.0", True)])
+def test_a_declared_initial_state_that_is_wrong_is_said(tanks: Path, tmp_path: Path, x1: str,
+                                                        warned: bool) -> None:
+    # the record starts at x1 = 6; declared at 4 the fit is biased, and the note says the
+    # simulation misses by far more than the sensor's noise
+    text = tanks.read_text().replace('x1 = { ge = 0.0, le = 30.0 }', 'x1 = "declared"')
+    tanks.write_text(text.replace('derivative = "k*u - a*x1", initial = 4.0',
+                                  f'derivative = "k*u - a*x1", initial = {x1}'))
+    res = estimate(pd.read_csv(_record(tmp_path / "r.csv", tanks)), str(tanks))
+    assert res.initial_states["x1"] == (float(x1), 0.0, "declared")
+    said = [n for n in res.notes if "times the sensor's declared noise" in n]
+    assert bool(said) is warned, res.notes
+    if warned:
+        assert "misses y by" in said[0] and " V RMS" in said[0]

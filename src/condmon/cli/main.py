@@ -133,13 +133,28 @@ _HOW = {"inverse": "inverse model", "oe": "output error", "steady": "steady bala
         "simulation": "simulation error"}
 
 
+def _state_units(res: Any) -> dict[str, str]:
+    """Units of the model's states, for the initial-state rows (empty when the
+    model cannot be read again)."""
+    from condmon.errors import CondmonError
+    from condmon.models.registry import get_model
+
+    try:
+        plant = get_model(res.model_source or res.model).plant
+    except CondmonError:
+        return {}
+    return {s.name: s.unit for s in plant.states}
+
+
 def _print_estimate(res: Any, record: str, systematic: dict[str, float] | None = None) -> None:
     """One regime's estimate as a table, its fit, windows and notes; ``systematic``:
     the record's systematic parts, by stored name (a column when given)."""
     how = (("closed-loop instruments" if res.closed_loop_instruments else "direct approach")
            if res.route == "linear" else _HOW.get(res.route, res.route))
     regime = f", regime {res.regime}" if res.regime else ""
-    title = escape(f"{record} — {res.model}, {res.method.upper()}, {how}{regime}")
+    method = res.method.upper()
+    said = method if method.lower().replace("-", " ") == how else f"{method}, {how}"
+    title = escape(f"{record} — {res.model}, {said}{regime}")
     if any(math.isfinite(v) for v in res.parameters.values()):
         table = Table(title=title)
         from condmon.models.regimes import regime_key
@@ -158,13 +173,18 @@ def _print_estimate(res: Any, record: str, systematic: dict[str, float] | None =
             table.add_row(escape(k), fmt(v),
                           fmt(res.std_errors[k]) if k in res.identified else "—", *extra,
                           escape(res.units[k]), source)
+        state_units = _state_units(res) if res.initial_states else {}
+        for k, (v, se, how_set) in res.initial_states.items():
+            table.add_row(escape(f"{k}(0)"), fmt(v), fmt(se) if how_set == "estimated" else "—",
+                          *(("—",) if sys_ else ()), escape(state_units.get(k, "")),
+                          f"initial, {how_set}")
         out.print(table)
     else:
         out.print(title, highlight=False)
     fits = ", ".join(f"{k} {v:.1f} %" for k, v in res.fit.fits_percent.items())
     verdict = (f"[green]accepted[/green] (threshold {res.fit.threshold:g} %)" if res.accepted
                else f"[red]rejected[/red]: {escape(str(res.reason))}")
-    out.print(f"fit {res.fit_percent:.1f} % ({fits}) — {verdict}" if fits else verdict)
+    out.print(f"fit {res.fit_percent:.1f} % (100 R²; {fits}) — {verdict}" if fits else verdict)
     if res.windows and (len(res.windows) > 1 or res.windows[0].regime):
         several = len({w.source for w in res.windows}) > 1
         for w in res.windows:

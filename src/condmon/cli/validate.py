@@ -18,7 +18,7 @@ __all__ = ["register"]
 
 ParamsOpt = Annotated[Optional[Path], typer.Option("--params", help="Parameters: the JSON of condmon estimate --json (its parameters, constants and initial states).")]
 SetOpt = Annotated[Optional[str], typer.Option("--set", help="Parameter values NAME=VALUE,... over the file's and the declaration's [SI].")]
-InitialOpt = Annotated[str, typer.Option("--initial", help="Initial states: 'estimated' (the parameter file's; a state it lacks from the first sample, else declared), 'first-sample' (each state a sensor gives back from its first reading), or NAME=VALUE,... per state.")]
+InitialOpt = Annotated[str, typer.Option("--initial", help="Initial states: 'estimated' (the parameter file's; a state it lacks from the first sample, else declared), 'first-sample' (each state a sensor gives back from its first reading), 'fit' (the states that best simulate this record, the parameters fixed: MATLAB compare's default), or NAME=VALUE,... per state.")]
 ColumnsOpt = Annotated[Optional[str], typer.Option(help="Column mapping CANONICAL=FILE_COLUMN,... e.g. u=uVal,y=yVal.")]
 
 
@@ -37,7 +37,7 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
         scale: ScaleOpt = None,
         offset: OffsetOpt = None,
         ignore: IgnoreOpt = None,
-        figure: Annotated[Optional[Path], typer.Option(help="Measured-against-model figure (PNG); default beside the parameter file (or the record): <name>.validation.png.")] = None,
+        figure: Annotated[Optional[Path], typer.Option(help="Measured-against-model figure (PNG); default beside the parameter file (or the record): NAME.validation.png.")] = None,
         as_json: Annotated[bool, typer.Option("--json", help="Print the figures as JSON.")] = False,
     ) -> None:
         """Simulate the model on a record's inputs and compare with its outputs: RMSE and fit % per output (MATLAB's compare)."""
@@ -53,7 +53,7 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
             write_json({**c.to_dict(), "figure": str(written) if written else None})
             return
         table = Table(title=escape(f"{record} — {c.model}, simulated on the record's inputs"))
-        for col in ("output", "RMSE", "unit", "fit %"):
+        for col in ("output", "RMSE", "unit", "fit % (NRMSE)"):
             table.add_column(col, justify="left" if col in ("output", "unit") else "right")
         for name in c.outputs:
             table.add_row(escape(name), fmt(c.rmse[name]), escape(c.units.get(name, "")),
@@ -68,7 +68,7 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
     @simulate_app.command("record")
     def simulate_record_cmd(
         record: Annotated[Path, typer.Argument(help="Record with the model's inputs (and sensors, written beside the simulated ones).")],
-        out_path: Annotated[Path, typer.Option("--out", help="Output file (.csv or .parquet): t, the inputs, <sensor>_sim and the measured <sensor>.")],
+        out_path: Annotated[Path, typer.Option("--out", help="Output file (.csv or .parquet): t, the inputs, SENSOR_sim, the measured SENSOR, and STATE_sim for each state.")],
         model: ModelOpt = "dc-motor",
         params: ParamsOpt = None,
         set_values: SetOpt = None,

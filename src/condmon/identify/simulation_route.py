@@ -52,10 +52,11 @@ from condmon.identify.shooting_fit import (
     start_vector,
 )
 from condmon.io.records import Record
+from condmon.models.declared import PlantModel
 from condmon.models.machine import Machine
 from condmon.simulate.recorded import choose_substeps
 
-__all__ = ["SimulationRouteResult", "simulation_route"]
+__all__ = ["SimulationRouteResult", "fit_initial_states", "simulation_route"]
 
 FloatArray = NDArray[np.float64]
 _SHORT_RUN = 10         # optimiser evaluations of each start before the best is polished
@@ -95,6 +96,9 @@ class SimulationRouteResult(RouteResult):
         output's spread in the record. [-]
     dof : int
         Output residuals less the unknowns fitted (initial states included).
+    covariance_white : ndarray, optional
+        The unknowns' covariance as if the residuals were white (before the
+        batch-means widening). [SI²]
     """
 
     initial: dict[str, tuple[float, float, str]]
@@ -106,6 +110,7 @@ class SimulationRouteResult(RouteResult):
     notes: tuple[str, ...] = ()
     cost: float = math.nan
     dof: int = 0
+    covariance_white: FloatArray | None = None
 
 
 def simulation_route(rec: Record | Sequence[Record], machine: Machine,
@@ -218,43 +223,55 @@ def simulation_route(rec: Record | Sequence[Record], machine: Machine,
     if not weak or len(weak) == len(prob.free):
         return res
     # Held only when the data allow it: the Wald test of "each one is at its start
-    # value" on the full fit's covariance (the likelihood-ratio test to first
-    # order), at 1 %. A collinear set the record still determines (a small noise)
-    # stays estimated, and its standard errors carry the collinearity.
+    # value" on the white-noise covariance (the likelihood-ratio test to first
+    # order), at 1 %, and then the likelihood ratio itself on the refit. The
+    # white-noise figures are the strict ones: a correlated residual only makes
+    # holding look cheaper, and a held value that is wrong biases every other.
     from scipy.stats import chi2
 
     unknowns = machine.spec.unknowns
     pos = [unknowns.index(k) for k in weak]
     d = np.array([res.values[k] - float(start[k]) for k in weak])
+    cov_w = res.covariance if res.covariance_white is None else res.covariance_white
     try:
-        wald = float(d @ np.linalg.solve(res.covariance[np.ix_(pos, pos)], d))
+        wald = float(d @ np.linalg.solve(cov_w[np.ix_(pos, pos)], d))
     except np.linalg.LinAlgError:
         wald = math.inf
     limit = float(chi2.ppf(0.99, len(weak)))
-    if not wald <= limit:
+    again = None
+    if wald <= limit:
+        moved = {**start, **{k: v for k, v in res.values.items() if k not in weak and k in start}}
+        again = simulation_route(records, machine, moved, constants=constants,
+                                 fit_threshold=fit_threshold, seed=seed, held=(*held, *weak),
+                                 starts=1)
+    lr = math.inf if again is None or again.segments != res.segments else \
+        res.dof * 2.0 * math.log(max(again.cost, 1e-300)
+                                                     / max(res.cost, 1e-300))
+    if again is None or lr > limit:
+        why = (f"Wald statistic {wald:.3g} > {limit:.3g}, 1 %" if again is None else
+               f"held, the error rose from {res.cost:.4g} to {again.cost:.4g}: likelihood "
+               f"ratio {lr:.3g} > {limit:.3g}, 1 %")
         said = (f"{', '.join(weak)}: {'; '.join(idf.reasons[k] for k in weak)}; but "
                 f"{'it is' if len(weak) == 1 else 'they are'} away from the start value by more "
-                f"than the noise allows (Wald statistic {wald:.3g} > {limit:.3g}, 1 %): the "
-                "record determines them, and their standard errors carry the collinearity")
+                f"than the noise allows ({why}): the record determines them, and their "
+                "standard errors carry the collinearity")
         full = dataclasses.replace(idf, identifiable=tuple(k for k in idf.parameters
                                                            if k not in held),
                                    reasons={k: v for k, v in idf.reasons.items()
                                             if k not in weak})
         return dataclasses.replace(res, identifiability=full, notes=(*res.notes, said))
-    moved = {**start, **{k: v for k, v in res.values.items() if k not in weak and k in start}}
-    again = simulation_route(records, machine, moved, constants=constants,
-                             fit_threshold=fit_threshold, seed=seed, held=(*held, *weak),
-                             starts=1)
     kept = dataclasses.replace(idf, identifiable=tuple(k for k in idf.parameters
                                                        if k not in weak and k not in held))
     said = (f"{', '.join(weak)} held at {'its' if len(weak) == 1 else 'their'} start "
             f"value{'s' if len(weak) > 1 else ''} (not identified at the optimum, and within "
             f"the noise of {'it' if len(weak) == 1 else 'them'}: Wald statistic {wald:.3g} <= "
-            f"{limit:.3g}); the others estimated again from it: "
-            f"normalised RMS error {again.cost:.4g}, {again.evaluations} more evaluations")
+            f"{limit:.3g}; held, the error went from {res.cost:.4g} to {again.cost:.4g}, "
+            f"likelihood ratio {lr:.3g} <= {limit:.3g}); the others estimated again from it, "
+            f"{again.evaluations} more evaluations")
     return dataclasses.replace(again, identifiability=kept, start_costs=res.start_costs,
                                spread=res.spread, evaluations=res.evaluations + again.evaluations,
                                notes=(*res.notes, said))
+
 
 def _solve(prob: FitProblem, z0: FloatArray, lo: FloatArray, hi: FloatArray, sigma: FloatArray,
            xscale: FloatArray, max_nfev: int) -> tuple[FloatArray, float, int]:
@@ -300,6 +317,7 @@ def _result(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: FloatArr
                               f"(condition number {cond:.3g}); the record does not excite "
                               "every unknown, or an initial state and a parameter trade off")
     cov_z = np.asarray(np.linalg.inv(info), dtype=np.float64)
+    white_z = cov_z
     cov_z, widened, batches = batch_widened(prob, J, e / resid_sd, cov_z)
     if widened > 1.0:
         notes.append(f"standard errors: the larger of the white-noise bound and the batch-means "
@@ -318,6 +336,8 @@ def _result(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: FloatArr
     cov = np.zeros((len(unknowns), len(unknowns)))
     pos = [unknowns.index(k) for k in prob.free]
     cov[np.ix_(pos, pos)] = cov_z[:nf, :nf]
+    cov_white = np.zeros_like(cov)
+    cov_white[np.ix_(pos, pos)] = white_z[:nf, :nf]
     first = prob.x_first[0].copy()
     se0 = np.zeros(len(first))
     for i, j in enumerate(prob.est0):
@@ -332,6 +352,7 @@ def _result(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: FloatArr
         figures = residual_figures(y[:, j], e[:, j])
         r2[name], nrmse[name], white[name] = figures.r2, figures.nrmse, figures.whiteness
     fit_pct = 100.0 * float(np.mean(list(r2.values())))
+    notes.extend(_beyond_noise(plant, e))
     fit = FitCheck(r2, fit_pct, float(fit_threshold), bool(fit_pct >= fit_threshold))
     costs = tuple(float(c) for _, c, _ in runs)
     best = min(costs)
@@ -340,7 +361,8 @@ def _result(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: FloatArr
     notes.insert(0, f"simulation error: the model run on the record's inputs (fourth-order "
                     f"Runge-Kutta, {prob.substeps} step(s) per sample), sensitivities by "
                     f"forward differences, {evaluations} optimiser evaluations")
-    notes.append(f"{len(costs)} start(s) reached normalised RMS errors "
+    notes.append(f"{len(costs)} start(s) reached RMS errors (each output's over its "
+                 "standard deviation in the record) of "
                  + ", ".join(f"{c:.4g}" for c in costs)
                  + f"; {reached} reached the best"
                  + (f", their unknowns within {100 * widest:.2g} % of each other"
@@ -348,4 +370,81 @@ def _result(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: FloatArr
     return SimulationRouteResult(values, cov, fit, nrmse, white, initial, costs, spread,
                                  prob.substeps, max(1, len(prob.seg) // len(prob.x_first)),
                                  evaluations, tuple(notes), cost, n_out - z.size,
-                                 identifiability=idf)
+                                 cov_white, identifiability=idf)
+
+
+
+def fit_initial_states(rec: Record, machine: Machine, params: Mapping[str, float],
+                       start: Mapping[str, float]) -> dict[str, tuple[float, float]]:
+    """The initial states that best simulate ``rec`` with the parameters fixed
+    (MATLAB ``compare``'s default): the states ``[estimation.initial]`` leaves
+    unknown, within its bounds, from ``start``; by single shooting.
+
+    Parameters
+    ----------
+    rec : Record
+    machine : Machine
+    params : mapping
+        Parameter values over the declared ones. [SI]
+    start : mapping
+        Every state's starting value. [state units]
+
+    Returns
+    -------
+    dict of str to (float, float)
+        Each fitted state's value and standard error (white-noise bound). [state units]
+
+    Raises
+    ------
+    EstimationError
+        When the model does not simulate the record from ``start``.
+    """
+    plant = machine.plant
+    prob = fit_layout([rec], machine, params, {}, 1, held=machine.spec.unknowns)
+    if not prob.est0:
+        return {}
+    names = plant.state_names
+    prob.x_first[0] = np.array([float(start[n]) for n in names], dtype=np.float64)
+    y = prob.y[0]
+    spread = np.std(y, axis=0)
+    noise = np.array([s.noise for s in plant.sensors])
+    tol = 0.1 * np.maximum(noise, 1e-3 * np.where(spread > 0, spread, 1.0))
+    z0 = start_vector(prob)
+    p, x0 = prob.unpack(z0[:, None])
+    prob.substeps = choose_substeps(plant.compile(), prob.u[:, :, 0], prob.dt, x0[:, 0, :], p,
+                                    tol)
+    sigma = np.where(spread > 0, spread, 1.0)
+    xscale = np.ones(prob.n_x)
+    lo, hi = fit_bounds(prob)
+    z, cost, _ = _solve(prob, z0, lo, hi, sigma, xscale, _POLISH)
+    if not math.isfinite(cost):
+        raise EstimationError(f"{rec.source}: the model does not simulate this record from "
+                              "the starting initial states; give them with --initial "
+                              "NAME=VALUE,...")
+    r, _ = residuals(prob, z[:, None], sigma, xscale)
+    sd = np.maximum(np.std(r[:, 0].reshape(-1, len(sigma)) * sigma, axis=0), 1e-300)
+    J = jacobian(prob, z, sd, xscale, lo, hi)
+    with np.errstate(all="ignore"):
+        cov = np.linalg.pinv(J.T @ J)
+    se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    return {names[j]: (float(z[i]), float(se[i])) for i, j in enumerate(prob.est0)}
+
+# A model that describes the record leaves the sensor's noise: an RMS error twice the
+# declared noise is a variance four times what the sensor makes, more than a noise level
+# declared from a data sheet is normally off by.
+_NOISE_FACTOR = 2.0
+
+
+def _beyond_noise(plant: PlantModel, e: FloatArray) -> list[str]:
+    """A note per sensor whose simulation error is beyond its declared noise."""
+    out = []
+    for j, s in enumerate(plant.sensors):
+        rms = math.sqrt(float(np.mean(e[:, j] ** 2)))
+        if s.noise > 0 and rms > _NOISE_FACTOR * s.noise:
+            unit = f" {s.unit}".rstrip()
+            out.append(f"the simulation misses {s.name} by {rms:.3g}{unit} RMS, {rms / s.noise:.3g} "
+                       f"times the sensor's declared noise ({s.noise:g}{unit}): the model, a "
+                       "declared value or a 'declared' initial state does not describe this "
+                       "record to the sensor's accuracy; the estimates are the best this model "
+                       "does, and their standard errors hold only as far as the model does")
+    return out

@@ -146,7 +146,7 @@ beyond the tolerance, first at row 3 (resample first)
     bad = np.flatnonzero(~np.isfinite(arr))
     if bad.size:
         raise DataError(f"{source}: column {column!r} has {bad.size} NaN/inf value(s), "
-                        f"first at row {bad[0]}")
+                        f"first at {_row(int(bad[0]))}")
     with np.errstate(over="ignore", invalid="ignore"):
         dts = np.diff(arr)
     if np.any(~(dts > 0)):
@@ -222,11 +222,11 @@ def validate_record(df: pd.DataFrame | Columns, required: Sequence[str],
                 raise DataError(f"{src}: column {name!r} has {last_good[-1] + 1} samples "
                                 f"but the record has {n_rows} rows (mismatched lengths)")
             raise DataError(f"{src}: column {name!r} has {bad_idx.size} NaN/inf value(s), "
-                            f"first at row {bad_idx[0]}")
+                            f"first at {_row(int(bad_idx[0]))}")
         huge = np.flatnonzero(np.abs(arr) > MAX_MAGNITUDE)
         if huge.size:
             raise DataError(f"{src}: column {name!r} has {huge.size} value(s) beyond "
-                            f"{MAX_MAGNITUDE:g} in magnitude (row {huge[0]}: {arr[huge[0]]:.6g}); "
+                            f"{MAX_MAGNITUDE:g} in magnitude ({_row(int(huge[0]))}: {arr[huge[0]]:.6g}); "
                             "a corrupt or mis-scaled column?")
         cols[name] = arr
     if n_rows < min_samples:
@@ -316,3 +316,9 @@ def write_record(df: pd.DataFrame, path: str | Path) -> Path:
     else:
         raise DataError(f"{p}: unknown file type {suffix!r}; allowed: .csv, .parquet")
     return p
+
+
+def _row(i: int) -> str:
+    """A 0-based sample index said both ways a user looks it up: the frame's row,
+    and the line of a file whose first line is the header."""
+    return f"row {i} (from 0; line {i + 2} of a file with a header line)"

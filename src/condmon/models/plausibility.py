@@ -166,7 +166,8 @@ class Plausibility:
                                  f"cannot tell it from {b:g}")
         return notes
 
-    def check_timing(self, dt: float, duration: float, source: str, model: str) -> None:
+    def check_timing(self, dt: float, duration: float, source: str, model: str,
+                     purpose: str = "a trustworthy estimate") -> None:
         """Refuse a record the model cannot be estimated from.
 
         Raises
@@ -187,7 +188,7 @@ class Plausibility:
                             f"{lo:g}..{hi:g} s the {model} model needs{hint}")
         if duration < self.min_duration * (1 - 1e-9):
             raise DataError(f"{source}: the record lasts {duration:.4g} s; the {model} model "
-                            f"needs at least {self.min_duration:g} s for a trustworthy estimate")
+                            f"needs at least {self.min_duration:g} s for {purpose}")
 
     def check_against_baseline(self, values: Mapping[str, float],
                                baseline: Mapping[str, float],

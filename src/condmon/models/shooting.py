@@ -109,6 +109,9 @@ def parse_simulation_settings(est: Mapping[str, Any], states: tuple[str, ...],
             raise ConfigError(f"{w}: {name!r} is not a state of the model; allowed: "
                               f"{', '.join(states)}")
         if isinstance(entry, str):
+            # "estimated" and "first sample" read as a user writes them
+            entry = {"estimated": "estimate", "first sample": "first-sample"}.get(entry.strip(),
+                                                                             entry.strip())
             if entry not in INITIAL_MODES:
                 raise ConfigError(f"{w}: unknown setting {entry!r}; allowed: "
                                   f"{', '.join(INITIAL_MODES)}, or a table of bounds "

@@ -12,7 +12,9 @@ its sensor readings are set beside the measured ones:
 Which initial states to start from is the benchmark's rule, and the caller's
 choice (:func:`initial_states`): the ones the estimate found (the cascaded
 tanks' rule: the validation record starts where the estimation record did),
-or each measured state from the record's first reading.
+each measured state from the record's first reading, or the states that best
+simulate the record itself (MATLAB ``compare``'s default, fitted by
+:func:`~condmon.identify.simulation_route.fit_initial_states`).
 """
 
 from __future__ import annotations
@@ -35,8 +37,9 @@ __all__ = ["Comparison", "compare_model", "initial_states", "INITIAL_RULES"]
 
 FloatArray = NDArray[np.float64]
 
-#: How ``condmon validate`` may start the simulation.
-INITIAL_RULES = ("estimated", "first-sample")
+#: How ``condmon validate`` may start the simulation ("fit": the states fitted on the
+#: record itself, MATLAB ``compare``'s default; :func:`initial_states` gives its start).
+INITIAL_RULES = ("estimated", "first-sample", "fit")
 
 
 @dataclass(frozen=True)
@@ -67,6 +70,8 @@ class Comparison:
     substeps : int
         Runge-Kutta steps per sample.
     notes : tuple of str
+    states : ndarray, shape (N, n_states), optional
+        The simulated states, in the model's order. [state units]
     """
 
     source: str
@@ -82,6 +87,7 @@ class Comparison:
     parameters: dict[str, float]
     substeps: int
     notes: tuple[str, ...] = field(default=())
+    states: FloatArray | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready figures (no samples)."""
@@ -104,12 +110,14 @@ def initial_states(machine: Machine, record: Record, rule: str,
     ----------
     machine : Machine
     record : Record
-    rule : {"estimated", "first-sample"}
+    rule : {"estimated", "first-sample", "fit"}
         "estimated": the estimate's initial states (``estimated``); a state it
         lacks starts from the first reading when a sensor gives it back, else
         from its declared initial value. "first-sample": every state a sensor
         gives back (:func:`~condmon.models.shooting.state_readers`) from the
-        record's first reading, the others as "estimated".
+        record's first reading, the others as "estimated". "fit": as
+        "estimated", the start of
+        :func:`~condmon.identify.simulation_route.fit_initial_states`.
     estimated : mapping, optional
         The estimate's initial states. [state units]
     given : mapping, optional
@@ -136,7 +144,7 @@ def initial_states(machine: Machine, record: Record, rule: str,
     for s in plant.states:
         if given and s.name in given:
             out[s.name] = (float(given[s.name]), "given")
-        elif rule == "estimated" and estimated and s.name in estimated:
+        elif rule in ("estimated", "fit") and estimated and s.name in estimated:
             out[s.name] = (float(estimated[s.name]), "estimated")
         elif s.name in readers:
             j, fn = readers[s.name]
@@ -205,4 +213,4 @@ def compare_model(record: Record, machine: Machine, params: Mapping[str, float],
     values = dict(zip(plant.parameter_names, map(float, p)))
     return Comparison(record.source, machine.name, sim.t, plant.sensor_names, y, sim.outputs,
                       {s.name: s.unit for s in plant.sensors}, rmse, fit, dict(initial), values,
-                      sub, notes)
+                      sub, notes, sim.states)

@@ -200,6 +200,9 @@ def simulate_recorded(compiled: CompiledModel, u: FloatArray, dt: float,
         raise Diverged(f"{source + ': ' if source else ''}the simulation diverged at "
                        f"t = {k * dt:g} s: state{'s' if len(names) > 1 else ''} "
                        f"{', '.join(repr(n) for n in names)} left the finite numbers"
-                       + (f" (last finite at t = {(k - 1) * dt:g} s: {last})" if last else ""),
+                       + (f" (last finite at t = {(k - 1) * dt:g} s: {last})" if last else "")
+                       + f"; {substeps} Runge-Kutta step(s) per sample: where the model is "
+                       "stable with these values, the step is too large for it (a stiff "
+                       "model; resample the record faster)",
                        k * dt, names[0])
     return RecordedSimulation(np.arange(len(u), dtype=np.float64) * dt, xs, ys, substeps)

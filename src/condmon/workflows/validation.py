@@ -143,17 +143,82 @@ def _setup(record: str | Path, model: str, params: str | Path | None, set_values
     plant = machine.plant
     pf = read_parameter_file(params, machine) if params is not None else None
     values = dict(pf.parameters) if pf else {}
-    values.update(parse_assignments(set_values, plant.parameter_names, "parameter", "--set"))
+    given_values = parse_assignments(set_values, plant.parameter_names, "parameter", "--set")
+    values.update(given_values)
+    notes = list(pf.notes) if pf else []
+    notes += _parameter_notes(machine, values, given_values, pf)
     frame = opts.read(record)
+    # ten samples per state and one more: fewer cannot show a state's dynamics, and an
+    # RMSE over a handful of samples is no validation
     rec = validate_record(frame, (*plant.input_names, *plant.sensor_names),
-                          min_samples=2, source=str(record))
+                          min_samples=10 * (len(plant.state_names) + 1), source=str(record))
+    machine.spec.plausibility.check_timing(rec.dt, rec.dt * len(rec), rec.source, machine.name,
+                                           purpose="a trustworthy validation")
     if "=" in initial:
         given = parse_assignments(initial, plant.state_names, "state", "--initial")
         rule = "estimated"
     else:
         given, rule = {}, initial.strip()
     start = initial_states(machine, rec, rule, pf.initial if pf else None, given, values)
-    return machine, rec, values, start, pf.notes if pf else ()
+    if rule == "fit":
+        from condmon.identify.simulation_route import fit_initial_states
+
+        fitted = fit_initial_states(rec, machine, values, {k: v for k, (v, _) in start.items()})
+        for k, (v, se) in fitted.items():
+            if k not in given:
+                start[k] = (v, f"fitted on this record, standard error {se:.3g}")
+        notes.append("initial states fitted on this record with the parameters fixed "
+                     "(MATLAB compare's default): the figures show the parameters, not how "
+                     "well the initial states were known")
+    elif rule == "estimated":
+        notes += _start_mismatch(machine, rec, start, values)
+    return machine, rec, values, start, tuple(notes)
+
+
+def _parameter_notes(machine: Machine, values: Mapping[str, float],
+                     given: Mapping[str, float], pf: ParameterFile | None) -> list[str]:
+    """Which estimated quantities fall back on the declaration, and which given
+    values lie outside ``[estimation.plausible]``."""
+    notes = []
+    declared = machine.plant.parameter_values()
+    missing = [k for k in machine.spec.unknowns if k not in values and k in declared]
+    if missing:
+        where = f"not in {pf.path}" if pf else "no parameter file (--params)"
+        notes.append(f"{where}: the declaration's values of "
+                     + ", ".join(f"{k} = {declared[k]:.6g}" for k in missing))
+    bounds = machine.spec.plausibility.bounds
+    for k, v in given.items():
+        why = bounds[k].violation(v) if k in bounds else None
+        if why is not None:
+            notes.append(f"--set {k}={v:g} lies outside [estimation.plausible]: {k} {why}; "
+                         "simulated as given")
+    return notes
+
+
+def _start_mismatch(machine: Machine, rec: Record, start: Mapping[str, tuple[float, str]],
+                    values: Mapping[str, float]) -> list[str]:
+    """A note when a measured state's estimated start is far from this record's
+    first reading: the record did not start where the estimation record did."""
+    from condmon.models.shooting import state_readers
+
+    plant = machine.plant
+    p = plant.compile().parameter_vector(values)
+    far = []
+    for name, (j, fn) in state_readers(plant).items():
+        v, how = start[name]
+        if how != "estimated":
+            continue
+        y0 = float(rec[plant.sensor_names[j]][0])
+        read = float(fn(y0, p))
+        noise = abs(float(fn(y0 + plant.sensors[j].noise, p)) - read)
+        if abs(v - read) > 3.0 * max(noise, 1e-12 * max(abs(read), 1.0)):
+            far.append(f"{name} starts at {v:.4g} (estimated) but this record's first reading "
+                       f"gives {read:.4g}")
+    if not far:
+        return []
+    return ["; ".join(far) + ": the record did not start where the estimation record did, so "
+            "the estimated initial states (the unmeasured ones too) may not hold here; "
+            "--initial fit fits them on this record, --initial first-sample reads them"]
 
 
 def validate_file(record: str | Path, model: str, *, params: str | Path | None = None,
@@ -172,8 +237,9 @@ def validate_file(record: str | Path, model: str, *, params: str | Path | None =
     set_values : str, optional
         ``NAME=VALUE,...`` parameters over the file's and the declaration's. [SI]
     initial : str
-        "estimated" (the file's initial states), "first-sample", or
-        ``NAME=VALUE,...`` per state (the others as "estimated").
+        "estimated" (the file's initial states), "first-sample", "fit" (fitted
+        on this record with the parameters fixed), or ``NAME=VALUE,...`` per
+        state (the others as "estimated").
     options : EstimateOptions, optional
         How to read the record (columns, sample rate, scale, offset).
     figure : str or Path, optional
@@ -204,8 +270,8 @@ def simulate_file(record: str | Path, model: str, out: str | Path, *,
                   initial: str = "estimated",
                   options: EstimateOptions | None = None) -> Comparison:
     """Simulate ``model`` on ``record``'s inputs and write ``t``, the inputs,
-    the simulated sensor readings (as ``<sensor>_sim``) and the measured ones
-    to ``out`` (CSV or Parquet)."""
+    the simulated sensor readings (as ``<sensor>_sim``), the measured ones, and
+    the simulated states (as ``<state>_sim``) to ``out`` (CSV or Parquet)."""
     from condmon.io.records import write_record
 
     c, _ = validate_file(record, model, params=params, set_values=set_values, initial=initial,
@@ -227,6 +293,10 @@ def _frame(c: Comparison, machine: Machine, record: str | Path, opts: EstimateOp
     for j, name in enumerate(c.outputs):
         cols[f"{name}_sim"] = c.simulated[:, j]
         cols[name] = c.measured[:, j]
+    if c.states is not None:    # the states no sensor column already carries
+        for j, name in enumerate(machine.plant.state_names):
+            if f"{name}_sim" not in cols and name not in cols:
+                cols[f"{name}_sim"] = c.states[:, j]
     return pd.DataFrame(cols)
 
 

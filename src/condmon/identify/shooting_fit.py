@@ -21,8 +21,8 @@ from condmon.models.shooting import state_readers
 from condmon.simulate.recorded import simulate_copies
 
 __all__ = ["DEFECT_WEIGHT", "FitProblem", "batch_widened", "bounds_of", "first_initials",
-           "fit_bounds", "fit_layout", "jacobian", "residuals", "row_blocks", "start_vector",
-           "state_owners"]
+           "fit_bounds", "fit_layout", "jacobian", "residuals", "restart_vector", "row_blocks",
+           "start_vector", "state_owners"]
 
 FloatArray = NDArray[np.float64]
 DEFECT_WEIGHT = 30.0   # a segment's jump counts as this many noise levels per state scale
@@ -172,6 +172,26 @@ def start_vector(prob: FitProblem, single: FitProblem | None = None,
                 if n in readers:
                     x[j] = float(readers[n][1](prob.y[i][0, readers[n][0]], prob.base))
             z.append(x)
+    return np.clip(np.concatenate(z), lo, hi)
+
+
+def restart_vector(prob: FitProblem, old: FitProblem, z_old: FloatArray) -> FloatArray:
+    """Start of ``prob`` (the same records cut finer) from ``old``'s optimum: its
+    parameters and first initial states, and each new segment's states where
+    ``old``'s segment through that sample had them (a sensed state read)."""
+    lo, hi = fit_bounds(prob)
+    nf = len(old.free)
+    z = [z_old[:nf], first_initials(old, z_old)]
+    xs = old.run(z_old[:, None])[0][:, :, :, 0]
+    readers = state_readers(prob.machine.plant)
+    for i in prob.cont():
+        r, a, _ = prob.seg[i]
+        k = next(k for k, (rr, aa, bb) in enumerate(old.seg) if rr == r and aa <= a < bb)
+        x = xs[a - old.seg[k][1], :, k].copy()
+        for j, n in enumerate(prob.machine.plant.state_names):
+            if n in readers:
+                x[j] = float(readers[n][1](prob.y[i][0, readers[n][0]], prob.base))
+        z.append(x)
     return np.clip(np.concatenate(z), lo, hi)
 
 

@@ -49,7 +49,7 @@ from condmon.identify.greybox import RouteResult
 from condmon.identify.identifiability import assess_identifiability
 from condmon.identify.shooting_fit import (
     batch_widened, fit_bounds, first_initials, jacobian, fit_layout, FitProblem, residuals,
-    start_vector,
+    restart_vector, start_vector,
 )
 from condmon.io.records import Record
 from condmon.models.declared import PlantModel
@@ -62,6 +62,7 @@ FloatArray = NDArray[np.float64]
 _SHORT_RUN = 10         # optimiser evaluations of each start before the best is polished
 _POLISH = 200
 _SAME_COST = 0.01       # starts within 1 % of the best cost reached it
+_REFINE = 3             # a drifting fit's segments are doubled at most this many times
 # The whole record is simulated from the segments' optimum and kept when its error stays
 # within a quarter of theirs: a right model's errors are the noise either way, while a
 # drift (an integrator, an unmodelled slow effect) grows with the time simulated.
@@ -215,6 +216,10 @@ def simulation_route(rec: Record | Sequence[Record], machine: Machine,
                          f"the whole record simulated from its optimum misses by "
                          f"{whole / ms_cost:.3g} times the segments' error (a drift), so the "
                          "figures are the segments'")
+            prob, z, n_refine, said = _refine(records, machine, start, consts, held, prob, z,
+                                              sigma, xscale)
+            evaluations += n_refine
+            notes.append(said)
     res = _result(prob, z, sigma, xscale, fit_threshold, runs, spread, evaluations, notes,
                   start, machine)
     assert res.identifiability is not None
@@ -273,6 +278,45 @@ def simulation_route(rec: Record | Sequence[Record], machine: Machine,
                                notes=(*res.notes, said))
 
 
+def _refine(records: Sequence[Record], machine: Machine, start: Mapping[str, float],
+            consts: Mapping[str, float], held: Sequence[str], prob: FitProblem, z: FloatArray,
+            sigma: FloatArray, xscale: FloatArray) -> tuple[FitProblem, FloatArray, int, str]:
+    """Where the model drifts, the segment length is a choice the figures must not
+    hang on: the segments are doubled, from the optimum, while the parameters
+    move by more than one standard error, at most :data:`_REFINE` times."""
+    nf = len(prob.free)
+    per = [len(prob.seg) // len(records)]
+    moves: list[float] = []
+    evaluations = 0
+    for _ in range(_REFINE):
+        finer = fit_layout(records, machine, start, consts, 2 * per[-1], held)
+        if len(finer.seg) <= len(prob.seg):
+            break   # segments of 20 samples: as fine as a segment goes
+        finer.substeps = prob.substeps
+        z2, cost, n = _solve(finer, restart_vector(finer, prob, z), *fit_bounds(finer), sigma,
+                             xscale, _POLISH)
+        evaluations += n
+        if not math.isfinite(cost):
+            break
+        cov = _covariance(finer, z2, sigma, xscale)[3]
+        se = np.sqrt(np.maximum(np.diag(cov)[:nf], 1e-300))
+        moves.append(float(np.max(np.abs(z2[:nf] - z[:nf]) / se)) if nf else 0.0)
+        prob, z = finer, z2
+        per.append(len(finer.seg) // len(records))
+        if moves[-1] <= 1.0:
+            break
+    if not moves:
+        return prob, z, evaluations, "the segments could not be cut finer"
+    path = " -> ".join(str(k) for k in per)
+    moved = ", then ".join(f"{m:.2g}" for m in moves)
+    tail = ("" if moves[-1] <= 1.0 else
+            "; they still move by more than one standard error: the estimates hang on how "
+            "the record is cut (an unmodelled drift), beyond what their standard errors say")
+    return prob, z, evaluations, (f"segments refined {path} per record, the parameters moving "
+                                  f"by {moved} standard errors; the figures are those of "
+                                  f"{per[-1]} segments{tail}")
+
+
 def _solve(prob: FitProblem, z0: FloatArray, lo: FloatArray, hi: FloatArray, sigma: FloatArray,
            xscale: FloatArray, max_nfev: int) -> tuple[FloatArray, float, int]:
     """One bounded least-squares run: (optimum, RMS of the normalised
@@ -296,16 +340,15 @@ def _solve(prob: FitProblem, z0: FloatArray, lo: FloatArray, hi: FloatArray, sig
     return z, float(np.sqrt(np.mean(sol.fun[:n_out] ** 2))), int(sol.nfev + sol.njev)
 
 
-def _result(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: FloatArray,
-            fit_threshold: float, runs: list[tuple[FloatArray, float, int]],
-            spread: dict[str, float], evaluations: int, notes: list[str],
-            start: Mapping[str, float], machine: Machine) -> SimulationRouteResult:
-    plant = machine.plant
-    r, xs = residuals(prob, z[:, None], sigma, xscale)
+def _covariance(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: FloatArray
+                ) -> tuple[float, FloatArray, FloatArray, FloatArray, FloatArray, float, int]:
+    """At the optimum ``z``: the cost, the output errors [sensor units], the
+    Jacobian, the widened and the white-noise covariances of ``z``, the largest
+    widening and the batches it was measured over."""
+    r, _ = residuals(prob, z[:, None], sigma, xscale)
     n_out = sum(y.size for y in prob.y)
     cost = math.sqrt(float(np.mean(r[:n_out, 0] ** 2)))
     e = r[:n_out, 0].reshape(-1, len(sigma)) * sigma  # the error in sensor units, stacked
-    y = np.vstack(prob.y)
     resid_sd = np.maximum(np.std(e, axis=0), 1e-300)
     lo, hi = fit_bounds(prob)
     J = jacobian(prob, z, resid_sd, xscale, lo, hi)
@@ -316,9 +359,19 @@ def _result(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: FloatArr
         raise EstimationError(f"simulation-error route: the sensitivities are singular "
                               f"(condition number {cond:.3g}); the record does not excite "
                               "every unknown, or an initial state and a parameter trade off")
-    cov_z = np.asarray(np.linalg.inv(info), dtype=np.float64)
-    white_z = cov_z
-    cov_z, widened, batches = batch_widened(prob, J, e / resid_sd, cov_z)
+    white = np.asarray(np.linalg.inv(info), dtype=np.float64)
+    cov, widened, batches = batch_widened(prob, J, e / resid_sd, white)
+    return cost, e, J, cov, white, widened, batches
+
+
+def _result(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: FloatArray,
+            fit_threshold: float, runs: list[tuple[FloatArray, float, int]],
+            spread: dict[str, float], evaluations: int, notes: list[str],
+            start: Mapping[str, float], machine: Machine) -> SimulationRouteResult:
+    plant = machine.plant
+    cost, e, J, cov_z, white_z, widened, batches = _covariance(prob, z, sigma, xscale)
+    n_out = sum(y.size for y in prob.y)
+    y = np.vstack(prob.y)
     if widened > 1.0:
         notes.append(f"standard errors: the larger of the white-noise bound and the batch-means "
                      f"estimate over {batches} contiguous batches; the residuals are correlated "

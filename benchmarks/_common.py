@@ -1,8 +1,14 @@
-"""Helpers shared by the benchmark scripts: result files and plain-text tables."""
+"""Helpers shared by the benchmark scripts: result files and plain-text tables.
+
+Every benchmark says the machine's load beside its figures: the 1-minute load
+average when this module is imported (the script's start) is printed then, and
+:func:`write_json` prints the load at the end and writes both into the result.
+"""
 
 from __future__ import annotations
 
 import json
+import os
 import platform
 import time
 from pathlib import Path
@@ -12,13 +18,20 @@ import numpy as np
 from scipy.signal import lfilter
 
 RESULTS = Path(__file__).parent / "results"
+LOAD_AT_START = os.getloadavg()[0]
+print(f"load average (1 min) at the start: {LOAD_AT_START:.2f} on {os.cpu_count()} cores",
+      flush=True)
 
 
 def write_json(name: str, doc: dict[str, Any]) -> Path:
     """Write ``results/<name>.json`` with a small provenance header."""
     RESULTS.mkdir(exist_ok=True)
+    end = os.getloadavg()[0]
+    print(f"load average (1 min) at the end: {end:.2f} on {os.cpu_count()} cores")
     doc = {"benchmark": name, "date": time.strftime("%Y-%m-%d %H:%M:%S"),
-           "python": platform.python_version(), "machine": platform.machine(), **doc}
+           "python": platform.python_version(), "machine": platform.machine(),
+           "cores": os.cpu_count(), "loadavg_1min_start": LOAD_AT_START,
+           "loadavg_1min_end": end, **doc}
     path = RESULTS / f"{name}.json"
     path.write_text(json.dumps(doc, indent=2, allow_nan=True))
     return path

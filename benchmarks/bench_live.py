@@ -45,7 +45,6 @@ from pathlib import Path
 
 import numpy as np
 
-import os
 
 from _common import table, write_json
 
@@ -214,9 +213,7 @@ def main() -> None:
     parts = ("tracking", "latency", "throughput", "faults", "flood", "page", "folder")
     ap.add_argument("--part", nargs="+", choices=parts, default=list(parts))
     args = ap.parse_args()
-    doc: dict = {"loadavg_1min_start": os.getloadavg()[0]}
-    print(f"load average (1 min) at the start: {os.getloadavg()[0]:.2f} on "
-          f"{os.cpu_count()} cores")
+    doc: dict = {}
     if "tracking" in args.part:
         rows = [tracking(n, args.seconds) for n in args.units]
         print(table(rows, "Online residual tracking of the HST (100 Hz, 1 s chunks, one core)"))
@@ -263,8 +260,6 @@ def main() -> None:
     if "folder" in args.part:
         doc["folder"] = fo = chaos.idle_folder()
         print(table([fo], "An idle folder watch over 30,000 files"))
-    doc["loadavg_1min_end"] = os.getloadavg()[0]
-    print(f"load average (1 min) at the end: {os.getloadavg()[0]:.2f}")
     path = write_json("live", doc)
     print(f"wrote {path}")
 

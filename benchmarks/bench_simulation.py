@@ -23,7 +23,6 @@ import argparse
 import contextlib
 import io
 import json
-import os
 import subprocess
 import sys
 import tempfile
@@ -142,9 +141,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--data", type=Path, default=ROOT.parent / "shared" / "external")
     args = ap.parse_args()
-    load = os.getloadavg()
-    print(f"load average (1 min) at the start: {load[0]:.2f} on {os.cpu_count()} cores")
-    doc: dict[str, Any] = {"loadavg_1min_start": load[0]}
+    doc: dict[str, Any] = {}
     if (args.data / "cascaded_tanks" / "dataBenchmark.csv").exists():
         doc["cascaded_tanks"] = tanks(args.data)
     else:
@@ -153,8 +150,6 @@ def main() -> int:
         doc["emps"] = emps(args.data)
     else:
         print(f"no EMPS data under {args.data}: left out")
-    doc["loadavg_1min_end"] = os.getloadavg()[0]
-    print(f"load average (1 min) at the end: {doc['loadavg_1min_end']:.2f}")
     print(f"wrote {write_json('simulation', doc)}")
     return 0
 

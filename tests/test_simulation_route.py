@@ -184,6 +184,57 @@ def test_validate_says_what_it_took_from_the_declaration(tanks: Path, tmp_path: 
         "b = 0.03" in " ".join(bare.notes)
 
 
+def test_the_command_line_scale_holds_beside_its_column_map(tanks: Path, tmp_path: Path,
+                                                           capsys: pytest.CaptureFixture[str]
+                                                           ) -> None:
+    est = tmp_path / "est.json"
+    est.write_text(json.dumps({"model": "two-tanks", "parameters": TRUTH}))
+    rec = _record(tmp_path / "v.csv", tanks, u_name="pump", y_name="level")
+    frame = pd.read_csv(rec)
+    frame["level"] = frame["level"] * 1000.0   # the logger writes millivolts
+    frame.to_csv(rec, index=False)
+    args = ["validate", str(rec), "--model", str(tanks), "--params", str(est), "--initial",
+            "x1=6.0", "--json"]
+    assert main([*args, "--columns", "u=pump,y=level", "--scale", "y=0.001"]) == 0
+    assert json.loads(capsys.readouterr().out)["rmse"]["y"] < 0.02
+    assert main([*args, "--columns", "u=pump,y=level", "--scale", "level=0.001"]) == 2
+    assert "the columns map file column 'level' to 'y': scale and offset name the model's " \
+        "column (y=...)" in capsys.readouterr().err
+
+
+def test_simulate_record_needs_only_the_inputs(tanks: Path, tmp_path: Path) -> None:
+    est = tmp_path / "est.json"
+    est.write_text(json.dumps({"model": "two-tanks", "parameters": TRUTH,
+                               "initial_states": {"x1": {"value": 6.0}, "x2": {"value": 2.5}}}))
+    rec = _record(tmp_path / "v.csv", tanks)
+    full = pd.read_csv(rec)
+    full.drop(columns="y").to_csv(tmp_path / "inputs.csv", index=False)
+    out = tmp_path / "sim.csv"
+    assert main(["simulate", "record", str(tmp_path / "inputs.csv"), "--model", str(tanks),
+                 "--params", str(est), "--out", str(out)]) == 0
+    sim = pd.read_csv(out)
+    assert list(sim.columns) == ["t", "u", "y_sim", "x1_sim", "x2_sim"]
+    # the truth simulated from the truth: the noise-free level under the noisy reading
+    assert np.sqrt(np.mean((sim.y_sim - full.y) ** 2)) == pytest.approx(0.005, rel=0.2)
+    assert main(["simulate", "record", str(tmp_path / "inputs.csv"), "--model", str(tanks),
+                 "--params", str(est), "--initial", "fit", "--out", str(out)]) == 2
+
+
+def test_validate_checks_the_parameter_file_and_says_what_misses(tanks: Path,
+                                                                  tmp_path: Path) -> None:
+    est = tmp_path / "est.json"
+    est.write_text(json.dumps({"model": "two-tanks", "parameters": {**TRUTH, "k": -0.05}}))
+    rec = _record(tmp_path / "v.csv", tanks)
+    c, _ = validate_file(rec, str(tanks), params=est, initial="first-sample")
+    said = " ".join(c.notes)
+    assert f"k = -0.05 in {est} lies outside [estimation.plausible]: k must be > 0" in said
+    assert "x1: the declaration's initial value (no estimate of it in" in said
+    assert "the simulation misses y by" in said and "times the sensor's declared noise" in said
+    est.write_text(json.dumps({"parameters": TRUTH}))
+    with pytest.raises(DataError, match="no 'model' key"):
+        validate_file(rec, str(tanks), params=est)
+
+
 def test_a_divergence_names_the_time_and_the_state(tanks: Path) -> None:
     c = get_model(str(tanks)).plant.compile()
     with pytest.raises(Diverged) as info:

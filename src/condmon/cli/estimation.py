@@ -55,10 +55,14 @@ def options(method: str, gamma: float | None, excitation: str, columns: str | No
             consts[key] = float(value)
         except ValueError:
             raise CondmonError(f"--constants: {key}={value!r} is not a number") from None
-    record = settings_from_options(sample_rate=sample_rate, scale=scale, offset=offset,
+    mapped = parse_column_map(columns)
+    # the columns are in the same layer as the scale and offset: a column the command
+    # line maps keeps the command line's own scale (an earlier layer's is dropped)
+    record = settings_from_options(columns=mapped if (scale or offset) else None,
+                                   sample_rate=sample_rate, scale=scale, offset=offset,
                                    ignore=ignore)
     return EstimateOptions(model, method, gamma, exc, fit_threshold,
-                           parse_column_map(columns) or None, route, consts or None,
+                           mapped or None, route, consts or None,
                            None if record.empty else record, parse_metadata(meta),
                            parse_window(window))
 

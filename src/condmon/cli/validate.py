@@ -67,7 +67,7 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
 
     @simulate_app.command("record")
     def simulate_record_cmd(
-        record: Annotated[Path, typer.Argument(help="Record with the model's inputs (and sensors, written beside the simulated ones).")],
+        record: Annotated[Path, typer.Argument(help="Record with the model's inputs; its sensor columns, when it has them, are written beside the simulated ones and compared.")],
         out_path: Annotated[Path, typer.Option("--out", help="Output file (.csv or .parquet): t, the inputs, SENSOR_sim, the measured SENSOR, and STATE_sim for each state.")],
         model: ModelOpt = "dc-motor",
         params: ParamsOpt = None,
@@ -87,6 +87,10 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
         c = simulate_file(record, model, out_path, params=params, set_values=set_values,
                           initial=initial, options=opts)
         rmse = ", ".join(f"{k} {fmt(v)} {c.units.get(k, '')}".rstrip() for k, v in c.rmse.items())
+        against = (f"RMSE against the record: {rmse}" if c.measured is not None else
+                   "the record has no sensor columns: simulated, not compared")
         err.print(f"wrote {len(c.t)} samples to {out_path} (model {c.model}; initial states "
-                  f"{describe_initial(c.initial)}; RMSE against the record: {rmse})",
+                  f"{describe_initial(c.initial)}; {against})",
                   highlight=False, markup=False, soft_wrap=True)
+        for note in c.notes:
+            err.print(f"note: {note}", highlight=False, markup=False, soft_wrap=True)

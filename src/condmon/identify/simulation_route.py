@@ -52,8 +52,8 @@ from condmon.identify.shooting_fit import (
     restart_vector, start_vector,
 )
 from condmon.io.records import Record
-from condmon.models.declared import PlantModel
 from condmon.models.machine import Machine
+from condmon.simulate.compare import beyond_noise
 from condmon.simulate.recorded import choose_substeps
 
 __all__ = ["SimulationRouteResult", "fit_initial_states", "simulation_route"]
@@ -62,6 +62,7 @@ FloatArray = NDArray[np.float64]
 _SHORT_RUN = 10         # optimiser evaluations of each start before the best is polished
 _POLISH = 200
 _SAME_COST = 0.01       # starts within 1 % of the best cost reached it
+_FAR = 1e100           # residuals beyond this are a diverged run (their squares would overflow)
 _REFINE = 3             # a drifting fit's segments are doubled at most this many times
 # The whole record is simulated from the segments' optimum and kept when its error stays
 # within a quarter of theirs: a right model's errors are the noise either way, while a
@@ -254,8 +255,9 @@ def simulation_route(rec: Record | Sequence[Record], machine: Machine,
                                                      / max(res.cost, 1e-300))
     if again is None or lr > limit:
         why = (f"Wald statistic {wald:.3g} > {limit:.3g}, 1 %" if again is None else
-               f"held, the error rose from {res.cost:.4g} to {again.cost:.4g}: likelihood "
-               f"ratio {lr:.3g} > {limit:.3g}, 1 %")
+               f"holding {'it' if len(weak) == 1 else 'them'} would raise the error from "
+               f"{res.cost:.4g} to {again.cost:.4g}: likelihood ratio {lr:.3g} > {limit:.3g}, "
+               "1 %")
         said = (f"{', '.join(weak)}: {'; '.join(idf.reasons[k] for k in weak)}; but "
                 f"{'it is' if len(weak) == 1 else 'they are'} away from the start value by more "
                 f"than the noise allows ({why}): the record determines them, and their "
@@ -324,8 +326,11 @@ def _solve(prob: FitProblem, z0: FloatArray, lo: FloatArray, hi: FloatArray, sig
     from scipy.optimize import least_squares  # ~0.25 s of imports: only when fitting
 
     def fun(z: FloatArray) -> FloatArray:
+        # a run that left the numbers, or went so far that its squared sum would
+        # overflow, is a step the optimiser refuses (it shrinks its trust region)
         r = residuals(prob, z[:, None], sigma, xscale)[0][:, 0]
-        return r if np.all(np.isfinite(r)) else np.full(r.size, np.inf)
+        ok = np.all(np.isfinite(r)) and float(np.max(np.abs(r), initial=0.0)) < _FAR
+        return r if ok else np.full(r.size, np.inf)
 
     r0 = fun(z0)
     if not np.all(np.isfinite(r0)):
@@ -356,9 +361,11 @@ def _covariance(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: Floa
     with np.errstate(all="ignore"):
         cond = float(np.linalg.cond(info)) if np.all(np.isfinite(info)) else np.inf
     if not (np.isfinite(cond) and cond < 1e14):
+        missed = beyond_noise(prob.machine.plant, e)
         raise EstimationError(f"simulation-error route: the sensitivities are singular "
                               f"(condition number {cond:.3g}); the record does not excite "
-                              "every unknown, or an initial state and a parameter trade off")
+                              "every unknown, or an initial state and a parameter trade off"
+                              + (f"; at the optimum {missed[0]}" if missed else ""))
     white = np.asarray(np.linalg.inv(info), dtype=np.float64)
     cov, widened, batches = batch_widened(prob, J, e / resid_sd, white)
     return cost, e, J, cov, white, widened, batches
@@ -405,7 +412,8 @@ def _result(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: FloatArr
         figures = residual_figures(y[:, j], e[:, j])
         r2[name], nrmse[name], white[name] = figures.r2, figures.nrmse, figures.whiteness
     fit_pct = 100.0 * float(np.mean(list(r2.values())))
-    notes.extend(_beyond_noise(plant, e))
+    notes.extend(f"{n}; the estimates are the best this model does, and their standard "
+                 "errors hold only as far as the model does" for n in beyond_noise(plant, e))
     fit = FitCheck(r2, fit_pct, float(fit_threshold), bool(fit_pct >= fit_threshold))
     costs = tuple(float(c) for _, c, _ in runs)
     best = min(costs)
@@ -481,23 +489,3 @@ def fit_initial_states(rec: Record, machine: Machine, params: Mapping[str, float
         cov = np.linalg.pinv(J.T @ J)
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     return {names[j]: (float(z[i]), float(se[i])) for i, j in enumerate(prob.est0)}
-
-# A model that describes the record leaves the sensor's noise: an RMS error twice the
-# declared noise is a variance four times what the sensor makes, more than a noise level
-# declared from a data sheet is normally off by.
-_NOISE_FACTOR = 2.0
-
-
-def _beyond_noise(plant: PlantModel, e: FloatArray) -> list[str]:
-    """A note per sensor whose simulation error is beyond its declared noise."""
-    out = []
-    for j, s in enumerate(plant.sensors):
-        rms = math.sqrt(float(np.mean(e[:, j] ** 2)))
-        if s.noise > 0 and rms > _NOISE_FACTOR * s.noise:
-            unit = f" {s.unit}".rstrip()
-            out.append(f"the simulation misses {s.name} by {rms:.3g}{unit} RMS, {rms / s.noise:.3g} "
-                       f"times the sensor's declared noise ({s.noise:g}{unit}): the model, a "
-                       "declared value or a 'declared' initial state does not describe this "
-                       "record to the sensor's accuracy; the estimates are the best this model "
-                       "does, and their standard errors hold only as far as the model does")
-    return out

@@ -230,7 +230,8 @@ def validate_record(df: pd.DataFrame | Columns, required: Sequence[str],
                             "a corrupt or mis-scaled column?")
         cols[name] = arr
     if n_rows < min_samples:
-        raise DataError(f"{src}: {n_rows} samples are too few; need at least {min_samples}")
+        are = "samples are" if n_rows != 1 else "sample is"
+        raise DataError(f"{src}: {n_rows} {are} too few; need at least {min_samples}")
     dt = check_time_base(cols["t"], src)
     excited = [c for c in dict.fromkeys((*([input_name] if input_name else []), *inputs))
                if c in cols]

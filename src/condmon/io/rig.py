@@ -323,7 +323,8 @@ def parse_record_settings(table: Mapping[str, Any] | None, where: str, *,
 
 
 def apply_record_settings(df: pd.DataFrame, settings: RecordSettings | None,
-                          source: str | None = None) -> pd.DataFrame:
+                          source: str | None = None, *,
+                          renamed: Mapping[str, str] | None = None) -> pd.DataFrame:
     """A record as read, turned into model columns in SI units.
 
     Parameters
@@ -334,6 +335,9 @@ def apply_record_settings(df: pd.DataFrame, settings: RecordSettings | None,
         None or empty: ``df`` is returned as it is.
     source : str, optional
         Name of the record in messages (default ``df.attrs["source"]``).
+    renamed : mapping, optional
+        Model column -> file column already applied by the reader (named in
+        an error about a scale given by the file's name).
 
     Returns
     -------
@@ -383,9 +387,14 @@ def apply_record_settings(df: pd.DataFrame, settings: RecordSettings | None,
     out = out.drop(columns=shadowed).rename(columns={v: k for k, v in settings.columns.items()})
     for name in sorted(set(settings.scale) | set(settings.offset)):
         if name not in out.columns:
+            model_name = [k for k, v in {**(renamed or {}), **settings.columns}.items()
+                          if v == name]
+            hint = (f"; the columns map file column {name!r} to {model_name[0]!r}: scale "
+                    f"and offset name the model's column ({model_name[0]}=...)"
+                    if model_name else "")
             raise DataError(f"{src}: the record settings scale column {name!r}, which the "
                             f"record does not have; its columns are "
-                            f"{list(map(str, out.columns))}")
+                            f"{list(map(str, out.columns))}{hint}")
         values = pd.to_numeric(out[name], errors="coerce")
         # a missing cell stays missing (the record's checks name it); only text
         # that is no number is refused here, quoted as the file has it

@@ -9,6 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from condmon.errors import DataError
 from condmon.report.figures import legend_below, new_figure, save_figure
 from condmon.simulate.compare import Comparison
 
@@ -39,6 +40,8 @@ def plot_comparison(c: Comparison, path: str | Path | None = None) -> Any:
     >>> len(fig.axes)
     4
     """
+    if c.measured is None:
+        raise DataError(f"{c.source}: no measured outputs to draw the model against")
     n = len(c.outputs)
     fig = new_figure(8.0, 2.6 * n + 0.6)
     grid = fig.add_gridspec(2 * n, 1, height_ratios=[3, 1] * n)
@@ -54,7 +57,7 @@ def plot_comparison(c: Comparison, path: str | Path | None = None) -> Any:
         err = fig.add_subplot(grid[2 * j + 1], sharex=ax)
         err.plot(c.t, c.measured[:, j] - c.simulated[:, j], color="tab:gray", lw=0.7)
         err.axhline(0.0, color="black", lw=0.5)
-        err.set_ylabel("error", fontsize=8)
+        err.set_ylabel(f"error [{unit}]" if unit else "error", fontsize=8)
         if j == n - 1:
             err.set_xlabel("time from the record's start [s]")
         else:

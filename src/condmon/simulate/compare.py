@@ -29,11 +29,12 @@ from numpy.typing import NDArray
 
 from condmon.errors import ConfigError
 from condmon.io.records import Record
+from condmon.models.declared import PlantModel
 from condmon.models.machine import Machine
 from condmon.models.shooting import state_readers
 from condmon.simulate.recorded import choose_substeps, simulate_recorded
 
-__all__ = ["Comparison", "compare_model", "initial_states", "INITIAL_RULES"]
+__all__ = ["Comparison", "beyond_noise", "compare_model", "initial_states", "INITIAL_RULES"]
 
 FloatArray = NDArray[np.float64]
 
@@ -55,7 +56,10 @@ class Comparison:
         Sample times from the record's start. [s]
     outputs : tuple of str
         The sensors compared.
-    measured, simulated : ndarray, shape (N, n_outputs)
+    measured : ndarray, shape (N, n_outputs), or None
+        The record's readings (None: it has no sensor columns, nothing is
+        compared). [sensor units]
+    simulated : ndarray, shape (N, n_outputs)
         [sensor units]
     units : dict of str to str
         Each output's unit.
@@ -78,7 +82,7 @@ class Comparison:
     model: str
     t: FloatArray
     outputs: tuple[str, ...]
-    measured: FloatArray
+    measured: FloatArray | None
     simulated: FloatArray
     units: dict[str, str]
     rmse: dict[str, float]
@@ -146,7 +150,7 @@ def initial_states(machine: Machine, record: Record, rule: str,
             out[s.name] = (float(given[s.name]), "given")
         elif rule in ("estimated", "fit") and estimated and s.name in estimated:
             out[s.name] = (float(estimated[s.name]), "estimated")
-        elif s.name in readers:
+        elif s.name in readers and plant.sensor_names[readers[s.name][0]] in record.columns:
             j, fn = readers[s.name]
             out[s.name] = (float(fn(record[plant.sensor_names[j]][0], p)), "first sample")
         elif estimated and s.name in estimated:
@@ -164,7 +168,8 @@ def compare_model(record: Record, machine: Machine, params: Mapping[str, float],
     Parameters
     ----------
     record : Record
-        With the model's inputs and sensors.
+        With the model's inputs, and its sensors to compare with (without
+        them the model is only simulated: no RMSE or fit).
     machine : Machine
     params : mapping
         Parameter values over the declared ones. [SI]
@@ -197,20 +202,54 @@ def compare_model(record: Record, machine: Machine, params: Mapping[str, float],
     p = compiled.parameter_vector(params)
     x0 = np.array([initial[s][0] for s in plant.state_names], dtype=np.float64)
     u = record.stack(plant.input_names) if plant.input_names else np.zeros((len(record), 0))
-    y = record.stack(plant.sensor_names)
-    spread = np.std(y, axis=0)
+    measured = all(n in record.columns for n in plant.sensor_names)
+    y = record.stack(plant.sensor_names) if measured else None
+    spread = np.std(y, axis=0) if y is not None else np.zeros(len(plant.sensors))
     noise = np.array([s.noise for s in plant.sensors])
-    tol = 0.1 * np.maximum(noise, 1e-3 * np.where(spread > 0, spread, 1.0))
+    tol = 0.1 * np.maximum(noise, np.where(spread > 0, 1e-3 * spread, 1e-9))
     sub = choose_substeps(compiled, u, record.dt, x0[:, None], p[:, None], tol)
     sim = simulate_recorded(compiled, u, record.dt, x0, p, substeps=sub, source=record.source)
     rmse, fit = {}, {}
-    for j, name in enumerate(plant.sensor_names):
+    for j, name in enumerate(plant.sensor_names if y is not None else ()):
+        assert y is not None
         e = y[:, j] - sim.outputs[:, j]
         rmse[name] = float(np.sqrt(np.mean(e ** 2)))
         dev = float(np.linalg.norm(y[:, j] - np.mean(y[:, j])))
         fit[name] = float(100.0 * (1.0 - np.linalg.norm(e) / dev)) if dev > 0 else \
             (100.0 if rmse[name] == 0 else -math.inf)
     values = dict(zip(plant.parameter_names, map(float, p)))
+    if y is not None:
+        notes = (*notes, *beyond_noise(plant, y - sim.outputs))
     return Comparison(record.source, machine.name, sim.t, plant.sensor_names, y, sim.outputs,
                       {s.name: s.unit for s in plant.sensors}, rmse, fit, dict(initial), values,
                       sub, notes, sim.states)
+
+
+# A model that describes the record leaves the sensor's noise: an RMS error twice the
+# declared noise is a variance four times what the sensor makes, more than a noise level
+# declared from a data sheet is normally off by.
+NOISE_FACTOR = 2.0
+
+
+def beyond_noise(plant: PlantModel, e: FloatArray) -> list[str]:
+    """What each sensor whose simulation error ``e`` (N, n_sensors) [sensor
+    units] is beyond :data:`NOISE_FACTOR` times its declared noise says.
+
+    Example
+    -------
+    >>> from condmon.models.registry import load_plant_model
+    >>> p = load_plant_model("dc-motor")
+    >>> e = np.zeros((100, len(p.sensors)))
+    >>> beyond_noise(p, e)
+    []
+    """
+    out = []
+    for j, s in enumerate(plant.sensors):
+        rms = math.sqrt(float(np.mean(e[:, j] ** 2)))
+        if s.noise > 0 and rms > NOISE_FACTOR * s.noise:
+            unit = f" {s.unit}".rstrip()
+            out.append(f"the simulation misses {s.name} by {rms:.3g}{unit} RMS, "
+                       f"{rms / s.noise:.3g} times the sensor's declared noise ({s.noise:g}{unit})"
+                       ": the model, a declared value or a 'declared' initial state does not "
+                       "describe this record to the sensor's accuracy")
+    return out

@@ -158,7 +158,7 @@ class EstimateOptions:
         else:
             with recognised_records(self.model or "dc-motor"):
                 df = read_record(record, settings.columns)
-            out = apply_record_settings(df, rest, str(record))
+            out = apply_record_settings(df, rest, str(record), renamed=settings.columns)
         out.attrs["record_settings"] = settings.describe(len(out.attrs.get("record_ignored", ())))
         return out
 

@@ -73,6 +73,10 @@ def read_parameter_file(path: str | Path, machine: Machine) -> ParameterFile:
         raise DataError(f"{src}: not a parameter file: no 'parameters' table (write one with "
                         "condmon estimate RECORD --model M --json > est.json)")
     model = doc.get("model")
+    if model is None:
+        raise DataError(f"{src}: no 'model' key: a parameter file says which model its "
+                        f"parameters are of (\"model\": \"{machine.name}\"), as condmon "
+                        "estimate --json writes it")
     if model != machine.name:
         raise DataError(f"{src}: the parameters are of model {model!r}, not of "
                         f"{machine.name!r} ({machine.origin or 'shipped'}); estimate with "
@@ -136,7 +140,7 @@ def parse_assignments(text: str | None, allowed: tuple[str, ...], what: str,
 
 
 def _setup(record: str | Path, model: str, params: str | Path | None, set_values: str | None,
-           initial: str, opts: EstimateOptions
+           initial: str, opts: EstimateOptions, sensors: bool = True
            ) -> tuple[Machine, Record, dict[str, float], dict[str, tuple[float, str]],
                       tuple[str, ...]]:
     machine = get_model(model)
@@ -150,7 +154,7 @@ def _setup(record: str | Path, model: str, params: str | Path | None, set_values
     frame = opts.read(record)
     # ten samples per state and one more: fewer cannot show a state's dynamics, and an
     # RMSE over a handful of samples is no validation
-    rec = validate_record(frame, (*plant.input_names, *plant.sensor_names),
+    rec = validate_record(frame, (*plant.input_names, *(plant.sensor_names if sensors else ())),
                           min_samples=10 * (len(plant.state_names) + 1), source=str(record))
     machine.spec.plausibility.check_timing(rec.dt, rec.dt * len(rec), rec.source, machine.name,
                                            purpose="a trustworthy validation")
@@ -159,6 +163,10 @@ def _setup(record: str | Path, model: str, params: str | Path | None, set_values
         rule = "estimated"
     else:
         given, rule = {}, initial.strip()
+    if not sensors and rule in ("first-sample", "fit"):
+        raise DataError(f"{record}: --initial {rule} needs the sensor columns "
+                        f"({', '.join(plant.sensor_names)}), which the record does not have; "
+                        "use 'estimated' or NAME=VALUE,...")
     start = initial_states(machine, rec, rule, pf.initial if pf else None, given, values)
     if rule == "fit":
         from condmon.identify.simulation_route import fit_initial_states
@@ -172,6 +180,16 @@ def _setup(record: str | Path, model: str, params: str | Path | None, set_values
                      "well the initial states were known")
     elif rule == "estimated":
         notes += _start_mismatch(machine, rec, start, values)
+    carried = [k for k, (_, how) in start.items() if how == "estimated"]
+    if rule == "first-sample" and carried:
+        notes.append(f"{', '.join(carried)}: no sensor gives {'it' if len(carried) == 1 else 'them'}"
+                     " back, so the estimation record's initial value is used; if this record "
+                     "started elsewhere, --initial fit fits it on this record")
+    declared = [k for k, (_, how) in start.items()
+                if how == "declared" and machine.spec.simulation.of(k).mode == "estimate"]
+    if declared:
+        notes.append(f"{', '.join(declared)}: the declaration's initial value (no estimate of "
+                     f"it{' in ' + pf.path if pf else ''}); --initial fit or NAME=VALUE sets it")
     return machine, rec, values, start, tuple(notes)
 
 
@@ -187,10 +205,11 @@ def _parameter_notes(machine: Machine, values: Mapping[str, float],
         notes.append(f"{where}: the declaration's values of "
                      + ", ".join(f"{k} = {declared[k]:.6g}" for k in missing))
     bounds = machine.spec.plausibility.bounds
-    for k, v in given.items():
+    for k, v in values.items():
         why = bounds[k].violation(v) if k in bounds else None
         if why is not None:
-            notes.append(f"--set {k}={v:g} lies outside [estimation.plausible]: {k} {why}; "
+            where = f"--set {k}={v:g}" if k in given else f"{k} = {v:g} in {pf.path if pf else ''}"
+            notes.append(f"{where} lies outside [estimation.plausible]: {k} {why}; "
                          "simulated as given")
     return notes
 
@@ -206,7 +225,7 @@ def _start_mismatch(machine: Machine, rec: Record, start: Mapping[str, tuple[flo
     far = []
     for name, (j, fn) in state_readers(plant).items():
         v, how = start[name]
-        if how != "estimated":
+        if how != "estimated" or plant.sensor_names[j] not in rec.columns:
             continue
         y0 = float(rec[plant.sensor_names[j]][0])
         read = float(fn(y0, p))
@@ -270,14 +289,19 @@ def simulate_file(record: str | Path, model: str, out: str | Path, *,
                   initial: str = "estimated",
                   options: EstimateOptions | None = None) -> Comparison:
     """Simulate ``model`` on ``record``'s inputs and write ``t``, the inputs,
-    the simulated sensor readings (as ``<sensor>_sim``), the measured ones, and
-    the simulated states (as ``<state>_sim``) to ``out`` (CSV or Parquet)."""
+    the simulated sensor readings (as ``<sensor>_sim``), the measured ones
+    when the record has them (then compared), and the simulated states (as
+    ``<state>_sim``) to ``out`` (CSV or Parquet)."""
     from condmon.io.records import write_record
 
-    c, _ = validate_file(record, model, params=params, set_values=set_values, initial=initial,
-                         options=options)
+    opts = options or EstimateOptions(model=model)
     machine = get_model(model)
-    rec_frame = _frame(c, machine, record, options or EstimateOptions(model=model))
+    frame = opts.read(record)
+    sensed = all(n in frame.columns for n in machine.plant.sensor_names)
+    machine, rec, values, start, notes = _setup(record, model, params, set_values, initial,
+                                                opts, sensors=sensed)
+    c = compare_model(rec, machine, values, start, notes=notes)
+    rec_frame = _frame(c, machine, record, opts)
     write_record(rec_frame, out)
     return c
 
@@ -292,7 +316,8 @@ def _frame(c: Comparison, machine: Machine, record: str | Path, opts: EstimateOp
         cols[name] = np.asarray(frame[name], dtype=np.float64)
     for j, name in enumerate(c.outputs):
         cols[f"{name}_sim"] = c.simulated[:, j]
-        cols[name] = c.measured[:, j]
+        if c.measured is not None:
+            cols[name] = c.measured[:, j]
     if c.states is not None:    # the states no sensor column already carries
         for j, name in enumerate(machine.plant.state_names):
             if f"{name}_sim" not in cols and name not in cols:

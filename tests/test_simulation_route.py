@@ -512,6 +512,16 @@ def test_a_collinear_unknown_is_held_only_where_the_data_allow(tmp_path: Path, d
     assert ("likelihood ratio" in said) is held and ("Wald statistic" in said)
 
 
+def test_a_parameter_left_on_its_bound_is_said(tanks: Path, tmp_path: Path) -> None:
+    # the truth k = 0.05 lies beyond a bound the declaration sets at 0.045
+    tanks.write_text(tanks.read_text().replace("k = { gt = 0.0, lt = 1.0 }",
+                                               "k = { gt = 0.0, lt = 0.045 }"))
+    res = estimate(pd.read_csv(_record(tmp_path / "r.csv", tanks)), str(tanks))
+    said = [n for n in res.notes if "sits on its upper bound" in n]
+    assert said and said[0].startswith("k = 0.045"), res.notes
+    assert not any("sits on its" in n and not n.startswith("k ") for n in res.notes)
+
+
 @pytest.mark.parametrize(("x1", "warned"), [("6.0", False), ("4.0", True)])
 def test_a_declared_initial_state_that_is_wrong_is_said(tanks: Path, tmp_path: Path, x1: str,
                                                         warned: bool) -> None:

@@ -319,6 +319,23 @@ def _refine(records: Sequence[Record], machine: Machine, start: Mapping[str, flo
                                   f"{per[-1]} segments{tail}")
 
 
+def _on_bounds(prob: FitProblem, z: FloatArray) -> list[str]:
+    """A note per parameter the optimiser left on an ``[estimation.plausible]``
+    bound (within a millionth of its size, the nudge of a strict bound): there
+    the fit stopped because it could go no further, and the standard error, a
+    curvature at the optimum, does not say how far beyond the data would go."""
+    lo, hi = fit_bounds(prob)
+    out = []
+    for i, k in enumerate(prob.free):
+        for b, side in ((lo[i], "lower"), (hi[i], "upper")):
+            if math.isfinite(b) and abs(z[i] - b) <= 2e-6 * max(abs(b), 1e-12):
+                out.append(f"{k} = {z[i]:.6g} sits on its {side} bound in "
+                           "[estimation.plausible]: the optimiser stopped there; the data "
+                           "may want a value beyond it, so the bound or the model is "
+                           "worth a look")
+    return out
+
+
 def _solve(prob: FitProblem, z0: FloatArray, lo: FloatArray, hi: FloatArray, sigma: FloatArray,
            xscale: FloatArray, max_nfev: int) -> tuple[FloatArray, float, int]:
     """One bounded least-squares run: (optimum, RMS of the normalised
@@ -415,6 +432,7 @@ def _result(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: FloatArr
     notes.extend(f"{n}; the estimates are the best this model does, and their standard "
                  "errors hold only as far as the model does" for n in beyond_noise(plant, e))
     fit = FitCheck(r2, fit_pct, float(fit_threshold), bool(fit_pct >= fit_threshold))
+    notes.extend(_on_bounds(prob, z))
     costs = tuple(float(c) for _, c, _ in runs)
     best = min(costs)
     reached = sum(c <= best * (1 + _SAME_COST) for c in costs)

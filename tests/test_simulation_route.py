@@ -4,6 +4,7 @@ multiple shooting, and bad input refused with one line."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +15,7 @@ from hypothesis import strategies as st
 
 from condmon import estimate
 from condmon.cli.main import main
-from condmon.errors import ConfigError, DataError
+from condmon.errors import ConfigError, DataError, EstimationError
 from condmon.models.registry import get_model
 from condmon.simulate.recorded import Diverged, simulate_recorded
 from condmon.workflows.validation import validate_file
@@ -510,6 +511,27 @@ def test_a_collinear_unknown_is_held_only_where_the_data_allow(tmp_path: Path, d
         assert abs(res.parameters[k] - v) <= max(4 * se, 1e-9 * v), (k, res.parameters, se)
     said = " ".join(res.notes)
     assert ("likelihood ratio" in said) is held and ("Wald statistic" in said)
+
+
+def test_an_unknown_the_record_does_not_move_is_named(tmp_path: Path) -> None:
+    # d acts only above u = 10, and the record's input stays between 2 and 3
+    p = tmp_path / "leaky.toml"
+    p.write_text(LEAKY.replace("CVAL", "0.01")
+                 .replace('[inputs]', 'd = { value = 0.1, unit = "1/s" }\n[inputs]')
+                 .replace('"k*u - a*x - c*x**2"', '"k*u - a*x - c*x**2 - d*max(u - 10, 0)"')
+                 .replace('estimate = ["k", "a", "c"]', 'estimate = ["k", "a", "c", "d"]')
+                 + 'd = { ge = 0.0, lt = 10.0 }\n')
+    c = get_model(str(p)).plant.compile()
+    n = 800
+    u = np.repeat(2.0 + np.random.default_rng(0).random(n // 40 + 1), 40)[:n]
+    sim = simulate_recorded(c, u[:, None], 0.5, np.array([5.0]),
+                            c.parameter_vector({"k": 0.5, "a": 0.2, "c": 0.01}), substeps=4)
+    y = sim.outputs[:, 0] + 0.01 * np.random.default_rng(5).standard_normal(n)
+    frame = pd.DataFrame({"t": 0.5 * np.arange(n), "u": u, "y": y})
+    with pytest.raises(EstimationError, match="the sensitivities are singular") as info:
+        estimate(frame, str(p), route="simulation")
+    assert re.search(r"(does not move the outputs with|the direction it cannot see:) d\b",
+                     str(info.value)), info.value
 
 
 def test_a_parameter_left_on_its_bound_is_said(tanks: Path, tmp_path: Path) -> None:

@@ -49,7 +49,7 @@ from condmon.identify.greybox import RouteResult
 from condmon.identify.identifiability import assess_identifiability
 from condmon.identify.shooting_fit import (
     batch_widened, fit_bounds, first_initials, jacobian, fit_layout, FitProblem, residuals,
-    restart_vector, start_vector,
+    restart_vector, start_vector, state_owners,
 )
 from condmon.io.records import Record
 from condmon.models.machine import Machine
@@ -319,6 +319,30 @@ def _refine(records: Sequence[Record], machine: Machine, start: Mapping[str, flo
                                   f"{per[-1]} segments{tail}")
 
 
+def _trading(prob: FitProblem, J: FloatArray) -> str:
+    """Which unknowns make up the direction the record does not see: the
+    weakest singular vector of the column-normalised Jacobian, its entries
+    above a third of the largest."""
+    with np.errstate(all="ignore"):
+        norms = np.linalg.norm(J, axis=0)
+        if not np.all(np.isfinite(J)):
+            return ""
+        cols = J / np.where(norms > 0, norms, 1.0)
+        try:
+            v = np.linalg.svd(cols, full_matrices=False)[2][-1]
+        except np.linalg.LinAlgError:
+            return ""
+    names = list(prob.free)
+    owners = state_owners(prob)
+    states = prob.machine.plant.state_names
+    names += [f"{states[j]} at segment {seg + 1}" for _, (seg, j) in sorted(owners.items())]
+    dead = [names[i] for i in np.flatnonzero(norms == 0)]
+    if dead:
+        return f"; the record does not move the outputs with {', '.join(dead)}"
+    big = np.flatnonzero(np.abs(v) >= np.max(np.abs(v)) / 3)
+    return f"; the direction it cannot see: {', '.join(names[i] for i in big)}"
+
+
 def _on_bounds(prob: FitProblem, z: FloatArray) -> list[str]:
     """A note per parameter the optimiser left on an ``[estimation.plausible]``
     bound (within a millionth of its size, the nudge of a strict bound): there
@@ -382,6 +406,7 @@ def _covariance(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: Floa
         raise EstimationError(f"simulation-error route: the sensitivities are singular "
                               f"(condition number {cond:.3g}); the record does not excite "
                               "every unknown, or an initial state and a parameter trade off"
+                              + _trading(prob, J)
                               + (f"; at the optimum {missed[0]}" if missed else ""))
     white = np.asarray(np.linalg.inv(info), dtype=np.float64)
     cov, widened, batches = batch_widened(prob, J, e / resid_sd, white)

@@ -116,7 +116,7 @@ def test_estimate_table(history: History) -> None:
     for p, truth in TRUTH.items():
         assert doc["parameters"][p] == pytest.approx(truth, rel=0.05), p
     assert "r0.csv — dc-motor, SRIV, closed-loop instruments" in flat(out)
-    assert (f"fit {doc['fit_percent']:.1f} % (I {doc['fits']['I']:.1f} %, omega "
+    assert (f"fit {doc['fit_percent']:.1f} % (100 R²; I {doc['fits']['I']:.1f} %, omega "
             f"{doc['fits']['omega']:.1f} %) — accepted (threshold 90 %)") in flat(out)
 
 

@@ -12,7 +12,10 @@ record's inputs alone (:mod:`condmon.simulate.recorded`), as MATLAB's
   heavy weight. A drifting or unstable model (an axis whose position
   integrates its speed) stays near the data while the parameters settle.
   The optimum is then polished by single shooting where the whole record
-  simulates; the note says which one the figures come from.
+  simulates and the parameters stay within a standard error of the
+  segments' (else the whole record is bending them to carry a drift); where
+  it is not, the segments are doubled while the parameters still move by
+  more than a standard error. The note says which figures are given.
 - **Sensitivities** by forward differences of a batch of simulations run at
   once (every unknown's perturbation, every segment, one pass): exact
   forward sensitivities would need a second, larger system per declaration;
@@ -207,16 +210,30 @@ def simulation_route(rec: Record | Sequence[Record], machine: Machine,
                                           [:sum(y.size for y in prob.y), 0] ** 2)))
         whole = math.sqrt(float(np.mean(r_single ** 2))) if np.all(np.isfinite(r_single)) \
             else math.inf
+        polished = None
         if whole <= _WHOLE_RECORD * ms_cost:
             zs2, cost2, n2 = _solve(single, zs, *fit_bounds(single), sigma, xscale, 50)
-            prob, z, evaluations = single, zs2, evaluations + n2
-            notes.append(f"multiple shooting over {settings.segments} segments per record, "
-                         "then single shooting from its optimum")
+            evaluations += n2
+            # the whole record may only polish what the segments found: parameters that
+            # move beyond their standard errors when the segments are joined were bent
+            # to carry a drift the model does not have
+            se = np.sqrt(np.maximum(np.diag(_covariance(single, zs2, sigma, xscale)[3])[:nf],
+                                    1e-300))
+            moved = float(np.max(np.abs(zs2[:nf] - z[:nf]) / se)) if nf else 0.0
+            if moved <= 1.0:
+                polished = zs2
+                prob, z = single, zs2
+                notes.append(f"multiple shooting over {settings.segments} segments per "
+                             "record, then single shooting from its optimum")
+            else:
+                why = (f"simulated whole, the parameters move by {moved:.3g} standard errors "
+                       "from the segments' (the whole record bends them to carry a drift)")
         else:
+            why = (f"the whole record simulated from its optimum misses by "
+                   f"{whole / ms_cost:.3g} times the segments' error (a drift)")
+        if polished is None:
             notes.append(f"multiple shooting over {settings.segments} segments per record; "
-                         f"the whole record simulated from its optimum misses by "
-                         f"{whole / ms_cost:.3g} times the segments' error (a drift), so the "
-                         "figures are the segments'")
+                         f"{why}, so the figures are the segments'")
             prob, z, n_refine, said = _refine(records, machine, start, consts, held, prob, z,
                                               sigma, xscale)
             evaluations += n_refine

@@ -219,14 +219,14 @@ def simulation_route(rec: Record | Sequence[Record], machine: Machine,
             # to carry a drift the model does not have
             se = np.sqrt(np.maximum(np.diag(_covariance(single, zs2, sigma, xscale)[3])[:nf],
                                     1e-300))
-            moved = float(np.max(np.abs(zs2[:nf] - z[:nf]) / se)) if nf else 0.0
-            if moved <= 1.0:
+            shift = float(np.max(np.abs(zs2[:nf] - z[:nf]) / se)) if nf else 0.0
+            if shift <= 1.0:
                 polished = zs2
                 prob, z = single, zs2
                 notes.append(f"multiple shooting over {settings.segments} segments per "
                              "record, then single shooting from its optimum")
             else:
-                why = (f"simulated whole, the parameters move by {moved:.3g} standard errors "
+                why = (f"simulated whole, the parameters move by {shift:.3g} standard errors "
                        "from the segments' (the whole record bends them to carry a drift)")
         else:
             why = (f"the whole record simulated from its optimum misses by "

@@ -439,9 +439,14 @@ def _result(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: FloatArr
     n_out = sum(y.size for y in prob.y)
     y = np.vstack(prob.y)
     if widened > 1.0:
+        # the batch-means estimate scatters about the bound by about 1/sqrt(batches) on
+        # white residuals, so a widening within that is the scatter, not a correlation
+        why = ("the residuals are correlated and widen them" if widened > 1 + 2 / math.sqrt(
+            max(batches, 1)) else "on these residuals, as white as the batches can tell, it "
+               "is the estimate's own scatter that widens them")
         notes.append(f"standard errors: the larger of the white-noise bound and the batch-means "
-                     f"estimate over {batches} contiguous batches; the residuals are correlated "
-                     f"and widen them up to {widened:.3g} times")
+                     f"estimate over {batches} contiguous batches; {why} up to "
+                     f"{widened:.3g} times")
     names = plant.state_names
     nf = len(prob.free)
     # identifiability of the parameters on their own columns; the initial states are

@@ -70,7 +70,10 @@ class Identifiability:
         combinations the record cannot see. [-]
     relative_se : dict of str to float
         Each identifiable unknown's relative standard error in the estimated
-        set (from the sensitivities, before the estimate). [-]
+        set (from the sensitivities, before the estimate), the record's noise
+        taken as white and whatever else the route fits (the simulation
+        route's initial states) as known: a screening figure, at or below the
+        reported standard error over the value, never the error bar. [-]
     collinearity : float
         Collinearity index of the estimated set (1 for a single one; JSON
         ``collinearity_identified``; a reason gives the index of the set the

@@ -1,7 +1,9 @@
 """Accuracy of the actuator estimate: Monte-Carlo bias and spread against the
-Cramér–Rao bound, closed-loop instruments against the direct approach.
+Cramér–Rao bound, closed-loop instruments against the direct approach; and
+whether the reported standard errors are the estimates' real scatter (SE/sd)
+under white and under AR(1) sensor noise.
 
-    python benchmarks/bench_accuracy.py [--runs 50]
+    python benchmarks/bench_accuracy.py [--runs 50] [--se-runs 200]
 
 Prints tables and writes results/accuracy.json.
 """
@@ -81,9 +83,42 @@ def monte_carlo(rig, runs: int, seed0: int) -> dict[str, object]:  # type: ignor
                             "min": float(fits_a.mean(axis=1).min()), "max": float(fits_a.mean(axis=1).max())}}
 
 
+def se_over_sd(rig, runs: int, phi: float, scale: float, seed0: int  # type: ignore[no-untyped-def]
+               ) -> dict[str, object]:
+    """RMS reported standard error over the Monte-Carlo standard deviation, per
+    parameter, with AR(1) sensor noise of coefficient ``phi`` (0: white) whose
+    marginal sd is ``scale`` x the rig's, added to noise-free closed-loop records
+    (target 0.8-1.25). Records on which a parameter was held (not identifiable)
+    are counted and left out."""
+    from scipy.signal import lfilter
+
+    quiet = dataclasses.replace(rig, noise_I=0.0, noise_omega=0.0)
+    est, se, held = [], [], 0
+    for k in range(runs):
+        rec = simulate_actuator(quiet, seed=seed0 + k)
+        rng = np.random.default_rng(seed0 + 10_000 + k)
+        for col, sd in (("I", rig.noise_I), ("omega", rig.noise_omega)):
+            e = lfilter([1.0], [1.0, -phi], rng.standard_normal(len(rec)))
+            rec[col] = rec[col] + e * (scale * sd / np.std(e))
+        res = estimate(rec)
+        if res.held:
+            held += 1
+            continue
+        est.append([res.parameters[p] for p in PARAMETER_NAMES])
+        se.append([res.std_errors[p] for p in PARAMETER_NAMES])
+    ratio: dict[str, float] = {}
+    if len(est) >= 10:
+        sd_mc = np.std(np.array(est), axis=0, ddof=1)
+        rms_se = np.sqrt(np.mean(np.array(se) ** 2, axis=0))
+        ratio = {p: float(v) for p, v in zip(PARAMETER_NAMES, rms_se / sd_mc)}
+    return {"phi": phi, "noise_scale": scale, "runs": runs, "held": held, "se_over_sd": ratio,
+            "within_0p8_1p25": bool(ratio) and all(0.8 <= v <= 1.25 for v in ratio.values())}
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--runs", type=int, default=50)
+    ap.add_argument("--se-runs", type=int, default=200)
     args = ap.parse_args()
     t0 = time.perf_counter()
     nf = noise_free_check()
@@ -102,7 +137,18 @@ def main() -> int:
     print(table(coloured["rows"], f"Coloured sensor noise (100 Hz), stronger speed feedback, {args.runs} runs "
                 f"(fit I {coloured['fit_percent']['I_mean']:.1f} %, omega {coloured['fit_percent']['omega_mean']:.1f} %); "
                 "the CRB column assumes white noise, so sd/CRB is indicative only"))
+    se_cases = [se_over_sd(rig, args.se_runs, phi, scale, 20_000)
+                for phi, scale in ((0.0, 1.0), (0.9, 0.5), (0.9, 1.0))]
+    print()
+    print(table([{"noise": "white" if c["phi"] == 0 else f"AR(1) {c['phi']}",
+                  "sd x rig": c["noise_scale"], "held": f"{c['held']}/{c['runs']}",
+                  **{p: c["se_over_sd"].get(p, float("nan"))  # type: ignore[attr-defined]
+                     for p in PARAMETER_NAMES}} for c in se_cases],
+                f"Reported SE / Monte-Carlo sd, {args.se_runs} closed-loop records each "
+                "(target 0.8-1.25; 'held': records where a parameter was not identifiable "
+                "and held, left out)"))
     checks = {
+        "se_over_sd_white_and_ar1": all(c["within_0p8_1p25"] for c in se_cases if c["held"] == 0),
         "noise_free_max_rel_error_sriv": nf["sriv"],
         "paper_bias_below_one_std_RLKeKtJ": all(
             paper["per_parameter"][p]["closed"]["bias_over_std"] < 1.0 for p in ("R", "L", "Ke", "Kt", "J")),
@@ -113,7 +159,8 @@ def main() -> int:
     for k, v in checks.items():
         print(f"{k}: {v}")
     path = write_json("accuracy", {"runs": args.runs, "noise_free": nf, "paper_level": paper,
-                                   "coloured_noise": coloured, "checks": checks,
+                                   "coloured_noise": coloured, "se_over_sd": se_cases,
+                                   "checks": checks,
                                    "seconds": time.perf_counter() - t0})
     print(f"\nwrote {path}")
     return 0

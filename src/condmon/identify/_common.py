@@ -21,7 +21,7 @@ from condmon.errors import DataError, EstimationError, ModelError
 from condmon.models.transfer import DiscreteTF
 
 __all__ = ["TFEstimate", "prepare", "normal_equations", "to_model", "stabilise",
-           "simulate_outputs", "covariance", "log_oe_cost"]
+           "simulate_outputs", "covariance", "robust_covariance", "log_oe_cost"]
 
 FloatArray = NDArray[np.float64]
 
@@ -236,6 +236,38 @@ def covariance(R: FloatArray, S: FloatArray, checked: bool = False) -> FloatArra
         raise EstimationError("the instrumental-variable matrix is singular: the data "
                               "do not determine the model")
     return np.asarray(Ri @ S @ Ri.T, dtype=np.float64)
+
+
+def iv_scores(sig: FloatArray, m: int, order: int, theta: FloatArray,
+              weights: FloatArray) -> FloatArray:
+    """The per-sample terms ``g_t = Σ_j w_j ζ_jt e_jt`` whose sum the normal
+    equations of :func:`normal_equations` set to zero (same ``sig`` layout),
+    ``e_jt`` the equation error of output ``j`` at ``theta``; shape (N - n, p)."""
+    n = order
+    N = sig.shape[0]
+    lagged = np.stack([sig[n - d: N - d] for d in range(1, n + 1)], axis=1)  # (T, n, ns)
+    sign = np.r_[-np.ones(n), np.ones(n)]
+    g = np.zeros((N - n, n * (1 + m)))
+    for j in range(m):
+        idx = np.r_[0:n, n * (1 + j): n * (2 + j)]
+        phi = np.concatenate([lagged[:, :, j], lagged[:, :, m]], axis=1) * sign
+        zeta = np.concatenate([lagged[:, :, m + 1 + j], lagged[:, :, 2 * m + 1]], axis=1) * sign
+        e = sig[n:, j] - phi @ theta[idx]
+        g[:, idx] += weights[j] * zeta * e[:, None]
+    return g
+
+
+def robust_covariance(R: FloatArray, sig: FloatArray, m: int, order: int, theta: FloatArray,
+                      weights: FloatArray, checked: bool = False) -> tuple[FloatArray, float]:
+    """IV covariance ``R⁻¹ S R⁻ᵀ`` with ``S`` the long-run covariance of the
+    scores (:mod:`condmon.identify.long_run`): it holds when the noise is
+    coloured and equals the white-noise ``R⁻¹ (Σ w ζζᵀ) R⁻ᵀ`` on average when it
+    is white. Returns the covariance and the bandwidth used [samples]
+    (``checked`` as for :func:`covariance`)."""
+    from condmon.identify.long_run import long_run_covariance
+
+    S, bandwidth = long_run_covariance(iv_scores(sig, m, order, theta, weights))
+    return covariance(R, S, checked=checked), bandwidth
 
 
 def _well_conditioned(R: FloatArray) -> bool:

@@ -145,16 +145,21 @@ def _fit_and_diagnostics(est: TFEstimate, u: FloatArray, y: FloatArray,
 
 
 def _solve_coefficients(lin: LinearStructure, target: FloatArray, start: FloatArray,
-                        known: FloatArray) -> FloatArray:
-    scale = np.where(target != 0, np.abs(target), 1.0)
+                        known: FloatArray, weight: FloatArray | None = None) -> FloatArray:
+    """The unknowns whose coefficients are ``target``: exactly when as many
+    as the coefficients, else by generalised least squares with ``weight``
+    (``W``, ``WᵀW`` the inverse of the coefficients' covariance), so a
+    coefficient the record barely determines cannot pull the others."""
+    if weight is None:
+        weight = np.diag(1.0 / np.where(target != 0, np.abs(target), 1.0))
 
     def res(p: FloatArray) -> FloatArray:
         with np.errstate(all="ignore"):  # far from the solution: inf, judged by the caller
-            return (lin.values(p, known) - target) / scale
+            return np.asarray(weight @ (lin.values(p, known) - target), dtype=np.float64)
 
     def jac(p: FloatArray) -> FloatArray:
         with np.errstate(all="ignore"):
-            return lin.jacobian(p, known) / scale[:, None]
+            return np.asarray(weight @ lin.jacobian(p, known), dtype=np.float64)
 
     # Newton (Gauss-Newton when over-determined) from the declared values, then
     # from their mirror image: a record with an inverted sign maps to negative
@@ -319,17 +324,18 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
         keep = [spec.unknowns.index(k) for k in idf.identifiable]
         fixed = np.array([held[k] for k in spec.unknowns])
         sub = _Subset(lin, keep, fixed)
+        W = _whitened(cov_c, np.eye(c_hat.size))
         try:
-            p_sub = _solve_coefficients(sub, c_hat, start[keep], known)  # type: ignore[arg-type]
+            p_sub = _solve_coefficients(sub, c_hat, start[keep], known,  # type: ignore[arg-type]
+                                        weight=W)
         except ConversionError as err:
             return LinearRouteResult(nan, nan_cov, est, cont, fit,
                                      f"no physical parameters: {err}", diag, identifiability=idf)
         p = fixed.copy()
         p[keep] = p_sub
-        Jp = lin.jacobian(p, known)[:, keep]
-        G = np.linalg.pinv(Jp)
+        Jw = W @ lin.jacobian(p, known)[:, keep]
         cov = np.zeros((len(spec.unknowns),) * 2)
-        cov[np.ix_(keep, keep)] = G @ cov_c @ G.T
+        cov[np.ix_(keep, keep)] = np.linalg.pinv(Jw.T @ Jw)
     else:
         G = np.linalg.pinv(Jp)
         cov = G @ cov_c @ G.T

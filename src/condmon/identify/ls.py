@@ -7,8 +7,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from condmon._filter import lfilter
 from condmon.identify._common import (
-    TFEstimate, covariance, normal_equations, prepare, simulate_outputs, solve, stabilise,
-    to_model,
+    TFEstimate, normal_equations, prepare, robust_covariance, simulate_outputs, solve,
+    stabilise, to_model,
 )
 from condmon.identify.closed_loop import noise_free_input
 
@@ -153,8 +153,8 @@ def iv(u: ArrayLike, y: ArrayLike, order: int, *, dt: float = 1.0,
     theta = solve(R, r)
     sig2 = output_error_variance(theta, order, u_a, y_a)
     weights = 1.0 / np.maximum(sig2, 1e-300)
-    R, _, S, _ = normal_equations(sig, m, order, weights)
-    cov = covariance(R, S)
+    R, _, _, _ = normal_equations(sig, m, order, weights)
+    cov, _ = robust_covariance(R, sig, m, order, theta, weights)
     notes = () if closed else ("direct approach: input taken as noise-free",)
     return TFEstimate(to_model(theta, order, dt, _names(outputs, m), input_name), theta,
                       cov, sig2, "iv", closed_loop_instruments=closed,

@@ -40,6 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 from condmon._filter import lfilter
 from condmon.errors import EstimationError
 from condmon.identify._common import stabilise
+from condmon.identify.long_run import long_run_covariance
 from condmon.identify.ls import output_error_variance
 
 __all__ = ["OutputErrorFit", "refine_output_error"]
@@ -56,7 +57,9 @@ class OutputErrorFit:
     theta : ndarray, shape (n_params,)
         ``[a_1..a_n, b_11..b_1n, ..., b_m1..b_mn]``.
     covariance : ndarray, shape (n_params, n_params)
-        ``(ψᵀ W ψ)⁻¹`` at the optimum (W = diag 1/σ_j²).
+        ``I⁻¹ S I⁻¹`` at the optimum, ``I = ψᵀ W ψ`` (W = diag 1/σ_j²) and
+        ``S`` the long-run covariance of the weighted scores
+        (:mod:`condmon.identify.long_run`); ``I⁻¹`` on average for white noise.
     noise_variance : ndarray, shape (n_outputs,)
         Variance of each output's simulation residual. [output unit^2]
     evaluations : int
@@ -193,5 +196,11 @@ def refine_output_error(u: ArrayLike, y: ArrayLike, order: int, theta0: ArrayLik
         raise EstimationError(f"output-error refinement: the sensitivities are singular "
                               f"(condition number {cond:.3g}); the data do not determine "
                               "the model")
-    cov = np.linalg.solve(info, np.eye(theta.size))
+    inv = np.linalg.solve(info, np.eye(theta.size))
+    # sandwich with the scores' long-run covariance: holds under coloured noise
+    # and equals ``inv`` on average under white noise
+    res = prob.residuals(theta)
+    scores = (jac * res[:, None]).reshape(prob.m, u_a.size, theta.size).sum(axis=0)
+    S, _ = long_run_covariance(scores)
+    cov = inv @ S @ inv
     return OutputErrorFit(theta, np.asarray(cov, dtype=np.float64), sig2, nfev, success)

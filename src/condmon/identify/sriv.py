@@ -39,8 +39,8 @@ from numpy.typing import ArrayLike, NDArray
 from condmon._filter import lfilter
 from condmon.errors import ConvergenceWarning, EstimationError
 from condmon.identify._common import (
-    TFEstimate, covariance, log_oe_cost, normal_equations, prepare, simulate_outputs,
-    solve, stabilise, to_model,
+    TFEstimate, covariance, log_oe_cost, normal_equations, prepare, robust_covariance,
+    simulate_outputs, solve, stabilise, to_model,
 )
 from condmon.identify.closed_loop import noise_free_input
 from condmon.identify.ls import _names, arx_theta, output_error_variance
@@ -115,6 +115,7 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
             raw = solve(R, r)
             cov = covariance(R, S, checked=True)
             new = _stable_theta(raw, order)
+            last = (R, sig, raw, weights)
         except EstimationError as err:
             failure = f"iteration {it}: {err}"
             break
@@ -128,6 +129,10 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
             converged = True
             break
     if converged:
+        # the white-noise bound above steered nothing; the reported covariance
+        # is the one that also holds under coloured noise
+        R, sig, raw, weights = last
+        cov, _ = robust_covariance(R, sig, m, order, raw, weights, checked=True)
         return SrivIterations(theta, cov, sig2, it, True, None)
     return SrivIterations(best[1], best[3], best[2], it, False, failure)
 
@@ -174,7 +179,9 @@ def sriv(u: ArrayLike, y: ArrayLike, order: int, *, dt: float = 1.0,
     -------
     TFEstimate
         With ``iterations``, ``converged``, the covariance ``R⁻¹ S R⁻ᵀ``
-        (``R = Σ w ζφᵀ``, ``S = Σ w ζζᵀ``, ``w = 1/σ²``) and ``path``: "sriv",
+        (``R = Σ w ζφᵀ``, ``w = 1/σ²``, ``S`` the long-run covariance of the
+        scores ``w ζ e``, which holds under coloured noise and is ``Σ w ζζᵀ`` on
+        average under white noise; :mod:`condmon.identify.long_run`) and ``path``: "sriv",
         or "sriv -> oe" when the refinement took over (the reason in ``notes``).
 
     Raises

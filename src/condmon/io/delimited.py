@@ -84,6 +84,8 @@ def _typed_columns(frame: pd.DataFrame) -> int:
         col = frame[name]
         if pd.api.types.is_numeric_dtype(col.dtype) and not pd.api.types.is_bool_dtype(col.dtype):
             n += 1
+        elif _is_number(str(next(iter(col.dropna()), "x")), "."):
+            continue  # text that is a number under the other decimal mark: no date-time
         else:
             try:
                 n += time_to_seconds(col) is not None

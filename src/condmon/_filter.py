@@ -46,14 +46,27 @@ def _impulse(a: FloatArray, length: int) -> FloatArray:
     return np.asarray(h, dtype=np.float64)
 
 
+#: Lower-triangular Toeplitz index of each block length used: row i, column j
+#: reads h[i - j] (h padded with a trailing 0 that fills the upper triangle).
+_TOEPLITZ: dict[int, NDArray[np.intp]] = {}
+
+
+def _toeplitz_index(length: int) -> NDArray[np.intp]:
+    idx = _TOEPLITZ.get(length)
+    if idx is None:
+        lag = np.subtract.outer(np.arange(length), np.arange(length))
+        idx = np.where(lag >= 0, lag, length)
+        _TOEPLITZ[length] = idx
+    return idx
+
+
 def _all_pole(a: FloatArray, v: FloatArray) -> FloatArray:
     """Solve ``a(q^-1) y = v`` from rest for every column of ``v`` (rows: time)."""
     n = a.size - 1
     rows, cols = v.shape
     length = int(min(rows, max(64, 8 * n)))
     h = _impulse(a, length)
-    lag = np.subtract.outer(np.arange(length), np.arange(length))
-    hmat = np.where(lag >= 0, h[np.clip(lag, 0, None)], 0.0)  # lower Toeplitz
+    hmat = np.append(h, 0.0)[_toeplitz_index(length)]  # lower Toeplitz
     # free response to the n outputs before a block (y[-1], ..., y[-n]): the
     # zero-state response to the terms of the recursion that reach back there
     w = np.zeros((length, n))
@@ -64,20 +77,24 @@ def _all_pole(a: FloatArray, v: FloatArray) -> FloatArray:
     blocks = -(-rows // length)
     padded = np.zeros((blocks * length, cols))
     padded[:rows] = v
-    zero_state = np.matmul(hmat, padded.reshape(blocks, length, cols))
-    carry = np.zeros((blocks, n, cols))  # y[-1], ..., y[-n] before each block
+    # every block of every column through the Toeplitz matrix in one product;
+    # layout (time within the block, block, column)
+    by_block = padded.reshape(blocks, length, cols).transpose(1, 0, 2).reshape(length, -1)
+    zero_state = (hmat @ by_block).reshape(length, blocks, cols)
     if blocks > 1:  # then length >= n: a block holds the n outputs the next needs
         # after block k: s_k = c_k + F s_(k-1), c_k its zero-state last outputs;
-        # solved for all k by a doubling scan (log2(blocks) batched products)
+        # solved for all k by a doubling scan (log2(blocks) products)
         step = free[length - n:][::-1]  # F: the block's last n outputs from y[-1..-n]
-        s = zero_state[:, length - n:][:, ::-1].copy()
+        s = zero_state[length - n:][::-1].copy()  # (n, blocks, cols)
         power, d = step, 1
         while d < blocks:
-            s[d:] = s[d:] + np.matmul(power, s[:-d])
+            s[:, d:] += (power @ s[:, :-d].reshape(n, -1)).reshape(n, blocks - d, cols)
             power, d = power @ power, 2 * d
-        carry[1:] = s[:-1]
-    y = zero_state + np.matmul(free, carry)
-    return np.asarray(y.reshape(blocks * length, cols)[:rows], dtype=np.float64)
+        carry = np.zeros((n, blocks, cols))  # y[-1], ..., y[-n] before each block
+        carry[:, 1:] = s[:, :-1]
+        zero_state += (free @ carry.reshape(n, -1)).reshape(length, blocks, cols)
+    y = zero_state.transpose(1, 0, 2).reshape(blocks * length, cols)[:rows]
+    return np.asarray(y, dtype=np.float64)
 
 
 def lfilter(b: ArrayLike, a: ArrayLike, x: ArrayLike, axis: int = -1) -> FloatArray:
@@ -105,7 +122,9 @@ def lfilter(b: ArrayLike, a: ArrayLike, x: ArrayLike, axis: int = -1) -> FloatAr
         Coefficients not 1-D, or ``a[0]`` zero.
     """
     bb = np.atleast_1d(np.asarray(b, dtype=np.float64))
-    aa = np.trim_zeros(np.atleast_1d(np.asarray(a, dtype=np.float64)), "b")
+    aa = np.atleast_1d(np.asarray(a, dtype=np.float64))
+    last = np.flatnonzero(aa) if aa.ndim == 1 else np.arange(aa.size)
+    aa = aa[:last[-1] + 1] if last.size else aa[:0]  # trailing zeros off
     if bb.ndim != 1 or aa.ndim != 1 or aa.size == 0 or aa[0] == 0.0:
         raise ValueError("filter coefficients must be 1-D with a[0] non-zero")
     bb, aa = bb / aa[0], aa / aa[0]

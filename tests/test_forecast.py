@@ -878,3 +878,49 @@ def test_check_prints_no_interval_words_for_a_unit_at_no_go(
     now, later = capsys.readouterr().out.splitlines()
     assert "at no-go now (friction increase)" in now and "interval" not in now
     assert "no-go in 4 tests (3–6)" in later and "median (90 % interval)" in later
+
+
+def test_peers_wear_fitted_after_a_method_change_is_kept_for_the_next_check(
+        tmp_path: Path, demo_rig) -> None:  # type: ignore[no-untyped-def]
+    """After the kept forecasts are dropped (a new forecast method, a copied
+    history), the first check fits its peers' wear from their histories and
+    keeps it; the next check reads it back and reads no peer's history, and
+    the listing still forecasts each peer (the kept row holds no forecast)."""
+    from condmon.store.forecasts import (
+        FORECAST_METHOD, PEER_RATES_ONLY, FleetHistory, fleet_summaries,
+    )
+
+    db = str(tmp_path / "renew.db")
+    with open_store(db) as store:
+        for i, (unit, days) in enumerate((("OLD1", 6), ("OLD2", 6), ("NEW", 3))):
+            add_baseline_tests(store, unit, [simulate_actuator(demo_rig, seed=10 * i + s)
+                                             for s in (1, 2, 3)], test_date="2026-01-01")
+            for k in range(1, days + 1):
+                rig = demo_rig.with_faults([f"D=*{1.0 + k}", f"coulomb_friction=*{1.0 + k}"])
+                check_test(store, unit, simulate_actuator(rig, seed=300 + 10 * k + i),
+                           test_date=f"2026-01-{1 + k:02d}")
+        store.renew_forecasts(FORECAST_METHOD)
+        assert store.kept_rates(["OLD1", "OLD2"]) == {}
+        check_test(store, "NEW", simulate_actuator(demo_rig.with_faults(["D=*5", "coulomb_friction=*5"]),
+                                                   seed=999), test_date="2026-01-05")
+        kept = store.kept_forecasts(["OLD1", "OLD2"])
+        assert {u: v[1] for u, v in kept.items()} == {"OLD1": PEER_RATES_ONLY,
+                                                      "OLD2": PEER_RATES_ONLY}
+        read: list[str] = []
+        real_history = store.history
+        store.history = lambda u: read.append(u) or real_history(u)  # type: ignore[method-assign]
+        again = FleetHistory(store)
+        assert again.learning_peers("NEW") == ["OLD1", "OLD2"]
+        again.priors("NEW", ["D"], "days")
+        assert read == [] and again.fitted() == []
+        store.history = real_history  # type: ignore[method-assign]
+        fresh = FleetHistory(store)
+        fresh.learning_peers("NEW")
+        fresh._current.clear()
+        fresh._wear.clear()
+        for unit in ("OLD1", "OLD2"):
+            assert again._wear[(unit, "D", "days")] == pytest.approx(
+                fresh._unit_wear(unit, "D", "days"))
+        rows = {r["unit"]: r for r in fleet_summaries(store)}
+        assert rows["OLD1"]["forecast_reason"] is not None or rows["OLD1"]["forecast"]
+        assert store.kept_forecasts(["OLD1"])["OLD1"][1] != PEER_RATES_ONLY

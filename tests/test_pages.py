@@ -139,3 +139,32 @@ def test_page_numbers_are_checked_alike_everywhere(big: str,
     assert main(["units", "--db", big, "--json", "--sort", "status", "--per-page", "5"]) == 0
     assert json.loads(capsys.readouterr().out) == _get(
         client, "/api/units?sort=status&per_page=5").get_json()
+
+
+def test_a_unit_page_draws_its_figures_once_per_state_of_its_history(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import condmon.report.figures as figures
+    from condmon.simulate import simulate_actuator
+    from condmon.workflows.checks import check_test
+    from condmon.workflows.monitoring import add_baseline_tests
+
+    db = str(tmp_path / "h.db")
+    with open_store(db) as store:
+        add_baseline_tests(store, "EMA-1", [simulate_actuator(seed=s) for s in range(3)])
+        check_test(store, "EMA-1", simulate_actuator(seed=10))
+    drawn: list[str] = []
+    for name in ("fit_figure", "symptom_figure"):
+        real = getattr(figures, name)
+        monkeypatch.setattr(figures, name,
+                            lambda *a, _r=real, _n=name, **k: (drawn.append(_n), _r(*a, **k))[1])
+    client = create_app(db).test_client()
+    first = _get(client, "/units/EMA-1").get_data(as_text=True)
+    assert sorted(drawn) == ["fit_figure", "symptom_figure"]
+    again = _get(client, "/units/EMA-1").get_data(as_text=True)
+    assert again == first and len(drawn) == 2          # drawn once, shown twice
+    with open_store(db) as store:                      # the history moves on
+        check_test(store, "EMA-1", simulate_actuator(seed=11))
+    after = _get(client, "/units/EMA-1").get_data(as_text=True)
+    assert sorted(drawn) == ["fit_figure", "fit_figure", "symptom_figure", "symptom_figure"]
+    old = first.split('src="data:image/png;base64,')[1].split('"')[0]
+    assert old not in after                            # never the old figure

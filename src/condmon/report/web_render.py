@@ -16,6 +16,8 @@ the page writes them. The templates turn these into HTML.
 from __future__ import annotations
 
 import math
+import threading
+from collections import OrderedDict
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
@@ -253,29 +255,68 @@ def _png_uri(fig: Any) -> str:
     return "data:image/png;base64," + base64.b64encode(png.getvalue()).decode("ascii")
 
 
+#: Figures drawn, by a digest of exactly what they draw (so a unit's figures are
+#: drawn once per state of its history, and a changed history can never show
+#: old ones); the least recently shown are dropped beyond :data:`FIGURE_CACHE`.
+_DRAWN: OrderedDict[str, _Figure] = OrderedDict()
+_DRAWN_LOCK = threading.Lock()
+#: How many figures the page keeps drawn (about 50-150 kB each).
+FIGURE_CACHE = 96
+
+
+def _digest(what: object) -> str | None:
+    """A digest of ``what``'s pickle, or None when it cannot be pickled."""
+    import hashlib
+    import pickle
+
+    try:
+        return hashlib.blake2b(pickle.dumps(what, protocol=5), digest_size=20).hexdigest()
+    except (pickle.PicklingError, TypeError, AttributeError, RecursionError):
+        return None
+
+
+def _drawn(name: str, caption: str, inputs: object, draw: Any) -> _Figure:
+    """The figure ``draw()`` makes of ``inputs``, drawn once per content."""
+    key = _digest((name, caption, inputs))
+    if key is not None:
+        with _DRAWN_LOCK:
+            hit = _DRAWN.get(key)
+            if hit is not None:
+                _DRAWN.move_to_end(key)
+                return hit
+    fig = _Figure(name, caption, _png_uri(draw()))
+    if key is not None:
+        with _DRAWN_LOCK:
+            _DRAWN[key] = fig
+            while len(_DRAWN) > FIGURE_CACHE:
+                _DRAWN.popitem(last=False)
+    return fig
+
+
 def _figures(data: UnitData, trends: _Trends) -> dict[str, _Figure]:
     """The report's fit, symptom and isolation figures of the unit, drawn by
     the report's own code (:mod:`condmon.report.figures`) from what the page
-    read: ``fits``, ``symptoms`` (with trended checks) and ``isolations``."""
+    read: ``fits``, ``symptoms`` (with trended checks) and ``isolations``.
+    Each is drawn once for what it shows (:func:`_drawn`)."""
     from condmon.identify.defaults import DEFAULT_FIT_THRESHOLD
     from condmon.report.figures import fit_figure, isolation_figure, symptom_figure
     from condmon.report.trends import fit_data, isolation_trend
 
     out = {}
     if len(data.history):
-        out["fits"] = _Figure("fits", "Model fit of every test that is not excluded, with the "
-                              f"{DEFAULT_FIT_THRESHOLD:g} % threshold [%]",
-                              _png_uri(fit_figure(fit_data(data.history),
-                                                  DEFAULT_FIT_THRESHOLD)))
+        fits = fit_data(data.history)
+        out["fits"] = _drawn("fits", "Model fit of every test that is not excluded, with the "
+                             f"{DEFAULT_FIT_THRESHOLD:g} % threshold [%]", fits,
+                             lambda: fit_figure(fits, DEFAULT_FIT_THRESHOLD))
     if trends.checks and trends.checks[0].test_ids:
-        out["symptoms"] = _Figure("symptoms", "Fuzzy symptoms of each trended check, SymH up "
-                                  "and SymL down, per parameter [-]",
-                                  _png_uri(symptom_figure(trends.checks)))
+        out["symptoms"] = _drawn("symptoms", "Fuzzy symptoms of each trended check, SymH up "
+                                 "and SymL down, per parameter [-]", trends.checks,
+                                 lambda: symptom_figure(trends.checks))
     iso = isolation_trend(data.isolations) if len(data.isolations) else None
     if iso is not None and iso.isolation_ids:
-        out["isolations"] = _Figure("isolations", "Each suspect's steady-state estimate "
-                                    "against nominal, per isolation [%]",
-                                    _png_uri(isolation_figure(iso)))
+        out["isolations"] = _drawn("isolations", "Each suspect's steady-state estimate "
+                                   "against nominal, per isolation [%]", iso,
+                                   lambda: isolation_figure(iso))
     return out
 
 

@@ -73,6 +73,7 @@ class FleetHistory:
         self._limit = 0
         self._recent: dict[tuple[str, str | None], list[str]] = {}
         self._pits: dict[str, dict[str, list[float]]] = {}
+        self._fitted: set[str] = set()   # wear fitted here from a history, not read back
 
     def know(self, units: Sequence[str]) -> None:
         """Read whether each of ``units`` has degraded, in one query (a page's
@@ -115,6 +116,11 @@ class FleetHistory:
                         self._wear[(p, name, by)] = _wear_from(v)
         self._kept.update(fresh)
         return sorted(chosen)
+
+    def fitted(self) -> list[str]:
+        """The units whose wear this object fitted from their histories
+        (their kept rates were missing or stale), in name order."""
+        return sorted(self._fitted)
 
     def rates_of(self, unit: str) -> dict[str, list[Any] | None] | None:
         """``unit``'s own wear, ``{"<by>|<parameter>": [exponential weight,
@@ -185,6 +191,7 @@ class FleetHistory:
                 series = parameter_series(checks, baseline, key, axis) \
                     if axis.by == by else None
                 found = None if series is None else unit_wear(*series[0])
+                self._fitted.add(unit)
             self._wear[(unit, key, by)] = found
         return self._wear[(unit, key, by)]
 
@@ -491,6 +498,12 @@ def attach_forecasts(store: HistoryStore, rows: list[dict[str, Any]]) -> list[di
     return rows
 
 
+#: The peer count of a kept row that holds only a unit's wear for its peers'
+#: priors, no forecast of its own: matches no unit's count, so a listing
+#: forecasts that unit afresh (and replaces the row) while the wear is reused.
+PEER_RATES_ONLY = -1
+
+
 def _kept_row(unit: str, mark: int, peers: int, fields: dict[str, Any], fleet: FleetHistory
               ) -> tuple[Any, ...]:
     return (unit, mark, peers, fields["forecast"], fields["forecast_reason"],
@@ -556,8 +569,14 @@ def keep_forecast(store: HistoryStore, unit: str) -> dict[str, Any]:
     current_method(store)
     fleet = FleetHistory(store)
     fields = forecast_fields(*try_forecast(store, unit, fleet))
-    store.keep_forecasts([_kept_row(unit, store.history_marks([unit]).get(unit, 0),
-                                    fleet.peer_count(unit), fields, fleet)])
+    peers = [p for p in fleet.fitted() if p != unit]
+    marks = store.history_marks([unit, *peers])
+    # the peers whose wear had to be fitted from their histories (a method
+    # change, a copied history) keep it, so the next check reads it back
+    store.keep_forecasts([_kept_row(unit, marks.get(unit, 0), fleet.peer_count(unit), fields,
+                                    fleet),
+                          *[(p, marks.get(p, 0), PEER_RATES_ONLY, None, None, fleet.rates_of(p))
+                            for p in peers]])
     return fields
 
 

@@ -21,7 +21,7 @@ from _common import oe_information, table, write_json
 from condmon.identify import estimate
 from condmon.models import PARAMETER_NAMES, DCMotorParameters, dc_motor_tf, tf_c2d
 from condmon.models.dc_motor import dc_motor_from_discrete
-from condmon.simulate import load_actuator_rig, simulate_actuator
+from condmon.simulate import ar1_noise, load_actuator_rig, simulate_actuator
 
 
 def noise_free_check() -> dict[str, float]:
@@ -90,16 +90,13 @@ def se_over_sd(rig, runs: int, phi: float, scale: float, seed0: int  # type: ign
     marginal sd is ``scale`` x the rig's, added to noise-free closed-loop records
     (target 0.8-1.25). Records on which a parameter was held (not identifiable)
     are counted and left out."""
-    from scipy.signal import lfilter
-
     quiet = dataclasses.replace(rig, noise_I=0.0, noise_omega=0.0)
     est, se, held = [], [], 0
     for k in range(runs):
         rec = simulate_actuator(quiet, seed=seed0 + k)
         rng = np.random.default_rng(seed0 + 10_000 + k)
-        for col, sd in (("I", rig.noise_I), ("omega", rig.noise_omega)):
-            e = lfilter([1.0], [1.0, -phi], rng.standard_normal(len(rec)))
-            rec[col] = rec[col] + e * (scale * sd / np.std(e))
+        rec["I"] += ar1_noise(len(rec), scale * rig.noise_I, phi, rng)
+        rec["omega"] += ar1_noise(len(rec), scale * rig.noise_omega, phi, rng)
         res = estimate(rec)
         if res.held:
             held += 1

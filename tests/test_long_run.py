@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pandas as pd
 import pytest
 from scipy.signal import lfilter
 
@@ -15,7 +16,7 @@ from condmon.identify import estimate
 from condmon.identify.long_run import andrews_bandwidth, long_run_covariance
 from condmon.identify.refine import refine_output_error
 from condmon.models import PARAMETER_NAMES
-from condmon.simulate import load_actuator_rig, simulate_actuator
+from condmon.simulate import ar1_noise, load_actuator_rig, simulate_actuator
 
 RIG = load_actuator_rig()
 QUIET = dataclasses.replace(RIG, noise_I=0.0, noise_omega=0.0)
@@ -50,14 +51,19 @@ def test_the_bandwidth_is_finite_for_a_random_walk_and_for_constant_scores() -> 
     assert andrews_bandwidth(np.zeros((100, 2))) == 1.0
 
 
+def _noisy(seed: int, phi: float, scale: float) -> pd.DataFrame:
+    """A closed-loop record whose sensors read AR(1) noise ``scale`` x the rig's."""
+    rec = simulate_actuator(QUIET, seed=seed)
+    rng = np.random.default_rng(seed + 600)
+    rec["I"] += ar1_noise(len(rec), scale * RIG.noise_I, phi, rng)
+    rec["omega"] += ar1_noise(len(rec), scale * RIG.noise_omega, phi, rng)
+    return rec
+
+
 def _se_over_sd(phi: float, scale: float, runs: int) -> tuple[dict[str, float], int]:
     est, se, held = [], [], 0
     for k in range(runs):
-        rec = simulate_actuator(QUIET, seed=300 + k)
-        rng = np.random.default_rng(900 + k)
-        for col, sd in (("I", RIG.noise_I), ("omega", RIG.noise_omega)):
-            e = _ar1(rng, len(rec), phi)
-            rec[col] = rec[col] + e * (scale * sd / np.std(e))
+        rec = _noisy(300 + k, phi, scale)
         res = estimate(rec)
         if res.held:
             held += 1
@@ -83,12 +89,7 @@ def test_the_actuator_standard_errors_are_the_scatter(phi: float) -> None:
 def test_coloured_noise_that_hides_the_damping_holds_it_rather_than_reporting_it() -> None:
     # AR(1) 0.9 at the rig's full noise: D's relative error is about 60 %,
     # beyond the 50 % limit, so D is held and said so; the others stay close
-    rec = simulate_actuator(QUIET, seed=11)
-    rng = np.random.default_rng(12)
-    for col, sd in (("I", RIG.noise_I), ("omega", RIG.noise_omega)):
-        e = _ar1(rng, len(rec), 0.9)
-        rec[col] = rec[col] + e * (sd / np.std(e))
-    res = estimate(rec)
+    res = estimate(_noisy(11, 0.9, 1.0))
     assert "D" in res.held
     truth = RIG.physical()
     for p in ("R", "L", "Kt", "J"):

@@ -8,17 +8,17 @@ from condmon._lazy import load, names
 
 if TYPE_CHECKING:
     from condmon.simulate.actuator import (
-        ActuatorRig, band_limited_noise, load_actuator_rig, simulate_actuator,
+        ActuatorRig, ar1_noise, band_limited_noise, load_actuator_rig, simulate_actuator,
     )
     from condmon.simulate.faults import Fault, apply_fault, parse_fault
 
 __all__ = ["ActuatorRig", "load_actuator_rig", "simulate_actuator", "band_limited_noise",
-           "Fault", "parse_fault", "apply_fault"]
+           "ar1_noise", "Fault", "parse_fault", "apply_fault"]
 
 # Imported on first use (PEP 562).
 _EXPORTS: dict[str, str] = {
-    **dict.fromkeys(("ActuatorRig", "band_limited_noise", "load_actuator_rig", "simulate_actuator"),
-                    "condmon.simulate.actuator"),
+    **dict.fromkeys(("ActuatorRig", "ar1_noise", "band_limited_noise", "load_actuator_rig",
+                     "simulate_actuator"), "condmon.simulate.actuator"),
     **dict.fromkeys(("Fault", "apply_fault", "parse_fault"), "condmon.simulate.faults"),
 }
 

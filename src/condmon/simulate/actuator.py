@@ -31,7 +31,8 @@ from condmon.errors import ConfigError
 from condmon.io.config import load_default, load_toml, merge
 from condmon.simulate.faults import Fault, parse_fault
 
-__all__ = ["ActuatorRig", "load_actuator_rig", "simulate_actuator", "band_limited_noise"]
+__all__ = ["ActuatorRig", "load_actuator_rig", "simulate_actuator", "band_limited_noise",
+           "ar1_noise"]
 
 FloatArray = NDArray[np.float64]
 
@@ -221,6 +222,35 @@ def band_limited_noise(n: int, std: float, bandwidth: float, sample_rate: float,
         white = signal.sosfilt(sos, white)
     s = float(np.std(white))
     return white * (std / s) if s > 0 else white
+
+
+def ar1_noise(n: int, std: float, phi: float, rng: np.random.Generator) -> FloatArray:
+    """Gaussian AR(1) noise ``e[k] = phi e[k-1] + w[k]`` scaled to ``std``
+    (coloured sensor noise for studies of the standard errors).
+
+    Parameters
+    ----------
+    n : int
+        Number of samples.
+    std : float
+        Standard deviation of the result (over these ``n`` samples).
+    phi : float
+        Lag-1 coefficient, ``-1 < phi < 1`` (0: white).
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    ndarray, shape (n,)
+
+    Example
+    -------
+    >>> e = ar1_noise(5000, 0.1, 0.9, np.random.default_rng(0))
+    >>> round(float(np.std(e)), 6), bool(np.corrcoef(e[1:], e[:-1])[0, 1] > 0.85)
+    (0.1, True)
+    """
+    e = signal.lfilter([1.0], [1.0, -phi], rng.standard_normal(n))
+    s = float(np.std(e))
+    return np.asarray(e * (std / s) if s > 0 else e, dtype=np.float64)
 
 
 def _zoh_matrices(rig: ActuatorRig, h: float) -> tuple[FloatArray, FloatArray]:

@@ -21,7 +21,7 @@ from condmon.errors import DataError, EstimationError, ModelError
 from condmon.models.transfer import DiscreteTF
 
 __all__ = ["TFEstimate", "prepare", "normal_equations", "to_model", "stabilise",
-           "simulate_outputs", "covariance", "robust_covariance", "log_oe_cost"]
+           "simulate_outputs", "simulate_inputs", "covariance", "robust_covariance", "log_oe_cost"]
 
 FloatArray = NDArray[np.float64]
 
@@ -291,12 +291,18 @@ def log_oe_cost(sig2: FloatArray) -> float:
 
 def simulate_outputs(theta: FloatArray, order: int, u: FloatArray, m: int) -> FloatArray:
     """Noise-free outputs ``B_j/A u`` of a parameter vector, shape (N, m)."""
+    return np.asarray(simulate_inputs(theta, order, u[:, None], m)[0], dtype=np.float64)
+
+
+def simulate_inputs(theta: FloatArray, order: int, us: FloatArray, m: int) -> FloatArray:
+    """:func:`simulate_outputs` for each column of ``us`` (N, k) in one filter
+    pass; shape (k, N, m)."""
     n = order
     # An unstable iterate overflows: the caller sees inf/NaN and handles it.
     with np.errstate(all="ignore"):
-        x = lfilter([1.0], np.r_[1.0, theta[:n]], u)
-        N = x.size
-        X = np.zeros((N, n))
+        x = lfilter([1.0], np.r_[1.0, theta[:n]], us, axis=0)
+        N, k = x.shape
+        X = np.zeros((k, N, n))
         for d in range(1, n + 1):
-            X[d:, d - 1] = x[: N - d]
+            X[:, d:, d - 1] = x[: N - d].T
         return np.asarray(X @ theta[n:].reshape(m, n).T, dtype=np.float64)

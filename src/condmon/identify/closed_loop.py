@@ -102,11 +102,11 @@ def noise_free_input(u: ArrayLike, r: ArrayLike, order: int = 8) -> FloatArray:
     theta = np.r_[sol[:n], sol[n:].reshape(n + 1, nr).T.ravel()]
     c = np.r_[1.0, theta[:n]]
     if np.all(np.abs(np.roots(c)) < 0.999):
-        out = np.zeros(N)
+        # sum of D_i r_i through 1/C once (the recursion is linear)
+        moving = np.zeros(N)
         for i in range(r_arr.shape[1]):
-            d = theta[n + i * (n + 1): n + (i + 1) * (n + 1)]
-            out += lfilter(d, c, r_arr[:, i])
-        return out
+            moving += lfilter(theta[n + i * (n + 1): n + (i + 1) * (n + 1)], [1.0], r_arr[:, i])
+        return lfilter([1.0], c, moving)
     # Unstable ARX denominator: a long FIR model is always stable.
     m = 60
     Xf = _lagged(r_arr, m, 0)

@@ -67,7 +67,10 @@ def _varies(record: pd.DataFrame | Columns, column: str) -> bool:
         return bool(values.size and np.any(values != values[0]))
     import pandas as pd
 
-    return bool(pd.to_numeric(record[column], errors="coerce").nunique(dropna=True) > 1)
+    values = pd.to_numeric(record[column], errors="coerce").to_numpy(dtype=np.float64,
+                                                                     na_value=np.nan)
+    values = values[~np.isnan(values)]
+    return bool(values.size and np.any(values != values[0]))
 
 
 def _required_columns(machine: Machine, route: str) -> tuple[str, ...]:

@@ -40,7 +40,7 @@ from condmon._filter import lfilter
 from condmon.errors import ConvergenceWarning, EstimationError
 from condmon.identify._common import (
     TFEstimate, covariance, log_oe_cost, normal_equations, prepare, robust_covariance,
-    simulate_outputs, solve, stabilise, to_model,
+    simulate_inputs, solve, stabilise, to_model,
 )
 from condmon.identify.closed_loop import noise_free_input
 from condmon.identify.ls import _names, arx_theta, output_error_variance
@@ -94,16 +94,28 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
     """
     m = y.shape[1]
     theta = _stable_theta(arx_theta(u, y, order), order)
-    sig2 = output_error_variance(theta, order, u, y)
-    best: tuple[float, FloatArray, FloatArray, FloatArray | None] = (
+    same = u_i is u
+
+    def simulated(th: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``B/A u`` (the output error's) and ``B/A u_i`` (the instruments'):
+        one filter pass for both."""
+        x = simulate_inputs(th, order, u[:, None] if same else np.column_stack([u, u_i]), m)
+        return x[0], x[-1]
+
+    def variance(x_u: FloatArray) -> FloatArray:   # as output_error_variance
+        with np.errstate(all="ignore"):
+            v = np.var((y - x_u)[order:], axis=0)
+        return np.asarray(np.where(np.isfinite(v), v, np.inf), dtype=np.float64)
+
+    x_u, x = simulated(theta)
+    sig2 = variance(x_u)
+    best: tuple[float, FloatArray, FloatArray, tuple[FloatArray, FloatArray] | None] = (
         log_oe_cost(sig2), theta, sig2, None)
-    cov: FloatArray | None = None
     converged = False
     failure: str | None = None
     it = 0
     for it in range(1, max_iter + 1):
         den = np.r_[1.0, theta[:order]]
-        x = simulate_outputs(theta, order, u_i, m)
         # One filter call for every signal: [y, u, x, u_i] -> prefiltered by 1/Â.
         with np.errstate(all="ignore"):
             sig = lfilter([1.0], den, np.column_stack([y, u, x, u_i]), axis=0)
@@ -113,7 +125,6 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
                 raise EstimationError("the prefiltered signals are not finite")
             R, r, S, _ = normal_equations(sig, m, order, weights)
             raw = solve(R, r)
-            cov = covariance(R, S, checked=True)
             new = _stable_theta(raw, order)
             last = (R, sig, raw, weights)
         except EstimationError as err:
@@ -121,20 +132,21 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
             break
         change = float(np.linalg.norm(new - theta)) / max(float(np.linalg.norm(new)), 1e-300)
         theta = new
-        sig2 = output_error_variance(theta, order, u, y)
+        x_u, x = simulated(theta)
+        sig2 = variance(x_u)
         cost = log_oe_cost(sig2)
         if cost < best[0]:
-            best = (cost, theta, sig2, cov)
+            best = (cost, theta, sig2, (R, S))
         if change < tol:
             converged = True
             break
     if converged:
-        # the white-noise bound above steered nothing; the reported covariance
-        # is the one that also holds under coloured noise
+        # the reported covariance is the one that also holds under coloured noise
         R, sig, raw, weights = last
         cov, _ = robust_covariance(R, sig, m, order, raw, weights, checked=True)
         return SrivIterations(theta, cov, sig2, it, True, None)
-    return SrivIterations(best[1], best[3], best[2], it, False, failure)
+    kept = None if best[3] is None else covariance(*best[3], checked=True)
+    return SrivIterations(best[1], kept, best[2], it, False, failure)
 
 
 def sriv(u: ArrayLike, y: ArrayLike, order: int, *, dt: float = 1.0,

@@ -520,3 +520,26 @@ def test_a_run_that_stores_nothing_and_refuses_something_exits_2(
     assert "nothing was stored: 1 record(s) refused and none taken (exit 2)" in err
     assert main(["fleet", "run", str(tmp_path / "inbox"), "--db", db, "--workers", "1",
                  "--json"]) == 2
+
+
+def test_a_small_fleet_runs_in_process_with_the_clusters_results(
+        inbox: Path, first_run: tuple[Path, dict[str, Any], float], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """Without --workers, 23 records (fewer than SMALL_FLEET) are processed in
+    this process: no cluster is started, and every record's outcome and every
+    stored estimate are those of the run on a local cluster."""
+    from condmon.workflows.fleet import SMALL_FLEET
+
+    assert 23 < SMALL_FLEET
+    db, doc, _ = first_run
+    res = run_fleet(inbox, tmp_path / "here.db")
+    assert (res.engine, res.workers, res.engine_start) == ("in-process", 1, 0.0)
+    here = {f"{Path(r.file).parent.name}/{Path(r.file).name}": r.outcome for r in res.records}
+    assert here == {k: v["outcome"] for k, v in _by_file(doc).items()}
+    with open_store(db) as a, open_store(tmp_path / "here.db") as b:
+        for unit in ("EMA-1", "EMA-3"):
+            cols = ["R", "L", "Ke", "Kt", "J", "D", "status"]
+            pd.testing.assert_frame_equal(a.history(unit)[cols].reset_index(drop=True),
+                                          b.history(unit)[cols].reset_index(drop=True))
+    assert main(["fleet", "run", str(inbox), "--db", str(tmp_path / "cli.db")]) == 0
+    assert "in this process (fewer than" in " ".join(capsys.readouterr().out.split())

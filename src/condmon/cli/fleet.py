@@ -141,7 +141,12 @@ def _print_result(res: FleetResult, source: str) -> None:
     out.print(table)
     rate = (f" ({len(res.records) / res.seconds:.1f} records/s)"
             if res.workers > 0 and res.seconds > 0 else "")
-    if res.workers > 0:
+    from condmon.workflows.fleet import SMALL_FLEET
+
+    if res.engine == "in-process":
+        rate += (f"; in this process (fewer than {SMALL_FLEET} records: a cluster takes "
+                 "longer to start; --workers N starts one)")
+    elif res.workers > 0:
         how = ("local cluster started" if res.engine == "local" else
                f"connected to {res.engine}")
         rate += (f"; {how} in {res.engine_start:.1f} s, stopped in {res.engine_stop:.1f} s"

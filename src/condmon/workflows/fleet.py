@@ -152,7 +152,8 @@ class FleetResult:
     seconds : float
         Wall time of the run. [s]
     engine : str
-        ``local`` or the scheduler's address (``none`` when not started).
+        ``local``, the scheduler's address, ``in-process`` (a small fleet,
+        :data:`SMALL_FLEET`) or ``none`` (nothing to compute).
     engine_start : float
         Time to start the local cluster, or to connect to the scheduler (0
         without an engine). [s]
@@ -257,7 +258,10 @@ def run_fleet(source: str | Path, db: str | Path, *, manifest: bool | None = Non
     manifest : bool, optional
         Whether ``source`` is a manifest (default: when it is a file).
     workers : int, optional
-        Worker processes of the local cluster (default: the machine's cores).
+        Worker processes of the local cluster (default: the machine's cores;
+        a run with fewer than :data:`SMALL_FLEET` records to process then
+        runs them in this process, its engine ``"in-process"``: a cluster
+        would take longer to start than they take).
     scheduler : str, optional
         Address of an existing dask.distributed scheduler
         (``tcp://host:8786``) instead of a local cluster; its workers must
@@ -374,14 +378,20 @@ class _Run:
         with ExitStack() as stack:
             store = None if _new_sqlite(db) else stack.enter_context(open_store(db))
             tasks = self._plan(store)
-            if tasks:
+            if tasks and workers is None and scheduler is None and len(tasks) < SMALL_FLEET:
+                # a cluster costs as much to start as SMALL_FLEET records take here
+                if store is None:
+                    store = stack.enter_context(open_store(db))
+                n_workers, engine = 1, "in-process"
+                self._process(_in_process([t for _, t in tasks]), store, tasks)
+            elif tasks:
                 client = stack.enter_context(_timed_engine(workers, scheduler,
                                                            self.engine_seconds))
                 if store is None:
                     store = stack.enter_context(open_store(db))
                 n_workers = _threads(client)
                 engine = "local" if scheduler is None else scheduler
-                self._process(client, store, tasks)
+                self._process(_run_tasks(client, [t for _, t in tasks]), store, tasks)
             units = _unit_reports(store, self.plans, self.reports)
         return units, n_workers, engine
 
@@ -428,11 +438,12 @@ class _Run:
         return dataclasses.replace(opts, record=None if settings.empty else settings,
                                    metadata=metadata or None, hold=unit.hold)
 
-    def _process(self, client: Client, store: HistoryStore,
+    def _process(self, outcomes: Iterator[RecordOutcome], store: HistoryStore,
                  tasks: list[tuple[FleetRecord, RecordTask]]) -> None:
-        """Run the tasks; commit each unit once all its records are back, many
-        units per transaction. A Ctrl-C never splits a transaction: the units
-        complete by then are committed, and KeyboardInterrupt goes on."""
+        """Take the tasks' ``outcomes`` as they come; commit each unit once all
+        its records are back, many units per transaction. A Ctrl-C never
+        splits a transaction: the units complete by then are committed, and
+        KeyboardInterrupt goes on."""
         by_path = {(t.unit, t.path): rec for rec, t in tasks}
         ready: list[_Unit] = []
         waiting_since: float | None = None
@@ -443,7 +454,7 @@ class _Run:
                 ready.clear()
 
         try:
-            for out in _run_tasks(client, [t for _, t in tasks]):
+            for out in outcomes:
                 plan = self.plans[out.unit]
                 plan.outcomes.append((by_path[(out.unit, out.path)], out))
                 self.done += 1
@@ -460,6 +471,24 @@ class _Run:
             commit()
             raise
         commit()
+
+
+#: Fewest records a fleet run starts a local cluster for, when not told how
+#: many workers: starting one took as long as estimating 50-80 records on this
+#: project's 2-core test machine (``benchmarks/bench_fleet.py``).
+SMALL_FLEET = 50
+
+
+def _in_process(tasks: Sequence[RecordTask]) -> Iterator[RecordOutcome]:
+    """The tasks' outcomes computed here, one record at a time (a small fleet);
+    a record whose processing fails unexpectedly is reported as a worker's
+    would be (:func:`condmon.workflows.fleet_engine._run_tasks`)."""
+    for task in tasks:
+        try:
+            yield process_record(task)
+        except Exception as exc:  # noqa: BLE001 - as a lost worker: reported, the run goes on
+            yield RecordOutcome(task.unit, task.path, error=_named(
+                task.path, f"not processed: {type(exc).__name__}: {exc}"))
 
 
 @contextmanager

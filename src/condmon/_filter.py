@@ -97,6 +97,11 @@ def _all_pole(a: FloatArray, v: FloatArray) -> FloatArray:
     return np.asarray(y, dtype=np.float64)
 
 
+#: Values filtered in one pass at most (beyond, column by column): the pass
+#: holds a few work copies of what it filters.
+_COLUMNS_AT_ONCE = 1 << 20
+
+
 def lfilter(b: ArrayLike, a: ArrayLike, x: ArrayLike, axis: int = -1) -> FloatArray:
     """Filter ``x`` along ``axis`` by the rational filter ``b(q^-1) / a(q^-1)``
     from rest; the same result as ``scipy.signal.lfilter(b, a, x, axis)``.
@@ -137,5 +142,9 @@ def lfilter(b: ArrayLike, a: ArrayLike, x: ArrayLike, axis: int = -1) -> FloatAr
         if bi != 0.0:
             out[i:] += bi * cols[:n - i]
     if aa.size > 1 and n > 0 and out.shape[1] > 0:
-        out = _all_pole(aa, out)
+        if out.size <= _COLUMNS_AT_ONCE:
+            out = _all_pole(aa, out)
+        else:   # a long record: a column at a time, so the work arrays stay one column's
+            for c in range(out.shape[1]):
+                out[:, c] = _all_pole(aa, out[:, c:c + 1])[:, 0]
     return np.moveaxis(out.reshape(shape), 0, axis)

@@ -20,7 +20,7 @@ from condmon._filter import lfilter
 from condmon.errors import DataError, EstimationError, ModelError
 from condmon.models.transfer import DiscreteTF
 
-__all__ = ["TFEstimate", "prepare", "normal_equations", "to_model", "stabilise",
+__all__ = ["TFEstimate", "prepare", "normal_equations", "lagged_gram", "to_model", "stabilise",
            "simulate_outputs", "simulate_inputs", "covariance", "robust_covariance", "log_oe_cost"]
 
 FloatArray = NDArray[np.float64]
@@ -145,12 +145,11 @@ def normal_equations(sig: FloatArray, m: int, order: int, weights: FloatArray
     """
     n = order
     p = n * (1 + m)
-    N, ns = sig.shape
+    ns = sig.shape[1]
     # Every cross product comes from one Gram matrix of the lagged signals:
     # one matrix product instead of 4m small ones. Lag-major layout: column
     # d*ns + s holds signal s delayed by d samples.
-    G = np.hstack([sig[n - d: N - d] for d in range(n + 1)])
-    C = G.T @ G
+    C = lagged_gram(sig, n)
     lag = np.arange(1, n + 1) * ns
     sign = np.r_[-np.ones(n), np.ones(n)]
     outer = np.outer(sign, sign)
@@ -168,6 +167,24 @@ def normal_equations(sig: FloatArray, m: int, order: int, weights: FloatArray
         Q[np.ix_(idx, idx)] += sw * C[np.ix_(phi, phi)]
         r[idx] += weights[j] * sign * C[zeta, j]
     return R, r, S, Q
+
+
+#: Rows of lagged signals formed at a time for a Gram matrix: memory bounded
+#: by a block (a few MB), not by the record (an hour at 1 kHz is 3.6 M rows).
+GRAM_BLOCK = 65536
+
+
+def lagged_gram(sig: FloatArray, n: int) -> FloatArray:
+    """``GᵀG`` of the lagged signals ``G = [sig(k), sig(k-1), ..., sig(k-n)]``
+    over rows ``k = n..N-1`` (lag-major columns: ``d*ns + s`` is signal ``s``
+    delayed ``d`` samples), summed a block of :data:`GRAM_BLOCK` rows at a time."""
+    N, ns = sig.shape
+    C = np.zeros(((n + 1) * ns,) * 2)
+    for start in range(n, N, GRAM_BLOCK):
+        stop = min(N, start + GRAM_BLOCK)
+        G = np.hstack([sig[start - d: stop - d] for d in range(n + 1)])
+        C += G.T @ G
+    return C
 
 
 def solve(R: FloatArray, r: FloatArray) -> FloatArray:
@@ -245,15 +262,21 @@ def iv_scores(sig: FloatArray, m: int, order: int, theta: FloatArray,
     ``e_jt`` the equation error of output ``j`` at ``theta``; shape (N - n, p)."""
     n = order
     N = sig.shape[0]
-    lagged = np.stack([sig[n - d: N - d] for d in range(1, n + 1)], axis=1)  # (T, n, ns)
-    sign = np.r_[-np.ones(n), np.ones(n)]
+
+    def lag(col: int, d: int) -> FloatArray:   # a view: no copy of the record
+        return sig[n - d: N - d, col]
+
     g = np.zeros((N - n, n * (1 + m)))
     for j in range(m):
-        idx = np.r_[0:n, n * (1 + j): n * (2 + j)]
-        phi = np.concatenate([lagged[:, :, j], lagged[:, :, m]], axis=1) * sign
-        zeta = np.concatenate([lagged[:, :, m + 1 + j], lagged[:, :, 2 * m + 1]], axis=1) * sign
-        e = sig[n:, j] - phi @ theta[idx]
-        g[:, idx] += weights[j] * zeta * e[:, None]
+        a, b = theta[:n], theta[n * (1 + j): n * (2 + j)]
+        e = sig[n:, j].copy()   # the equation error y + Σ a_d y(k-d) - Σ b_d u(k-d)
+        for d in range(1, n + 1):
+            e += a[d - 1] * lag(j, d)
+            e -= b[d - 1] * lag(m, d)
+        e *= weights[j]
+        for d in range(1, n + 1):   # ζ = [-z_j lags, z_u lags]
+            g[:, d - 1] -= lag(m + 1 + j, d) * e
+            g[:, n * (1 + j) + d - 1] += lag(2 * m + 1, d) * e
     return g
 
 

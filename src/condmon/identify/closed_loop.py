@@ -21,6 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from condmon._filter import lfilter
 from condmon.errors import DataError, EstimationError
+from condmon.identify._common import lagged_gram
 
 __all__ = ["noise_free_input"]
 
@@ -80,18 +81,27 @@ def noise_free_input(u: ArrayLike, r: ArrayLike, order: int = 8) -> FloatArray:
         raise DataError("an excitation signal is constant: it cannot build instruments")
     N = u_arr.size
     n = order
-    # Rows k = n..N-1 of [-u(k-1..k-n), r_i(k..k-n)], built by slicing (lag-major).
-    X = np.hstack([-u_arr[n - d: N - d, None] for d in range(1, n + 1)]
-                  + [r_arr[n - d: N - d] for d in range(n + 1)])
+    # Rows k = n..N-1 of [-u(k-1..k-n), r_i(k..k-n)] and u(k): their Gram matrix,
+    # a block of rows at a time (memory bounded by the block, not the record).
+    # The lagged columns of [u, -r_1, ...] hold -u(k-d) (d >= 1) and -r(k-d)
+    # (d >= 0) and, at d = 0, u(k) itself: one Gram matrix gives both sides.
+    sig = np.column_stack([-u_arr, r_arr])
+    C = lagged_gram(sig, n)
+    ns = sig.shape[1]
+    cols = np.r_[[d * ns for d in range(1, n + 1)],
+                 [d * ns + 1 + i for d in range(n + 1) for i in range(r_arr.shape[1])]]
+    XtX, Xty = C[np.ix_(cols, cols)], -C[cols, 0]
     # Normal equations (10x faster than an SVD solve). A loop without noise, or
     # an excitation column that copies the input, makes them exactly singular:
     # the minimum-norm least-squares solution is then taken instead.
     try:
         with np.errstate(all="ignore"):
-            sol = np.linalg.solve(X.T @ X, X.T @ u_arr[n:])
+            sol = np.linalg.solve(XtX, Xty)
         if not np.all(np.isfinite(sol)):
             raise np.linalg.LinAlgError("non-finite solution")
     except np.linalg.LinAlgError:
+        X = np.hstack([-u_arr[n - d: N - d, None] for d in range(1, n + 1)]
+                      + [r_arr[n - d: N - d] for d in range(n + 1)])
         try:
             sol = np.linalg.lstsq(X, u_arr[n:], rcond=None)[0]
         except np.linalg.LinAlgError:

@@ -56,11 +56,13 @@ def andrews_bandwidth(g: FloatArray) -> float:
     T = g.shape[0]
     x0, x1 = g[:-1], g[1:]
     den = np.einsum("ij,ij->j", x0, x0)
+    cross = np.einsum("ij,ij->j", x0, x1)
     with np.errstate(all="ignore"):
-        rho = np.where(den > 0, np.einsum("ij,ij->j", x0, x1) / np.where(den > 0, den, 1.0),
-                       0.0)
+        rho = np.where(den > 0, cross / np.where(den > 0, den, 1.0), 0.0)
     rho = np.clip(rho, -MAX_RHO, MAX_RHO)
-    s2 = np.mean((x1 - rho * x0) ** 2, axis=0)
+    # mean of (x1 - rho x0)^2 from the sums, without a copy of the scores
+    sq1 = np.einsum("ij,ij->j", x1, x1)
+    s2 = np.maximum(sq1 - 2 * rho * cross + rho**2 * den, 0.0) / max(T - 1, 1)
     num = np.sum(4 * rho**2 * s2**2 / ((1 - rho) ** 6 * (1 + rho) ** 2))
     dsum = np.sum(s2**2 / (1 - rho) ** 4)
     alpha = float(num / dsum) if dsum > 0 else 0.0
@@ -82,7 +84,7 @@ def long_run_covariance(g: FloatArray) -> tuple[FloatArray, float]:
     bandwidth : float
         The Bartlett bandwidth used [samples].
     """
-    g = g - g.mean(axis=0)
+    g = g - g.mean(axis=0)   # one copy; the caller's scores stay as they were
     b = andrews_bandwidth(g)
     S = g.T @ g
     for lag in range(1, math.ceil(b)):

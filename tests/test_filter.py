@@ -49,3 +49,21 @@ def test_leading_coefficient_normalised_and_fir_only() -> None:
 def test_bad_coefficients_refused() -> None:
     with pytest.raises(ValueError, match="a\\[0\\] non-zero"):
         lfilter([1.0], [0.0, 1.0], np.ones(3))
+
+
+def test_an_all_pole_filter_runs_in_place_when_asked_and_allowed() -> None:
+    import numpy as np
+    from scipy.signal import lfilter as reference
+
+    from condmon._filter import lfilter
+
+    x = np.random.default_rng(3).standard_normal((70_000, 3))   # past a pass at once
+    want = reference([1.0], [1.0, -1.4, 0.43], x, axis=0)
+    kept = x.copy()
+    out = lfilter([1.0], [1.0, -1.4, 0.43], x, axis=0, overwrite_x=True)
+    assert np.shares_memory(out, x) and np.allclose(out, want, rtol=1e-10, atol=1e-10)
+    y = kept.copy()
+    out = lfilter([1.0, 0.5], [1.0, -0.5], y, axis=0, overwrite_x=True)   # a numerator: a copy
+    assert not np.shares_memory(out, y) and np.array_equal(y, kept)
+    out = lfilter([1.0], [1.0, -0.5], kept[:, 0], overwrite_x=False)
+    assert not np.shares_memory(out, kept)

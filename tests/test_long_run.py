@@ -122,3 +122,16 @@ def test_the_output_error_refinement_covariance_holds_under_coloured_noise() -> 
         ses.append(np.sqrt(np.diag(fit.covariance)))
     ratio = np.sqrt(np.mean(np.array(ses) ** 2, axis=0)) / np.std(np.array(thetas), axis=0, ddof=1)
     assert np.all((ratio > 0.72) & (ratio < 1.38)), ratio
+
+
+def test_the_scores_made_a_block_at_a_time_give_the_same_covariance() -> None:
+    # a long record's scores are never whole: blocks of 37 rows (the lags
+    # reach back over 90 rows, across several blocks) give the whole's figure
+    from condmon.identify.long_run import long_run_covariance_of
+
+    rng = np.random.default_rng(5)
+    g = np.column_stack([_ar1(rng, 5000, 0.9) for _ in range(3)]) + [1.0, 2.0, 3.0]
+    whole, b = long_run_covariance(g)
+    blocks, b2 = long_run_covariance_of(lambda lo, hi: g[lo:hi], 5000, block=37)
+    assert b2 == pytest.approx(b, rel=1e-12) and b > 37
+    assert np.allclose(blocks, whole, rtol=1e-12, atol=0.0)

@@ -102,7 +102,8 @@ def _all_pole(a: FloatArray, v: FloatArray) -> FloatArray:
 _COLUMNS_AT_ONCE = 1 << 20
 
 
-def lfilter(b: ArrayLike, a: ArrayLike, x: ArrayLike, axis: int = -1) -> FloatArray:
+def lfilter(b: ArrayLike, a: ArrayLike, x: ArrayLike, axis: int = -1, *,
+            overwrite_x: bool = False) -> FloatArray:
     """Filter ``x`` along ``axis`` by the rational filter ``b(q^-1) / a(q^-1)``
     from rest; the same result as ``scipy.signal.lfilter(b, a, x, axis)``.
 
@@ -115,6 +116,10 @@ def lfilter(b: ArrayLike, a: ArrayLike, x: ArrayLike, axis: int = -1) -> FloatAr
         The signal, any number of dimensions.
     axis : int
         The axis along which to filter (default the last).
+    overwrite_x : bool
+        Filter ``x`` in place when it allows (a C-ordered float64 array
+        filtered along its first axis by ``b = [1]``): the result is ``x``
+        itself, and a long record needs no second copy.
 
     Returns
     -------
@@ -137,13 +142,19 @@ def lfilter(b: ArrayLike, a: ArrayLike, x: ArrayLike, axis: int = -1) -> FloatAr
     shape = xm.shape
     n = shape[0]
     cols = xm.reshape(n, -1)
-    out = np.zeros(cols.shape, dtype=np.float64)
-    for i, bi in enumerate(bb[:n]):  # the moving-average part, b is short
-        if bi != 0.0:
-            out[i:] += bi * cols[:n - i]
+    in_place = (overwrite_x and isinstance(x, np.ndarray) and x.dtype == np.float64
+                and x.flags.c_contiguous and axis in (0, -x.ndim) and bb.size == 1
+                and bb[0] == 1.0 and np.shares_memory(cols, x))
+    if in_place:
+        out = cols
+    else:
+        out = np.zeros(cols.shape, dtype=np.float64)
+        for i, bi in enumerate(bb[:n]):  # the moving-average part, b is short
+            if bi != 0.0:
+                out[i:] += bi * cols[:n - i]
     if aa.size > 1 and n > 0 and out.shape[1] > 0:
         if out.size <= _COLUMNS_AT_ONCE:
-            out = _all_pole(aa, out)
+            out[...] = _all_pole(aa, out)
         else:   # a long record: a column at a time, so the work arrays stay one column's
             for c in range(out.shape[1]):
                 out[:, c] = _all_pole(aa, out[:, c:c + 1])[:, 0]

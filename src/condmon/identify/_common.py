@@ -287,9 +287,11 @@ def robust_covariance(R: FloatArray, sig: FloatArray, m: int, order: int, theta:
     coloured and equals the white-noise ``R⁻¹ (Σ w ζζᵀ) R⁻ᵀ`` on average when it
     is white. Returns the covariance and the bandwidth used [samples]
     (``checked`` as for :func:`covariance`)."""
-    from condmon.identify.long_run import long_run_covariance
+    from condmon.identify.long_run import long_run_covariance_of
 
-    S, bandwidth = long_run_covariance(iv_scores(sig, m, order, theta, weights))
+    S, bandwidth = long_run_covariance_of(
+        lambda a, b: iv_scores(sig[a: b + order], m, order, theta, weights),
+        sig.shape[0] - order)
     return covariance(R, S, checked=checked), bandwidth
 
 
@@ -317,15 +319,20 @@ def simulate_outputs(theta: FloatArray, order: int, u: FloatArray, m: int) -> Fl
     return np.asarray(simulate_inputs(theta, order, u[:, None], m)[0], dtype=np.float64)
 
 
-def simulate_inputs(theta: FloatArray, order: int, us: FloatArray, m: int) -> FloatArray:
+def simulate_inputs(theta: FloatArray, order: int, us: FloatArray, m: int, *,
+                    overwrite: bool = False) -> FloatArray:
     """:func:`simulate_outputs` for each column of ``us`` (N, k) in one filter
-    pass; shape (k, N, m)."""
+    pass; shape (k, N, m) (``overwrite``: ``us`` is a temporary, filtered in
+    place)."""
     n = order
+    B = theta[n:].reshape(m, n)
     # An unstable iterate overflows: the caller sees inf/NaN and handles it.
     with np.errstate(all="ignore"):
-        x = lfilter([1.0], np.r_[1.0, theta[:n]], us, axis=0)
+        x = lfilter([1.0], np.r_[1.0, theta[:n]], us, axis=0, overwrite_x=overwrite)
         N, k = x.shape
-        X = np.zeros((k, N, n))
-        for d in range(1, n + 1):
-            X[:, d:, d - 1] = x[: N - d].T
-        return np.asarray(X @ theta[n:].reshape(m, n).T, dtype=np.float64)
+        out = np.zeros((k, N, m))
+        for i in range(k):   # Σ_d b_jd x(t-d), a column at a time (no lag matrix)
+            for j in range(m):
+                for d in range(1, n + 1):
+                    out[i, d:, j] += B[j, d - 1] * x[: N - d, i]
+        return out

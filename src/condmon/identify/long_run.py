@@ -30,11 +30,12 @@ Example
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["long_run_covariance", "andrews_bandwidth", "MAX_RHO"]
+__all__ = ["long_run_covariance", "long_run_covariance_of", "andrews_bandwidth", "MAX_RHO"]
 
 FloatArray = NDArray[np.float64]
 
@@ -42,6 +43,20 @@ FloatArray = NDArray[np.float64]
 #: (Andrews 1991 truncates the plug-in the same way, at 0.97, to keep the
 #: bandwidth finite when the scores look like a random walk).
 MAX_RHO = 0.97
+
+
+def _bandwidth(den: FloatArray, cross: FloatArray, sq1: FloatArray, T: int) -> float:
+    """Andrews' bandwidth from each column's sums over consecutive pairs of the
+    demeaned scores: ``Σ x0²``, ``Σ x0 x1`` and ``Σ x1²``."""
+    with np.errstate(all="ignore"):
+        rho = np.where(den > 0, cross / np.where(den > 0, den, 1.0), 0.0)
+    rho = np.clip(rho, -MAX_RHO, MAX_RHO)
+    # the AR(1) innovations' variance, mean of (x1 - rho x0)^2, from the sums
+    s2 = np.maximum(sq1 - 2 * rho * cross + rho**2 * den, 0.0) / max(T - 1, 1)
+    num = np.sum(4 * rho**2 * s2**2 / ((1 - rho) ** 6 * (1 + rho) ** 2))
+    dsum = np.sum(s2**2 / (1 - rho) ** 4)
+    alpha = float(num / dsum) if dsum > 0 else 0.0
+    return float(min(max(1.1447 * (alpha * T) ** (1.0 / 3.0), 1.0), T / 2))
 
 
 def andrews_bandwidth(g: FloatArray) -> float:
@@ -53,20 +68,9 @@ def andrews_bandwidth(g: FloatArray) -> float:
     float
         The bandwidth [samples], at least 1 and at most ``T / 2``.
     """
-    T = g.shape[0]
     x0, x1 = g[:-1], g[1:]
-    den = np.einsum("ij,ij->j", x0, x0)
-    cross = np.einsum("ij,ij->j", x0, x1)
-    with np.errstate(all="ignore"):
-        rho = np.where(den > 0, cross / np.where(den > 0, den, 1.0), 0.0)
-    rho = np.clip(rho, -MAX_RHO, MAX_RHO)
-    # mean of (x1 - rho x0)^2 from the sums, without a copy of the scores
-    sq1 = np.einsum("ij,ij->j", x1, x1)
-    s2 = np.maximum(sq1 - 2 * rho * cross + rho**2 * den, 0.0) / max(T - 1, 1)
-    num = np.sum(4 * rho**2 * s2**2 / ((1 - rho) ** 6 * (1 + rho) ** 2))
-    dsum = np.sum(s2**2 / (1 - rho) ** 4)
-    alpha = float(num / dsum) if dsum > 0 else 0.0
-    return float(min(max(1.1447 * (alpha * T) ** (1.0 / 3.0), 1.0), T / 2))
+    return _bandwidth(np.einsum("ij,ij->j", x0, x0), np.einsum("ij,ij->j", x0, x1),
+                      np.einsum("ij,ij->j", x1, x1), g.shape[0])
 
 
 def long_run_covariance(g: FloatArray) -> tuple[FloatArray, float]:
@@ -75,7 +79,7 @@ def long_run_covariance(g: FloatArray) -> tuple[FloatArray, float]:
     Parameters
     ----------
     g : ndarray, shape (T, p)
-        Scores, one row per sample (demeaned here).
+        Scores, one row per sample (demeaned here, not in place).
 
     Returns
     -------
@@ -84,10 +88,47 @@ def long_run_covariance(g: FloatArray) -> tuple[FloatArray, float]:
     bandwidth : float
         The Bartlett bandwidth used [samples].
     """
-    g = g - g.mean(axis=0)   # one copy; the caller's scores stay as they were
-    b = andrews_bandwidth(g)
-    S = g.T @ g
-    for lag in range(1, math.ceil(b)):
-        gamma = g[lag:].T @ g[:-lag]
-        S += (1.0 - lag / b) * (gamma + gamma.T)
-    return np.asarray(S, dtype=np.float64), b
+    return long_run_covariance_of(lambda a, b: g[a:b], g.shape[0])
+
+
+#: Rows of scores formed at a time (a long record's scores are never whole).
+BLOCK = 65536
+
+
+def long_run_covariance_of(rows: Callable[[int, int], FloatArray], T: int, *,
+                           block: int = BLOCK) -> tuple[FloatArray, float]:
+    """:func:`long_run_covariance` of scores made on demand, ``rows(a, b)``
+    giving rows ``a..b-1`` (T in all), so that memory is bounded by a block.
+
+    Three passes: the mean; the lag-1 sums the bandwidth needs; and the sum
+    of the lag products within the bandwidth, each block carrying the rows
+    before it that its first rows reach back to.
+    """
+    total = np.zeros(0)
+    for a in range(0, T, block):
+        part = rows(a, min(T, a + block)).sum(axis=0)
+        total = part if not total.size else total + part
+    mean = total / max(T, 1)
+    p = mean.size
+    den, cross, sq1 = np.zeros(p), np.zeros(p), np.zeros(p)
+    for a in range(0, T, block):
+        g = rows(max(a - 1, 0), min(T, a + block)) - mean
+        x0, x1 = g[:-1], g[1:]
+        den += np.einsum("ij,ij->j", x0, x0)
+        cross += np.einsum("ij,ij->j", x0, x1)
+        sq1 += np.einsum("ij,ij->j", x1, x1)
+    b = _bandwidth(den, cross, sq1, T)
+    reach = math.ceil(b) - 1   # lags 1 .. ceil(b) - 1 have weight > 0
+    S = np.zeros((p, p))
+    for a in range(0, T, block):
+        lo = max(a - reach, 0)
+        g = rows(lo, min(T, a + block)) - mean
+        own = g[a - lo:]
+        S += own.T @ own
+        for lag in range(1, reach + 1):
+            first = max(a, lag) - lo   # rows of this block with a row ``lag`` before them
+            if first >= g.shape[0]:
+                break
+            gamma = g[first:].T @ g[first - lag: g.shape[0] - lag]
+            S += (1.0 - lag / b) * (gamma + gamma.T)
+    return S, b

@@ -79,6 +79,9 @@ class SrivIterations:
     failure: str | None
 
 
+_NONE: FloatArray = np.empty((0, 0))   # a released simulation
+
+
 def _stable_theta(theta: FloatArray, n: int) -> FloatArray:
     return np.asarray(np.r_[stabilise(np.r_[1.0, theta[:n]])[1:], theta[n:]], dtype=np.float64)
 
@@ -99,7 +102,8 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
     def simulated(th: FloatArray) -> tuple[FloatArray, FloatArray]:
         """``B/A u`` (the output error's) and ``B/A u_i`` (the instruments'):
         one filter pass for both."""
-        x = simulate_inputs(th, order, u[:, None] if same else np.column_stack([u, u_i]), m)
+        x = simulate_inputs(th, order, u[:, None].copy() if same else np.column_stack([u, u_i]),
+                            m, overwrite=True)
         return x[0], x[-1]
 
     def variance(x_u: FloatArray) -> FloatArray:   # as output_error_variance
@@ -109,16 +113,23 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
 
     x_u, x = simulated(theta)
     sig2 = variance(x_u)
+    del x_u
     best: tuple[float, FloatArray, FloatArray, tuple[FloatArray, FloatArray] | None] = (
         log_oe_cost(sig2), theta, sig2, None)
     converged = False
     failure: str | None = None
     it = 0
+    buffer = np.empty((u.size, 2 * m + 2))
     for it in range(1, max_iter + 1):
         den = np.r_[1.0, theta[:order]]
-        # One filter call for every signal: [y, u, x, u_i] -> prefiltered by 1/Â.
+        # One filter call for every signal: [y, u, x, u_i] -> prefiltered by 1/Â,
+        # in place in one buffer of the record's length for every iteration (the
+        # last iteration's is the one the covariance reads)
+        sig = buffer
+        sig[:, :m], sig[:, m], sig[:, m + 1:2 * m + 1], sig[:, -1] = y, u, x, u_i
+        x = _NONE   # a long record: one simulation held at a time
         with np.errstate(all="ignore"):
-            sig = lfilter([1.0], den, np.column_stack([y, u, x, u_i]), axis=0)
+            sig = lfilter([1.0], den, sig, axis=0, overwrite_x=True)
         weights = 1.0 / np.maximum(sig2, 1e-300)
         try:
             if not np.all(np.isfinite(sig)):
@@ -134,12 +145,14 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
         theta = new
         x_u, x = simulated(theta)
         sig2 = variance(x_u)
+        del x_u
         cost = log_oe_cost(sig2)
         if cost < best[0]:
             best = (cost, theta, sig2, (R, S))
         if change < tol:
             converged = True
             break
+    x = _NONE   # not needed past the iterations (a long record: its memory back)
     if converged:
         # the reported covariance is the one that also holds under coloured noise
         R, sig, raw, weights = last

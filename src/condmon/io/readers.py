@@ -135,7 +135,19 @@ def _read_raw(p: Path, suffix: str, time_column: str | None) -> RawRecord:
         from condmon.io.tdms import read_tdms
 
         return read_tdms(p, time_column)
-    return RawRecord(pd.read_parquet(p))
+    return RawRecord(_read_parquet(p))
+
+
+def _read_parquet(p: Path) -> pd.DataFrame:
+    """A Parquet file as a DataFrame, the Arrow table's buffers handed over
+    column by column as they are converted (``self_destruct``): a long record
+    peaks at about one copy of itself, not two."""
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(p)
+    frame: pd.DataFrame = table.to_pandas(self_destruct=True, split_blocks=True)
+    del table
+    return frame
 
 
 def _is_time_column(values: pd.Series, source: str) -> bool:

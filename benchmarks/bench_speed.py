@@ -27,6 +27,29 @@ from condmon.identify import estimate  # noqa: E402
 from condmon.simulate import simulate_actuator  # noqa: E402
 
 
+def floor_ms(records, repeat: int) -> float:  # type: ignore[no-untyped-def]
+    """The floor under an SRIV estimate [ms]: five passes of what every
+    iteration must do (the six signals through a C filter, the normal
+    equations, their solve), median over the records."""
+    import numpy as np
+    from scipy.signal import lfilter
+
+    from condmon.identify._common import normal_equations, solve
+
+    times = []
+    for rec in records:
+        sig0 = rec[["I", "omega", "V", "I", "omega", "V"]].to_numpy(dtype=float)
+        den = np.array([1.0, -1.9, 0.9])
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            for _pass in range(5):
+                sig = lfilter([1.0], den, sig0, axis=0)
+                R, r, _, _ = normal_equations(sig, 2, 2, np.ones(2))
+                solve(R, r)
+            times.append(time.perf_counter() - t0)
+    return statistics.median(times) * 1e3
+
+
 def read_times(record, repeat: int) -> dict[str, float]:  # type: ignore[no-untyped-def]
     """Median time [ms] to read ``record`` written as CSV, per reader."""
     import pandas as pd
@@ -78,6 +101,11 @@ def main() -> int:
     print(table(rows, f"Time per record (4000 samples, outputs I and omega, full pipeline: "
                       f"validation, estimate, fit, d2c, physical parameters with covariance); "
                       f"{args.records} records x {args.repeat}"))
+    doc["floor_ms"] = floor_ms(records, args.repeat)
+    print(f"\nfloor (5 passes of scipy's C filter over the 6 signals + normal equations + "
+          f"solve): {doc['floor_ms']:.2f} ms; SRIV / floor: "
+          f"{doc['sriv (closed-loop instruments)']['median_ms'] / doc['floor_ms']:.2f} "
+          "(target <= 3)")
     doc["csv"] = read_times(records[0], args.repeat * 5)
     print()
     print(table([{"reader": k, "median ms": v, "ratio to pandas C": v / doc["csv"]["pandas C"]}

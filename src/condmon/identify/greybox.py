@@ -270,8 +270,10 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
     order = spec.order or lin.order
     u = rec[lin.input]
     y = rec.stack(lin.outputs)
-    r = rec.stack(excitation) if excitation else None
-    est: TFEstimate = estimator(u, y, order, dt=rec.dt, excitation=r,  # type: ignore[operator]
+    # the excitation is stacked in the call, so the estimator can let it go once
+    # it has built its instruments (a long record's memory)
+    est: TFEstimate = estimator(u, y, order, dt=rec.dt,  # type: ignore[operator]
+                                excitation=rec.stack(excitation) if excitation else None,
                                 outputs=lin.outputs, input_name=lin.input)
     fit, diag = _fit_and_diagnostics(est, u, y, fit_threshold)
     consts = machine.constants(constants)

@@ -39,8 +39,8 @@ from numpy.typing import ArrayLike, NDArray
 from condmon._filter import lfilter
 from condmon.errors import ConvergenceWarning, EstimationError
 from condmon.identify._common import (
-    TFEstimate, covariance, log_oe_cost, normal_equations, prepare, robust_covariance,
-    simulate_inputs, solve, stabilise, to_model,
+    TFEstimate, covariance, log_oe_cost, normal_equations, prepare, robust_covariance, solve,
+    stabilise, to_model,
 )
 from condmon.identify.closed_loop import noise_free_input
 from condmon.identify.ls import _names, arx_theta, output_error_variance
@@ -100,20 +100,30 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
     same = u_i is u
 
     def simulated(th: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """``B/A u`` (the output error's) and ``B/A u_i`` (the instruments'):
-        one filter pass for both."""
-        x = simulate_inputs(th, order, u[:, None].copy() if same else np.column_stack([u, u_i]),
-                            m, overwrite=True)
-        return x[0], x[-1]
-
-    def variance(x_u: FloatArray) -> FloatArray:   # as output_error_variance
+        """The output error's variance per output (``y - B/A u``) and the
+        instruments' simulation ``B/A u_i`` (N, m): one filter pass for both,
+        an output at a time (a long record holds one simulation)."""
+        N = u.size
+        B = th[order:].reshape(m, order)
         with np.errstate(all="ignore"):
-            v = np.var((y - x_u)[order:], axis=0)
-        return np.asarray(np.where(np.isfinite(v), v, np.inf), dtype=np.float64)
+            w = lfilter([1.0], np.r_[1.0, th[:order]],
+                        u[:, None].copy() if same else np.column_stack([u, u_i]), axis=0,
+                        overwrite_x=True)
+            x = np.zeros((N, m))
+            var = np.empty(m)
+            for j in range(m):
+                for d in range(1, order + 1):
+                    x[d:, j] += B[j, d - 1] * w[: N - d, -1]
+                if same:
+                    e = y[:, j] - x[:, j]
+                else:
+                    e = y[:, j].copy()
+                    for d in range(1, order + 1):
+                        e[d:] -= B[j, d - 1] * w[: N - d, 0]
+                var[j] = np.var(e[order:])
+        return np.asarray(np.where(np.isfinite(var), var, np.inf), dtype=np.float64), x
 
-    x_u, x = simulated(theta)
-    sig2 = variance(x_u)
-    del x_u
+    sig2, x = simulated(theta)
     best: tuple[float, FloatArray, FloatArray, tuple[FloatArray, FloatArray] | None] = (
         log_oe_cost(sig2), theta, sig2, None)
     converged = False
@@ -143,9 +153,7 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
             break
         change = float(np.linalg.norm(new - theta)) / max(float(np.linalg.norm(new)), 1e-300)
         theta = new
-        x_u, x = simulated(theta)
-        sig2 = variance(x_u)
-        del x_u
+        sig2, x = simulated(theta)
         cost = log_oe_cost(sig2)
         if cost < best[0]:
             best = (cost, theta, sig2, (R, S))
@@ -227,6 +235,7 @@ def sriv(u: ArrayLike, y: ArrayLike, order: int, *, dt: float = 1.0,
     m = y_a.shape[1]
     closed = excitation is not None
     u_i = u_a if excitation is None else noise_free_input(u_a, excitation)
+    excitation = None   # the instruments are built: a long record's memory back
     names = _names(outputs, m)
     its = sriv_iterations(u_a, y_a, order, u_i, tol=tol, max_iter=max_iter)
     notes: list[str] = []

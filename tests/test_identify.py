@@ -202,3 +202,20 @@ def test_physical_standard_errors_match_monte_carlo_spread(rig: ActuatorRig) -> 
         ses.append([res.std_errors[k] for k in ("R", "L", "Kt", "J")])
     ratio = np.std(values, axis=0, ddof=1) / np.mean(ses, axis=0)
     assert np.all((ratio > 0.65) & (ratio < 1.5)), ratio
+
+
+def test_the_quick_stability_test_agrees_with_the_roots() -> None:
+    import numpy as np
+
+    from condmon.identify._common import _schur_stable
+
+    rng = np.random.default_rng(0)
+    for _ in range(3000):
+        den = np.r_[1.0, rng.normal(0.0, 1.2, int(rng.integers(1, 6)))]
+        radius = float(np.max(np.abs(np.roots(den))))
+        if radius < 0.999:
+            assert _schur_stable(den), den
+        elif radius >= 1.0:
+            assert not _schur_stable(den), den
+    assert _schur_stable(np.array([1.0, -1.9, 0.9025]))       # a double pole at 0.95
+    assert not _schur_stable(np.array([1.0, -2.0, 1.0]))      # a double integrator

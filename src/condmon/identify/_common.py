@@ -10,6 +10,7 @@ Parameter vector ``theta = [a_1..a_n, b_11..b_1n, ..., b_m1..b_mn]``.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -145,28 +146,43 @@ def normal_equations(sig: FloatArray, m: int, order: int, weights: FloatArray
     """
     n = order
     p = n * (1 + m)
-    ns = sig.shape[1]
     # Every cross product comes from one Gram matrix of the lagged signals:
     # one matrix product instead of 4m small ones. Lag-major layout: column
     # d*ns + s holds signal s delayed by d samples.
     C = lagged_gram(sig, n)
-    lag = np.arange(1, n + 1) * ns
-    sign = np.r_[-np.ones(n), np.ones(n)]
-    outer = np.outer(sign, sign)
+    sign, outer, per_output = _layout(m, n, sig.shape[1])
     R = np.zeros((p, p))
     S = np.zeros((p, p))
     Q = np.zeros((p, p))
     r = np.zeros(p)
+    for j, (into, zp, zz, pp, zeta) in enumerate(per_output):
+        sw = weights[j] * outer
+        R[into] += sw * C[zp]
+        S[into] += sw * C[zz]
+        Q[into] += sw * C[pp]
+        r[into[0][:, 0]] += weights[j] * sign * C[zeta, j]
+    return R, r, S, Q
+
+
+@functools.lru_cache(maxsize=32)
+def _layout(m: int, n: int, ns: int) -> tuple[FloatArray, FloatArray, tuple[Any, ...]]:
+    """The normal equations' index arrays for ``m`` outputs, order ``n`` and
+    ``ns`` signals (made once: building them took a tenth of a short estimate)."""
+    lag = np.arange(1, n + 1) * ns
+    sign = np.r_[-np.ones(n), np.ones(n)]
+    out = []
     for j in range(m):
         phi = np.r_[lag + j, lag + m]
         zeta = np.r_[lag + m + 1 + j, lag + 2 * m + 1]
         idx = np.r_[0:n, n * (1 + j): n * (2 + j)]
-        sw = weights[j] * outer
-        R[np.ix_(idx, idx)] += sw * C[np.ix_(zeta, phi)]
-        S[np.ix_(idx, idx)] += sw * C[np.ix_(zeta, zeta)]
-        Q[np.ix_(idx, idx)] += sw * C[np.ix_(phi, phi)]
-        r[idx] += weights[j] * sign * C[zeta, j]
-    return R, r, S, Q
+        entry = (*np.ix_(idx, idx), *np.ix_(zeta, phi), *np.ix_(zeta, zeta),
+                 *np.ix_(phi, phi), zeta)
+        for a in (sign, *entry):
+            a.flags.writeable = False   # shared by every later call
+        out.append((entry[0:2], entry[2:4], entry[4:6], entry[6:8], entry[8]))
+    outer = np.outer(sign, sign)
+    outer.flags.writeable = False
+    return sign, outer, tuple(out)
 
 
 #: Rows of lagged signals formed at a time for a Gram matrix: memory bounded
@@ -232,6 +248,8 @@ def stabilise(den: FloatArray) -> FloatArray:
     """
     if not np.all(np.isfinite(den)):
         raise EstimationError("the estimate diverged (non-finite denominator)")
+    if _schur_stable(den):
+        return den
     roots = np.roots(den)
     mag = np.abs(roots)
     if np.all(mag < 1.0):
@@ -242,6 +260,24 @@ def stabilise(den: FloatArray) -> FloatArray:
     inside = np.where(mag_in > MAX_RADIUS, inside * (MAX_RADIUS / np.maximum(mag_in, 1e-300)),
                       inside)
     return np.asarray(np.real(np.poly(inside)) * den[0], dtype=np.float64)
+
+
+def _schur_stable(den: FloatArray) -> bool:
+    """Whether every root of ``den`` lies strictly inside the unit circle, by
+    the Schur-Cohn step-down recursion (every reflection coefficient below 1 in
+    magnitude): a few scalar operations where ``np.roots`` costs an eigenvalue
+    problem. False also when undecided (a coefficient at or near 1)."""
+    a = [float(c) for c in den]
+    if a[0] == 0.0:
+        return False
+    a = [c / a[0] for c in a]
+    while len(a) > 1:
+        k = a[-1]
+        if not abs(k) < 1.0 - 1e-12:
+            return False
+        scale = 1.0 - k * k
+        a = [(a[i] - k * a[len(a) - 1 - i]) / scale for i in range(len(a) - 1)]
+    return True
 
 
 def covariance(R: FloatArray, S: FloatArray, checked: bool = False) -> FloatArray:

@@ -67,8 +67,9 @@ def _varies(record: pd.DataFrame | Columns, column: str) -> bool:
         return bool(values.size and np.any(values != values[0]))
     import pandas as pd
 
-    values = pd.to_numeric(record[column], errors="coerce").to_numpy(dtype=np.float64,
-                                                                     na_value=np.nan)
+    col = record[column]
+    values = (col.to_numpy() if col.dtype == np.float64 else
+              pd.to_numeric(col, errors="coerce").to_numpy(dtype=np.float64, na_value=np.nan))
     values = values[~np.isnan(values)]
     return bool(values.size and np.any(values != values[0]))
 

@@ -238,14 +238,26 @@ def d2c_coefficients_fast(den: FloatArray, nums: FloatArray, dt: float
                           ) -> tuple[FloatArray, FloatArray]:
     """:func:`d2c_coefficients` without the pole checks, for perturbation loops
     around a model that already passed them (e.g. a numerical Jacobian)."""
+    global _LAST_LOG
     A, B, C, D = _tf_to_ss(den, nums)
     n = A.shape[0]
-    M = np.zeros((n + 1, n + 1))
-    M[:n, :n] = A
-    M[:n, n:] = B
-    M[n, n] = 1.0
-    L = np.real(_logm(M)) / dt
+    # the logarithm depends on the denominator alone: a Jacobian's numerator
+    # columns reuse the last one (one (key, value) pair, read and set whole)
+    key = (np.asarray(den, dtype=np.float64).tobytes(), float(dt))
+    last = _LAST_LOG
+    if last and last[0] == key:
+        L = last[1]
+    else:
+        M = np.zeros((n + 1, n + 1))
+        M[:n, :n] = A
+        M[:n, n:] = B
+        M[n, n] = 1.0
+        L = np.real(_logm(M)) / dt
+        _LAST_LOG = (key, L)
     return _ss_to_tf(L[:n, :n], L[:n, n:], C, D)
+
+
+_LAST_LOG: tuple[tuple[bytes, float], FloatArray] | tuple[()] = ()
 
 
 def tf_c2d(g: ContinuousTF, dt: float) -> DiscreteTF:

@@ -99,3 +99,21 @@ def test_to_control_interop() -> None:
         ref = control.c2d(gc[j, 0], 0.01, method="zoh")
         np.testing.assert_allclose(gdc[j, 0](np.exp(1j * w * 0.01)),
                                    ref(np.exp(1j * w * 0.01)), rtol=1e-9)
+
+
+def test_the_characteristic_polynomial_without_eigenvalues_is_numpys() -> None:
+    import numpy as np
+
+    from condmon.models.conversion import _charpoly
+
+    rng = np.random.default_rng(1)
+    for n in (1, 2, 3, 4, 6):
+        for _ in range(50):
+            A = rng.normal(0.0, 1.0, (n, n)) * 10.0 ** rng.uniform(-2, 4)
+            want = np.real(np.poly(A))
+            assert np.allclose(_charpoly(A), want, rtol=1e-9, atol=1e-9 * np.max(np.abs(want)))
+    # a DC motor's state matrix: s^2 + (R/L + D/J) s + (R D + Ke Kt) / (L J)
+    R, L, J, D, Ke, Kt = 1.0, 1.2e-3, 5e-5, 1e-4, 0.0475, 0.05
+    A = np.array([[-R / L, -Ke / L], [Kt / J, -D / J]])
+    assert np.allclose(_charpoly(A), [1.0, R / L + D / J, (R * D + Ke * Kt) / (L * J)],
+                       rtol=1e-13)

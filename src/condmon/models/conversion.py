@@ -192,11 +192,27 @@ def _ss_to_tf(A: FloatArray, B: FloatArray, C: FloatArray, D: FloatArray
               ) -> tuple[FloatArray, FloatArray]:
     """Common denominator and numerators of a single-input state-space model
     (the determinant identity; avoids scipy's warning on leading zero coefficients)."""
-    den = np.real(np.poly(A))
+    den = _charpoly(A)
     nums = np.empty((C.shape[0], den.size))
     for j in range(C.shape[0]):
-        nums[j] = np.real(np.poly(A - B @ C[j : j + 1])) + (D[j, 0] - 1.0) * den
+        nums[j] = _charpoly(A - B @ C[j : j + 1]) + (D[j, 0] - 1.0) * den
     return den, nums
+
+
+def _charpoly(A: FloatArray) -> FloatArray:
+    """Characteristic polynomial ``det(sI - A)`` (descending powers) of a
+    small real matrix by the Faddeev-LeVerrier recursion (traces of products:
+    no eigenvalue problem, as ``np.poly`` solves); ``np.poly`` beyond order 4."""
+    n = A.shape[0]
+    if n > 4:
+        return np.asarray(np.real(np.poly(A)), dtype=np.float64)
+    c = np.zeros(n + 1)
+    c[0] = 1.0
+    M = np.zeros_like(A)
+    for k in range(1, n + 1):
+        M = A @ M + c[k - 1] * np.eye(n)
+        c[k] = -float(np.trace(A @ M)) / k
+    return c
 
 
 def tf_d2c(g: DiscreteTF) -> ContinuousTF:

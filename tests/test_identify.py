@@ -207,15 +207,19 @@ def test_physical_standard_errors_match_monte_carlo_spread(rig: ActuatorRig) -> 
 def test_the_quick_stability_test_agrees_with_the_roots() -> None:
     import numpy as np
 
-    from condmon.identify._common import _schur_stable
+    from condmon.identify._common import schur_stable
 
     rng = np.random.default_rng(0)
     for _ in range(3000):
         den = np.r_[1.0, rng.normal(0.0, 1.2, int(rng.integers(1, 6)))]
         radius = float(np.max(np.abs(np.roots(den))))
         if radius < 0.999:
-            assert _schur_stable(den), den
+            assert schur_stable(den), den
         elif radius >= 1.0:
-            assert not _schur_stable(den), den
-    assert _schur_stable(np.array([1.0, -1.9, 0.9025]))       # a double pole at 0.95
-    assert not _schur_stable(np.array([1.0, -2.0, 1.0]))      # a double integrator
+            assert not schur_stable(den), den
+    assert schur_stable(np.array([1.0, -1.9, 0.9025]))       # a double pole at 0.95
+    assert not schur_stable(np.array([1.0, -2.0, 1.0]))      # a double integrator
+    # within a radius: the polynomial of the poles divided by it
+    shrink = 0.999 ** -np.arange(3)
+    assert schur_stable(np.poly([0.998, 0.5]) * shrink)
+    assert not schur_stable(np.poly([0.9995, 0.5]) * shrink)

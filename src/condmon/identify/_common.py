@@ -22,7 +22,7 @@ from condmon.errors import DataError, EstimationError, ModelError
 from condmon.models.transfer import DiscreteTF
 
 __all__ = ["TFEstimate", "prepare", "normal_equations", "lagged_gram", "to_model", "stabilise",
-           "simulate_outputs", "simulate_inputs", "covariance", "robust_covariance", "log_oe_cost"]
+           "simulate_outputs", "simulate_inputs", "schur_stable", "covariance", "robust_covariance", "log_oe_cost"]
 
 FloatArray = NDArray[np.float64]
 
@@ -248,7 +248,7 @@ def stabilise(den: FloatArray) -> FloatArray:
     """
     if not np.all(np.isfinite(den)):
         raise EstimationError("the estimate diverged (non-finite denominator)")
-    if _schur_stable(den):
+    if schur_stable(den):
         return den
     roots = np.roots(den)
     mag = np.abs(roots)
@@ -262,7 +262,7 @@ def stabilise(den: FloatArray) -> FloatArray:
     return np.asarray(np.real(np.poly(inside)) * den[0], dtype=np.float64)
 
 
-def _schur_stable(den: FloatArray) -> bool:
+def schur_stable(den: FloatArray) -> bool:
     """Whether every root of ``den`` lies strictly inside the unit circle, by
     the Schur-Cohn step-down recursion (every reflection coefficient below 1 in
     magnitude): a few scalar operations where ``np.roots`` costs an eigenvalue

@@ -21,7 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from condmon._filter import lfilter
 from condmon.errors import DataError, EstimationError
-from condmon.identify._common import lagged_gram
+from condmon.identify._common import lagged_gram, schur_stable
 
 __all__ = ["noise_free_input"]
 
@@ -111,7 +111,8 @@ def noise_free_input(u: ArrayLike, r: ArrayLike, order: int = 8) -> FloatArray:
     # back to per-input blocks: theta = [c_1..c_n, d_1(0..n), d_2(0..n), ...]
     theta = np.r_[sol[:n], sol[n:].reshape(n + 1, nr).T.ravel()]
     c = np.r_[1.0, theta[:n]]
-    if np.all(np.abs(np.roots(c)) < 0.999):
+    # every pole inside radius 0.999: the polynomial of the poles / 0.999 is stable
+    if schur_stable(c * 0.999 ** -np.arange(c.size)):
         # sum of D_i r_i through 1/C once (the recursion is linear)
         moving = np.zeros(N)
         for i in range(r_arr.shape[1]):

@@ -162,7 +162,7 @@ def fleet_document(store: HistoryStore, status: Sequence[str] = (),
         Order of the units: by name (default); by status, the most severe
         first (:data:`STATUSES`' order), then by name; by latest date, the
         newest first; or by urgency, the unit forecast to turn no-go soonest
-        first (:func:`condmon.store.forecasts.by_urgency`).
+        first (:func:`condmon.store.views.by_urgency`).
     page : int
         Which page, from 1.
     per_page : int, optional
@@ -180,7 +180,8 @@ def fleet_document(store: HistoryStore, status: Sequence[str] = (),
         A status not in :data:`STATUSES`, a sort not in :data:`SORTS`, a page
         or page size < 1, a page past the last.
     """
-    from condmon.store.forecasts import attach_forecasts, by_urgency
+    from condmon.store.forecasts import attach_forecasts
+    from condmon.store.views import by_urgency
 
     wanted, how = _statuses(status), _sort(sort)
     text = (q or "").strip()

@@ -35,7 +35,7 @@ if TYPE_CHECKING:
     from condmon.store.db import HistoryStore
 
 __all__ = ["read_forecast", "try_forecast", "forecast_fields", "fleet_summaries", "machine_nogo",
-           "by_urgency", "NO_BASELINE", "FleetHistory", "DEGRADED", "keep_forecast",
+           "NO_BASELINE", "FleetHistory", "DEGRADED", "keep_forecast",
            "attach_forecasts", "prior_units"]
 
 #: Why a unit without a baseline in use has no forecast.
@@ -578,34 +578,3 @@ def keep_forecast(store: HistoryStore, unit: str) -> dict[str, Any]:
                           *[(p, marks.get(p, 0), PEER_RATES_ONLY, None, None, fleet.rates_of(p))
                             for p in peers]])
     return fields
-
-
-def _urgency(row: dict[str, Any]) -> tuple[int, float, str]:
-    f = row.get("forecast")
-    if not f:
-        return (3, 0.0, "")
-    if f["median"] is None:  # a trend, but most draws never cross
-        return (2, 0.0, "")
-    if f["date"]:  # days and tests are not one scale: dated forecasts by their date
-        return (0, 0.0, str(f["date"]))
-    return (1, float(f["median"]), "")
-
-
-def by_urgency(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Units (rows of :func:`fleet_summaries`) by their earliest forecast to no-go.
-
-    Dated forecasts first, by their median crossing date; then forecasts in
-    tests, by the median tests left; then trends whose median never crosses;
-    then the units without a forecast (no trend, too few checks, no
-    baseline). Ties keep their order (by name).
-
-    Example
-    -------
-    >>> rows = [{"unit": "A", "forecast": None},
-    ...         {"unit": "B", "forecast": {"median": 9.0, "date": None}},
-    ...         {"unit": "C", "forecast": {"median": 4.0, "date": None}},
-    ...         {"unit": "D", "forecast": {"median": 30.0, "date": "2026-02-01T00:00:00+00:00"}}]
-    >>> [r["unit"] for r in by_urgency(rows)]
-    ['D', 'C', 'B', 'A']
-    """
-    return sorted(rows, key=_urgency)

@@ -12,7 +12,7 @@ import sqlalchemy as sa
 from condmon.store import schema as S
 from condmon.store.base import StoreBase, as_utc, now, utc_column
 
-__all__ = ["ViewsMixin", "ForecastCacheMixin", "test_status", "building_summary"]
+__all__ = ["ViewsMixin", "ForecastCacheMixin", "test_status", "building_summary", "by_urgency"]
 
 
 def test_status(role: str, accepted: bool, excluded: bool, status: Any) -> str:
@@ -220,3 +220,34 @@ def _urgency_columns(summary: dict[str, Any]) -> dict[str, Any]:
     when = pd.Timestamp(date).floor("us").to_pydatetime() if date else None  # to the microsecond
     return {"crossing_date": as_utc(when),
             "median": float(median) if isinstance(median, (int, float)) else None}
+
+
+def _urgency(row: dict[str, Any]) -> tuple[int, float, str]:
+    f = row.get("forecast")
+    if not f:
+        return (3, 0.0, "")
+    if f["median"] is None:  # a trend, but most draws never cross
+        return (2, 0.0, "")
+    if f["date"]:  # days and tests are not one scale: dated forecasts by their date
+        return (0, 0.0, str(f["date"]))
+    return (1, float(f["median"]), "")
+
+
+def by_urgency(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Units (rows of :func:`fleet_summaries`) by their earliest forecast to no-go.
+
+    Dated forecasts first, by their median crossing date; then forecasts in
+    tests, by the median tests left; then trends whose median never crosses;
+    then the units without a forecast (no trend, too few checks, no
+    baseline). Ties keep their order (by name).
+
+    Example
+    -------
+    >>> rows = [{"unit": "A", "forecast": None},
+    ...         {"unit": "B", "forecast": {"median": 9.0, "date": None}},
+    ...         {"unit": "C", "forecast": {"median": 4.0, "date": None}},
+    ...         {"unit": "D", "forecast": {"median": 30.0, "date": "2026-02-01T00:00:00+00:00"}}]
+    >>> [r["unit"] for r in by_urgency(rows)]
+    ['D', 'C', 'B', 'A']
+    """
+    return sorted(rows, key=_urgency)

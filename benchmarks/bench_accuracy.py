@@ -145,7 +145,9 @@ def main() -> int:
                 "(target 0.8-1.25; 'held': records where a parameter was not identifiable "
                 "and held, left out)"))
     checks = {
-        "se_over_sd_white_and_ar1": all(c["within_0p8_1p25"] for c in se_cases if c["held"] == 0),
+        # judged where the record fixes every parameter on at least 90 % of runs
+        "se_over_sd_white_and_ar1": all(c["within_0p8_1p25"] for c in se_cases
+                                        if c["held"] < 0.1 * c["runs"]),
         "noise_free_max_rel_error_sriv": nf["sriv"],
         "paper_bias_below_one_std_RLKeKtJ": all(
             paper["per_parameter"][p]["closed"]["bias_over_std"] < 1.0 for p in ("R", "L", "Ke", "Kt", "J")),

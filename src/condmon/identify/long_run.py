@@ -104,6 +104,15 @@ def long_run_covariance_of(rows: Callable[[int, int], FloatArray], T: int, *,
     of the lag products within the bandwidth, each block carrying the rows
     before it that its first rows reach back to.
     """
+    if T <= block:   # one block: made once, not once a pass
+        whole = rows(0, T)
+        return _from_rows(lambda a, b: whole[a:b], T, block)
+    return _from_rows(rows, T, block)
+
+
+def _from_rows(rows: Callable[[int, int], FloatArray], T: int, block: int
+               ) -> tuple[FloatArray, float]:
+    """The three passes of :func:`long_run_covariance_of`."""
     total = np.zeros(0)
     for a in range(0, T, block):
         part = rows(a, min(T, a + block)).sum(axis=0)

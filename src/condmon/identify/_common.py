@@ -19,10 +19,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from condmon._filter import lfilter
 from condmon.errors import DataError, EstimationError, ModelError
+from condmon.identify.long_run import long_run_covariance_of
 from condmon.models.transfer import DiscreteTF
 
 __all__ = ["TFEstimate", "prepare", "normal_equations", "lagged_gram", "to_model", "stabilise",
-           "simulate_outputs", "simulate_inputs", "schur_stable", "covariance", "robust_covariance", "log_oe_cost"]
+           "simulate_outputs", "delayed_sum", "schur_stable", "covariance",
+           "robust_covariance", "log_oe_cost"]
 
 FloatArray = NDArray[np.float64]
 
@@ -323,8 +325,6 @@ def robust_covariance(R: FloatArray, sig: FloatArray, m: int, order: int, theta:
     coloured and equals the white-noise ``R⁻¹ (Σ w ζζᵀ) R⁻ᵀ`` on average when it
     is white. Returns the covariance and the bandwidth used [samples]
     (``checked`` as for :func:`covariance`)."""
-    from condmon.identify.long_run import long_run_covariance_of
-
     S, bandwidth = long_run_covariance_of(
         lambda a, b: iv_scores(sig[a: b + order], m, order, theta, weights),
         sig.shape[0] - order)
@@ -352,23 +352,19 @@ def log_oe_cost(sig2: FloatArray) -> float:
 
 def simulate_outputs(theta: FloatArray, order: int, u: FloatArray, m: int) -> FloatArray:
     """Noise-free outputs ``B_j/A u`` of a parameter vector, shape (N, m)."""
-    return np.asarray(simulate_inputs(theta, order, u[:, None], m)[0], dtype=np.float64)
-
-
-def simulate_inputs(theta: FloatArray, order: int, us: FloatArray, m: int, *,
-                    overwrite: bool = False) -> FloatArray:
-    """:func:`simulate_outputs` for each column of ``us`` (N, k) in one filter
-    pass; shape (k, N, m) (``overwrite``: ``us`` is a temporary, filtered in
-    place)."""
     n = order
-    B = theta[n:].reshape(m, n)
     # An unstable iterate overflows: the caller sees inf/NaN and handles it.
     with np.errstate(all="ignore"):
-        x = lfilter([1.0], np.r_[1.0, theta[:n]], us, axis=0, overwrite_x=overwrite)
-        N, k = x.shape
-        out = np.zeros((k, N, m))
-        for i in range(k):   # Σ_d b_jd x(t-d), a column at a time (no lag matrix)
-            for j in range(m):
-                for d in range(1, n + 1):
-                    out[i, d:, j] += B[j, d - 1] * x[: N - d, i]
-        return out
+        x = lfilter([1.0], np.r_[1.0, theta[:n]], u)
+        B = theta[n:].reshape(m, n)
+        return np.column_stack([delayed_sum(B[j], x) for j in range(m)])
+
+
+def delayed_sum(b: FloatArray, x: FloatArray) -> FloatArray:
+    """``Σ_d b[d-1] x(k-d)``, ``d = 1..len(b)``, from rest: a numerator with
+    one sample of delay applied to ``x`` (1-D), without a lag matrix."""
+    N = x.size
+    out = np.zeros(N)
+    for d in range(1, b.size + 1):
+        out[d:] += b[d - 1] * x[: N - d]
+    return out

@@ -39,7 +39,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from condmon._filter import lfilter
 from condmon.errors import EstimationError
-from condmon.identify._common import stabilise
+from condmon.identify._common import schur_stable, stabilise
 from condmon.identify.long_run import long_run_covariance
 from condmon.identify.ls import output_error_variance
 
@@ -76,8 +76,7 @@ class OutputErrorFit:
 
 
 def _stable(theta: FloatArray, n: int) -> bool:
-    return bool(np.all(np.isfinite(theta))
-                and np.all(np.abs(np.roots(np.r_[1.0, theta[:n]])) < 1.0))
+    return bool(np.all(np.isfinite(theta))) and schur_stable(np.r_[1.0, theta[:n]])
 
 
 def _lag(x: FloatArray, d: int) -> FloatArray:

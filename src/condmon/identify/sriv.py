@@ -39,8 +39,8 @@ from numpy.typing import ArrayLike, NDArray
 from condmon._filter import lfilter
 from condmon.errors import ConvergenceWarning, EstimationError
 from condmon.identify._common import (
-    TFEstimate, covariance, log_oe_cost, normal_equations, prepare, robust_covariance, solve,
-    stabilise, to_model,
+    TFEstimate, covariance, delayed_sum, log_oe_cost, normal_equations, prepare,
+    robust_covariance, solve, stabilise, to_model,
 )
 from condmon.identify.closed_loop import noise_free_input
 from condmon.identify.ls import _names, arx_theta, output_error_variance
@@ -109,17 +109,11 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
             w = lfilter([1.0], np.r_[1.0, th[:order]],
                         u[:, None].copy() if same else np.column_stack([u, u_i]), axis=0,
                         overwrite_x=True)
-            x = np.zeros((N, m))
+            x = np.empty((N, m))
             var = np.empty(m)
             for j in range(m):
-                for d in range(1, order + 1):
-                    x[d:, j] += B[j, d - 1] * w[: N - d, -1]
-                if same:
-                    e = y[:, j] - x[:, j]
-                else:
-                    e = y[:, j].copy()
-                    for d in range(1, order + 1):
-                        e[d:] -= B[j, d - 1] * w[: N - d, 0]
+                x[:, j] = delayed_sum(B[j], w[:, -1])
+                e = y[:, j] - (x[:, j] if same else delayed_sum(B[j], w[:, 0]))
                 tail = e[order:]
                 tail = tail - tail.mean()
                 var[j] = float(tail @ tail) / tail.size   # np.var, without its overhead

@@ -209,3 +209,119 @@ def test_a_new_unit_checked_against_a_peer_keeps_the_declared_model(
         assert any("not used against unit A" in j for j in doc["judgement"])
     with open_store(db) as store:
         assert store.unit_model("B") == str(DECLARATION.resolve())
+
+
+def _session_declaration(folder: Path) -> Path:
+    """The example's declaration with the time since the session started as its
+    condition instead of the oil's temperature (a pause over 10 min ends one)."""
+    folder.mkdir()
+    for f in DECLARATION.parent.glob("*.toml"):
+        text = f.read_text()
+        if f.name == DECLARATION.name:
+            start = text.index("[conditions.oil]")
+            text = (text[:start] + '[conditions.warm]\nsince = "session start"\ngap = 600\n'
+                    'description = "the stand warms up through a session"\n\n'
+                    + text[text.index("[monitor]"):])
+        (folder / f.name).write_text(text)
+    return folder / DECLARATION.name
+
+
+def _at(folder: Path, when: str, tc: float, seed: int) -> Path:
+    """A stroke whose file name holds its start time as the stand writes it."""
+    return write_stroke(folder / f"Base_000_{seed}_{when}.txt", 1.0, seed=seed,
+                        friction={"Tc": tc})
+
+
+def test_the_time_since_the_session_started_is_a_condition(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Known truth: friction falls 0.4 N m per 12 s cycle as the stand warms
+    up. The start times come from the file names ([record] name_time); a
+    session is the records no more than 10 min apart. A check on the line at
+    its session's time is go, on the next day's session too; a seal leak of
+    -25 % late in the session is found; a check later in its session than any
+    baseline record is not judged; a fleet run judges the same."""
+    model = _session_declaration(tmp_path / "model")
+    db = str(tmp_path / "h.db")
+    rng = np.random.default_rng(9)
+
+    def tc(elapsed: float) -> float:
+        return 48.0 - 0.4 * elapsed / 12.0
+
+    base = [_at(tmp_path, f"9-11-2019-8-{k // 5:02d}-{12 * (k % 5):02d} AM",
+                tc(12.0 * k) + rng.normal(0.0, 0.15), k) for k in range(12)]
+    capsys.readouterr()
+    assert main(["baseline", "add", *map(str, base), "--unit", "A", "--db", db,
+                 "--model", str(model)]) == 0
+    assert "trend" not in capsys.readouterr().err   # the session's time explains it
+    with open_store(db) as store:
+        conds = store.conditions_of(store.usable_tests("A"))[0]
+    assert conds["warm"].tolist() == [12.0 * k for k in range(12)]
+    same = _check(_at(tmp_path, "9-11-2019-8-01-00 AM", tc(60.0), 40), db, capsys)
+    assert same["status"] == "go", same["summary"]
+    assert any("judged against its prediction at warm" in j
+               for j in same["judgement"])  # type: ignore[union-attr]
+    # the next day, a new session: its first record is as cold as the first one
+    first = _check(_at(tmp_path, "9-12-2019-7-00-00 AM", tc(0.0), 41), db, capsys)
+    assert first["status"] == "go", first["summary"]
+    leak = _check(_at(tmp_path, "9-12-2019-7-02-00 AM", 0.75 * tc(120.0), 42), db, capsys)
+    assert leak["status"] in ("advisory", "no-go") and "seal" in str(leak["summary"])
+    # 4 min into the session: later than the baseline's 132 s
+    late = _check(_at(tmp_path, "9-12-2019-7-04-00 AM", tc(240.0), 43), db, capsys)
+    assert late["status"] == "not judged"
+    assert str(late["not_judged"]).startswith("warm = 240 s outside the baseline's 0 .. 132")
+    # a fleet run of the same records judges alike
+    inbox = tmp_path / "inbox" / "B"
+    inbox.mkdir(parents=True)
+    (inbox / "unit.toml").write_text(f'model = "{model}"\n')
+    for f in [*base, *(tmp_path / Path(str(d["source"])).name for d in (first, late))]:
+        (inbox / Path(f).name).write_bytes(Path(f).read_bytes())
+    assert main(["fleet", "run", str(tmp_path / "inbox"), "--db", db,
+                 "--baseline-count", "12", "--workers", "1"]) == 0
+    with open_store(db) as store:
+        hist = store.history("B")
+    status = {Path(str(s)).name[:16]: v for s, v in zip(hist["source"], hist["status"])}
+    assert status["Base_000_41_9-12"] == "go" and status["Base_000_43_9-12"] == "not judged"
+
+
+def test_a_record_without_a_start_time_says_its_session_time_is_not_known() -> None:
+    from datetime import datetime, timezone
+
+    import condmon
+    from condmon.models.features import ConditionSpec
+    from condmon.monitor.conditions import with_session_time
+
+    res = condmon.estimate(condmon.simulate_actuator(seed=2))
+    assert res.conditions == {}
+    spec = (ConditionSpec("warm", session_gap=600.0),)
+    out = with_session_time(res, spec, None, [0.0])
+    assert out.conditions == {} and "condition warm not known" in out.notes[-1]
+    when = datetime(1970, 1, 1, 0, 30, tzinfo=timezone.utc)   # 1,800 s
+    assert with_session_time(res, spec, when, [1000.0, 1500.0, 3000.0]).conditions == {
+        "warm": (800.0, 0.0)}
+    assert with_session_time(res, spec, when, [100.0]).conditions == {"warm": (0.0, 0.0)}
+
+
+@pytest.mark.parametrize("entry, message", [
+    ({"since": "boot"}, "since must be 'session start'"),
+    ({"since": "session start", "gap": 0}, "gap must be the longest pause"),
+    ({"since": "session start", "gap": "10 min"}, "gap must be the longest pause"),
+    ({"metadata": "load", "gap": 60}, "gap is for since"),
+    ({"since": "session start", "unit": "h"}, "is in s, not 'h'"),
+    ({"since": "session start", "channel": "T1"}, "needs exactly one of channel"),
+])
+def test_bad_session_conditions_are_refused(entry: dict[str, object], message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        parse_conditions({"warm": entry}, "rig.toml")
+
+
+@pytest.mark.parametrize("fmt, message", [
+    ("%Q-%Y", "%Q is not a directive"),
+    ("%Y-%m-%d", "has no %H or %I"),
+    ("day", "has no %Y or %y"),
+    (12, "must be a strptime format"),
+])
+def test_a_bad_name_time_is_refused_naming_the_key(fmt: object, message: str) -> None:
+    from condmon.io.rig import parse_record_settings
+
+    with pytest.raises(ConfigError, match=r"rig\.toml\[record\]\.name_time.*" + message):
+        parse_record_settings({"name_time": fmt}, "rig.toml[record]")

@@ -211,9 +211,9 @@ def test_manifest_csv_and_toml(tmp_path: Path) -> None:
     ("unit,model\nA,hst\n", "missing column 'file'"),
     ("unit,file,colour\nA,a.csv,red\n",
      r"unknown column 'colour' \(columns: unit, file, model, date, group, metadata, columns, "
-     r"sample_rate, scale, offset, ignore\)$"),
+     r"sample_rate, scale, offset, ignore, name_time\)$"),
     ("Unit,Flie\nA,a.csv\n", r"unknown column 'Flie' \(columns: unit, file, model, date, group, "
-     r"metadata, columns, sample_rate, scale, offset, ignore\)$"),
+     r"metadata, columns, sample_rate, scale, offset, ignore, name_time\)$"),
     ("unit,file\nA,\nB,b.csv\n\n,c.csv\n", "row 2: needs a unit and a file; row 5: needs a unit "
      "and a file$"),
 ])
@@ -391,7 +391,7 @@ def test_a_file_listed_twice_is_skipped_as_such(tmp_path: Path) -> None:
         "skipped", f"{tmp_path / 'a.csv'}: listed twice in the manifest (rows 1 and 2)")
     assert third.outcome == "refused" and str(third.reason).endswith(
         "row 3: unknown column 'colour' (columns: unit, file, model, date, group, metadata, "
-        "columns, sample_rate, scale, offset, ignore)")
+        "columns, sample_rate, scale, offset, ignore, name_time)")
     assert not (tmp_path / "f.db").exists()
 
 

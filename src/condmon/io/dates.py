@@ -9,12 +9,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from condmon.errors import DataError
+from condmon.errors import ConfigError, DataError
 
 if TYPE_CHECKING:  # pandas only where a DataFrame is made or read: not on import
     import pandas as pd
 
-__all__ = ["as_utc", "parse_date"]
+__all__ = ["as_utc", "parse_date", "name_time_format", "time_in_name"]
 
 _ISO = re.compile(r"\d{4}-\d{2}-\d{2}([T ][0-9:.]+)?(Z|[+-]\d{2}:?\d{2})?")
 
@@ -91,3 +91,72 @@ def _not_future(when: datetime | None, given: object, what: str) -> datetime | N
         raise DataError(f"{what}: {given!s} is in the future (it is {now:%Y-%m-%d %H:%M} UTC "
                         "here); give the date the test was run")
     return when
+
+
+# strptime directives and the text each may match in a file name. Written by
+# hand: ``time.strptime`` parses a whole string only, and a file name holds the
+# time among other text ("Base_000_12_508_9-11-2019-8-55-09 AM.txt").
+_DIRECTIVES = {
+    "Y": r"\d{4}", "y": r"\d{2}", "m": r"\d{1,2}", "d": r"\d{1,2}", "H": r"\d{1,2}",
+    "I": r"\d{1,2}", "M": r"\d{1,2}", "S": r"\d{1,2}", "f": r"\d{1,6}", "j": r"\d{1,3}",
+    "p": r"(?:AM|PM|am|pm)", "b": r"[A-Za-z]{3}", "B": r"[A-Za-z]{3,9}", "%": "%",
+}
+#: Directives a start time in a file name needs: a date and a time of day.
+_NEEDED = (("Y", "y"), ("m", "b", "B", "j"), ("H", "I"))
+
+
+def name_time_format(fmt: Any, where: str) -> str:
+    """Check a ``strptime`` format of a start time written in file names.
+
+    It needs a year, a month (or day of the year), an hour and only the
+    directives ``%Y %y %m %d %H %I %M %S %f %j %p %b %B %%``.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``where``: not text, an unknown directive, or no year, month
+        or hour.
+
+    Example
+    -------
+    >>> name_time_format("%m-%d-%Y-%I-%M-%S %p", "rig.toml[record]")
+    '%m-%d-%Y-%I-%M-%S %p'
+    """
+    if not isinstance(fmt, str) or not fmt.strip():
+        raise ConfigError(f"{where} must be a strptime format, e.g. \"%Y%m%d-%H%M%S\"")
+    used = re.findall(r"%(.)", fmt)
+    bad = [d for d in used if d not in _DIRECTIVES]
+    if bad or fmt.count("%") != len(used) + sum(d == "%" for d in used):
+        raise ConfigError(f"{where}: %{bad[0] if bad else ''} is not a directive a file name's "
+                          f"time may use; allowed: {' '.join('%' + d for d in _DIRECTIVES)}")
+    missing = [" or ".join("%" + d for d in group) for group in _NEEDED
+               if not set(group) & set(used)]
+    if missing:
+        raise ConfigError(f"{where}: {fmt!r} has no {missing[0]}: a start time needs a year, "
+                          "a month and an hour")
+    return fmt
+
+
+def time_in_name(name: str, fmt: str) -> datetime | None:
+    """The start time written in a file's name in ``strptime`` format ``fmt``,
+    as an aware UTC datetime (a time without a zone is UTC, as every date
+    condmon reads); None when the name holds none.
+
+    Example
+    -------
+    >>> time_in_name("Base_000_12_508_9-11-2019-8-55-09 AM.txt",
+    ...              "%m-%d-%Y-%I-%M-%S %p").isoformat()
+    '2019-09-11T08:55:09+00:00'
+    >>> time_in_name("record.csv", "%Y%m%d-%H%M%S") is None
+    True
+    """
+    parts = re.split(r"(%.)", fmt)
+    pattern = "".join(_DIRECTIVES[p[1]] if len(p) == 2 and p[0] == "%" else re.escape(p)
+                      for p in parts if p)
+    for match in re.finditer(f"(?=({pattern}))", name):
+        try:
+            when = datetime.strptime(match.group(1), fmt)
+        except ValueError:
+            continue
+        return when.replace(tzinfo=timezone.utc) if when.tzinfo is None else as_utc(when)
+    return None

@@ -11,6 +11,7 @@ matching command-line options say how to read them:
     [record]
     sample_rate = 250.0                 # [Hz]: t counts samples (or is absent)
     ignore = ["F_Names", "F_Values"]    # file columns dropped on reading
+    name_time = "%m-%d-%Y-%I-%M-%S %p"  # the start time, as the file names write it
     [record.columns]                    # model name = file column, or a table
     theta = { column = "Angle", scale = 3.835e-4, offset = 0.0 }   # counts -> rad
     pA = { column = "PG_1", scale = 1262.5 }                         # counts -> Pa
@@ -28,6 +29,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from pathlib import Path
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
@@ -35,6 +37,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from condmon.errors import ConfigError, DataError, DataWarning
+from condmon.io.dates import name_time_format, time_in_name
 
 if TYPE_CHECKING:  # pandas only where a DataFrame is made or read: not on import
     import pandas as pd
@@ -43,7 +46,7 @@ __all__ = ["RecordSettings", "parse_record_settings", "apply_record_settings", "
            "parse_assignments", "settings_from_options", "RECORD_KEYS"]
 
 #: Keys a ``[record]`` table may hold.
-RECORD_KEYS = ("columns", "sample_rate", "scale", "offset", "ignore")
+RECORD_KEYS = ("columns", "sample_rate", "scale", "offset", "ignore", "name_time")
 
 
 @dataclass(frozen=True)
@@ -71,6 +74,10 @@ class RecordSettings:
         part comes from it (:func:`condmon.identify.estimate.systematic_part`). [unit]
     sources : tuple of str
         Where the settings came from, for messages and notes.
+    name_time : str or None
+        The ``strptime`` format in which the rig writes each record's start
+        time into its file name (``"%m-%d-%Y-%I-%M-%S %p"``); the test's date
+        when no other is given (:func:`condmon.io.dates.time_in_name`).
 
     Example
     -------
@@ -88,12 +95,13 @@ class RecordSettings:
     ignore: tuple[str, ...] = ()
     sources: tuple[str, ...] = ()
     accuracy: dict[str, float] = field(default_factory=dict)
+    name_time: str | None = None
 
     @property
     def empty(self) -> bool:
         """Whether the settings change nothing."""
         return not (self.columns or self.sample_rate is not None or self.scale
-                    or self.offset or self.ignore)
+                    or self.offset or self.ignore or self.name_time)
 
     def merged(self, later: RecordSettings | None) -> RecordSettings:
         """These settings with ``later`` ones winning key by key.
@@ -125,7 +133,7 @@ class RecordSettings:
             {**kept(self.scale), **later.scale}, {**kept(self.offset), **later.offset},
             tuple(dict.fromkeys((*self.ignore, *later.ignore))),
             tuple(dict.fromkeys((*self.sources, *later.sources))),
-            {**kept(self.accuracy), **later.accuracy})
+            {**kept(self.accuracy), **later.accuracy}, later.name_time or self.name_time)
 
     def describe(self, dropped: int | None = None) -> str:
         """One line saying what the settings do (for notes); ``dropped``: how
@@ -148,7 +156,7 @@ class RecordSettings:
         return {"columns": dict(self.columns), "sample_rate": self.sample_rate,
                 "scale": dict(self.scale), "offset": dict(self.offset),
                 "ignore": list(self.ignore), "sources": list(self.sources),
-                "accuracy": dict(self.accuracy)}
+                "accuracy": dict(self.accuracy), "name_time": self.name_time}
 
 
 def _finite(value: Any, where: str, *, nonzero: bool = False, positive: bool = False) -> float:
@@ -319,7 +327,11 @@ def parse_record_settings(table: Mapping[str, Any] | None, where: str, *,
         ignore = [c.strip() for c in ignore.split(",") if c.strip()]
     if not isinstance(ignore, (list, tuple)) or not all(isinstance(c, str) for c in ignore):
         raise ConfigError(f"{at('ignore')} must be a list of file column names")
-    return RecordSettings(columns, fs, scale, offset, tuple(ignore), (where,), accuracy)
+    name_time = table.get("name_time")
+    if name_time not in (None, ""):
+        name_time = name_time_format(name_time, at("name_time"))
+    return RecordSettings(columns, fs, scale, offset, tuple(ignore), (where,), accuracy,
+                          name_time or None)
 
 
 def apply_record_settings(df: pd.DataFrame, settings: RecordSettings | None,
@@ -409,6 +421,12 @@ def apply_record_settings(df: pd.DataFrame, settings: RecordSettings | None,
                      + settings.offset.get(name, 0.0))
     if settings.sample_rate is not None:
         out["t"] = _seconds(out, settings.sample_rate, src)
+    if settings.name_time and not attrs.get("start_time"):
+        # a name without the time (a simulated test, a renamed file) leaves the
+        # start unknown: a session condition then says so
+        when = time_in_name(Path(src).name, settings.name_time)
+        if when is not None:
+            attrs["start_time"] = when.isoformat()
     out.attrs.update(attrs)
     out.attrs["record_settings"] = settings.describe(len(dropped))
     out.attrs["record_ignored"] = dropped

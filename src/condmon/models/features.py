@@ -244,6 +244,11 @@ class ConditionSpec:
         default): an oil temperature, a supply pressure.
     metadata : str or None
         Or a numeric metadata field of the record (``load``, ``hours``).
+    session_gap : float or None
+        Or the time since the session started: since the first of the unit's
+        records that follow each other with no pause longer than this gap
+        (``since = "session start"``, ``gap``), from each record's start time
+        (its date, or the time its file name holds: ``[record] name_time``). [s]
     unit : str
     description : str
     between_units : bool
@@ -258,17 +263,22 @@ class ConditionSpec:
     unit: str = ""
     description: str = ""
     between_units: bool = False
+    session_gap: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form."""
         return {"name": self.name, "channel": self.feature.channel if self.feature else None,
                 "statistic": self.feature.statistic if self.feature else None,
-                "metadata": self.metadata, "unit": self.unit,
+                "metadata": self.metadata, "session_gap": self.session_gap,
+                "unit": self.unit,
                 "description": self.description, "between_units": self.between_units}
 
 
-_CONDITION_KEYS = ("channel", "statistic", "regimes", "metadata", "unit", "description",
-                   "between_units", "required")
+_CONDITION_KEYS = ("channel", "statistic", "regimes", "metadata", "since", "gap", "unit",
+                   "description", "between_units", "required")
+#: What ``since`` may name, and the pause that ends a session by default: a
+#: pause of half an hour is no pause between the cycles of one run. [s]
+SESSION_START, SESSION_GAP = "session start", 1800.0
 
 
 def parse_conditions(table: Mapping[str, Any] | None, source: str, *,
@@ -277,10 +287,12 @@ def parse_conditions(table: Mapping[str, Any] | None, source: str, *,
     """Read and validate a declaration's ``[conditions]`` table.
 
     Each entry is a record channel's statistic in the regimes' windows
-    (``channel``, ``statistic`` = ``mean`` by default, ``regimes``) or a
-    numeric metadata field (``metadata = "load"``), with ``unit``,
+    (``channel``, ``statistic`` = ``mean`` by default, ``regimes``), a
+    numeric metadata field (``metadata = "load"``), or the time since the
+    session started (``since = "session start"``, with ``gap``, the longest
+    pause within a session [s], 1800 by default), with ``unit``,
     ``description`` and ``between_units`` (default false for a channel,
-    true for a metadata field).
+    true otherwise).
 
     Raises
     ------
@@ -289,20 +301,26 @@ def parse_conditions(table: Mapping[str, Any] | None, source: str, *,
 
     Example
     -------
-    >>> cs = parse_conditions({"oil": {"channel": "T1"}, "load": {"metadata": "load"}}, "rig.toml")
-    >>> [(c.name, c.feature.statistic if c.feature else c.metadata) for c in cs]
-    [('oil', 'mean'), ('load', 'load')]
+    >>> cs = parse_conditions({"oil": {"channel": "T1"}, "load": {"metadata": "load"},
+    ...                        "warm": {"since": "session start", "gap": 600}}, "rig.toml")
+    >>> [(c.name, c.feature.statistic if c.feature else c.metadata or c.session_gap) for c in cs]
+    [('oil', 'mean'), ('load', 'load'), ('warm', 600.0)]
     """
     out = []
     for name, at, entry in _entries(table, source, "conditions", _CONDITION_KEYS,
-                                    "channel or metadata"):
-        if ("channel" in entry) == ("metadata" in entry):
-            raise ConfigError(f"{at} needs exactly one of channel (a record column) or "
-                              "metadata (a metadata field)")
-        between = entry.get("between_units", "metadata" in entry)
+                                    "channel, metadata or since"):
+        if sum(k in entry for k in ("channel", "metadata", "since")) != 1:
+            raise ConfigError(f"{at} needs exactly one of channel (a record column), "
+                              f"metadata (a metadata field) or since = {SESSION_START!r}")
+        between = entry.get("between_units", "channel" not in entry)
         if not isinstance(between, bool):
             raise ConfigError(f"{at}.between_units must be true or false, not {between!r}")
         unit, text = str(entry.get("unit", "")), str(entry.get("description", ""))
+        if "gap" in entry and "since" not in entry:
+            raise ConfigError(f"{at}.gap is for since = {SESSION_START!r}")
+        if "since" in entry:
+            out.append(_session(name, at, entry, text, between))
+            continue
         if "metadata" in entry:
             field_ = entry["metadata"]
             if not isinstance(field_, str) or not field_.strip():
@@ -320,3 +338,21 @@ def parse_conditions(table: Mapping[str, Any] | None, source: str, *,
             source, reserved=reserved, regimes=regimes, kind="conditions")[0]
         out.append(ConditionSpec(name, feature, None, unit, text, between))
     return tuple(out)
+
+
+def _session(name: str, at: str, entry: Mapping[str, Any], text: str,
+             between: bool) -> ConditionSpec:
+    """A ``since = "session start"`` condition, checked."""
+    if entry["since"] != SESSION_START:
+        raise ConfigError(f"{at}.since must be {SESSION_START!r}, not {entry['since']!r}")
+    bad = [k for k in ("statistic", "regimes", "required") if k in entry]
+    if bad:
+        raise ConfigError(f"{at}.{bad[0]} is for a channel's condition, not the session's time")
+    gap = entry.get("gap", SESSION_GAP)
+    if isinstance(gap, bool) or not isinstance(gap, (int, float)) or not 0 < gap < math.inf:
+        raise ConfigError(f"{at}.gap must be the longest pause within a session, a number of "
+                          f"seconds > 0, not {gap!r}")
+    unit = str(entry.get("unit", "s"))
+    if unit != "s":
+        raise ConfigError(f"{at}.unit: the time since the session started is in s, not {unit!r}")
+    return ConditionSpec(name, None, None, "s", text, between, float(gap))

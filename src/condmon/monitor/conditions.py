@@ -30,10 +30,12 @@ would bring a dependency for.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from datetime import datetime
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -41,8 +43,12 @@ from numpy.typing import NDArray
 from condmon.monitor.baseline import Baseline
 from condmon.models.regimes import split_key
 
+if TYPE_CHECKING:
+    from condmon.identify.result import EstimateResult
+    from condmon.models.features import ConditionSpec
+
 __all__ = ["Conditioned", "condition_keys", "conditioned_baseline", "NotJudged", "NOT_JUDGED",
-           "explained", "departures"]
+           "explained", "departures", "session_elapsed", "with_session_time"]
 
 FloatArray = NDArray[np.float64]
 
@@ -92,6 +98,56 @@ class Conditioned:
     not_judged: str | None
     fitted: dict[str, tuple[str, ...]]
     notes: tuple[str, ...] = ()
+
+
+def session_elapsed(at: float, others: Sequence[float], gap: float) -> float:
+    """The time since the session that holds ``at`` started: since the first
+    of the unit's records (``others`` and ``at`` itself) that follow each
+    other with no pause longer than ``gap``. [s]
+
+    Parameters
+    ----------
+    at : float
+        The record's start time (seconds since any fixed epoch). [s]
+    others : sequence of float
+        The unit's other records' start times, in any order. [s]
+    gap : float
+        The longest pause within one session. [s]
+
+    Example
+    -------
+    Cycles every 12 s from 8:00, a lunch break, cycles again from 13:00:
+
+    >>> day = [8 * 3600 + 12.0 * k for k in range(50)] + [13 * 3600 + 12.0 * k for k in range(9)]
+    >>> session_elapsed(13 * 3600 + 96.0, day, 1800.0), session_elapsed(8 * 3600 + 24.0, day, 1800.0)
+    (96.0, 24.0)
+    """
+    before = np.unique(np.asarray([t for t in others if t < at], dtype=np.float64))
+    times = np.append(before, at)
+    pauses = np.flatnonzero(np.diff(times) > gap)
+    start = float(times[pauses[-1] + 1]) if pauses.size else float(times[0])
+    return float(at - start)
+
+
+def with_session_time(res: EstimateResult, conditions: Sequence[ConditionSpec],
+                      when: datetime | None, others: Sequence[float]) -> EstimateResult:
+    """``res`` with its session conditions (``since = "session start"``) set
+    from its start time ``when`` and the unit's other records' start times
+    ``others`` (POSIX seconds, :func:`session_elapsed`); a record without a
+    start time gets a note that says how to give one. ``res`` itself when
+    the machine declares no such condition."""
+    sessions = [c for c in conditions if c.session_gap is not None]
+    if not sessions:
+        return res
+    if when is None:
+        return dataclasses.replace(res, notes=(*res.notes, *(
+            f"condition {c.name} not known: the record has no start time (give the test's "
+            "date, or the time its file names hold with [record] name_time)"
+            for c in sessions)))
+    at = when.timestamp()
+    return dataclasses.replace(res, conditions={**res.conditions, **{
+        c.name: (session_elapsed(at, others, float(c.session_gap or 0.0)), 0.0)
+        for c in sessions}})
 
 
 def condition_keys(parameter: str, available: Sequence[str]) -> list[str]:

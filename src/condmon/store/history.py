@@ -350,6 +350,18 @@ class TestsMixin(StoreBase):
 
         return self._read(run)
 
+    def start_times(self, unit: str) -> list[float]:
+        """The start times of every record of the unit the history holds with a
+        date (any role, excluded or not: each says the unit was running), as
+        POSIX seconds; empty for an unknown unit. [s]"""
+        def run(c: sa.Connection) -> list[Any]:
+            t = S.tests
+            q = (sa.select(t.c.test_date).join(S.units, S.units.c.id == t.c.unit_id)
+                 .where(S.units.c.name == unit, t.c.test_date.is_not(None)))
+            return [r[0] for r in c.execute(q)]
+
+        return [when.timestamp() for when in map(as_utc, self._read(run)) if when is not None]
+
     def accepted_estimates(self, unit: str, role: str | None = "baseline"
                            ) -> tuple[list[int], pd.DataFrame]:
         """Ids and parameter table (rows: tests, columns: parameters) of the

@@ -46,7 +46,7 @@ from condmon.workflows.monitoring import (
     restricted, save_current_baseline,
 )
 from condmon.workflows.records import EstimateOptions, RecordLike
-from condmon.workflows.unit_model import unit_options
+from condmon.workflows.unit_model import session_timed, unit_options
 
 __all__ = ["CheckResult", "check_test", "unit_statistics", "Reference", "reference_for", "resolve_against",
            "group_reference", "judgement_notes"]
@@ -365,6 +365,7 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
     res, key, why = estimate_judged(opts, record, test_date, baseline)
     if why is not None:
         raise DataError(f"{res.source}: refused, {why}; nothing was stored")
+    res = session_timed(store, unit, res, machine, key)
     against_label = "unit" if ref is None else ref.label
     if group is not None and not dry_run:  # the unit joins its group with its first test
         store.set_group(unit, group, model=machine.name, model_source=machine.origin)

@@ -20,6 +20,7 @@ per batch instead of some twenty per record, and no savepoint per record.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 from collections.abc import Callable
@@ -38,6 +39,7 @@ from condmon.workflows.fleet_work import Kind, RecordOutcome, _named
 if TYPE_CHECKING:
     from condmon.diagnose.rules import RuleBase
     from condmon.identify.estimate import EstimateResult
+    from condmon.models.features import ConditionSpec
     from condmon.monitor.baseline import Baseline
     from condmon.monitor.fuzzy import MonitorConfig
     from condmon.store.db import HistoryStore
@@ -192,6 +194,15 @@ class _Duplicate(Exception):
         self.rid = rid
 
 
+def _sessions(model: str | None) -> tuple[ConditionSpec, ...]:
+    """The conditions of ``model`` that are the time since a session started."""
+    if model is None:
+        return ()
+    from condmon.models.registry import get_model
+
+    return tuple(c for c in get_model(model).conditions if c.session_gap is not None)
+
+
 def _commit_unit(batch: _Batch, plan: _Unit, baseline_count: int) -> list[_Draft]:
     """Decide a unit's outcomes in the order its records were run, their rows
     added to the batch's writer."""
@@ -214,9 +225,16 @@ def _commit_unit(batch: _Batch, plan: _Unit, baseline_count: int) -> list[_Draft
         plan.building = view.latest is None
         plan.members = view.members()
         plan.counts = view.regime_counts(plan.members)
+    sessions = _sessions(plan.model)
+    if sessions:
+        from condmon.monitor.conditions import with_session_time
     for rec, out in items:
         where = str(rec.path)
         date = rec.test_date or (out.key.test_date if out.key is not None else None)
+        if sessions and out.estimate is not None:
+            out = dataclasses.replace(out, estimate=with_session_time(
+                out.estimate, sessions, date, view.start_times))
+            view.start_times.extend([date.timestamp()] if date is not None else [])
         kind = "isolation" if plan.kind == "isolate" else "test"
         w.record(where)
 
@@ -458,6 +476,9 @@ def _write(store: HistoryStore, ready: list[_Unit], baseline_count: int,
         known = {kind: store.record_rows(kind, hashes, uids, prefixes) for kind in kinds}
         batch = _Batch(writer, Records.of(known),
                        {p.name: UnitView.of(p.name, states.get(p.name)) for p in ready})
+        for plan in ready:   # a session's time needs the unit's earlier records
+            if _sessions(plan.model):
+                batch.views[plan.name].start_times = store.start_times(plan.name)
         for plan in ready:
             drafts.extend(_commit_unit(batch, plan, baseline_count))
             plan.outcomes.clear()

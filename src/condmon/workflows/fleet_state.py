@@ -92,6 +92,10 @@ class UnitView:
         NULL). [parameter units]
     conditions : dict
         ``{test id: {condition: value}}`` of the same tests (those that have any).
+    start_times : list of float
+        The start times of its records, held and added, when its model
+        declares the time since a session started as a condition (else
+        empty). [s since the epoch]
     """
 
     name: str
@@ -103,6 +107,7 @@ class UnitView:
     usable: list[tuple[Id, str]] = field(default_factory=list)
     estimates: dict[Id, dict[str, tuple[float, float]]] = field(default_factory=dict)
     conditions: dict[Id, dict[str, tuple[float, float]]] = field(default_factory=dict)
+    start_times: list[float] = field(default_factory=list)
 
     @classmethod
     def of(cls, name: str, state: UnitState | None) -> UnitView:

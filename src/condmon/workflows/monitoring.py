@@ -44,7 +44,7 @@ from condmon.store.baselines import (  # read from the store only; kept here for
 )
 from condmon.store.db import DuplicateTestError, HistoryStore
 from condmon.workflows.records import EstimateOptions, RecordKey, RecordLike, record_key
-from condmon.workflows.unit_model import unit_options
+from condmon.workflows.unit_model import session_timed, unit_options
 
 __all__ = ["EstimateOptions", "AddedTest", "BaselineAddResult", "RecordKey",
            "add_baseline_tests", "current_baseline", "RecordLike",
@@ -509,6 +509,7 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
         from condmon.store.base import check_name
 
         check_name(group, "group name")
+    machine = get_model(opts.model or "dc-motor")
     added = []
     for i, rec in enumerate(records):
         name = str(rec) if not isinstance(rec, pd.DataFrame) else rec.attrs.get("source", f"record {i}")
@@ -519,6 +520,7 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
         if why is not None:
             added.append(AddedTest(res.source, -1, False, False, why, refused=True))
             continue
+        res = session_timed(store, unit, res, machine, key)
         try:
             tid = store.add_test(unit, res, role="baseline", digest=key.content,
                                  file_digest=key.file, fingerprint=key.fingerprint,
@@ -538,7 +540,6 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
         store.set_group(unit, group)
     ids, latest = baseline_members(store, unit)
     ids = sorted(set(ids) | set(new))
-    machine = get_model(opts.model or "dc-motor")
     notes = (describe_generic(),) if machine.monitored_generically else ()
     if len(ids) < MIN_BASELINE_TESTS:
         return BaselineAddResult(tuple(added), None, None, str(_too_few(unit, len(ids))),

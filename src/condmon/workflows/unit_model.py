@@ -1,17 +1,21 @@
 """A unit's model when a record is offered for it: the stored one filled in,
-the same declaration at a new path re-pointed, another refused."""
+the same declaration at a new path re-pointed, another refused; and what the
+unit's history adds to a record's conditions (the time since its session
+started)."""
 
 from __future__ import annotations
 
 import dataclasses
 
 from condmon.errors import DataError
-from condmon.workflows.records import EstimateOptions
+from condmon.identify.result import EstimateResult
+from condmon.monitor.conditions import with_session_time
+from condmon.workflows.records import EstimateOptions, RecordKey
 from condmon.models.machine import Machine
 from condmon.models.registry import get_model
 from condmon.store.db import HistoryStore
 
-__all__ = ["unit_options", "repoint"]
+__all__ = ["unit_options", "repoint", "session_timed"]
 
 
 def unit_options(store: HistoryStore, unit: str, opts: EstimateOptions) -> EstimateOptions:
@@ -54,3 +58,14 @@ def repoint(store: HistoryStore, unit: str, machine: Machine, stored: str) -> No
                     f"offered with {machine.origin or machine.name!r}, {what} (omit --model "
                     f"to use the unit's; `condmon unit set-model {unit} FILE` re-points the "
                     "unit on purpose)")
+
+
+def session_timed(store: HistoryStore, unit: str, res: EstimateResult, machine: Machine,
+                  key: RecordKey) -> EstimateResult:
+    """``res`` with the time since its session started, for a machine that
+    declares it as a condition (:func:`~condmon.monitor.conditions.with_session_time`,
+    from the start times of the unit's records the history holds)."""
+    if not any(c.session_gap is not None for c in machine.conditions):
+        return res
+    return with_session_time(res, machine.conditions, key.test_date, store.start_times(unit))
+

@@ -883,12 +883,15 @@ def test_check_prints_no_interval_words_for_a_unit_at_no_go(
 def test_peers_wear_fitted_after_a_method_change_is_kept_for_the_next_check(
         tmp_path: Path, demo_rig) -> None:  # type: ignore[no-untyped-def]
     """After the kept forecasts are dropped (a new forecast method, a copied
-    history), the first check fits its peers' wear from their histories and
-    keeps it; the next check reads it back and reads no peer's history, and
-    the listing still forecasts each peer (the kept row holds no forecast)."""
+    history), a check reads no peer's history: the peers whose wear is not
+    kept are left out of its prior, and it says so. `condmon forecast` fits
+    their wear and keeps it; the next check reads it back and reads no
+    peer's history; the listing still forecasts each peer (the kept row
+    holds no forecast)."""
     from condmon.store.forecasts import (
-        FORECAST_METHOD, PEER_RATES_ONLY, FleetHistory, fleet_summaries,
+        FORECAST_METHOD, PEER_RATES_ONLY, FleetHistory, fleet_summaries, keep_forecast,
     )
+    from condmon.workflows.forecasting import forecast_unit
 
     db = str(tmp_path / "renew.db")
     with open_store(db) as store:
@@ -901,18 +904,30 @@ def test_peers_wear_fitted_after_a_method_change_is_kept_for_the_next_check(
                            test_date=f"2026-01-{1 + k:02d}")
         store.renew_forecasts(FORECAST_METHOD)
         assert store.kept_rates(["OLD1", "OLD2"]) == {}
-        check_test(store, "NEW", simulate_actuator(demo_rig.with_faults(["D=*5", "coulomb_friction=*5"]),
-                                                   seed=999), test_date="2026-01-05")
-        kept = store.kept_forecasts(["OLD1", "OLD2"])
-        assert {u: v[1] for u, v in kept.items()} == {"OLD1": PEER_RATES_ONLY,
-                                                      "OLD2": PEER_RATES_ONLY}
         read: list[str] = []
         real_history = store.history
         store.history = lambda u: read.append(u) or real_history(u)  # type: ignore[method-assign]
-        again = FleetHistory(store)
-        assert again.learning_peers("NEW") == ["OLD1", "OLD2"]
+        check_test(store, "NEW", simulate_actuator(demo_rig.with_faults(["D=*5", "coulomb_friction=*5"]),
+                                                   seed=999), test_date="2026-01-05")
+        assert "OLD1" not in read and "OLD2" not in read   # the check fitted no peer
+        cold = FleetHistory(store, fit_peers=False)
+        assert cold.learning_peers("NEW") == [] and cold.unfitted == {"OLD1", "OLD2"}
+        assert "the wear of 2 degraded peer(s) is not kept yet" in cold.priors(
+            "NEW", ["D"], "days")[("D", 1.0)].why
+        assert store.kept_forecasts(["NEW"])["NEW"][1] == PEER_RATES_ONLY  # listed afresh
+        store.history = real_history  # type: ignore[method-assign]
+        forecast_unit(store, "NEW")   # fits the peers' wear, and keeps it
+        kept = store.kept_forecasts(["OLD1", "OLD2"])
+        assert {u: v[1] for u, v in kept.items()} == {"OLD1": PEER_RATES_ONLY,
+                                                      "OLD2": PEER_RATES_ONLY}
+        store.history = lambda u: read.append(u) or real_history(u)  # type: ignore[method-assign]
+        read.clear()
+        again = FleetHistory(store, fit_peers=False)
+        assert again.learning_peers("NEW") == ["OLD1", "OLD2"] and not again.unfitted
         again.priors("NEW", ["D"], "days")
         assert read == [] and again.fitted() == []
+        keep_forecast(store, "NEW")
+        assert read == ["NEW"]   # its own history only
         store.history = real_history  # type: ignore[method-assign]
         fresh = FleetHistory(store)
         fresh.learning_peers("NEW")

@@ -60,10 +60,18 @@ class FleetHistory:
     have degraded, and the most recently changed peers a prior learns from
     (``[forecast] prior_units``), each one's wear fitted once, or read back
     from its kept forecast.
+
+    ``fit_peers=False`` (a check): a peer whose wear is not kept, or kept by
+    an older method or before its latest check, is left out of the prior
+    (:attr:`unfitted`), not fitted from its history: a check's cost does not
+    depend on what was kept. ``condmon forecast`` and the listings fit them
+    and keep them.
     """
 
-    def __init__(self, store: HistoryStore) -> None:
+    def __init__(self, store: HistoryStore, fit_peers: bool = True) -> None:
         self.store = store
+        self.fit_peers = fit_peers
+        self.unfitted: set[str] = set()   # peers left out: their wear is not kept
         self._checks: dict[str, tuple[Baseline, pd.DataFrame]] = {}
         self._flags: dict[str, bool] = {}
         self._counts: dict[tuple[str, str | None], int] | None = None
@@ -115,6 +123,9 @@ class FleetHistory:
                         by, name = k.split("|", 1)
                         self._wear[(p, name, by)] = _wear_from(v)
         self._kept.update(fresh)
+        if not self.fit_peers:
+            self.unfitted.update(p for p in chosen if p not in self._current)
+            chosen = [p for p in chosen if p in self._current]
         return sorted(chosen)
 
     def fitted(self) -> list[str]:
@@ -251,8 +262,15 @@ class FleetHistory:
                 out[(key, way)] = prior_from_wear(wears, per, way) if wears or not peers else \
                     FleetPrior.vague(per, f"none of {len(peers)} degraded peer(s) has {key} "
                                           f"counted in {by}")
+                if not peers and self.unfitted:
+                    out[(key, way)] = FleetPrior.vague(per, UNFITTED.format(len(self.unfitted)))
         return out
 
+
+#: Why a check's prior left its peers out (:class:`FleetHistory`, ``fit_peers=False``).
+UNFITTED = ("the wear of {} degraded peer(s) is not kept yet (the forecast method changed, or "
+            "the history was copied): left out of this check's forecast; `condmon forecast` "
+            "or `condmon units` fits and keeps it")
 
 #: Most failed peers a path forecast is recalibrated on (20 forecasts along
 #: each: 100 PITs place the 5 % and 95 % points to about ±2 %).
@@ -563,18 +581,34 @@ def current_method(store: HistoryStore) -> bool:
     return True
 
 
-def keep_forecast(store: HistoryStore, unit: str) -> dict[str, Any]:
+def keep_forecast(store: HistoryStore, unit: str, fit_peers: bool = False) -> dict[str, Any]:
     """Forecast ``unit`` (:func:`try_forecast`), keep it for the fleet
-    listings, and return its :func:`forecast_fields` (after a stored check)."""
+    listings, and return its :func:`forecast_fields` (after a stored check).
+
+    A check does not fit its peers' wear (``fit_peers=False``): peers whose
+    wear is not kept are left out, said in the prior's notes, and the unit's
+    forecast is kept as its wear only, so that the next listing forecasts it
+    with them (:class:`FleetHistory`). With ``fit_peers``, the peers fitted
+    keep their wear, so the next check reads it back."""
     current_method(store)
-    fleet = FleetHistory(store)
+    fleet = FleetHistory(store, fit_peers=fit_peers)
     fields = forecast_fields(*try_forecast(store, unit, fleet))
+    keep_fitted(store, fleet, unit, fields)
+    return fields
+
+
+def keep_fitted(store: HistoryStore, fleet: FleetHistory, unit: str,
+                fields: dict[str, Any] | None = None) -> None:
+    """Keep the wear of the peers ``fleet`` fitted from their histories (a
+    method change, a copied history), so that later checks read it back, and
+    ``unit``'s forecast ``fields`` (None: leave its kept row as it is): as
+    its wear only when peers were left out of it (``fleet.unfitted``), so
+    that the next listing forecasts it with them."""
     peers = [p for p in fleet.fitted() if p != unit]
     marks = store.history_marks([unit, *peers])
-    # the peers whose wear had to be fitted from their histories (a method
-    # change, a copied history) keep it, so the next check reads it back
-    store.keep_forecasts([_kept_row(unit, marks.get(unit, 0), fleet.peer_count(unit), fields,
-                                    fleet),
-                          *[(p, marks.get(p, 0), PEER_RATES_ONLY, None, None, fleet.rates_of(p))
-                            for p in peers]])
-    return fields
+    rows = [(p, marks.get(p, 0), PEER_RATES_ONLY, None, None, fleet.rates_of(p)) for p in peers]
+    if fields is not None and fleet.unfitted:
+        rows.append((unit, marks.get(unit, 0), PEER_RATES_ONLY, None, None, fleet.rates_of(unit)))
+    elif fields is not None:
+        rows.append(_kept_row(unit, marks.get(unit, 0), fleet.peer_count(unit), fields, fleet))
+    store.keep_forecasts(rows)

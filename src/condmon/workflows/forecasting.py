@@ -15,9 +15,10 @@ module keeps the workflow's names.
 
 from __future__ import annotations
 
+from condmon.errors import CondmonError
 from condmon.forecast.unit import ParameterForecast, UnitForecast
 from condmon.store.db import HistoryStore
-from condmon.store.forecasts import read_forecast
+from condmon.store.forecasts import FleetHistory, current_method, keep_fitted, read_forecast
 
 __all__ = ["ParameterForecast", "UnitForecast", "forecast_unit"]
 
@@ -26,10 +27,22 @@ def forecast_unit(store: HistoryStore, unit: str, horizon: float | None = None,
                   seed: int = 0) -> UnitForecast:
     """Forecast every parameter of ``unit`` to no-go (:func:`~condmon.store.forecasts.read_forecast`).
 
+    The wear of degraded peers that had to be fitted from their histories
+    (none kept, or kept by an older method) is kept, with the unit's own, so
+    that the next check of any of them reads it back.
+
     Raises
     ------
     DataError
         Fewer than 3 checks since the baseline ("not enough tests to
         forecast"), a horizon <= 0.
     """
-    return read_forecast(store, unit, horizon, seed)
+    fleet = FleetHistory(store)
+    out = read_forecast(store, unit, horizon, seed, fleet)
+    if fleet.fitted():   # peers' wear fitted here is kept: later checks read it back
+        try:
+            if current_method(store):
+                keep_fitted(store, fleet, unit)
+        except CondmonError:   # a history opened read-only, or busy: fitted again next time
+            pass
+    return out

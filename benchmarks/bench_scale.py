@@ -59,7 +59,8 @@ from condmon.report.web import create_app
 from condmon.simulate import simulate_actuator
 from condmon.store import open_store
 from condmon.store import schema as S
-from condmon.store.forecasts import FORECAST_METHOD, FleetHistory
+from condmon.store.forecasts import FleetHistory
+from condmon.store.kept import FORECAST_METHOD
 from condmon.workflows.checks import check_test
 from condmon.workflows.forecasting import forecast_unit
 from condmon.workflows.monitoring import add_baseline_tests

@@ -438,7 +438,7 @@ def test_a_listing_forecasts_only_what_changed(wearing: tuple[Path, float],
     forecasts again a unit whose history changed since (here: a test excluded)."""
     import shutil
 
-    import condmon.store.forecasts as F
+    import condmon.store.kept as F
 
     db = str(tmp_path / "h.db")
     shutil.copy(wearing[0], db)
@@ -672,7 +672,7 @@ def test_forecasts_kept_by_an_older_method_are_made_again(
 
     import sqlalchemy as sa
 
-    from condmon.store import forecasts as kept
+    from condmon.store import kept
     from condmon.store import schema as S
 
     db = tmp_path / "h.db"
@@ -888,8 +888,9 @@ def test_peers_wear_fitted_after_a_method_change_is_kept_for_the_next_check(
     their wear and keeps it; the next check reads it back and reads no
     peer's history; the listing still forecasts each peer (the kept row
     holds no forecast)."""
-    from condmon.store.forecasts import (
-        FORECAST_METHOD, PEER_RATES_ONLY, FleetHistory, fleet_summaries, keep_forecast,
+    from condmon.store.forecasts import FleetHistory
+    from condmon.store.kept import (
+        FORECAST_METHOD, PEER_RATES_ONLY, fleet_summaries, keep_forecast,
     )
     from condmon.workflows.forecasting import forecast_unit
 

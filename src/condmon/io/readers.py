@@ -141,12 +141,19 @@ def _read_raw(p: Path, suffix: str, time_column: str | None) -> RawRecord:
 def _read_parquet(p: Path) -> pd.DataFrame:
     """A Parquet file as a DataFrame, the Arrow table's buffers handed over
     column by column as they are converted (``self_destruct``): a long record
-    peaks at about one copy of itself, not two."""
+    peaks at about one copy of itself, not two.
+
+    Arrow's memory pool keeps the pages of the buffers it frees (the file's
+    bytes, read ahead before they are decoded): they are handed back once the
+    frame is made. A 1-hour record at 1 kHz (200 MB) kept about 220 MB more
+    resident for the rest of its estimate without it."""
+    import pyarrow as pa
     import pyarrow.parquet as pq
 
     table = pq.read_table(p)
     frame: pd.DataFrame = table.to_pandas(self_destruct=True, split_blocks=True)
     del table
+    pa.default_memory_pool().release_unused()
     return frame
 
 

@@ -280,7 +280,7 @@ def write_fleet_index(store: HistoryStore, out_dir: str | Path, title: str = "Fl
         without a link.
     """
     from condmon.forecast.unit import remaining_text
-    from condmon.store.forecasts import attach_forecasts
+    from condmon.store.kept import attach_forecasts
     from condmon.store.views import by_urgency
 
     out = Path(out_dir)

@@ -180,7 +180,7 @@ def fleet_document(store: HistoryStore, status: Sequence[str] = (),
         A status not in :data:`STATUSES`, a sort not in :data:`SORTS`, a page
         or page size < 1, a page past the last.
     """
-    from condmon.store.forecasts import attach_forecasts
+    from condmon.store.kept import attach_forecasts
     from condmon.store.views import by_urgency
 
     wanted, how = _statuses(status), _sort(sort)

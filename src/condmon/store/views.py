@@ -234,7 +234,7 @@ def _urgency(row: dict[str, Any]) -> tuple[int, float, str]:
 
 
 def by_urgency(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Units (rows of :func:`fleet_summaries`) by their earliest forecast to no-go.
+    """Units (rows of :func:`~condmon.store.kept.fleet_summaries`) by their earliest forecast to no-go.
 
     Dated forecasts first, by their median crossing date; then forecasts in
     tests, by the median tests left; then trends whose median never crosses;

@@ -39,7 +39,7 @@ from condmon.monitor.statistics import (
 )
 from condmon.forecast.unit import in_test_order
 from condmon.store.db import HistoryStore
-from condmon.store.forecasts import keep_forecast
+from condmon.store.kept import keep_forecast
 from condmon.workflows.monitoring import (
     _existing_baseline, _held, _unit_error, conditioning, current_baseline,
     estimate_judged, evaluate, filed_elsewhere, governed, monitoring_of, no_baseline_yet,

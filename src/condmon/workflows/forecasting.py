@@ -18,7 +18,8 @@ from __future__ import annotations
 from condmon.errors import CondmonError
 from condmon.forecast.unit import ParameterForecast, UnitForecast
 from condmon.store.db import HistoryStore
-from condmon.store.forecasts import FleetHistory, current_method, keep_fitted, read_forecast
+from condmon.store.forecasts import FleetHistory, read_forecast
+from condmon.store.kept import current_method, keep_fitted
 
 __all__ = ["ParameterForecast", "UnitForecast", "forecast_unit"]
 

@@ -384,7 +384,7 @@ class FleetPrior:
                 what.append(f"{label} {q.mean:.3g} ± {q.sd:.2g}{unit}")
         k = self.exponential.units
         return (f"fleet prior from {_count(self.units)} ({k} wore exponentially): "
-                + "; ".join(what))
+                + "; ".join(what) + (f" ({self.why})" if self.why else ""))
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form."""

@@ -10,7 +10,7 @@ checks, is :mod:`condmon.store.kept`.
 
 from __future__ import annotations
 
-import json
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
@@ -255,8 +255,10 @@ class FleetHistory:
                 out[(key, way)] = prior_from_wear(wears, per, way) if wears or not peers else \
                     FleetPrior.vague(per, f"none of {len(peers)} degraded peer(s) has {key} "
                                           f"counted in {by}")
-                if not peers and self.unfitted:
-                    out[(key, way)] = FleetPrior.vague(per, UNFITTED.format(len(self.unfitted)))
+                if self.unfitted:   # said, whether the others teach or not
+                    why = UNFITTED.format(len(self.unfitted))
+                    out[(key, way)] = FleetPrior.vague(per, why) if not peers else \
+                        dataclasses.replace(out[(key, way)], why=why)
         return out
 
 

@@ -68,7 +68,8 @@ class ViewsMixin(StoreBase):
         ``hours`` (the unit's operating hours at the test, if given [h]), then
         each parameter's value (a regime's as ``Tc@forward``), ``<param>_se``
         (its standard error) and, for checked tests, ``<param>_change`` [%],
-        ``<param>_high``, ``<param>_low``.
+        ``<param>_high``, ``<param>_low``; ``conditions``, when a test has
+        any: its operating conditions, ``{name: value}`` [condition units].
         """
         def run(c: sa.Connection) -> tuple[list[Any], list[Any], list[Any]]:
             urow = self._unit_row(c, unit)
@@ -84,7 +85,8 @@ class ViewsMixin(StoreBase):
                 sa.select(t.c.id, t.c.created_at, t.c.test_date, t.c.source, t.c.role,
                           t.c.accepted, t.c.excluded, t.c.excluded_reason, t.c.reason,
                           t.c.fit_percent, t.c.fits, t.c.method, d.c.status, d.c.summary,
-                          d.c.baseline_id, t.c.regime, t.c.hours, t.c.cycle)
+                          d.c.baseline_id, t.c.regime, t.c.hours, t.c.cycle,
+                          t.c.conditions)
                 .select_from(t.outerjoin(d, sa.and_(d.c.test_id == t.c.id,
                                                     d.c.baseline_id == bid_d)))
                 .where(t.c.unit_id == urow.id).order_by(t.c.id)).all()
@@ -103,8 +105,9 @@ class ViewsMixin(StoreBase):
         base, est, sym = self._read(run)
         cols = ["test_id", "created_at", "test_date", "source", "role", "accepted", "excluded",
                 "excluded_reason", "reason", "fit_percent", "fits", "method", "status",
-                "summary", "baseline_id", "regime", "hours", "cycle"]
+                "summary", "baseline_id", "regime", "hours", "cycle", "conditions"]
         df = pd.DataFrame(base, columns=cols).set_index("test_id")
+        held = df.pop("conditions")
         df["hours"] = pd.to_numeric(df["hours"], errors="coerce")
         df["cycle"] = pd.to_numeric(df["cycle"], errors="coerce")
         df["created_at"] = utc_column(df["created_at"])
@@ -132,6 +135,12 @@ class ViewsMixin(StoreBase):
                 w = s.pivot(index="test_id", columns="parameter", values=col)
                 w.columns = [f"{c}_{col}" for c in w.columns]
                 df = df.join(w)
+        if held.notna().any():   # the operating conditions the test was judged at
+            from condmon.store.history import condition_pairs
+
+            df["conditions"] = pd.Series(
+                [None if doc is None else {k: v[0] for k, v in condition_pairs(doc).items()}
+                 for doc in held], index=df.index, dtype=object)
         return df
 
 

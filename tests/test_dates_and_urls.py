@@ -67,3 +67,31 @@ def test_a_failed_baseline_add_leaves_no_new_history(tmp_path: Path, extra: list
     assert main(["baseline", "add", str(rec), *args, "--unit", "U", "--db", str(db)]) == 2
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
     assert not db.exists()
+
+
+_FORMATS = ("%m-%d-%Y-%I-%M-%S %p", "%Y%m%d-%H%M%S", "%Y-%m-%dT%H-%M-%S", "%d%b%y_%H%M%S",
+            "%Y_%j_%H%M%S")
+
+
+@pytest.mark.parametrize("fmt", _FORMATS)
+def test_a_start_time_written_into_any_file_name_reads_back(fmt: str) -> None:
+    """Property: a time written with ``fmt`` among other text of a file's name
+    (letters, digits and separators before and after) reads back to the second
+    (a two-digit year within strptime's window, 1969-2068)."""
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    from condmon.io.dates import time_in_name
+
+    text = st.text(alphabet="ABCxyz_ ._", max_size=12)
+    last = datetime(2068, 12, 31) if "%y" in fmt else datetime(2099, 12, 31)
+
+    @settings(max_examples=150, deadline=None)
+    @given(st.datetimes(min_value=datetime(1971, 1, 1), max_value=last),
+           text, text, st.integers(0, 999))
+    def check(when: datetime, before: str, after: str, run: int) -> None:
+        when = when.replace(microsecond=0)
+        name = f"Base_{run}_{before}{when.strftime(fmt)}{after}.txt"
+        assert time_in_name(name, fmt) == when.replace(tzinfo=timezone.utc), name
+
+    check()

@@ -261,6 +261,8 @@ def test_the_time_since_the_session_started_is_a_condition(
     rows = json.loads(capsys.readouterr().out)
     assert [r["conditions"] for r in rows[:2]] == [{"warm": 0.0}, {"warm": 12.0}]
     assert rows[1]["test_date"] == "2019-09-11T08:00:12Z"   # from the file's name
+    assert main(["history", "--unit", "A", "--db", db]) == 0
+    assert "2019-09-11 08:00:12" in capsys.readouterr().out   # cycles a minute: seconds
     same = _check(_at(tmp_path, "9-11-2019-8-01-00 AM", tc(60.0), 40), db, capsys)
     assert same["status"] == "go", same["summary"]
     assert any("judged against its prediction at warm" in j

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from datetime import datetime
 from pathlib import Path
 from typing import Annotated, Any, Optional
 
@@ -206,6 +207,13 @@ def register(app: typer.Typer) -> None:
                      and hist[a].notna().any()), "")
         regimes = bool(hist["regime"].notna().any())
         dated = hist["test_date"].notna().any()
+        # tests a day apart or more show their day; several in a day, their time too
+        # (to the second when several start within a minute: a rig's cycles)
+        given = hist["test_date"].dropna()
+        stamp = next((f for f in ("%Y-%m-%d", "%Y-%m-%d %H:%M")
+                      if given.dt.strftime(f).nunique() == given.nunique()),
+                     "%Y-%m-%d %H:%M:%S")
+        wide = len(datetime(2000, 1, 1).strftime(stamp))
         cols = ("#", *(("date",) if dated else ()), "source", *(("regime",) if regimes else ()),
                 axis or "fit %", "status", *params)
         cells = []
@@ -229,7 +237,7 @@ def register(app: typer.Typer) -> None:
             changes += [""] * (len(params) - len(changes))
             fit = (f"{r[axis]:g}" if axis and pd.notna(r[axis]) else
                    f"{r['fit_percent']:.1f}" if pd.notna(r["fit_percent"]) else "—")
-            when = ((f"{r['test_date']:%Y-%m-%d}" if pd.notna(r["test_date"]) else "—",)
+            when = ((r["test_date"].strftime(stamp) if pd.notna(r["test_date"]) else "—",)
                     if dated else ())
             cells.append((str(tid), *when, escape(Path(str(r["source"])).name),
                           *((escape(label or "—"),) if regimes else ()), fit, shown,
@@ -245,7 +253,7 @@ def register(app: typer.Typer) -> None:
                 notes.append(f"#{tid} rejected: {r['reason']}")
         # fits 80 columns with a date and five parameters; a narrower terminal cuts the
         # record's name, then leaves out the parameters that moved least, and says which
-        least = {"#": 3, "fit %": 5, "cycle": 5, "hours": 5, "status": 8, "date": 10,
+        least = {"#": 3, "fit %": 5, "cycle": 5, "hours": 5, "status": 8, "date": wide,
                  "source": 8,
                  **{p: 5 for p in params}}
         room, hidden = fitted_widths(cols, cells, out.width, [("source", 8)], least,
@@ -259,7 +267,7 @@ def register(app: typer.Typer) -> None:
                              min_width=least.get(col),
                              max_width={"source": min(room.get("source", 10**6),
                                                       max(10 if dated else 14, out.width - 70)),
-                                        "date": 10}.get(col))
+                                        "date": wide}.get(col))
         for row in cells:
             table.add_row(*(row[k] for k in visible))
         out.print(f"History of {escape(unit)} ({name}): change against the "

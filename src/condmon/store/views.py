@@ -139,7 +139,8 @@ class ViewsMixin(StoreBase):
             from condmon.store.history import condition_pairs
 
             df["conditions"] = pd.Series(
-                [None if doc is None else {k: v[0] for k, v in condition_pairs(doc).items()}
+                [{k: v[0] for k, v in condition_pairs(doc).items()}
+                 if isinstance(doc, str) and doc else None   # NULL reads as NaN
                  for doc in held], index=df.index, dtype=object)
         return df
 

@@ -3,6 +3,7 @@ database, as aware UTC datetimes."""
 
 from __future__ import annotations
 
+import functools
 import re
 from datetime import datetime, timedelta, timezone
 from typing import TYPE_CHECKING, Any
@@ -137,6 +138,16 @@ def name_time_format(fmt: Any, where: str) -> str:
     return fmt
 
 
+@functools.lru_cache(maxsize=16)
+def _name_pattern(fmt: str) -> re.Pattern[str]:
+    """Where ``fmt``'s text may start in a name: each directive's digits or
+    letters, the rest as written (overlapping matches, by a lookahead)."""
+    parts = re.split(r"(%.)", fmt)
+    pattern = "".join(_DIRECTIVES[p[1]] if len(p) == 2 and p[0] == "%" else re.escape(p)
+                      for p in parts if p)
+    return re.compile(f"(?=({pattern}))")
+
+
 def time_in_name(name: str, fmt: str) -> datetime | None:
     """The start time written in a file's name in ``strptime`` format ``fmt``,
     as an aware UTC datetime (a time without a zone is UTC, as every date
@@ -150,10 +161,7 @@ def time_in_name(name: str, fmt: str) -> datetime | None:
     >>> time_in_name("record.csv", "%Y%m%d-%H%M%S") is None
     True
     """
-    parts = re.split(r"(%.)", fmt)
-    pattern = "".join(_DIRECTIVES[p[1]] if len(p) == 2 and p[0] == "%" else re.escape(p)
-                      for p in parts if p)
-    for match in re.finditer(f"(?=({pattern}))", name):
+    for match in _name_pattern(fmt).finditer(name):
         try:
             when = datetime.strptime(match.group(1), fmt)
         except ValueError:

@@ -183,6 +183,12 @@ class Machine:
         return (*self.spec.report, *(f.name for f in self.features))
 
     @property
+    def sessions(self) -> tuple[ConditionSpec, ...]:
+        """The declared conditions that are the time since a session started
+        (``since = "session start"``): the unit's history gives their value."""
+        return tuple(c for c in self.conditions if c.session_gap is not None)
+
+    @property
     def feature_units(self) -> dict[str, str]:
         """Unit of every declared signal feature."""
         return {f.name: f.unit for f in self.features}

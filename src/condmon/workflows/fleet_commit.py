@@ -200,7 +200,7 @@ def _sessions(model: str | None) -> tuple[ConditionSpec, ...]:
         return ()
     from condmon.models.registry import get_model
 
-    return tuple(c for c in get_model(model).conditions if c.session_gap is not None)
+    return get_model(model).sessions
 
 
 def _commit_unit(batch: _Batch, plan: _Unit, baseline_count: int) -> list[_Draft]:

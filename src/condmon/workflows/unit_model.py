@@ -65,7 +65,7 @@ def session_timed(store: HistoryStore, unit: str, res: EstimateResult, machine: 
     """``res`` with the time since its session started, for a machine that
     declares it as a condition (:func:`~condmon.monitor.conditions.with_session_time`,
     from the start times of the unit's records the history holds)."""
-    if not any(c.session_gap is not None for c in machine.conditions):
+    if not machine.sessions:
         return res
-    return with_session_time(res, machine.conditions, key.test_date, store.start_times(unit))
+    return with_session_time(res, machine.sessions, key.test_date, store.start_times(unit))
 

@@ -1,4 +1,5 @@
-"""The numpy linear filter against scipy.signal.lfilter (known truth)."""
+"""The linear filter (scipy's C routine loaded on its own, and the plain-numpy
+fallback) against scipy.signal.lfilter (known truth)."""
 
 from __future__ import annotations
 
@@ -8,14 +9,30 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.signal import lfilter as scipy_lfilter
 
-from condmon._filter import lfilter
+from condmon._filter import c_filter, lfilter, numpy_lfilter
+
+BOTH = pytest.mark.parametrize("lfilter", [lfilter, numpy_lfilter], ids=["c", "numpy"])
 
 
+def test_scipys_c_routine_loads_without_importing_scipy_signal() -> None:
+    import subprocess
+    import sys
+
+    code = ("import sys; from condmon._filter import c_filter, lfilter; "
+            "assert c_filter() is not None; lfilter([1.0], [1.0, -0.5], [1.0, 0.0]); "
+            "print('scipy.signal' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == "False"
+    assert c_filter() is not None
+
+
+@BOTH
 @settings(max_examples=150, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), nb=st.integers(1, 6), order=st.integers(0, 8),
        n=st.integers(1, 900), layout=st.sampled_from(["1d", "columns", "rows"]))
-def test_same_as_scipy_for_stable_filters(seed: int, nb: int, order: int, n: int,
-                                          layout: str) -> None:
+def test_same_as_scipy_for_stable_filters(lfilter, seed: int, nb: int,  # type: ignore[no-untyped-def]
+                                          order: int, n: int, layout: str) -> None:
     rng = np.random.default_rng(seed)
     b = rng.standard_normal(nb)
     a = np.real(np.poly(rng.uniform(-0.995, 0.995, order))) * rng.uniform(0.5, 2.0)
@@ -31,8 +48,9 @@ def test_same_as_scipy_for_stable_filters(seed: int, nb: int, order: int, n: int
     assert np.max(np.abs(got - want)) <= 1e-8 * (1.0 + np.max(np.abs(want)))
 
 
+@BOTH
 @pytest.mark.parametrize("pole", [0.9999, 1.0, 1.002])
-def test_marginal_and_slightly_unstable_filters(pole: float) -> None:
+def test_marginal_and_slightly_unstable_filters(lfilter, pole: float) -> None:  # type: ignore[no-untyped-def]
     x = np.random.default_rng(1).standard_normal(5000)
     a = np.poly([pole, 0.5])
     want = scipy_lfilter([0.0, 1.0], a, x)
@@ -40,22 +58,22 @@ def test_marginal_and_slightly_unstable_filters(pole: float) -> None:
                        atol=1e-9 * np.max(np.abs(want)))
 
 
-def test_leading_coefficient_normalised_and_fir_only() -> None:
+@BOTH
+def test_leading_coefficient_normalised_and_fir_only(lfilter) -> None:  # type: ignore[no-untyped-def]
     x = np.arange(10.0)
     assert np.allclose(lfilter([2.0, 1.0], [2.0], x), scipy_lfilter([2.0, 1.0], [2.0], x))
     assert np.allclose(lfilter([1.0], [2.0, -1.0, 0.0], x), scipy_lfilter([1.0], [2.0, -1.0], x))
 
 
-def test_bad_coefficients_refused() -> None:
+@BOTH
+def test_bad_coefficients_refused(lfilter) -> None:  # type: ignore[no-untyped-def]
     with pytest.raises(ValueError, match="a\\[0\\] non-zero"):
         lfilter([1.0], [0.0, 1.0], np.ones(3))
 
 
-def test_an_all_pole_filter_runs_in_place_when_asked_and_allowed() -> None:
-    import numpy as np
+@BOTH
+def test_an_all_pole_filter_runs_in_place_when_asked_and_allowed(lfilter) -> None:  # type: ignore[no-untyped-def]
     from scipy.signal import lfilter as reference
-
-    from condmon._filter import lfilter
 
     x = np.random.default_rng(3).standard_normal((70_000, 3))   # past a pass at once
     want = reference([1.0], [1.0, -1.4, 0.43], x, axis=0)
@@ -67,3 +85,30 @@ def test_an_all_pole_filter_runs_in_place_when_asked_and_allowed() -> None:
     assert not np.shares_memory(out, y) and np.array_equal(y, kept)
     out = lfilter([1.0], [1.0, -0.5], kept[:, 0], overwrite_x=False)
     assert not np.shares_memory(out, kept)
+
+
+def test_a_changed_or_missing_c_routine_leaves_the_work_to_numpy(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    import sys
+    import types
+
+    import condmon._filter as filt
+
+    wrong = types.ModuleType("scipy.signal._sigtools")
+    wrong._linear_filter = lambda b, a, x, axis: np.zeros_like(x)   # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "scipy.signal._sigtools", wrong)
+    c_filter.cache_clear()
+    try:
+        assert c_filter() is None    # the known impulse response was not returned
+        gone = types.ModuleType("scipy.signal._sigtools")   # no routine at all
+        monkeypatch.setitem(sys.modules, "scipy.signal._sigtools", gone)
+        c_filter.cache_clear()
+        assert c_filter() is None
+        x = np.random.default_rng(4).standard_normal(300)
+        want = scipy_lfilter([0.0, 1.0], [1.0, -0.8], x)
+        assert np.allclose(filt.lfilter([0.0, 1.0], [1.0, -0.8], x), want, rtol=1e-12,
+                           atol=1e-12)
+    finally:
+        monkeypatch.undo()
+        c_filter.cache_clear()
+    assert c_filter() is not None

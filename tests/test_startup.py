@@ -24,12 +24,16 @@ NEVER = ("sqlalchemy", "matplotlib", "sklearn", "faultdiagnosistoolbox")
 #: Heavy subpackages reported by name (``numpy.ma``: np.unique and np.median import it).
 SUBPACKAGES = ("scipy.signal", "scipy.stats", "numpy.ma")
 
+#: scipy's C filter routine, loaded on its own (about 1 ms, no scipy package):
+#: not counted as scipy.
+ALONE = "scipy.signal._sigtools"
+
 
 def _loaded(code: str, cache: Path, *, check: bool = True) -> set[str]:
     """Top-level packages of NEVER (and scipy, sympy, pandas, scikit-fuzzy)
     imported by ``code``, and the heavy subpackages of SUBPACKAGES."""
     probe = (f"{code}\nimport json, sys\n"
-             "print(json.dumps(sorted({m.split('.')[0] for m in sys.modules}\n"
+             f"print(json.dumps(sorted({{m.split('.')[0] for m in sys.modules if m != {ALONE!r}}}\n"
              f"    | {{m for m in sys.modules if m in {SUBPACKAGES!r}}})))")
     env = {**os.environ, "CONDMON_CACHE_DIR": str(cache)}
     done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,

@@ -1,19 +1,24 @@
-"""A linear filter (``scipy.signal.lfilter`` with zero initial conditions) in
-plain numpy.
+"""A linear filter (``scipy.signal.lfilter`` with zero initial conditions)
+that does not import :mod:`scipy.signal`.
 
-Written here because importing :mod:`scipy.signal` costs about 1 s (it pulls
-in ``scipy.stats``, ``scipy.interpolate`` and the spline and peak-finding code)
-and even :mod:`scipy.linalg` about 0.15 s, several times what ``condmon
-estimate`` spends on its work, while every filter the estimators use is a short
-difference equation run from rest.
+Importing :mod:`scipy.signal` costs about 1 s (it pulls in ``scipy.stats``,
+``scipy.interpolate`` and the spline and peak-finding code) and even
+:mod:`scipy.linalg` about 0.15 s, many times what ``condmon estimate`` spends on
+its work. So the recursion is run by the C routine behind
+``scipy.signal.lfilter`` (``scipy.signal._sigtools._linear_filter``), its
+extension module loaded on its own (about 1 ms; it needs only numpy), or taken
+from :mod:`scipy.signal` when that is already imported. The routine is
+private to scipy: it is checked on a known impulse response when loaded, and
+when it is missing, fails to load or answers wrongly, the same filter runs in
+plain numpy instead (:func:`numpy_lfilter`).
 
-The recursion ``a[0] y[k] + a[1] y[k-1] + ... = b[0] x[k] + b[1] x[k-1] + ...``
-is run in blocks of ``L`` samples: within a block the output is the block's
-input through the first ``L`` samples of the impulse response of ``1/a`` (one
-batched matrix product for all blocks and columns) plus the free response to
-the last ``n`` outputs of the block before, carried from block to block by an
-``n x n`` recursion. The arithmetic is that of the difference equation, only
-summed in another order.
+The numpy filter runs the recursion ``a[0] y[k] + a[1] y[k-1] + ... = b[0]
+x[k] + b[1] x[k-1] + ...`` in blocks of ``L`` samples: within a block the
+output is the block's input through the first ``L`` samples of the impulse
+response of ``1/a`` (one batched matrix product for all blocks and columns)
+plus the free response to the last ``n`` outputs of the block before, carried
+from block to block by an ``n x n`` recursion. The arithmetic is that of the
+difference equation, only summed in another order.
 
 Example
 -------
@@ -25,12 +30,57 @@ True
 
 from __future__ import annotations
 
+import functools
+import importlib.machinery
+import importlib.util
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["lfilter"]
+__all__ = ["lfilter", "numpy_lfilter", "c_filter"]
 
 FloatArray = NDArray[np.float64]
+
+_SIGTOOLS = "scipy.signal._sigtools"
+
+
+@functools.cache
+def c_filter() -> Callable[..., Any] | None:
+    """scipy's C ``_linear_filter(b, a, x, axis)``, or None when it cannot be
+    had (then :func:`lfilter` runs in numpy). Loaded once per process."""
+    try:
+        module = sys.modules.get(_SIGTOOLS)
+        if module is None:
+            spec = importlib.util.find_spec("scipy")   # finds, does not import, scipy
+            if spec is None or spec.origin is None:
+                return None
+            folder = Path(spec.origin).parent / "signal"
+            found = [folder / f"_sigtools{suffix}"
+                     for suffix in importlib.machinery.EXTENSION_SUFFIXES]
+            path = next((f for f in found if f.is_file()), None)
+            if path is None:
+                return None
+            loader = importlib.machinery.ExtensionFileLoader(_SIGTOOLS, str(path))
+            ext = importlib.util.spec_from_file_location(_SIGTOOLS, path, loader=loader)
+            if ext is None:
+                return None
+            module = importlib.util.module_from_spec(ext)
+            loader.exec_module(module)
+        run: Callable[..., Any] = module._linear_filter
+        # the routine is private: trust it only on a known answer (y = x + 0.5 y[-1],
+        # along the first axis of a 2-column array)
+        got = run(np.array([1.0]), np.array([1.0, -0.5]), np.eye(3, 2), 0)
+        want = np.array([[1.0, 0.0], [0.5, 1.0], [0.25, 0.5]])
+        if not (isinstance(got, np.ndarray) and got.shape == (3, 2)
+                and np.allclose(got, want, rtol=0.0, atol=1e-15)):
+            return None
+        return run
+    except Exception:   # a missing, changed or broken private routine: numpy does the work
+        return None
 
 
 def _impulse(a: FloatArray, length: int) -> FloatArray:
@@ -108,7 +158,38 @@ _COLUMNS_AT_ONCE = 1 << 20
 def lfilter(b: ArrayLike, a: ArrayLike, x: ArrayLike, axis: int = -1, *,
             overwrite_x: bool = False) -> FloatArray:
     """Filter ``x`` along ``axis`` by the rational filter ``b(q^-1) / a(q^-1)``
-    from rest; the same result as ``scipy.signal.lfilter(b, a, x, axis)``.
+    from rest; ``scipy.signal.lfilter(b, a, x, axis)``, run by scipy's C
+    routine where it loads (:func:`c_filter`), else by :func:`numpy_lfilter`.
+    Parameters, result and errors are those of :func:`numpy_lfilter`.
+    """
+    run = c_filter()
+    bb = np.atleast_1d(np.asarray(b, dtype=np.float64))
+    aa = np.atleast_1d(np.asarray(a, dtype=np.float64))
+    if (run is None or bb.ndim != 1 or aa.ndim != 1 or aa.size < 2 or bb.size == 0
+            or aa[0] == 0.0):   # FIR, empty or bad coefficients: numpy's (and its errors)
+        return numpy_lfilter(bb, aa, x, axis, overwrite_x=overwrite_x)
+    xa = np.asarray(x, dtype=np.float64)
+    if xa.size == 0:
+        return xa.copy()
+    in_place = (overwrite_x and isinstance(x, np.ndarray) and x.dtype == np.float64
+                and x.flags.c_contiguous and x.flags.writeable and x.ndim == 2
+                and axis in (0, -2) and bb.size == 1 and bb[0] == 1.0)
+    if not in_place:
+        return np.asarray(run(bb, aa, xa, axis), dtype=np.float64)
+    assert isinstance(x, np.ndarray)
+    if x.size <= _COLUMNS_AT_ONCE:
+        x[...] = run(bb, aa, x, 0)
+    else:   # a long record: one column's work copy at a time
+        for c in range(x.shape[1]):
+            x[:, c] = run(bb, aa, x[:, c], 0)
+    return x
+
+
+def numpy_lfilter(b: ArrayLike, a: ArrayLike, x: ArrayLike, axis: int = -1, *,
+                  overwrite_x: bool = False) -> FloatArray:
+    """Filter ``x`` along ``axis`` by the rational filter ``b(q^-1) / a(q^-1)``
+    from rest in plain numpy; the same result as
+    ``scipy.signal.lfilter(b, a, x, axis)`` to rounding.
 
     Parameters
     ----------

@@ -187,22 +187,37 @@ def _layout(m: int, n: int, ns: int) -> tuple[FloatArray, FloatArray, tuple[Any,
     return sign, outer, tuple(out)
 
 
-#: Rows of lagged signals formed at a time for a Gram matrix: memory bounded
-#: by a block (a few MB), not by the record (an hour at 1 kHz is 3.6 M rows).
-GRAM_BLOCK = 65536
-
-
 def lagged_gram(sig: FloatArray, n: int) -> FloatArray:
     """``GᵀG`` of the lagged signals ``G = [sig(k), sig(k-1), ..., sig(k-n)]``
     over rows ``k = n..N-1`` (lag-major columns: ``d*ns + s`` is signal ``s``
-    delayed ``d`` samples), summed a block of :data:`GRAM_BLOCK` rows at a time."""
+    delayed ``d`` samples).
+
+    Formed from the ``n + 1`` lag products ``P_δ = Σ_j sig(j+δ) sig(j)ᵀ`` of
+    the record as it is (no lagged copy: memory of one ``ns x ns`` block per
+    lag, and a third of the products of ``GᵀG`` at order 2), each block then
+    trimmed of the few terms that fall outside rows ``n..N-1``.
+    """
     N, ns = sig.shape
-    C = np.zeros(((n + 1) * ns,) * 2)
-    for start in range(n, N, GRAM_BLOCK):
-        stop = min(N, start + GRAM_BLOCK)
-        G = np.hstack([sig[start - d: stop - d] for d in range(n + 1)])
-        C += G.T @ G
-    return C
+    if N <= n:
+        return np.zeros(((n + 1) * ns,) * 2)
+    C = np.empty((n + 1, ns, n + 1, ns))
+    head_rows = sig[: 2 * n]
+    for delta in range(n + 1):
+        P = sig[delta:].T @ sig[:N - delta]     # Σ_j sig(j+δ) sig(j)ᵀ, j = 0..N-1-δ
+        # block (d1, d2 = d1 + δ) = Σ_{k=n}^{N-1} sig(k-d1) sig(k-d2)ᵀ: P_δ less
+        # its first n - d2 terms (j < n - d2) and its last d1 terms (j > N-1-d2)
+        d1 = np.arange(n + 1 - delta)
+        k = n - delta
+        first = np.einsum("ja,jb->jab", head_rows[delta: delta + k], head_rows[:k])
+        head = np.zeros((k + 1, ns, ns))
+        np.cumsum(first, axis=0, out=head[1:])            # head[i]: the first i terms
+        last = np.einsum("ja,jb->jab", sig[N - k:], sig[N - k - delta: N - delta])[::-1]
+        tail = np.zeros((k + 1, ns, ns))
+        np.cumsum(last, axis=0, out=tail[1:])             # tail[i]: the last i terms
+        blocks = P[None] - head[k - d1] - tail[d1]
+        C[d1, :, d1 + delta, :] = blocks
+        C[d1 + delta, :, d1, :] = blocks.transpose(0, 2, 1)
+    return C.reshape((n + 1) * ns, (n + 1) * ns)
 
 
 def solve(R: FloatArray, r: FloatArray) -> FloatArray:

@@ -112,3 +112,10 @@ def test_a_changed_or_missing_c_routine_leaves_the_work_to_numpy(
         monkeypatch.undo()
         c_filter.cache_clear()
     assert c_filter() is not None
+
+
+def test_scipys_routine_filters_a_fortran_ordered_array_in_place() -> None:
+    x = np.asfortranarray(np.random.default_rng(5).standard_normal((3000, 4)))
+    want = scipy_lfilter([1.0], [1.0, -1.6, 0.7], x, axis=0)
+    out = lfilter([1.0], [1.0, -1.6, 0.7], x, axis=0, overwrite_x=True)
+    assert out is x and np.allclose(x, want, rtol=1e-12, atol=1e-12)

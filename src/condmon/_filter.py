@@ -172,14 +172,14 @@ def lfilter(b: ArrayLike, a: ArrayLike, x: ArrayLike, axis: int = -1, *,
     if xa.size == 0:
         return xa.copy()
     in_place = (overwrite_x and isinstance(x, np.ndarray) and x.dtype == np.float64
-                and x.flags.c_contiguous and x.flags.writeable and x.ndim == 2
-                and axis in (0, -2) and bb.size == 1 and bb[0] == 1.0)
+                and (x.flags.c_contiguous or x.flags.f_contiguous) and x.flags.writeable
+                and x.ndim == 2 and axis in (0, -2) and bb.size == 1 and bb[0] == 1.0)
     if not in_place:
         return np.asarray(run(bb, aa, xa, axis), dtype=np.float64)
     assert isinstance(x, np.ndarray)
-    if x.size <= _COLUMNS_AT_ONCE:
+    if x.flags.c_contiguous and x.size <= _COLUMNS_AT_ONCE:
         x[...] = run(bb, aa, x, 0)
-    else:   # a long record: one column's work copy at a time
+    else:   # columns in a row (Fortran order), or a long record: a column's work copy at a time
         for c in range(x.shape[1]):
             x[:, c] = run(bb, aa, x[:, c], 0)
     return x
@@ -201,9 +201,10 @@ def numpy_lfilter(b: ArrayLike, a: ArrayLike, x: ArrayLike, axis: int = -1, *,
     axis : int
         The axis along which to filter (default the last).
     overwrite_x : bool
-        Filter ``x`` in place when it allows (a C-ordered float64 array
-        filtered along its first axis by ``b = [1]``): the result is ``x``
-        itself, and a long record needs no second copy.
+        Filter ``x`` in place when it allows (a float64 array filtered along
+        its first axis by ``b = [1]``; C-ordered for the numpy filter, C- or
+        Fortran-ordered for scipy's routine): the result is ``x`` itself, and
+        a long record needs no second copy.
 
     Returns
     -------

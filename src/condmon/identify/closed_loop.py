@@ -16,12 +16,14 @@ References
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from condmon._filter import lfilter
 from condmon.errors import DataError, EstimationError
-from condmon.identify._common import lagged_gram, schur_stable
+from condmon.identify._common import lagged_gram, schur_stable, signals
 
 __all__ = ["noise_free_input"]
 
@@ -38,6 +40,17 @@ def _lagged(r: FloatArray, n: int, start: int) -> FloatArray:
             c[d:] = r[: N - d, i]
             cols.append(c)
     return np.column_stack(cols)
+
+
+@functools.lru_cache(maxsize=16)
+def _regressor_columns(n: int, nr: int) -> NDArray[np.intp]:
+    """Columns of the lagged Gram matrix of ``[u, r_1..r_nr]`` that hold the
+    regressors ``-u(k-1..k-n)`` and ``r_i(k..k-n)`` (made once per shape)."""
+    ns = 1 + nr
+    cols = np.array([d * ns for d in range(1, n + 1)]
+                    + [d * ns + 1 + i for d in range(n + 1) for i in range(nr)], dtype=np.intp)
+    cols.flags.writeable = False
+    return cols
 
 
 def noise_free_input(u: ArrayLike, r: ArrayLike, order: int = 8) -> FloatArray:
@@ -77,19 +90,17 @@ def noise_free_input(u: ArrayLike, r: ArrayLike, order: int = 8) -> FloatArray:
         r_arr = r_arr[:, None]
     if r_arr.shape[0] != u_arr.size:
         raise DataError(f"excitation has {r_arr.shape[0]} samples, input has {u_arr.size}")
-    if np.any(np.std(r_arr, axis=0) == 0.0):
+    if np.any(np.all(r_arr == r_arr[:1], axis=0)):   # (np.std == 0, without the passes)
         raise DataError("an excitation signal is constant: it cannot build instruments")
     N = u_arr.size
     n = order
-    # Rows k = n..N-1 of [-u(k-1..k-n), r_i(k..k-n)] and u(k): their Gram matrix,
-    # a block of rows at a time (memory bounded by the block, not the record).
+    # Rows k = n..N-1 of [-u(k-1..k-n), r_i(k..k-n)] and u(k): their Gram matrix
+    # from lag products (no lagged copy: memory bounded by the signals themselves).
     # The lagged columns of [u, -r_1, ...] hold -u(k-d) (d >= 1) and -r(k-d)
     # (d >= 0) and, at d = 0, u(k) itself: one Gram matrix gives both sides.
-    sig = np.column_stack([-u_arr, r_arr])
+    sig = signals(-u_arr, r_arr)
     C = lagged_gram(sig, n)
-    ns = sig.shape[1]
-    cols = np.r_[[d * ns for d in range(1, n + 1)],
-                 [d * ns + 1 + i for d in range(n + 1) for i in range(r_arr.shape[1])]]
+    cols = _regressor_columns(n, r_arr.shape[1])
     XtX, Xty = C[np.ix_(cols, cols)], -C[cols, 0]
     # Normal equations (10x faster than an SVD solve). A loop without noise, or
     # an excitation column that copies the input, makes them exactly singular:
@@ -115,8 +126,8 @@ def noise_free_input(u: ArrayLike, r: ArrayLike, order: int = 8) -> FloatArray:
     if schur_stable(c * 0.999 ** -np.arange(c.size)):
         # sum of D_i r_i through 1/C once (the recursion is linear)
         moving = np.zeros(N)
-        for i in range(r_arr.shape[1]):
-            moving += lfilter(theta[n + i * (n + 1): n + (i + 1) * (n + 1)], [1.0], r_arr[:, i])
+        for i in range(r_arr.shape[1]):   # D_i r_i from rest: the first N of the convolution
+            moving += np.convolve(r_arr[:, i], theta[n + i * (n + 1): n + (i + 1) * (n + 1)])[:N]
         return lfilter([1.0], c, moving)
     # Unstable ARX denominator: a long FIR model is always stable.
     m = 60

@@ -306,14 +306,27 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
         return LinearRouteResult(nan, nan_cov, est, cont, fit,
                                  f"no physical parameters: {err}; is the sign of a column "
                                  "inverted or its unit wrong?")
-    # Delta method: theta -> continuous coefficients (forward differences, as the
-    # ZOH inverse has no closed form) -> parameters (exact Jacobian of the map).
-    Jt = np.empty((c_hat.size, theta.size))
-    for k in range(theta.size):
+    # Delta method: theta -> continuous coefficients -> parameters (exact Jacobian
+    # of the map). The denominator's columns by forward differences (the ZOH
+    # inverse has no closed form); the numerators' exactly, as for a given
+    # denominator the continuous numerators are linear in the discrete ones
+    # (det(sI - A + B cᵀ) is linear in c): the map at each unit numerator.
+    n, m = lin.order, len(lin.outputs)
+    Jt = np.zeros((c_hat.size, theta.size))
+    for k in range(n):
         h = 1e-7 * max(abs(theta[k]), 1e-3)
         tp = theta.copy()
         tp[k] += h
         Jt[:, k] = (coefficients(tp) - c_hat) / h
+    unit = np.column_stack([np.zeros(n), np.eye(n)])     # numerator i = q^-(i+1)
+    _, per_unit = d2c_coefficients_fast(np.r_[1.0, theta[:n]], unit, rec.dt)
+    rows = {f: r for r, f in enumerate(lin.free)}        # full coefficient -> row of c_hat
+    for j in range(m):
+        for i in range(n):
+            for d in range(n):   # continuous numerator j, coefficient d
+                r = rows.get(n + j * n + d)
+                if r is not None:
+                    Jt[r, n + j * n + i] = per_unit[i, 1 + d]
     Jp = lin.jacobian(p, known)
     cov_c = Jt @ est.covariance @ Jt.T
     held = {**machine.nominal(), **dict(hold or {})}

@@ -7,8 +7,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from condmon._filter import lfilter
 from condmon.identify._common import (
-    TFEstimate, normal_equations, prepare, robust_covariance, simulate_outputs, solve,
-    stabilise, to_model,
+    TFEstimate, normal_equations, prepare, robust_covariance, signals, simulate_outputs,
+    solve, stabilise, to_model,
 )
 from condmon.identify.closed_loop import noise_free_input
 
@@ -64,10 +64,10 @@ def arx(u: ArrayLike, y: ArrayLike, order: int, *, dt: float = 1.0,
     # First pass with unit weights gives the residual variances, the second weights
     # each output by 1/sigma_j^2 (a generalised LS over outputs with unequal noise).
     theta = arx_theta(u_a, y_a, order)
-    sig = np.column_stack([y_a, u_a, y_a, u_a])
+    sig = signals(y_a, u_a, y_a, u_a)
     sig2 = _equation_error_variance(theta, order, u_a, y_a)
     weights = 1.0 / np.maximum(sig2, 1e-300)
-    R, r, _, _ = normal_equations(sig, m, order, weights)
+    R, r, _ = normal_equations(sig, m, order, weights)
     theta = solve(R, r)
     sig2 = _equation_error_variance(theta, order, u_a, y_a)
     cov = np.asarray(np.linalg.solve(R, np.eye(R.shape[0])), dtype=np.float64)
@@ -80,7 +80,7 @@ def arx(u: ArrayLike, y: ArrayLike, order: int, *, dt: float = 1.0,
 def arx_theta(u: FloatArray, y: FloatArray, order: int) -> FloatArray:
     """Unweighted least-squares parameter vector (a starting point for IV methods)."""
     m = y.shape[1]
-    R, r, _, _ = normal_equations(np.column_stack([y, u, y, u]), m, order, np.ones(m))
+    R, r, _ = normal_equations(signals(y, u, y, u), m, order, np.ones(m))
     return solve(R, r)
 
 
@@ -148,12 +148,12 @@ def iv(u: ArrayLike, y: ArrayLike, order: int, *, dt: float = 1.0,
     first = np.r_[stabilise(np.r_[1.0, first[:order]])[1:], first[order:]]
     x = simulate_outputs(first, order, u_i, m)
     weights = 1.0 / np.maximum(_equation_error_variance(first, order, u_a, y_a), 1e-300)
-    sig = np.column_stack([y_a, u_a, x, u_i])
-    R, r, S, _ = normal_equations(sig, m, order, weights)
+    sig = signals(y_a, u_a, x, u_i)
+    R, r, S = normal_equations(sig, m, order, weights)
     theta = solve(R, r)
     sig2 = output_error_variance(theta, order, u_a, y_a)
     weights = 1.0 / np.maximum(sig2, 1e-300)
-    R, _, _, _ = normal_equations(sig, m, order, weights)
+    R, _, _ = normal_equations(sig, m, order, weights)
     cov, _ = robust_covariance(R, sig, m, order, theta, weights)
     notes = () if closed else ("direct approach: input taken as noise-free",)
     return TFEstimate(to_model(theta, order, dt, _names(outputs, m), input_name), theta,

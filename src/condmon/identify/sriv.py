@@ -50,8 +50,8 @@ from numpy.typing import ArrayLike, NDArray
 from condmon._filter import lfilter
 from condmon.errors import ConvergenceWarning, EstimationError
 from condmon.identify._common import (
-    TFEstimate, covariance, delayed_sum, log_oe_cost, normal_equations, prepare,
-    robust_covariance, solve, stabilise, to_model,
+    TFEstimate, covariance, delayed_sum, log_oe_cost, monic, normal_equations, prepare,
+    robust_covariance, signals, solve, stabilise, to_model,
 )
 from condmon.identify.closed_loop import noise_free_input
 from condmon.identify.ls import _names, arx_theta, output_error_variance
@@ -95,8 +95,15 @@ _NONE: FloatArray = np.empty((0, 0))   # a released simulation
 
 
 def _stable_theta(theta: FloatArray, n: int) -> FloatArray:
-    return np.asarray(np.r_[stabilise(np.r_[1.0, theta[:n]])[1:], theta[n:]], dtype=np.float64)
+    out = theta.copy()
+    out[:n] = stabilise(monic(theta[:n]))[1:]
+    return out
 
+
+#: Values in the prefilter's buffer beyond which it is filtered in place (a
+#: long record holds one copy); below, into a new array, which the normal
+#: equations read faster (rows contiguous).
+IN_PLACE_FROM = 1 << 20
 
 #: Stop when the distance still to go is below this fraction of every
 #: parameter's standard error (module docstring).
@@ -141,10 +148,9 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
         N = u.size
         B = th[order:].reshape(m, order)
         with np.errstate(all="ignore"):
-            w = lfilter([1.0], np.r_[1.0, th[:order]],
-                        u[:, None].copy() if same else np.column_stack([u, u_i]), axis=0,
-                        overwrite_x=True)
-            x = np.empty((N, m))
+            w = lfilter([1.0], monic(th[:order]), signals(u) if same else signals(u, u_i),
+                        axis=0, overwrite_x=True)
+            x = np.empty((N, m), order="F")
             var = np.empty(m)
             for j in range(m):
                 x[:, j] = delayed_sum(B[j], w[:, -1])
@@ -161,22 +167,23 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
     failure: str | None = None
     it = 0
     step_before: FloatArray | None = None
-    buffer = np.empty((u.size, 2 * m + 2))
+    # Fortran order: each signal's column written whole (a C-ordered buffer's
+    # strided column writes cost half as much as the filter)
+    buffer = np.empty((u.size, 2 * m + 2), order="F")
     for it in range(1, max_iter + 1):
-        den = np.r_[1.0, theta[:order]]
+        den = monic(theta[:order])
         # One filter call for every signal: [y, u, x, u_i] -> prefiltered by 1/Â,
-        # in place in one buffer of the record's length for every iteration (the
-        # last iteration's is the one the covariance reads)
-        sig = buffer
-        sig[:, :m], sig[:, m], sig[:, m + 1:2 * m + 1], sig[:, -1] = y, u, x, u_i
+        # from one buffer of the record's length for every iteration, a long
+        # record's in place (the last iteration's is the one the covariance reads)
+        buffer[:, :m], buffer[:, m], buffer[:, m + 1:2 * m + 1], buffer[:, -1] = y, u, x, u_i
         x = _NONE   # a long record: one simulation held at a time
         with np.errstate(all="ignore"):
-            sig = lfilter([1.0], den, sig, axis=0, overwrite_x=True)
+            sig = lfilter([1.0], den, buffer, axis=0, overwrite_x=buffer.size > IN_PLACE_FROM)
         weights = 1.0 / np.maximum(sig2, 1e-300)
         try:
             if not np.all(np.isfinite(sig)):
                 raise EstimationError("the prefiltered signals are not finite")
-            R, r, S, _ = normal_equations(sig, m, order, weights)
+            R, r, S = normal_equations(sig, m, order, weights)
             raw = solve(R, r)
             new = _stable_theta(raw, order)
             last = (R, sig, raw, weights)

@@ -248,8 +248,8 @@ def validate_record(df: pd.DataFrame | Columns, required: Sequence[str],
         at_limit = np.mean((u >= hi - 1e-9 * span) | (u <= lo + 1e-9 * span))
         # A signal that only takes a few levels (a binary PRBS, steps) sits at its
         # extremes by design: saturation is a plateau on an otherwise varying input.
-        levels = _distinct(u[: min(u.size, 20000)])
-        if at_limit > SATURATION_SHARE and at_limit < 0.95 and levels > 10:
+        if (SATURATION_SHARE < at_limit < 0.95
+                and _distinct(u[: min(u.size, 20000)]) > 10):   # (the sort only when needed)
             warnings.warn(f"{src}: {100 * at_limit:.1f} % of column {input_name!r} sits at "
                           f"its extreme values ({lo:.4g}, {hi:.4g}): the drive saturates "
                           "and the linear model may be biased", DataWarning, stacklevel=2)

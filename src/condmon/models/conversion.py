@@ -201,11 +201,28 @@ def _ss_to_tf(A: FloatArray, B: FloatArray, C: FloatArray, D: FloatArray
 
 def _charpoly(A: FloatArray) -> FloatArray:
     """Characteristic polynomial ``det(sI - A)`` (descending powers) of a
-    small real matrix by the Faddeev-LeVerrier recursion (traces of products:
-    no eigenvalue problem, as ``np.poly`` solves); ``np.poly`` beyond order 4."""
+    small real matrix: up to order 3 its invariants (trace, sum of principal
+    minors, determinant) in closed form, order 4 by the Faddeev-LeVerrier
+    recursion (traces of products: no eigenvalue problem, as ``np.poly``
+    solves), ``np.poly`` beyond."""
     n = A.shape[0]
     if n > 4:
         return np.asarray(np.real(np.poly(A)), dtype=np.float64)
+    if n <= 3:   # the invariants in closed form, on plain floats (the common orders)
+        a = A.tolist()
+        if n == 0:
+            return np.ones(1)
+        if n == 1:
+            return np.array([1.0, -a[0][0]])
+        if n == 2:
+            return np.array([1.0, -(a[0][0] + a[1][1]),
+                             a[0][0] * a[1][1] - a[0][1] * a[1][0]])
+        minors = (a[0][0] * a[1][1] - a[0][1] * a[1][0] + a[0][0] * a[2][2]
+                  - a[0][2] * a[2][0] + a[1][1] * a[2][2] - a[1][2] * a[2][1])
+        det = (a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
+               - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+               + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]))
+        return np.array([1.0, -(a[0][0] + a[1][1] + a[2][2]), minors, -det])
     c = np.zeros(n + 1)
     c[0] = 1.0
     M = np.zeros_like(A)

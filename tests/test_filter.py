@@ -31,8 +31,8 @@ def test_scipys_c_routine_loads_without_importing_scipy_signal() -> None:
 @settings(max_examples=150, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), nb=st.integers(1, 6), order=st.integers(0, 8),
        n=st.integers(1, 900), layout=st.sampled_from(["1d", "columns", "rows"]))
-def test_same_as_scipy_for_stable_filters(lfilter, seed: int, nb: int,  # type: ignore[no-untyped-def]
-                                          order: int, n: int, layout: str) -> None:
+def test_same_as_scipy_for_stable_filters(  # type: ignore[no-untyped-def]
+        lfilter, seed: int, nb: int, order: int, n: int, layout: str) -> None:
     rng = np.random.default_rng(seed)
     b = rng.standard_normal(nb)
     a = np.real(np.poly(rng.uniform(-0.995, 0.995, order))) * rng.uniform(0.5, 2.0)
@@ -50,7 +50,8 @@ def test_same_as_scipy_for_stable_filters(lfilter, seed: int, nb: int,  # type: 
 
 @BOTH
 @pytest.mark.parametrize("pole", [0.9999, 1.0, 1.002])
-def test_marginal_and_slightly_unstable_filters(lfilter, pole: float) -> None:  # type: ignore[no-untyped-def]
+def test_marginal_and_slightly_unstable_filters(  # type: ignore[no-untyped-def]
+        lfilter, pole: float) -> None:
     x = np.random.default_rng(1).standard_normal(5000)
     a = np.poly([pole, 0.5])
     want = scipy_lfilter([0.0, 1.0], a, x)
@@ -59,7 +60,8 @@ def test_marginal_and_slightly_unstable_filters(lfilter, pole: float) -> None:  
 
 
 @BOTH
-def test_leading_coefficient_normalised_and_fir_only(lfilter) -> None:  # type: ignore[no-untyped-def]
+def test_leading_coefficient_normalised_and_fir_only(  # type: ignore[no-untyped-def]
+        lfilter) -> None:
     x = np.arange(10.0)
     assert np.allclose(lfilter([2.0, 1.0], [2.0], x), scipy_lfilter([2.0, 1.0], [2.0], x))
     assert np.allclose(lfilter([1.0], [2.0, -1.0, 0.0], x), scipy_lfilter([1.0], [2.0, -1.0], x))
@@ -72,7 +74,8 @@ def test_bad_coefficients_refused(lfilter) -> None:  # type: ignore[no-untyped-d
 
 
 @BOTH
-def test_an_all_pole_filter_runs_in_place_when_asked_and_allowed(lfilter) -> None:  # type: ignore[no-untyped-def]
+def test_an_all_pole_filter_runs_in_place_when_asked_and_allowed(  # type: ignore[no-untyped-def]
+        lfilter) -> None:
     from scipy.signal import lfilter as reference
 
     x = np.random.default_rng(3).standard_normal((70_000, 3))   # past a pass at once

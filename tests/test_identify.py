@@ -50,6 +50,28 @@ def test_sriv_is_consistent_for_simo_with_output_noise() -> None:
     assert abs(ls.theta[0] - TRUE_A[0]) > 10 * est.std_errors[0]
 
 
+def test_sriv_stops_when_further_iterations_cannot_move_it_past_its_error_bars() -> None:
+    """The stop relative to the standard errors: fewer iterations than the
+    relative-change tolerance alone, the same estimate to within a thousandth
+    of each standard error (the extrapolated distance it stops on), and the
+    same error bars."""
+    from condmon.identify.sriv import sriv_iterations
+
+    fewer = 0
+    for seed in range(6):
+        u, y = _simo(4000, (0.3, 0.6), seed=300 + seed)
+        quick = sriv_iterations(u, y, 2, u)
+        full = sriv_iterations(u, y, 2, u, se_fraction=0.0)   # tol = 1e-6 alone
+        assert quick.converged and full.converged
+        assert quick.covariance is not None and full.covariance is not None
+        se = np.sqrt(np.diag(full.covariance))
+        assert np.all(np.abs(quick.theta - full.theta) <= 1e-3 * se)
+        assert np.allclose(np.sqrt(np.diag(quick.covariance)), se, rtol=1e-3)
+        assert quick.iterations <= full.iterations
+        fewer += quick.iterations < full.iterations
+    assert fewer >= 3   # it saves iterations on most records
+
+
 def test_sriv_covariance_is_calibrated_by_monte_carlo() -> None:
     thetas, ses = [], []
     for seed in range(40):

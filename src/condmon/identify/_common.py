@@ -22,8 +22,8 @@ from condmon.errors import DataError, EstimationError, ModelError
 from condmon.identify.long_run import long_run_covariance_of
 from condmon.models.transfer import DiscreteTF
 
-__all__ = ["TFEstimate", "prepare", "normal_equations", "lagged_gram", "signals", "monic", "to_model", "stabilise",
-           "simulate_outputs", "delayed_sum", "schur_stable", "covariance",
+__all__ = ["TFEstimate", "prepare", "normal_equations", "lagged_gram", "signals", "monic",
+           "to_model", "stabilise", "simulate_outputs", "delayed_sum", "schur_stable", "covariance",
            "robust_covariance", "log_oe_cost"]
 
 FloatArray = NDArray[np.float64]

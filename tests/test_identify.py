@@ -245,3 +245,29 @@ def test_the_quick_stability_test_agrees_with_the_roots() -> None:
     shrink = 0.999 ** -np.arange(3)
     assert schur_stable(np.poly([0.998, 0.5]) * shrink)
     assert not schur_stable(np.poly([0.9995, 0.5]) * shrink)
+
+
+def test_the_lagged_gram_matrix_is_that_of_the_lagged_signals() -> None:
+    """Known truth: the explicit lagged matrix, built row by row."""
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    from condmon.identify._common import lagged_gram
+
+    @settings(max_examples=120, deadline=None)
+    @given(seed=st.integers(0, 2**32 - 1), n=st.integers(0, 9), ns=st.integers(1, 5),
+           extra=st.integers(1, 60), fortran=st.booleans())
+    def check(seed: int, n: int, ns: int, extra: int, fortran: bool) -> None:
+        rng = np.random.default_rng(seed)
+        N = n + extra
+        sig = rng.standard_normal((N, ns)) * 10.0 ** rng.uniform(-3, 3, ns)
+        if fortran:
+            sig = np.asfortranarray(sig)
+        G = np.array([np.concatenate([sig[k - d] for d in range(n + 1)])
+                      for k in range(n, N)])
+        want = G.T @ G
+        got = lagged_gram(sig, n)
+        assert got.shape == want.shape
+        assert np.allclose(got, want, rtol=1e-12, atol=1e-12 * np.max(np.abs(want)))
+
+    check()

@@ -202,25 +202,29 @@ def lagged_gram(sig: FloatArray, n: int) -> FloatArray:
     over rows ``k = n..N-1`` (lag-major columns: ``d*ns + s`` is signal ``s``
     delayed ``d`` samples).
 
-    Formed from the ``n + 1`` lag products ``P_δ = Σ_j sig(j+δ) sig(j)ᵀ`` of
-    the record as it is (no lagged copy: memory of one ``ns x ns`` block per
-    lag, and a third of the products of ``GᵀG`` at order 2), each block then
-    trimmed of the few terms that fall outside rows ``n..N-1``.
+    Formed without a lagged copy of the record: block ``(d1, d2)`` is the lag
+    product ``P_δ = Σ_j sig(j+δ) sig(j)ᵀ`` (``δ = d2 - d1``, transposed below
+    the diagonal) of the record as it is, less the terms that fall outside
+    rows ``n..N-1``: those of the ``n`` rows before ``n`` and after ``N - 1``,
+    which are the Gram matrices of two ``n``-row lagged matrices (the signal
+    taken as zero beyond the record).
     """
     N, ns = sig.shape
-    C = np.zeros(((n + 1) * ns,) * 2)
     if N <= n:
-        return C
-    for delta in range(n + 1):
-        P = sig[delta:].T @ sig[:N - delta]     # Σ_j sig(j+δ) sig(j)ᵀ, j = 0..N-1-δ
-        for d1 in range(n + 1 - delta):
-            d2 = d1 + delta
-            # block (d1, d2) = Σ_{k=n}^{N-1} sig(k-d1) sig(k-d2)ᵀ: P_δ less its
-            # terms j = k - d2 below n - d2 (head) and above N - 1 - d2 (tail)
-            block = (P - sig[delta: n - d1].T @ sig[: n - d2]
-                     - sig[N - d1:].T @ sig[N - d2: N - delta])
-            C[d1 * ns:(d1 + 1) * ns, d2 * ns:(d2 + 1) * ns] = block
-            C[d2 * ns:(d2 + 1) * ns, d1 * ns:(d1 + 1) * ns] = block.T
+        return np.zeros(((n + 1) * ns,) * 2)
+    if n == 0:
+        return np.asarray(sig.T @ sig, dtype=np.float64)
+    P = np.stack([sig[d:].T @ sig[:N - d] for d in range(n + 1)])   # (n+1, ns, ns)
+    lag = np.arange(n + 1)
+    delta = lag[None, :] - lag[:, None]                             # d2 - d1
+    both = np.concatenate([P, P.transpose(0, 2, 1)])
+    C = both[np.where(delta >= 0, delta, n + 1 - delta)]            # (d1, d2, ns, ns)
+    C = C.transpose(0, 2, 1, 3).reshape((n + 1) * ns, (n + 1) * ns)
+    back = np.arange(n)[:, None] - lag[None, :]                     # row k, lag d: k - d
+    zeros = np.zeros((n, ns))
+    head = np.concatenate([zeros, sig[:n]])[n + back].reshape(n, -1)       # rows 0 .. n-1
+    tail = np.concatenate([sig[N - n:], zeros])[n + back].reshape(n, -1)   # rows N .. N+n-1
+    C -= head.T @ head + tail.T @ tail
     return C
 
 

@@ -141,5 +141,10 @@ def residual_figures(measured: ArrayLike, error: ArrayLike, lags: int = 20) -> R
     denom = float(np.dot(c, c))
     white = 0.0
     if denom > 0 and c.size > lags:
-        white = float(max(abs(float(np.dot(c[k:], c[:-k]))) / denom for k in range(1, lags + 1)))
+        # Σ_t c[t] c[t-k], k = 1..lags: the rows t - k < N - lags in one
+        # correlation, the last lags rows' few terms in another
+        n = c.size
+        r = np.correlate(c, c[: n - lags], "valid")[1:]
+        r[:-1] += np.correlate(c[n - lags:], c[n - lags:], "full")[lags: 2 * lags - 1]
+        white = float(np.max(np.abs(r))) / denom
     return ResidualFigures(r2, nrmse, white)

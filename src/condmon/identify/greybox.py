@@ -136,8 +136,9 @@ def _fit_and_diagnostics(est: TFEstimate, u: FloatArray, y: FloatArray,
     out: dict[str, float] = {}
     for j, name in enumerate(est.model.outputs):
         figures = residual_figures(y[:, j], e[:, j])
-        r2[name] = figures.r2 if np.var(y[:, j]) > 0 else (1.0 if np.var(e[:, j]) == 0
-                                                          else float("-inf"))
+        # -inf: a constant output, matched exactly (1) or not
+        r2[name] = figures.r2 if figures.r2 != float("-inf") else (
+            1.0 if np.var(e[:, j]) == 0 else float("-inf"))
         out[f"nrmse {name}"] = figures.nrmse
         out[f"whiteness {name}"] = figures.whiteness
     fit = 100.0 * float(np.mean(list(r2.values())))

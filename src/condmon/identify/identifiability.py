@@ -126,11 +126,12 @@ def all_identifiable(parameters: Sequence[str]) -> Identifiability:
     return Identifiability(tuple(parameters), tuple(parameters))
 
 
-def _collinearity(Sn: FloatArray) -> float:
-    if Sn.shape[1] == 0:
+def _index(sv: FloatArray, columns: int) -> float:
+    """The collinearity index of unit-norm sensitivities from their singular
+    values (inf when fewer than the columns, or the smallest is ~0)."""
+    if columns == 0:
         return 1.0
-    sv = np.linalg.svd(Sn, compute_uv=False)
-    smallest = float(sv[-1]) if sv.size >= Sn.shape[1] else 0.0
+    smallest = float(sv[-1]) if sv.size >= columns else 0.0
     return float("inf") if smallest <= 1e-12 else 1.0 / smallest
 
 
@@ -165,6 +166,8 @@ def assess_identifiability(sensitivity: ArrayLike, parameters: Sequence[str], *,
     norms = np.sqrt(np.sum(S ** 2, axis=0))
     reasons: dict[str, str] = {}
     chosen: list[int] = []
+    kept: tuple[FloatArray, float, FloatArray, FloatArray] = (np.zeros(0), 1.0, np.zeros(0),
+                                                             np.zeros((0, 0)))
     for k, name in enumerate(names):
         if absent and name in absent:
             reasons[name] = absent[name]
@@ -179,9 +182,11 @@ def assess_identifiability(sensitivity: ArrayLike, parameters: Sequence[str], *,
             continue
         trial = [*chosen, k]
         Sn = S[:, trial] / norms[trial]
-        gamma = _collinearity(Sn)
+        # one SVD gives both the collinearity index (1 / the smallest singular
+        # value) and the relative standard errors (diag((SnᵀSn)⁻¹)^½ / norms)
+        _, sv_t, vt = np.linalg.svd(Sn, full_matrices=False)
+        gamma = _index(sv_t, len(trial))
         if gamma > lim.max_collinearity:
-            _, _, vt = np.linalg.svd(Sn, full_matrices=False)
             weak = np.abs(vt[-1])
             partners = [names[trial[i]] for i in np.argsort(-weak) if trial[i] != k
                         and weak[i] > 0.2 * weak.max()] or [names[trial[int(np.argmax(weak))]]]
@@ -190,7 +195,7 @@ def assess_identifiability(sensitivity: ArrayLike, parameters: Sequence[str], *,
                              f"{shown} > {lim.max_collinearity:g}): the windows used cannot "
                              "tell them apart")
             continue
-        joint = _relative_se(S[:, trial])
+        joint = np.sqrt(np.sum((vt / sv_t[:, None]) ** 2, axis=0)) / norms[trial]
         worst = int(np.argmax(joint))
         if joint[worst] > lim.max_relative_se:
             reasons[name] = (f"weakly excited together with {', '.join(names[i] for i in chosen)}"
@@ -198,28 +203,20 @@ def assess_identifiability(sensitivity: ArrayLike, parameters: Sequence[str], *,
                              f"{100 * joint[worst]:.3g} % (limit {100 * lim.max_relative_se:g} %)")
             continue
         chosen.append(k)
+        kept = (joint, gamma, sv_t, vt)   # the chosen set's figures, as it stands
     present = [k for k in range(len(names)) if norms[k] > 0 and not (absent and names[k] in absent)]
     sv: tuple[float, ...] = ()
     dirs: tuple[dict[str, float], ...] = ()
     if present:
-        Sn_all = S[:, present] / norms[present]
-        _, s_all, vt_all = np.linalg.svd(Sn_all, full_matrices=False)
+        if present == chosen:   # the last trial was this very matrix
+            s_all, vt_all = kept[2], kept[3]
+        else:
+            _, s_all, vt_all = np.linalg.svd(S[:, present] / norms[present],
+                                             full_matrices=False)
         sv = tuple(float(s) for s in s_all) + (0.0,) * (len(present) - s_all.size)
         dirs = tuple({names[present[j]]: float(round(v[j], 6)) for j in range(len(present))}
                      for v in vt_all)
-    rse = dict(zip((names[k] for k in chosen), map(float, _relative_se(S[:, chosen])))) \
-        if chosen else {}
-    gamma_set = _collinearity(S[:, chosen] / norms[chosen]) if chosen else 1.0
+    rse = dict(zip((names[k] for k in chosen), map(float, kept[0]))) if chosen else {}
+    gamma_set = kept[1] if chosen else 1.0
     return Identifiability(names, tuple(names[k] for k in chosen), reasons, sv, dirs, rse,
                            gamma_set, lim)
-
-
-def _relative_se(S: FloatArray) -> FloatArray:
-    """Relative standard errors of a set from its sensitivities (``diag((SᵀS)⁻¹)^½``)."""
-    if S.shape[1] == 0:
-        return np.zeros(0)
-    try:
-        cov = np.linalg.inv(S.T @ S)
-    except np.linalg.LinAlgError:
-        return np.full(S.shape[1], np.inf)
-    return np.asarray(np.sqrt(np.clip(np.diag(cov), 0.0, None)), dtype=np.float64)

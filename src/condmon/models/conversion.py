@@ -262,8 +262,14 @@ def d2c_coefficients(den: FloatArray, nums: FloatArray, dt: float
     Returns the monic continuous denominator (descending powers of s) and the
     numerators, shape (n_outputs, n+1).
     """
+    global _LAST_LOG
     A, B, C, D = _tf_to_ss(den, nums)
     cs = d2c(StateSpace(A, B, C, D, dt))
+    # the logarithm just taken, for a Jacobian's calls of the fast form that follow
+    n = A.shape[0]
+    L = np.zeros((n + 1, n + 1))
+    L[:n, :n], L[:n, n:] = cs.A, cs.B
+    _LAST_LOG = ((np.asarray(den, dtype=np.float64).tobytes(), float(dt)), L)
     return _ss_to_tf(cs.A, cs.B, cs.C, cs.D)
 
 

@@ -100,11 +100,6 @@ def _stable_theta(theta: FloatArray, n: int) -> FloatArray:
     return out
 
 
-#: Values in the prefilter's buffer beyond which it is filtered in place (a
-#: long record holds one copy); below, into a new array, which the normal
-#: equations read faster (rows contiguous).
-IN_PLACE_FROM = 1 << 20
-
 #: Stop when the distance still to go is below this fraction of every
 #: parameter's standard error (module docstring).
 SE_FRACTION = 1e-3
@@ -143,42 +138,46 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
 
     def simulated(th: FloatArray) -> tuple[FloatArray, FloatArray]:
         """The output error's variance per output (``y - B/A u``) and the
-        instruments' simulation ``B/A u_i`` (N, m): one filter pass for both,
-        an output at a time (a long record holds one simulation)."""
-        N = u.size
+        inputs through ``1/A``: ``w = [u, u_i] / A`` (N, 2; one column when
+        ``u_i`` is ``u``), from which the next iteration's prefiltered input,
+        instrument input and instruments ``B/A u_i`` are all made."""
         B = th[order:].reshape(m, order)
         with np.errstate(all="ignore"):
             w = lfilter([1.0], monic(th[:order]), signals(u) if same else signals(u, u_i),
                         axis=0, overwrite_x=True)
-            x = np.empty((N, m), order="F")
             var = np.empty(m)
             for j in range(m):
-                x[:, j] = delayed_sum(B[j], w[:, -1])
-                e = y[:, j] - (x[:, j] if same else delayed_sum(B[j], w[:, 0]))
+                e = y[:, j] - delayed_sum(B[j], w[:, 0])
                 tail = e[order:]
                 tail = tail - tail.mean()
                 var[j] = float(tail @ tail) / tail.size   # np.var, without its overhead
-        return np.asarray(np.where(np.isfinite(var), var, np.inf), dtype=np.float64), x
+        return np.asarray(np.where(np.isfinite(var), var, np.inf), dtype=np.float64), w
 
-    sig2, x = simulated(theta)
+    sig2, w = simulated(theta)
     best: tuple[float, FloatArray, FloatArray, tuple[FloatArray, FloatArray] | None] = (
         log_oe_cost(sig2), theta, sig2, None)
     converged = False
     failure: str | None = None
     it = 0
     step_before: FloatArray | None = None
-    # Fortran order: each signal's column written whole (a C-ordered buffer's
-    # strided column writes cost half as much as the filter)
+    # The prefiltered signals [y, u, x, u_i] / Â, x = B/Â u_i the instruments, in
+    # one buffer of the record's length, Fortran order (each column written whole)
     buffer = np.empty((u.size, 2 * m + 2), order="F")
     for it in range(1, max_iter + 1):
         den = monic(theta[:order])
-        # One filter call for every signal: [y, u, x, u_i] -> prefiltered by 1/Â,
-        # from one buffer of the record's length for every iteration, a long
-        # record's in place (the last iteration's is the one the covariance reads)
-        buffer[:, :m], buffer[:, m], buffer[:, m + 1:2 * m + 1], buffer[:, -1] = y, u, x, u_i
-        x = _NONE   # a long record: one simulation held at a time
+        B = theta[order:].reshape(m, order)
+        # The simulation's pass already gave u/Â and u_i/Â (w, for this very Â), and
+        # x/Â = B (u_i/Â)/Â: only y and u_i/Â go through the filter (m + 1 columns,
+        # in place), x/Â is B applied to the second, and u/Â, u_i/Â are copied in
+        buffer[:, :m] = y
+        buffer[:, m] = w[:, -1]
         with np.errstate(all="ignore"):
-            sig = lfilter([1.0], den, buffer, axis=0, overwrite_x=buffer.size > IN_PLACE_FROM)
+            lfilter([1.0], den, buffer[:, :m + 1], axis=0, overwrite_x=True)
+            for j in range(m):
+                buffer[:, m + 1 + j] = delayed_sum(B[j], buffer[:, m])
+        buffer[:, m], buffer[:, -1] = w[:, 0], w[:, -1]
+        w = _NONE   # a long record: one pass held at a time
+        sig = buffer   # (the last iteration's is the one the covariance reads)
         weights = 1.0 / np.maximum(sig2, 1e-300)
         try:
             if not np.all(np.isfinite(sig)):
@@ -195,14 +194,14 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
         near = se_fraction > 0.0 and _near_enough(step, step_before, R, S, se_fraction)
         step_before = step
         theta = new
-        sig2, x = simulated(theta)
+        sig2, w = simulated(theta)
         cost = log_oe_cost(sig2)
         if cost < best[0]:
             best = (cost, theta, sig2, (R, S))
         if change < tol or near:
             converged = True
             break
-    x = _NONE   # not needed past the iterations (a long record: its memory back)
+    w = _NONE   # not needed past the iterations (a long record: its memory back)
     if converged:
         # the reported covariance is the one that also holds under coloured noise
         R, sig, raw, weights = last

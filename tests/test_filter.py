@@ -117,8 +117,29 @@ def test_a_changed_or_missing_c_routine_leaves_the_work_to_numpy(
     assert c_filter() is not None
 
 
-def test_scipys_routine_filters_a_fortran_ordered_array_in_place() -> None:
+@BOTH
+def test_a_fortran_ordered_array_is_filtered_in_place(  # type: ignore[no-untyped-def]
+        lfilter) -> None:
     x = np.asfortranarray(np.random.default_rng(5).standard_normal((3000, 4)))
     want = scipy_lfilter([1.0], [1.0, -1.6, 0.7], x, axis=0)
     out = lfilter([1.0], [1.0, -1.6, 0.7], x, axis=0, overwrite_x=True)
-    assert out is x and np.allclose(x, want, rtol=1e-12, atol=1e-12)
+    assert np.shares_memory(out, x) and np.allclose(x, want, rtol=1e-12, atol=1e-12)
+
+
+def test_sriv_gives_the_same_estimate_with_the_numpy_filter(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """SRIV filters part of its buffer in place: the fallback filter must too."""
+    import condmon._filter as filt
+    from condmon.identify import sriv
+
+    rng = np.random.default_rng(6)
+    u = rng.standard_normal(3000)
+    x = scipy_lfilter([1.0], [1.0, -1.2, 0.5], u)
+    y = np.column_stack([scipy_lfilter([0.0, 0.5, 0.2], [1.0], x),
+                         scipy_lfilter([0.0, 0.1, 0.3], [1.0], x)])
+    y += 0.05 * rng.standard_normal(y.shape)
+    with_c = sriv(u, y, 2)
+    monkeypatch.setattr(filt, "c_filter", lambda: None)
+    with_numpy = sriv(u, y, 2)
+    assert with_numpy.iterations == with_c.iterations
+    assert np.allclose(with_numpy.theta, with_c.theta, rtol=1e-9, atol=1e-12)

@@ -201,10 +201,9 @@ def numpy_lfilter(b: ArrayLike, a: ArrayLike, x: ArrayLike, axis: int = -1, *,
     axis : int
         The axis along which to filter (default the last).
     overwrite_x : bool
-        Filter ``x`` in place when it allows (a float64 array filtered along
-        its first axis by ``b = [1]``; C-ordered for the numpy filter, C- or
-        Fortran-ordered for scipy's routine): the result is ``x`` itself, and
-        a long record needs no second copy.
+        Filter ``x`` in place when it allows (a C- or Fortran-ordered float64
+        array filtered along its first axis by ``b = [1]``): the result is
+        ``x`` itself, and a long record needs no second copy.
 
     Returns
     -------
@@ -228,7 +227,8 @@ def numpy_lfilter(b: ArrayLike, a: ArrayLike, x: ArrayLike, axis: int = -1, *,
     n = shape[0]
     cols = xm.reshape(n, -1)
     in_place = (overwrite_x and isinstance(x, np.ndarray) and x.dtype == np.float64
-                and x.flags.c_contiguous and axis in (0, -x.ndim) and bb.size == 1
+                and (x.flags.c_contiguous or x.flags.f_contiguous)
+                and axis in (0, -x.ndim) and bb.size == 1
                 and bb[0] == 1.0 and np.shares_memory(cols, x))
     poles = aa.size > 1 and n > 0 and cols.shape[1] > 0
     if (not in_place and poles and bb.size == 1 and bb[0] == 1.0

@@ -247,6 +247,33 @@ def test_the_quick_stability_test_agrees_with_the_roots() -> None:
     assert not schur_stable(np.poly([0.9995, 0.5]) * shrink)
 
 
+def test_the_iv_scores_sum_to_the_normal_equations_residual() -> None:
+    """Known truth: the per-sample scores the long-run covariance reads add
+    up to ``r - R θ`` of the normal equations, at any θ, weights and order."""
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    from condmon.identify._common import iv_scores, normal_equations, signals
+
+    @settings(max_examples=80, deadline=None)
+    @given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 4), m=st.integers(1, 3),
+           extra=st.integers(1, 80))
+    def check(seed: int, n: int, m: int, extra: int) -> None:
+        rng = np.random.default_rng(seed)
+        N = n + extra
+        sig = signals(*rng.standard_normal((2 * m + 2, N)))
+        w = rng.uniform(0.1, 10.0, m)
+        theta = rng.standard_normal(n * (1 + m))
+        R, r, _ = normal_equations(sig, m, n, w)
+        g = iv_scores(sig, m, n, theta, w)
+        want = r - R @ theta
+        assert g.shape == (N - n, n * (1 + m))
+        assert np.allclose(g.sum(axis=0), want, rtol=1e-10,
+                           atol=1e-10 * (np.max(np.abs(R)) * np.max(np.abs(theta)) + 1.0))
+
+    check()
+
+
 def test_the_lagged_gram_matrix_is_that_of_the_lagged_signals() -> None:
     """Known truth: the explicit lagged matrix, built row by row."""
     from hypothesis import given, settings

@@ -230,7 +230,22 @@ def lagged_gram(sig: FloatArray, n: int) -> FloatArray:
 
 def solve(R: FloatArray, r: FloatArray) -> FloatArray:
     """Solve the normal equations, refusing a singular or non-finite system."""
-    if not (_well_conditioned(R) and np.all(np.isfinite(r))):
+    return solve_and_invert(R, r)[0]
+
+
+#: Largest condition number accepted in normal equations (the 1-norm one,
+#: within a factor of their size of the 2-norm one): beyond it the solution
+#: has no significant digit left in double precision.
+MAX_CONDITION = 1e14
+
+
+def solve_and_invert(R: FloatArray, r: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The normal equations' solution and ``R⁻¹`` (which a covariance needs),
+    refusing a singular or non-finite system: one whose 1-norm condition
+    number ``‖R‖₁ ‖R⁻¹‖₁`` reaches :data:`MAX_CONDITION` (from the inverse
+    at hand, where the 2-norm one costs a singular-value decomposition)."""
+    Ri = _inverse(R) if np.all(np.isfinite(r)) else None
+    if Ri is None:
         with np.errstate(all="ignore"):
             try:
                 cond = float(np.linalg.cond(R)) if np.all(np.isfinite(R)) else float("inf")
@@ -240,7 +255,21 @@ def solve(R: FloatArray, r: FloatArray) -> FloatArray:
             f"normal equations are singular (condition number {cond:.3g}): the input "
             "does not excite the model, or the order is too high"
         )
-    return np.asarray(np.linalg.solve(R, r), dtype=np.float64)
+    return np.asarray(np.linalg.solve(R, r), dtype=np.float64), Ri
+
+
+def _inverse(R: FloatArray) -> FloatArray | None:
+    """``R⁻¹`` when ``R`` is finite and its 1-norm condition number is below
+    :data:`MAX_CONDITION`, else None."""
+    with np.errstate(all="ignore"):
+        if not np.all(np.isfinite(R)):
+            return None
+        try:
+            Ri = np.asarray(np.linalg.inv(R), dtype=np.float64)
+        except np.linalg.LinAlgError:
+            return None
+        cond = float(np.max(np.sum(np.abs(R), axis=0))) * float(np.max(np.sum(np.abs(Ri), axis=0)))
+    return Ri if cond < MAX_CONDITION else None   # (False for a NaN too)
 
 
 def to_model(theta: FloatArray, order: int, dt: float, outputs: tuple[str, ...],
@@ -305,11 +334,15 @@ def schur_stable(den: FloatArray) -> bool:
     return True
 
 
-def covariance(R: FloatArray, S: FloatArray, checked: bool = False) -> FloatArray:
+def covariance(R: FloatArray, S: FloatArray, checked: bool = False,
+               inverse: FloatArray | None = None) -> FloatArray:
     """IV covariance ``R⁻¹ S R⁻ᵀ``, refusing a singular ``R`` (``checked``: the
-    caller has just solved with ``R`` through :func:`solve`, which checked it)."""
-    Ri = (np.linalg.solve(R, np.eye(R.shape[0])) if checked or _well_conditioned(R)
-          else None)
+    caller has just solved with ``R`` through :func:`solve`, which checked it;
+    ``inverse``: ``R⁻¹`` from :func:`solve_and_invert`)."""
+    Ri = inverse
+    if Ri is None:
+        Ri = (np.asarray(np.linalg.solve(R, np.eye(R.shape[0])), dtype=np.float64) if checked
+              else _inverse(R))
     if Ri is None:
         raise EstimationError("the instrumental-variable matrix is singular: the data "
                               "do not determine the model")
@@ -320,49 +353,39 @@ def iv_scores(sig: FloatArray, m: int, order: int, theta: FloatArray,
               weights: FloatArray) -> FloatArray:
     """The per-sample terms ``g_t = Σ_j w_j ζ_jt e_jt`` whose sum the normal
     equations of :func:`normal_equations` set to zero (same ``sig`` layout),
-    ``e_jt`` the equation error of output ``j`` at ``theta``; shape (N - n, p)."""
+    ``e_jt`` the equation error of output ``j`` at ``theta``; shape (N - n, p),
+    each column contiguous (Fortran order)."""
     n = order
     N = sig.shape[0]
+    g = np.zeros((n * (1 + m), N - n))   # one row per score: written whole
 
     def lag(col: int, d: int) -> FloatArray:   # a view: no copy of the record
         return sig[n - d: N - d, col]
 
-    g = np.zeros((N - n, n * (1 + m)))
     for j in range(m):
         a, b = theta[:n], theta[n * (1 + j): n * (2 + j)]
-        e = sig[n:, j].copy()   # the equation error y + Σ a_d y(k-d) - Σ b_d u(k-d)
-        for d in range(1, n + 1):
-            e += a[d - 1] * lag(j, d)
-            e -= b[d - 1] * lag(m, d)
+        # the equation error y + Σ a_d y(k-d) - Σ b_d u(k-d), from rest, rows n..N-1
+        e = np.convolve(sig[:, j], monic(a))[n:N]
+        e -= delayed_sum(b, sig[:, m])[n:]
         e *= weights[j]
         for d in range(1, n + 1):   # ζ = [-z_j lags, z_u lags]
-            g[:, d - 1] -= lag(m + 1 + j, d) * e
-            g[:, n * (1 + j) + d - 1] += lag(2 * m + 1, d) * e
-    return g
+            g[d - 1] -= lag(m + 1 + j, d) * e
+            np.multiply(lag(2 * m + 1, d), e, out=g[n * (1 + j) + d - 1])
+    return g.T
 
 
 def robust_covariance(R: FloatArray, sig: FloatArray, m: int, order: int, theta: FloatArray,
-                      weights: FloatArray, checked: bool = False) -> tuple[FloatArray, float]:
+                      weights: FloatArray, checked: bool = False,
+                      inverse: FloatArray | None = None) -> tuple[FloatArray, float]:
     """IV covariance ``R⁻¹ S R⁻ᵀ`` with ``S`` the long-run covariance of the
     scores (:mod:`condmon.identify.long_run`): it holds when the noise is
     coloured and equals the white-noise ``R⁻¹ (Σ w ζζᵀ) R⁻ᵀ`` on average when it
     is white. Returns the covariance and the bandwidth used [samples]
-    (``checked`` as for :func:`covariance`)."""
+    (``checked`` and ``inverse`` as for :func:`covariance`)."""
     S, bandwidth = long_run_covariance_of(
         lambda a, b: iv_scores(sig[a: b + order], m, order, theta, weights),
         sig.shape[0] - order)
-    return covariance(R, S, checked=checked), bandwidth
-
-
-def _well_conditioned(R: FloatArray) -> bool:
-    with np.errstate(all="ignore"):
-        if not np.all(np.isfinite(R)):
-            return False
-        try:
-            cond = float(np.linalg.cond(R))
-        except np.linalg.LinAlgError:
-            return False
-    return bool(np.isfinite(cond) and cond < 1e14)
+    return covariance(R, S, checked=checked, inverse=inverse), bandwidth
 
 
 def log_oe_cost(sig2: FloatArray) -> float:

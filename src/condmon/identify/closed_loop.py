@@ -90,7 +90,9 @@ def noise_free_input(u: ArrayLike, r: ArrayLike, order: int = 8) -> FloatArray:
         r_arr = r_arr[:, None]
     if r_arr.shape[0] != u_arr.size:
         raise DataError(f"excitation has {r_arr.shape[0]} samples, input has {u_arr.size}")
-    if np.any(np.all(r_arr == r_arr[:1], axis=0)):   # (np.std == 0, without the passes)
+    # (np.std == 0, column by column: a reduction along the rows of a few
+    # interleaved columns is ten times slower than one over each column)
+    if any(float(np.max(c)) == float(np.min(c)) for c in r_arr.T):
         raise DataError("an excitation signal is constant: it cannot build instruments")
     N = u_arr.size
     n = order

@@ -26,7 +26,7 @@ from condmon.identify.regime_estimate import (
     ESTIMATOR_FUNCTIONS, estimate_regime, has_balances, plan, unusable,
 )
 from condmon.identify.result import EstimateResult
-from condmon.io.columns import Columns
+from condmon.io.columns import Columns, as_columns
 from condmon.io.records import Record, validate_record
 from condmon.io.rig import RecordSettings, apply_record_settings
 from condmon.models.machine import Machine
@@ -219,7 +219,7 @@ def estimate(record: pd.DataFrame | Columns, model: str | Machine = "dc-motor", 
     machine = machine.with_fixed(fixed)
     chosen = choose_route(machine, route)
     with recognised_records(machine):
-        df = _record_frame(record, machine, columns, settings, source)
+        df = as_columns(_record_frame(record, machine, columns, settings, source))
         exc = _excitation_columns(df, machine, excitation) if chosen == "linear" else ()
         rec = validate_record(df, (*_required_columns(machine, chosen), *exc),
                               input_name=machine.linear().input if chosen == "linear" else None,

@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -133,12 +135,18 @@ def residual_figures(measured: ArrayLike, error: ArrayLike, lags: int = 20) -> R
     """
     y = np.asarray(measured, dtype=np.float64)
     e = np.asarray(error, dtype=np.float64)
-    var_y = float(np.var(y))
-    r2 = 1.0 - float(np.var(e)) / var_y if var_y > 0 else float("-inf")
-    rms = float(np.sqrt(np.mean(y ** 2))) if y.size else 0.0
-    nrmse = float(np.sqrt(np.mean(e ** 2))) / rms if rms > 0 else float("inf")
-    c = e - np.mean(e) if e.size else e
-    denom = float(np.dot(c, c))
+    if not y.size:
+        return ResidualFigures(float("-inf"), float("inf"), 0.0)
+    # the variances and mean squares as dot products of the centred signals
+    # (np.var's two passes, without its per-call cost: this runs per estimate)
+    size = y.size
+    yc = y - float(np.sum(y)) / size
+    c = e - float(np.sum(e)) / size
+    denom = float(c @ c)
+    var_y = float(yc @ yc) / size
+    r2 = 1.0 - denom / size / var_y if var_y > 0 else float("-inf")
+    rms = math.sqrt(float(y @ y) / size)
+    nrmse = math.sqrt(float(e @ e) / size) / rms if rms > 0 else float("inf")
     white = 0.0
     if denom > 0 and c.size > lags:
         # Σ_t c[t] c[t-k], k = 1..lags: the rows t - k < N - lags in one

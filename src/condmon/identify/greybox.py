@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from condmon.errors import ConversionError, ModelError
-from condmon.identify._common import TFEstimate
+from condmon.identify._common import TFEstimate, schur_stable
 from condmon.identify.fit import FitCheck, fit_check, residual_figures
 from condmon.identify.identifiability import Identifiability, assess_identifiability
 from condmon.io.records import Record
@@ -126,7 +126,7 @@ def _fit_and_diagnostics(est: TFEstimate, u: FloatArray, y: FloatArray,
     """The fit check (SPEC A4) and each output's NRMSE and residual whiteness
     (the system-identification benchmarks' figures; reported, not judged),
     from one simulation of the model."""
-    if np.any(np.abs(est.model.poles()) >= 1.0):
+    if not schur_stable(est.model.den) and np.any(np.abs(est.model.poles()) >= 1.0):
         return fit_check(est.model, u, y, threshold), {}
     with np.errstate(all="ignore"):
         e = y - est.model.simulate(u)

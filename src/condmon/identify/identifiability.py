@@ -214,8 +214,8 @@ def assess_identifiability(sensitivity: ArrayLike, parameters: Sequence[str], *,
             _, s_all, vt_all = np.linalg.svd(S[:, present] / norms[present],
                                              full_matrices=False)
         sv = tuple(float(s) for s in s_all) + (0.0,) * (len(present) - s_all.size)
-        dirs = tuple({names[present[j]]: float(round(v[j], 6)) for j in range(len(present))}
-                     for v in vt_all)
+        dirs = tuple({names[present[j]]: x for j, x in enumerate(v)}   # (rounded at once:
+                     for v in np.round(vt_all, 6).tolist())              # as np.round each)
     rse = dict(zip((names[k] for k in chosen), map(float, kept[0]))) if chosen else {}
     gamma_set = kept[1] if chosen else 1.0
     return Identifiability(names, tuple(names[k] for k in chosen), reasons, sv, dirs, rse,

@@ -47,15 +47,16 @@ MAX_RHO = 0.97
 
 def _bandwidth(den: FloatArray, cross: FloatArray, sq1: FloatArray, T: int) -> float:
     """Andrews' bandwidth from each column's sums over consecutive pairs of the
-    demeaned scores: ``Σ x0²``, ``Σ x0 x1`` and ``Σ x1²``."""
-    with np.errstate(all="ignore"):
-        rho = np.where(den > 0, cross / np.where(den > 0, den, 1.0), 0.0)
-    rho = np.clip(rho, -MAX_RHO, MAX_RHO)
-    # the AR(1) innovations' variance, mean of (x1 - rho x0)^2, from the sums
-    s2 = np.maximum(sq1 - 2 * rho * cross + rho**2 * den, 0.0) / max(T - 1, 1)
-    num = np.sum(4 * rho**2 * s2**2 / ((1 - rho) ** 6 * (1 + rho) ** 2))
-    dsum = np.sum(s2**2 / (1 - rho) ** 4)
-    alpha = float(num / dsum) if dsum > 0 else 0.0
+    demeaned scores: ``Σ x0²``, ``Σ x0 x1`` and ``Σ x1²`` (on plain floats: a
+    handful of columns, where numpy's per-call cost is most of the work)."""
+    num = dsum = 0.0
+    for d, c, q in zip(den.tolist(), cross.tolist(), sq1.tolist()):
+        rho = min(max(c / d, -MAX_RHO), MAX_RHO) if d > 0 else 0.0
+        # the AR(1) innovations' variance, mean of (x1 - rho x0)^2, from the sums
+        s2 = max(q - 2 * rho * c + rho * rho * d, 0.0) / max(T - 1, 1)
+        num += 4 * rho * rho * s2 * s2 / ((1 - rho) ** 6 * (1 + rho) ** 2)
+        dsum += s2 * s2 / (1 - rho) ** 4
+    alpha = num / dsum if dsum > 0 else 0.0
     return float(min(max(1.1447 * (alpha * T) ** (1.0 / 3.0), 1.0), T / 2))
 
 
@@ -105,9 +106,28 @@ def long_run_covariance_of(rows: Callable[[int, int], FloatArray], T: int, *,
     before it that its first rows reach back to.
     """
     if T <= block:   # one block: made once, not once a pass
-        whole = rows(0, T)
-        return _from_rows(lambda a, b: whole[a:b], T, block)
+        return _from_whole(rows(0, T))
     return _from_rows(rows, T, block)
+
+
+def _from_whole(g: FloatArray) -> tuple[FloatArray, float]:
+    """:func:`_from_rows` on scores held whole, in fewer passes: demeaned
+    once, and the bandwidth's lag-1 sums taken from the lag-0 and lag-1
+    products that the sum needs anyway (matrix products, not reductions)."""
+    T = g.shape[0]
+    if T < 2:   # no consecutive pair
+        return _from_rows(lambda a, b: g[a:b], T, BLOCK)
+    x = g - (np.ones(T) @ g) / T
+    G0 = x.T @ x
+    G1 = x[1:].T @ x[:-1]    # Σ x_t x_{t-1}ᵀ
+    total = np.diag(G0)
+    # Σ x0², Σ x0 x1, Σ x1² over the consecutive pairs: all rows but the last, or the first
+    b = _bandwidth(total - x[-1] ** 2, np.diag(G1).copy(), total - x[0] ** 2, T)
+    S = G0.copy()
+    for lag in range(1, math.ceil(b)):   # lags 1 .. ceil(b) - 1 have weight > 0
+        gamma = G1 if lag == 1 else x[lag:].T @ x[:-lag]
+        S += (1.0 - lag / b) * (gamma + gamma.T)
+    return S, b
 
 
 def _from_rows(rows: Callable[[int, int], FloatArray], T: int, block: int

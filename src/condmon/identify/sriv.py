@@ -50,8 +50,8 @@ from numpy.typing import ArrayLike, NDArray
 from condmon._filter import lfilter
 from condmon.errors import ConvergenceWarning, EstimationError
 from condmon.identify._common import (
-    TFEstimate, covariance, delayed_sum, log_oe_cost, monic, normal_equations, prepare,
-    robust_covariance, signals, solve, stabilise, to_model,
+    TFEstimate, delayed_sum, log_oe_cost, monic, normal_equations, prepare, robust_covariance,
+    signals, solve_and_invert, stabilise, to_model,
 )
 from condmon.identify.closed_loop import noise_free_input
 from condmon.identify.ls import _names, arx_theta, output_error_variance
@@ -105,10 +105,11 @@ def _stable_theta(theta: FloatArray, n: int) -> FloatArray:
 SE_FRACTION = 1e-3
 
 
-def _near_enough(step: FloatArray, before: FloatArray | None, R: FloatArray, S: FloatArray,
+def _near_enough(step: FloatArray, before: FloatArray | None, Ri: FloatArray, S: FloatArray,
                  se_fraction: float) -> bool:
     """Whether the geometric tail of the steps ``before`` -> ``step`` is below
-    ``se_fraction`` of every standard error of ``R⁻¹ S R⁻ᵀ`` (False when undecided)."""
+    ``se_fraction`` of every standard error of ``R⁻¹ S R⁻ᵀ`` (``Ri`` = ``R⁻¹``;
+    False when undecided)."""
     if before is None:
         return False
     size, last = float(np.max(np.abs(step))), float(np.max(np.abs(before)))
@@ -116,7 +117,7 @@ def _near_enough(step: FloatArray, before: FloatArray | None, R: FloatArray, S: 
         return size == 0.0
     rho = size / last
     with np.errstate(all="ignore"):
-        se = np.sqrt(np.diag(covariance(R, S, checked=True)))
+        se = np.sqrt(np.einsum("ij,jk,ik->i", Ri, S, Ri))   # diag(R⁻¹ S R⁻ᵀ)
     to_go = np.abs(step) * rho / (1.0 - rho)
     return bool(np.all(np.isfinite(se)) and np.all(to_go < se_fraction * se))
 
@@ -154,7 +155,7 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
         return np.asarray(np.where(np.isfinite(var), var, np.inf), dtype=np.float64), w
 
     sig2, w = simulated(theta)
-    best: tuple[float, FloatArray, FloatArray, tuple[FloatArray, FloatArray] | None] = (
+    best: tuple[float, FloatArray, FloatArray, tuple[FloatArray, FloatArray] | None] = (  # (R⁻¹, S)
         log_oe_cost(sig2), theta, sig2, None)
     converged = False
     failure: str | None = None
@@ -183,31 +184,31 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
             if not np.all(np.isfinite(sig)):
                 raise EstimationError("the prefiltered signals are not finite")
             R, r, S = normal_equations(sig, m, order, weights)
-            raw = solve(R, r)
+            raw, Ri = solve_and_invert(R, r)
             new = _stable_theta(raw, order)
-            last = (R, sig, raw, weights)
+            last = (R, sig, raw, weights, Ri)
         except EstimationError as err:
             failure = f"iteration {it}: {err}"
             break
         step = new - theta
         change = float(np.linalg.norm(step)) / max(float(np.linalg.norm(new)), 1e-300)
-        near = se_fraction > 0.0 and _near_enough(step, step_before, R, S, se_fraction)
+        near = se_fraction > 0.0 and _near_enough(step, step_before, Ri, S, se_fraction)
         step_before = step
         theta = new
         sig2, w = simulated(theta)
         cost = log_oe_cost(sig2)
         if cost < best[0]:
-            best = (cost, theta, sig2, (R, S))
+            best = (cost, theta, sig2, (Ri, S))
         if change < tol or near:
             converged = True
             break
     w = _NONE   # not needed past the iterations (a long record: its memory back)
     if converged:
         # the reported covariance is the one that also holds under coloured noise
-        R, sig, raw, weights = last
-        cov, _ = robust_covariance(R, sig, m, order, raw, weights, checked=True)
+        R, sig, raw, weights, Ri = last
+        cov, _ = robust_covariance(R, sig, m, order, raw, weights, inverse=Ri)
         return SrivIterations(theta, cov, sig2, it, True, None)
-    kept = None if best[3] is None else covariance(*best[3], checked=True)
+    kept = None if best[3] is None else best[3][0] @ best[3][1] @ best[3][0].T   # R⁻¹ S R⁻ᵀ
     return SrivIterations(best[1], kept, best[2], it, False, failure)
 
 

@@ -143,17 +143,24 @@ beyond the tolerance, first at row 3 (resample first)
     if arr.size < 2:
         raise DataError(f"{source}: column {column!r} has {arr.size} sample(s); "
                         "a time base needs at least 2")
-    bad = np.flatnonzero(~np.isfinite(arr))
-    if bad.size:
-        raise DataError(f"{source}: column {column!r} has {bad.size} NaN/inf value(s), "
-                        f"first at {_row(int(bad[0]))}")
+    if not np.isfinite(np.sum(arr)):   # (a sum overflows to inf for finite values only
+        bad = np.flatnonzero(~np.isfinite(arr))   # beyond 1e308: no row then)
+        if bad.size:
+            raise DataError(f"{source}: column {column!r} has {bad.size} NaN/inf value(s), "
+                            f"first at {_row(int(bad[0]))}")
     with np.errstate(over="ignore", invalid="ignore"):
         dts = np.diff(arr)
-    if np.any(~(dts > 0)):
+    low, high = float(np.min(dts)), float(np.max(dts))
+    if not low > 0:   # (also a NaN)
         k = int(np.flatnonzero(~(dts > 0))[0])
         raise DataError(f"{source}: column {column!r} is not increasing at row {k + 1} "
                         f"({float(arr[k]):.9g} then {float(arr[k + 1]):.9g})")
     dt = _median(dts)
+    # the largest deviation is the longest or the shortest interval's (the same
+    # arithmetic as each interval's below): every interval is looked at only
+    # when one of them is beyond the tolerance
+    if (high - dt) / dt <= tolerance and (dt - low) / dt <= tolerance:
+        return dt
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         deviation = np.abs(dts - dt) / dt
     beyond = np.flatnonzero(~(deviation <= tolerance))
@@ -214,6 +221,11 @@ def validate_record(df: pd.DataFrame | Columns, required: Sequence[str],
     cols: dict[str, FloatArray] = {}
     for name in names:
         arr = df[name] if isinstance(df, Columns) else _numeric_column(df, name, src)
+        # the extremes first (two reductions): the positions only when they are bad
+        lo, hi = (float(np.min(arr)), float(np.max(arr))) if arr.size else (0.0, 0.0)
+        if -MAX_MAGNITUDE <= lo and hi <= MAX_MAGNITUDE:   # False for a NaN or an inf too
+            cols[name] = arr
+            continue
         bad_idx = np.flatnonzero(~np.isfinite(arr))
         if bad_idx.size:
             last_good = np.flatnonzero(np.isfinite(arr))

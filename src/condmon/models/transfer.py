@@ -126,7 +126,10 @@ class DiscreteTF:
         """Noise-free output for input ``u`` from rest, shape (len(u), n_outputs)."""
         u = np.asarray(u, dtype=np.float64)
         x = lfilter([1.0], self.den, u)
-        return np.column_stack([lfilter(b, [1.0], x) for b in self.nums])
+        out = np.empty((u.size, len(self.nums)), order="F")
+        for j, b in enumerate(self.nums):   # each numerator: the first N of one convolution
+            out[:, j] = np.convolve(x, b)[: u.size]
+        return out
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description."""

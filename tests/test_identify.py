@@ -298,3 +298,16 @@ def test_the_lagged_gram_matrix_is_that_of_the_lagged_signals() -> None:
         assert np.allclose(got, want, rtol=1e-12, atol=1e-12 * np.max(np.abs(want)))
 
     check()
+
+
+def test_the_gram_matrix_from_general_products_is_xtx() -> None:
+    """Known truth: ``xᵀx``, for one column and for several, C or Fortran order."""
+    from condmon.identify._products import gram
+
+    rng = np.random.default_rng(7)
+    for k in (1, 2, 5, 6):
+        x = rng.standard_normal((300, k)) * 10.0 ** rng.uniform(-3, 3, k)
+        for a in (x, np.asfortranarray(x)):
+            got = gram(a)
+            assert got.shape == (k, k)
+            np.testing.assert_allclose(got, x.T @ x, rtol=1e-13, atol=1e-13 * np.max(x.T @ x))

@@ -270,11 +270,11 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
     spec = machine.spec
     order = spec.order or lin.order
     u = rec[lin.input]
-    y = rec.stack(lin.outputs)
+    y = rec.stack(lin.outputs, order="F")
     # the excitation is stacked in the call, so the estimator can let it go once
     # it has built its instruments (a long record's memory)
     est: TFEstimate = estimator(u, y, order, dt=rec.dt,  # type: ignore[operator]
-                                excitation=rec.stack(excitation) if excitation else None,
+                                excitation=rec.stack(excitation, "F") if excitation else None,
                                 outputs=lin.outputs, input_name=lin.input)
     fit, diag = _fit_and_diagnostics(est, u, y, fit_threshold)
     consts = machine.constants(constants)
@@ -313,14 +313,15 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
     # denominator the continuous numerators are linear in the discrete ones
     # (det(sI - A + B cᵀ) is linear in c): the map at each unit numerator.
     n, m = lin.order, len(lin.outputs)
+    # (first: the ZOH inverse just taken for this denominator keeps its logarithm)
+    unit = np.column_stack([np.zeros(n), np.eye(n)])     # numerator i = q^-(i+1)
+    _, per_unit = d2c_coefficients_fast(np.r_[1.0, theta[:n]], unit, rec.dt)
     Jt = np.zeros((c_hat.size, theta.size))
     for k in range(n):
         h = 1e-7 * max(abs(theta[k]), 1e-3)
         tp = theta.copy()
         tp[k] += h
         Jt[:, k] = (coefficients(tp) - c_hat) / h
-    unit = np.column_stack([np.zeros(n), np.eye(n)])     # numerator i = q^-(i+1)
-    _, per_unit = d2c_coefficients_fast(np.r_[1.0, theta[:n]], unit, rec.dt)
     rows = {f: r for r, f in enumerate(lin.free)}        # full coefficient -> row of c_hat
     for j in range(m):
         for i in range(n):

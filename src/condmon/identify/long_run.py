@@ -35,6 +35,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
+from condmon.identify._products import gram
+
 __all__ = ["long_run_covariance", "long_run_covariance_of", "andrews_bandwidth", "MAX_RHO"]
 
 FloatArray = NDArray[np.float64]
@@ -118,7 +120,7 @@ def _from_whole(g: FloatArray) -> tuple[FloatArray, float]:
     if T < 2:   # no consecutive pair
         return _from_rows(lambda a, b: g[a:b], T, BLOCK)
     x = g - (np.ones(T) @ g) / T
-    G0 = x.T @ x
+    G0 = gram(x)
     G1 = x[1:].T @ x[:-1]    # Σ x_t x_{t-1}ᵀ
     total = np.diag(G0)
     # Σ x0², Σ x0 x1, Σ x1² over the consecutive pairs: all rows but the last, or the first
@@ -153,7 +155,7 @@ def _from_rows(rows: Callable[[int, int], FloatArray], T: int, block: int
         lo = max(a - reach, 0)
         g = rows(lo, min(T, a + block)) - mean
         own = g[a - lo:]
-        S += own.T @ own
+        S += gram(own)
         for lag in range(1, reach + 1):
             first = max(a, lag) - lo   # rows of this block with a row ``lag`` before them
             if first >= g.shape[0]:

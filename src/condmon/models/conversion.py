@@ -162,8 +162,15 @@ def _logm(M: FloatArray) -> NDArray[np.float64] | NDArray[np.complex128]:
     conditioned (about 30x faster than the Schur-Pade method for the 3x3 matrices
     met here), else by :func:`scipy.linalg.logm`."""
     w, V = np.linalg.eig(M)
-    if np.linalg.cond(V) < 1e6:
-        L = (V * np.log(w.astype(np.complex128))) @ np.linalg.inv(V)
+    try:
+        Vi = np.linalg.inv(V)
+    except np.linalg.LinAlgError:   # defective: no eigenvector basis
+        Vi = None
+    # the eigenvector basis's 1-norm condition number, from the inverse at hand
+    # (the 2-norm one costs an SVD; the two agree within a factor of the size)
+    if Vi is not None and (float(np.max(np.sum(np.abs(V), axis=0)))
+                           * float(np.max(np.sum(np.abs(Vi), axis=0)))) < 1e6:
+        L = (V * np.log(w.astype(np.complex128))) @ Vi
         return L.real if np.max(np.abs(L.imag)) < 1e-12 * max(1.0, np.max(np.abs(L))) else L
     from scipy import linalg  # the rare ill-conditioned case only
 

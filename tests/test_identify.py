@@ -311,3 +311,17 @@ def test_the_gram_matrix_from_general_products_is_xtx() -> None:
             got = gram(a)
             assert got.shape == (k, k)
             np.testing.assert_allclose(got, x.T @ x, rtol=1e-13, atol=1e-13 * np.max(x.T @ x))
+
+
+def test_least_squares_equations_are_the_normal_equations_of_the_regressors_twice() -> None:
+    """Known truth: the normal equations of ``[y, u, y, u]`` built in full."""
+    from condmon.identify._common import least_squares_equations, normal_equations, signals
+
+    rng = np.random.default_rng(11)
+    for m in (1, 2, 3):
+        for n in (1, 2, 4):
+            y, u = rng.standard_normal((500, m)), rng.standard_normal(500)
+            w = rng.uniform(0.5, 2.0, m)
+            want = normal_equations(signals(y, u, y, u), m, n, w)
+            for a, b in zip(least_squares_equations(y, u, n, w), want):
+                np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12 * np.max(np.abs(b)))

@@ -11,6 +11,7 @@ Parameter vector ``theta = [a_1..a_n, b_11..b_1n, ..., b_m1..b_mn]``.
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -160,13 +161,37 @@ def normal_equations(sig: FloatArray, m: int, order: int, weights: FloatArray
     R, r, S : ndarray
         ``Σ w ζφᵀ``, ``Σ w ζ y`` and ``Σ w ζζᵀ``.
     """
-    n = order
-    p = n * (1 + m)
     # Every cross product comes from one Gram matrix of the lagged signals:
     # one matrix product instead of 4m small ones. Lag-major layout: column
     # d*ns + s holds signal s delayed by d samples.
-    C = lagged_gram(sig, n)
-    sign, outer, per_output = _layout(m, n, sig.shape[1])
+    return _assemble(lagged_gram(sig, order), m, order, weights, sig.shape[1])
+
+
+def least_squares_equations(y: FloatArray, u: FloatArray, order: int, weights: FloatArray
+                            ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """:func:`normal_equations` of ``signals(y, u, y, u)`` (least squares: the
+    instruments are the regressors themselves) from the lagged Gram matrix of
+    ``[y, u]`` alone, a quarter of the products."""
+    m = y.shape[1]
+    C = lagged_gram(signals(y, u), order)
+    idx = _twice(m, order)
+    return _assemble(C[np.ix_(idx, idx)], m, order, weights, 2 * m + 2)
+
+
+@functools.lru_cache(maxsize=32)
+def _twice(m: int, n: int) -> NDArray[np.intp]:
+    """Lagged-Gram columns of ``[y, u]`` that hold those of ``[y, u, y, u]``."""
+    idx = np.array([d * (m + 1) + s % (m + 1) for d in range(n + 1) for s in range(2 * m + 2)],
+                   dtype=np.intp)
+    idx.flags.writeable = False
+    return idx
+
+
+def _assemble(C: FloatArray, m: int, n: int, weights: FloatArray, ns: int
+              ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``R, r, S`` of :func:`normal_equations` from the lagged Gram matrix ``C``."""
+    p = n * (1 + m)
+    sign, outer, per_output = _layout(m, n, ns)
     R = np.zeros((p, p))
     S = np.zeros((p, p))
     r = np.zeros(p)
@@ -392,9 +417,10 @@ def robust_covariance(R: FloatArray, sig: FloatArray, m: int, order: int, theta:
 def log_oe_cost(sig2: FloatArray) -> float:
     """Output-error criterion ``Σ_j log σ_j²`` (Gaussian likelihood, unknown
     variance per output; independent of the outputs' units). inf when not finite."""
-    with np.errstate(all="ignore"):
-        v = float(np.sum(np.log(np.maximum(sig2, 1e-300))))
-    return v if np.isfinite(v) else float("inf")
+    v = 0.0
+    for s2 in sig2.tolist():   # (a few outputs: plain floats)
+        v += math.log(max(s2, 1e-300)) if s2 == s2 else math.nan   # (s2 == s2: not NaN)
+    return v if math.isfinite(v) else float("inf")
 
 
 def simulate_outputs(theta: FloatArray, order: int, u: FloatArray, m: int) -> FloatArray:

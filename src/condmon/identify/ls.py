@@ -7,7 +7,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from condmon._filter import lfilter
 from condmon.identify._common import (
-    TFEstimate, normal_equations, prepare, robust_covariance, signals, simulate_outputs,
+    TFEstimate, least_squares_equations, normal_equations, prepare, robust_covariance, signals, simulate_outputs,
     solve, stabilise, to_model,
 )
 from condmon.identify.closed_loop import noise_free_input
@@ -64,10 +64,9 @@ def arx(u: ArrayLike, y: ArrayLike, order: int, *, dt: float = 1.0,
     # First pass with unit weights gives the residual variances, the second weights
     # each output by 1/sigma_j^2 (a generalised LS over outputs with unequal noise).
     theta = arx_theta(u_a, y_a, order)
-    sig = signals(y_a, u_a, y_a, u_a)
     sig2 = _equation_error_variance(theta, order, u_a, y_a)
     weights = 1.0 / np.maximum(sig2, 1e-300)
-    R, r, _ = normal_equations(sig, m, order, weights)
+    R, r, _ = least_squares_equations(y_a, u_a, order, weights)
     theta = solve(R, r)
     sig2 = _equation_error_variance(theta, order, u_a, y_a)
     cov = np.asarray(np.linalg.solve(R, np.eye(R.shape[0])), dtype=np.float64)
@@ -80,7 +79,7 @@ def arx(u: ArrayLike, y: ArrayLike, order: int, *, dt: float = 1.0,
 def arx_theta(u: FloatArray, y: FloatArray, order: int) -> FloatArray:
     """Unweighted least-squares parameter vector (a starting point for IV methods)."""
     m = y.shape[1]
-    R, r, _ = normal_equations(signals(y, u, y, u), m, order, np.ones(m))
+    R, r, _ = least_squares_equations(y, u, order, np.ones(m))
     return solve(R, r)
 
 

@@ -147,11 +147,10 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
             w = lfilter([1.0], monic(th[:order]), signals(u) if same else signals(u, u_i),
                         axis=0, overwrite_x=True)
             var = np.empty(m)
-            for j in range(m):
-                e = y[:, j] - delayed_sum(B[j], w[:, 0])
-                tail = e[order:]
-                tail = tail - tail.mean()
-                var[j] = float(tail @ tail) / tail.size   # np.var, without its overhead
+            for j in range(m):   # np.var of the error past the first n samples, in place
+                tail = y[order:, j] - delayed_sum(B[j], w[:, 0])[order:]
+                tail -= float(np.sum(tail)) / tail.size
+                var[j] = float(tail @ tail) / tail.size
         return np.asarray(np.where(np.isfinite(var), var, np.inf), dtype=np.float64), w
 
     sig2, w = simulated(theta)

@@ -170,7 +170,7 @@ def _solve_coefficients(lin: LinearStructure, target: FloatArray, start: FloatAr
     best_cost = np.inf
     for x0 in (start, -start):
         p = _newton(res, jac, x0)
-        if p is None or float(np.sum(res(p) ** 2)) > 1e-20:
+        if p is None or _squares(res(p)) > 1e-20:
             from scipy.optimize import least_squares
 
             try:
@@ -183,11 +183,11 @@ def _solve_coefficients(lin: LinearStructure, target: FloatArray, start: FloatAr
             x = np.asarray(sol.x, dtype=np.float64)
             polished = _newton(res, jac, x, steps=3)
             found = polished if polished is not None else x
-            if p is None or np.sum(res(found) ** 2) < np.sum(res(p) ** 2):
+            if p is None or _squares(res(found)) < _squares(res(p)):
                 p = found
         with np.errstate(all="ignore"):
             r = res(p)
-        cost = float(np.sum(r ** 2)) if np.all(np.isfinite(r)) else np.inf
+        cost = float(r @ r) if np.all(np.isfinite(r)) else np.inf
         if cost < best_cost:
             best, best_cost = p, cost
         if cost < 1e-20:
@@ -200,13 +200,18 @@ def _solve_coefficients(lin: LinearStructure, target: FloatArray, start: FloatAr
     return best
 
 
+def _squares(r: FloatArray) -> float:
+    """``Σ r²`` (a dot product: the misfit of a few coefficients, in loops)."""
+    return float(r @ r)
+
+
 def _newton(res: Any, jac: Any, x0: FloatArray, steps: int = 30) -> FloatArray | None:
     """Damped (Gauss-)Newton on ``res(p) = 0``: the last iterate, or None when
     the misfit or its Jacobian stops being finite or the step cannot be solved."""
     p = np.array(x0, dtype=np.float64)
     with np.errstate(all="ignore"):
         r = res(p)
-        cost = float(np.sum(r ** 2))
+        cost = float(r @ r)
         for _ in range(steps):
             if not np.isfinite(cost):
                 return None
@@ -224,7 +229,7 @@ def _newton(res: Any, jac: Any, x0: FloatArray, steps: int = 30) -> FloatArray |
             for _ in range(20):  # halve the step until the misfit falls
                 q = p + t * step
                 rq = res(q)
-                cq = float(np.sum(rq ** 2))
+                cq = float(rq @ rq)
                 if np.isfinite(cq) and cq < cost:
                     break
                 t *= 0.5

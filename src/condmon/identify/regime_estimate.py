@@ -288,9 +288,9 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
         params, G = machine.report_jacobian({**consts, **values})
         pcov = G @ ucov @ G.T
         vals = np.array([params[k] for k in names])
-        trended = tuple(k for k, g in zip(names, G)
-                        if np.any(g != 0) and all(spec.unknowns[j] in identified
-                                                  for j in np.flatnonzero(g)))
+        trended = tuple(k for k, g in zip(names, G.tolist())   # (plain floats: a few each)
+                        if any(g) and all(spec.unknowns[j] in identified
+                                          for j, x in enumerate(g) if x != 0))
     else:
         vals = np.full(len(names), np.nan)
         pcov = np.full((len(names), len(names)), np.nan)

@@ -300,17 +300,23 @@ def test_the_lagged_gram_matrix_is_that_of_the_lagged_signals() -> None:
     check()
 
 
-def test_the_gram_matrix_from_general_products_is_xtx() -> None:
-    """Known truth: ``xᵀx``, for one column and for several, C or Fortran order."""
-    from condmon.identify._products import gram
+def test_blocked_products_and_the_gram_matrix_are_the_plain_products() -> None:
+    """Known truth: ``xᵀx`` and ``aᵀb`` from numpy, for one column and for
+    several, C or Fortran order, shorter and longer than a block."""
+    from condmon.identify._products import ROWS, gram, product
 
     rng = np.random.default_rng(7)
-    for k in (1, 2, 5, 6):
-        x = rng.standard_normal((300, k)) * 10.0 ** rng.uniform(-3, 3, k)
-        for a in (x, np.asfortranarray(x)):
-            got = gram(a)
-            assert got.shape == (k, k)
-            np.testing.assert_allclose(got, x.T @ x, rtol=1e-13, atol=1e-13 * np.max(x.T @ x))
+    for N in (300, 2 * ROWS + 17):
+        for k in (1, 2, 5, 6):
+            x = rng.standard_normal((N, k)) * 10.0 ** rng.uniform(-3, 3, k)
+            for a in (x, np.asfortranarray(x)):
+                want = x.T @ x
+                got = gram(a)
+                assert got.shape == (k, k)
+                np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12 * np.max(want))
+                lagged = product(a[1:], a[:-1, :2])
+                np.testing.assert_allclose(lagged, x[1:].T @ x[:-1, :2], rtol=1e-10,
+                                           atol=1e-12 * np.max(want))
 
 
 def test_least_squares_equations_are_the_normal_equations_of_the_regressors_twice() -> None:

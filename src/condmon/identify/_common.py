@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from condmon._filter import lfilter
 from condmon.errors import DataError, EstimationError, ModelError
-from condmon.identify._products import gram
+from condmon.identify._products import gram, lag_products
 from condmon.identify.long_run import long_run_covariance_of
 from condmon.models.transfer import DiscreteTF
 
@@ -240,7 +240,7 @@ def lagged_gram(sig: FloatArray, n: int) -> FloatArray:
         return np.zeros(((n + 1) * ns,) * 2)
     if n == 0:
         return gram(sig)
-    P = np.stack([gram(sig)] + [sig[d:].T @ sig[:N - d] for d in range(1, n + 1)])  # (n+1, ns, ns)
+    P = lag_products(sig, n)   # (n+1, ns, ns)
     lag = np.arange(n + 1)
     delta = lag[None, :] - lag[:, None]                             # d2 - d1
     both = np.concatenate([P, P.transpose(0, 2, 1)])

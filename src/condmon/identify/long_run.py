@@ -35,7 +35,7 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from condmon.identify._products import gram
+from condmon.identify._products import gram, product
 
 __all__ = ["long_run_covariance", "long_run_covariance_of", "andrews_bandwidth", "MAX_RHO"]
 
@@ -121,13 +121,13 @@ def _from_whole(g: FloatArray) -> tuple[FloatArray, float]:
         return _from_rows(lambda a, b: g[a:b], T, BLOCK)
     x = g - (np.ones(T) @ g) / T
     G0 = gram(x)
-    G1 = x[1:].T @ x[:-1]    # Σ x_t x_{t-1}ᵀ
+    G1 = product(x[1:], x[:-1])    # Σ x_t x_{t-1}ᵀ
     total = np.diag(G0)
     # Σ x0², Σ x0 x1, Σ x1² over the consecutive pairs: all rows but the last, or the first
     b = _bandwidth(total - x[-1] ** 2, np.diag(G1).copy(), total - x[0] ** 2, T)
     S = G0.copy()
     for lag in range(1, math.ceil(b)):   # lags 1 .. ceil(b) - 1 have weight > 0
-        gamma = G1 if lag == 1 else x[lag:].T @ x[:-lag]
+        gamma = G1 if lag == 1 else product(x[lag:], x[:-lag])
         S += (1.0 - lag / b) * (gamma + gamma.T)
     return S, b
 
@@ -160,6 +160,6 @@ def _from_rows(rows: Callable[[int, int], FloatArray], T: int, block: int
             first = max(a, lag) - lo   # rows of this block with a row ``lag`` before them
             if first >= g.shape[0]:
                 break
-            gamma = g[first:].T @ g[first - lag: g.shape[0] - lag]
+            gamma = product(g[first:], g[first - lag: g.shape[0] - lag])
             S += (1.0 - lag / b) * (gamma + gamma.T)
     return S, b

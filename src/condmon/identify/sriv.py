@@ -148,7 +148,8 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
                         axis=0, overwrite_x=True)
             var = np.empty(m)
             for j in range(m):   # np.var of the error past the first n samples, in place
-                tail = y[order:, j] - delayed_sum(B[j], w[:, 0])[order:]
+                e = delayed_sum(B[j], w[:, 0])
+                tail = np.subtract(y[:, j], e, out=e)[order:]
                 tail -= float(np.sum(tail)) / tail.size
                 var[j] = float(tail @ tail) / tail.size
         return np.asarray(np.where(np.isfinite(var), var, np.inf), dtype=np.float64), w
@@ -180,7 +181,10 @@ def sriv_iterations(u: FloatArray, y: FloatArray, order: int, u_i: FloatArray, *
         sig = buffer   # (the last iteration's is the one the covariance reads)
         weights = 1.0 / np.maximum(sig2, 1e-300)
         try:
-            if not np.all(np.isfinite(sig)):
+            # (a finite sum is finite values, without a mask the record's size)
+            with np.errstate(over="ignore", invalid="ignore"):
+                total = float(np.sum(sig))
+            if not np.isfinite(total) and not np.all(np.isfinite(sig)):
                 raise EstimationError("the prefiltered signals are not finite")
             R, r, S = normal_equations(sig, m, order, weights)
             raw, Ri = solve_and_invert(R, r)

@@ -360,15 +360,10 @@ def schur_stable(den: FloatArray) -> bool:
     return True
 
 
-def covariance(R: FloatArray, S: FloatArray, checked: bool = False,
-               inverse: FloatArray | None = None) -> FloatArray:
-    """IV covariance ``R⁻¹ S R⁻ᵀ``, refusing a singular ``R`` (``checked``: the
-    caller has just solved with ``R`` through :func:`solve`, which checked it;
-    ``inverse``: ``R⁻¹`` from :func:`solve_and_invert`)."""
-    Ri = inverse
-    if Ri is None:
-        Ri = (np.asarray(np.linalg.solve(R, np.eye(R.shape[0])), dtype=np.float64) if checked
-              else _inverse(R))
+def covariance(R: FloatArray, S: FloatArray, inverse: FloatArray | None = None) -> FloatArray:
+    """IV covariance ``R⁻¹ S R⁻ᵀ``, refusing a singular ``R`` (``inverse``:
+    ``R⁻¹`` from :func:`solve_and_invert`, which checked it)."""
+    Ri = inverse if inverse is not None else _inverse(R)
     if Ri is None:
         raise EstimationError("the instrumental-variable matrix is singular: the data "
                               "do not determine the model")
@@ -401,17 +396,17 @@ def iv_scores(sig: FloatArray, m: int, order: int, theta: FloatArray,
 
 
 def robust_covariance(R: FloatArray, sig: FloatArray, m: int, order: int, theta: FloatArray,
-                      weights: FloatArray, checked: bool = False,
-                      inverse: FloatArray | None = None) -> tuple[FloatArray, float]:
+                      weights: FloatArray, inverse: FloatArray | None = None
+                      ) -> tuple[FloatArray, float]:
     """IV covariance ``R⁻¹ S R⁻ᵀ`` with ``S`` the long-run covariance of the
     scores (:mod:`condmon.identify.long_run`): it holds when the noise is
     coloured and equals the white-noise ``R⁻¹ (Σ w ζζᵀ) R⁻ᵀ`` on average when it
     is white. Returns the covariance and the bandwidth used [samples]
-    (``checked`` and ``inverse`` as for :func:`covariance`)."""
+    (``inverse`` as for :func:`covariance`)."""
     S, bandwidth = long_run_covariance_of(
         lambda a, b: iv_scores(sig[a: b + order], m, order, theta, weights),
         sig.shape[0] - order)
-    return covariance(R, S, checked=checked, inverse=inverse), bandwidth
+    return covariance(R, S, inverse), bandwidth
 
 
 def log_oe_cost(sig2: FloatArray) -> float:

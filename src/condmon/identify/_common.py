@@ -294,7 +294,7 @@ def _inverse(R: FloatArray) -> FloatArray | None:
             Ri = np.asarray(np.linalg.inv(R), dtype=np.float64)
         except np.linalg.LinAlgError:
             return None
-        cond = float(np.max(np.sum(np.abs(R), axis=0))) * float(np.max(np.sum(np.abs(Ri), axis=0)))
+        cond = float(np.linalg.norm(R, 1)) * float(np.linalg.norm(Ri, 1))
     return Ri if cond < MAX_CONDITION else None   # (False for a NaN too)
 
 

@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from condmon.errors import ConversionError, ModelError
-from condmon.identify._common import TFEstimate, schur_stable
+from condmon.identify._common import TFEstimate, schur_stable, signals
 from condmon.identify.fit import FitCheck, fit_check, residual_figures
 from condmon.identify.identifiability import Identifiability, assess_identifiability
 from condmon.io.records import Record
@@ -275,11 +275,11 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
     spec = machine.spec
     order = spec.order or lin.order
     u = rec[lin.input]
-    y = rec.stack(lin.outputs, order="F")
+    y = signals(*(rec[c] for c in lin.outputs))   # (each column contiguous)
     # the excitation is stacked in the call, so the estimator can let it go once
     # it has built its instruments (a long record's memory)
     est: TFEstimate = estimator(u, y, order, dt=rec.dt,  # type: ignore[operator]
-                                excitation=rec.stack(excitation, "F") if excitation else None,
+                                excitation=signals(*(rec[c] for c in excitation)) if excitation else None,
                                 outputs=lin.outputs, input_name=lin.input)
     fit, diag = _fit_and_diagnostics(est, u, y, fit_threshold)
     consts = machine.constants(constants)

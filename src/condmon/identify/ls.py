@@ -7,8 +7,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from condmon._filter import lfilter
 from condmon.identify._common import (
-    TFEstimate, least_squares_equations, normal_equations, prepare, robust_covariance, signals, simulate_outputs,
-    solve, stabilise, to_model,
+    TFEstimate, least_squares_equations, normal_equations, prepare, robust_covariance, signals,
+    simulate_outputs, solve, stabilise, to_model,
 )
 from condmon.identify.closed_loop import noise_free_input
 

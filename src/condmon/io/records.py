@@ -65,15 +65,9 @@ class Record:
     def __len__(self) -> int:
         return int(self.columns["t"].size)
 
-    def stack(self, names: Sequence[str], order: str = "C") -> FloatArray:
-        """Columns side by side, shape (N, len(names)); ``order="F"`` keeps each
-        column contiguous (for column-wise work: filters, lag products)."""
-        if order == "C":
-            return np.column_stack([self.columns[n] for n in names])
-        out = np.empty((len(self), len(names)), order="F")
-        for i, n in enumerate(names):
-            out[:, i] = self.columns[n]
-        return out
+    def stack(self, names: Sequence[str]) -> FloatArray:
+        """Columns side by side, shape (N, len(names))."""
+        return np.column_stack([self.columns[n] for n in names])
 
     def slice(self, first: int, stop: int) -> Record:
         """Rows ``[first, stop)`` as a record of their own (a window)."""

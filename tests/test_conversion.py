@@ -117,3 +117,53 @@ def test_the_characteristic_polynomial_without_eigenvalues_is_numpys() -> None:
     A = np.array([[-R / L, -Ke / L], [Kt / J, -D / J]])
     assert np.allclose(_charpoly(A), [1.0, R / L + D / J, (R * D + Ke * Kt) / (L * J)],
                        rtol=1e-13)
+
+
+def _coefficients(g: DiscreteTF) -> np.ndarray:
+    c = tf_d2c(g)
+    return np.r_[c.den[1:], c.nums[:, 1:].ravel()]
+
+
+@pytest.mark.parametrize("den,nums,dt", [*SYSTEMS, ([1.0, 9.0, 27.0, 27.0],   # a triple pole:
+                                                    [[0.0, 1.0, 2.0, 3.0]], 0.01)])  # no eigenbasis
+def test_the_zoh_inverse_jacobian_is_its_differences(den: list[float], nums: list[list[float]],
+                                                     dt: float) -> None:
+    """The closed-form Jacobian of the ZOH inverse's coefficients equals
+    central differences of tf_d2c (each direct term held), and the model is
+    tf_d2c's."""
+    from condmon.models.conversion import tf_d2c_jacobian
+
+    gd = tf_c2d(ContinuousTF(np.array(den), np.array(nums)), dt)  # type: ignore[arg-type]
+    cont, J = tf_d2c_jacobian(gd)
+    ref = tf_d2c(gd)
+    np.testing.assert_array_equal(cont.den, ref.den)
+    np.testing.assert_array_equal(cont.nums, ref.nums)
+    n = gd.order
+    theta = np.r_[gd.den[1:], gd.nums[:, 1:].ravel()]
+
+    def at(th: np.ndarray) -> np.ndarray:
+        nums_d = np.column_stack([gd.nums[:, 0], th[n:].reshape(-1, n)])
+        return _coefficients(DiscreteTF(np.r_[1.0, th[:n]], nums_d, dt, gd.outputs))
+
+    fd = np.empty_like(J)
+    for k in range(theta.size):
+        h = 1e-6 * max(abs(theta[k]), 1e-3)
+        step = np.zeros(theta.size)
+        step[k] = h
+        fd[:, k] = (at(theta + step) - at(theta - step)) / (2 * h)
+    scale = np.max(np.abs(fd), axis=1, keepdims=True)
+    assert np.max(np.abs(J - fd) / scale) < 1e-5
+
+
+def test_the_zoh_inverse_jacobian_of_a_first_order_lag_is_analytic() -> None:
+    """b q⁻¹ / (1 - a q⁻¹) is K p / (s + p) with a = exp(-p dt), b = K (1 - a):
+    p = -ln(a)/dt and K p = -b ln(a) / ((1 - a) dt), differentiated by hand
+    (θ = [-a, b])."""
+    from condmon.models.conversion import tf_d2c_jacobian
+
+    a, b, dt = 0.9, 0.3, 0.01
+    _, J = tf_d2c_jacobian(DiscreteTF(np.array([1.0, -a]), np.array([[0.0, b]]), dt))
+    la = np.log(a)
+    want = np.array([[1.0 / (a * dt), 0.0],
+                     [b / dt * ((1.0 - a) / a + la) / (1.0 - a) ** 2, -la / ((1.0 - a) * dt)]])
+    np.testing.assert_allclose(J, want, rtol=1e-12)

@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from _strokes import DECLARATION, TRUTH, stroke, write_stroke
 from condmon.cli.main import main
@@ -158,6 +160,29 @@ def test_identifiability_keeps_the_preferred_unknowns_it_can_tell_apart() -> Non
     assert len(idf.singular_values) == 3 and idf.singular_values[-1] < 1e-8
     weak = assess_identifiability(X[:, :2] * 1e-3, ("Tc", "Dv"))
     assert weak.identifiable == () and "not excited" in weak.reasons["Tc"]
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), p=st.integers(1, 5), rows=st.integers(1, 12),
+       tie=st.floats(0.0, 1.0), scale=st.floats(-4.0, 3.0))
+def test_identifiability_whole_set_equals_the_greedy_choice(seed: int, p: int, rows: int,
+                                                           tie: float, scale: float) -> None:
+    """The one-SVD answer when every unknown passes together is the greedy
+    choice's, figure for figure (an ``absent`` entry naming no unknown makes
+    the greedy loop run)."""
+    rng = np.random.default_rng(seed)
+    X = rng.standard_normal((rows, p)) * 10.0 ** scale
+    if p > 1:   # from independent to nearly collinear last two columns
+        X[:, -1] = tie * X[:, -2] + (1.0 - tie) * X[:, -1]
+    names = tuple(f"p{k}" for k in range(p))
+    fast = assess_identifiability(X, names)
+    loop = assess_identifiability(X, names, absent={"(none)": "-"})
+    assert fast.identifiable == loop.identifiable
+    assert fast.reasons == loop.reasons
+    assert fast.relative_se == loop.relative_se
+    assert fast.collinearity == loop.collinearity
+    assert fast.singular_values == loop.singular_values
+    assert fast.directions == loop.directions
 
 
 # --- the steady route on raw stand files --------------------------------------------------

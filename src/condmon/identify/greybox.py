@@ -38,7 +38,7 @@ from condmon.identify._common import TFEstimate, schur_stable, signals
 from condmon.identify.fit import FitCheck, fit_check, residual_figures
 from condmon.identify.identifiability import Identifiability, assess_identifiability
 from condmon.io.records import Record
-from condmon.models.conversion import d2c_coefficients_fast, tf_d2c
+from condmon.models.conversion import tf_d2c_jacobian
 from condmon.models.machine import LinearStructure, Machine
 from condmon.models.transfer import ContinuousTF
 
@@ -141,7 +141,7 @@ def _fit_and_diagnostics(est: TFEstimate, u: FloatArray, y: FloatArray,
             1.0 if np.var(e[:, j]) == 0 else float("-inf"))
         out[f"nrmse {name}"] = figures.nrmse
         out[f"whiteness {name}"] = figures.whiteness
-    fit = 100.0 * float(np.mean(list(r2.values())))
+    fit = 100.0 * sum(r2.values()) / len(r2)
     return FitCheck(r2, fit, float(threshold), bool(fit >= threshold)), out
 
 
@@ -288,22 +288,12 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
     nan = {k: float("nan") for k in spec.unknowns}
     nan_cov = np.full((len(spec.unknowns),) * 2, np.nan)
     try:
-        cont = tf_d2c(est.model)
+        cont, J_cont = tf_d2c_jacobian(est.model)
     except ModelError as err:
         return LinearRouteResult(nan, nan_cov, est, None, fit, f"no physical parameters: {err}")
     if order != lin.order:
         return LinearRouteResult(nan, nan_cov, est, cont, fit,
                                  f"order {order} differs from the model's {lin.order}")
-    theta = np.r_[est.model.den[1:], est.model.nums[:, 1:].ravel()]
-
-    def coefficients(th: FloatArray) -> FloatArray:
-        n, m = lin.order, len(lin.outputs)
-        cden, cnums = d2c_coefficients_fast(np.r_[1.0, th[:n]],
-                                            np.column_stack([np.zeros(m), th[n:].reshape(m, n)]),
-                                            rec.dt)
-        full = np.r_[cden[1:], cnums[:, 1:].ravel()]
-        return np.asarray(full[list(lin.free)], dtype=np.float64)
-
     c_hat = np.r_[cont.den[1:], cont.nums[:, 1:].ravel()][list(lin.free)]
     start = np.array([machine.nominal()[k] for k in spec.unknowns])
     try:
@@ -312,28 +302,9 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
         return LinearRouteResult(nan, nan_cov, est, cont, fit,
                                  f"no physical parameters: {err}; is the sign of a column "
                                  "inverted or its unit wrong?")
-    # Delta method: theta -> continuous coefficients -> parameters (exact Jacobian
-    # of the map). The denominator's columns by forward differences (the ZOH
-    # inverse has no closed form); the numerators' exactly, as for a given
-    # denominator the continuous numerators are linear in the discrete ones
-    # (det(sI - A + B cᵀ) is linear in c): the map at each unit numerator.
-    n, m = lin.order, len(lin.outputs)
-    # (first: the ZOH inverse just taken for this denominator keeps its logarithm)
-    unit = np.column_stack([np.zeros(n), np.eye(n)])     # numerator i = q^-(i+1)
-    _, per_unit = d2c_coefficients_fast(np.r_[1.0, theta[:n]], unit, rec.dt)
-    Jt = np.zeros((c_hat.size, theta.size))
-    for k in range(n):
-        h = 1e-7 * max(abs(theta[k]), 1e-3)
-        tp = theta.copy()
-        tp[k] += h
-        Jt[:, k] = (coefficients(tp) - c_hat) / h
-    rows = {f: r for r, f in enumerate(lin.free)}        # full coefficient -> row of c_hat
-    for j in range(m):
-        for i in range(n):
-            for d in range(n):   # continuous numerator j, coefficient d
-                r = rows.get(n + j * n + d)
-                if r is not None:
-                    Jt[r, n + j * n + i] = per_unit[i, 1 + d]
+    # Delta method: theta = [den[1:], nums[:, 1:]] -> continuous coefficients ->
+    # parameters, by the exact Jacobians of both maps
+    Jt = J_cont[list(lin.free)]
     Jp = lin.jacobian(p, known)
     cov_c = Jt @ est.covariance @ Jt.T
     held = {**machine.nominal(), **dict(hold or {})}

@@ -135,6 +135,31 @@ def _index(sv: FloatArray, columns: int) -> float:
     return float("inf") if smallest <= 1e-12 else 1.0 / smallest
 
 
+def _whole_set(S: FloatArray, norms: FloatArray, lim: IdentifiabilityLimits
+               ) -> tuple[FloatArray, float, FloatArray, FloatArray] | None:
+    """The figures of the whole set of unknowns when together they pass
+    every test, else None.
+
+    The greedy choice below tries each unknown with those chosen before it.
+    Dropping columns never lowers the smallest singular value of the
+    unit-norm sensitivities (interlacing), nor raises a kept unknown's
+    variance (a smaller model's ``diag((SᵀS)⁻¹)`` is at most the larger
+    one's), so when the whole set passes, every trial passes and the choice
+    is the whole set, with the figures of its last trial: this one SVD.
+    """
+    if S.shape[1] == 0 or not np.all(norms > 0.0):
+        return None
+    Sn = S / norms
+    _, sv, vt = np.linalg.svd(Sn, full_matrices=False)
+    gamma = _index(sv, S.shape[1])
+    if not gamma <= lim.max_collinearity:
+        return None
+    joint = np.sqrt(np.sum((vt / sv[:, None]) ** 2, axis=0)) / norms
+    if not float(np.max(joint)) <= lim.max_relative_se:
+        return None
+    return joint, gamma, sv, vt
+
+
 def assess_identifiability(sensitivity: ArrayLike, parameters: Sequence[str], *,
                            limits: IdentifiabilityLimits | None = None,
                            absent: Mapping[str, str] | None = None) -> Identifiability:
@@ -168,7 +193,10 @@ def assess_identifiability(sensitivity: ArrayLike, parameters: Sequence[str], *,
     chosen: list[int] = []
     kept: tuple[FloatArray, float, FloatArray, FloatArray] = (np.zeros(0), 1.0, np.zeros(0),
                                                              np.zeros((0, 0)))
-    for k, name in enumerate(names):
+    whole = _whole_set(S, norms, lim) if not absent else None
+    if whole is not None:   # every unknown passes together: so each prefix passes
+        chosen, kept = list(range(len(names))), whole
+    for k, name in enumerate(names if whole is None else ()):
         if absent and name in absent:
             reasons[name] = absent[name]
             continue

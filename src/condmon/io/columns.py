@@ -98,13 +98,20 @@ def as_columns(frame: pd.DataFrame | Columns) -> pd.DataFrame | Columns:
     >>> type(rec).__name__, rec["V"].tolist()
     ('Columns', [1.0, 2.0])
     """
-    if isinstance(frame, Columns) or frame.size > WHOLE_FRAME_VALUES:
+    if isinstance(frame, Columns):
         return frame
-    names = [n for n in frame.columns if isinstance(n, str)]
-    if (len(names) != frame.shape[1] or len(set(names)) != len(names)
-            or not all(d == np.float64 for d in frame.dtypes)):
+    rows, width = frame.shape
+    if rows * width > WHOLE_FRAME_VALUES:
         return frame
-    values = frame.to_numpy(dtype=np.float64)
+    # the common dtype of the columns tells whether every one is float64 (or
+    # an integer one beside them, converted exactly below 2**53, as the column
+    # by column path converts it) without the Series ``frame.dtypes`` builds
+    values = frame.to_numpy()
+    if values.dtype != np.float64:
+        return frame
+    names = [n for n in frame.columns.to_list() if isinstance(n, str)]
+    if len(names) != width or len(set(names)) != width:
+        return frame
     return Columns({n: values[:, i] for i, n in enumerate(names)},
                    {str(k): v for k, v in frame.attrs.items()})
 

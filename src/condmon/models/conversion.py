@@ -15,6 +15,7 @@ References
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -22,8 +23,8 @@ from numpy.typing import NDArray
 from condmon.errors import ConversionError, ModelError
 from condmon.models.transfer import ContinuousTF, DiscreteTF
 
-__all__ = ["StateSpace", "c2d", "d2c", "tf_c2d", "tf_d2c", "d2c_coefficients",
-           "d2c_coefficients_fast"]
+__all__ = ["StateSpace", "c2d", "d2c", "tf_c2d", "tf_d2c", "tf_d2c_jacobian",
+           "d2c_coefficients", "d2c_coefficients_fast"]
 
 FloatArray = NDArray[np.float64]
 
@@ -128,7 +129,19 @@ def d2c(sys: StateSpace) -> StateSpace:
     """
     if not sys.dt > 0:
         raise ModelError("d2c expects a discrete model (dt > 0)")
-    poles = np.linalg.eigvals(sys.A)
+    _check_zoh_poles(sys.A)
+    n, m = sys.B.shape
+    M = np.zeros((n + m, n + m))
+    M[:n, :n] = sys.A
+    M[:n, n:] = sys.B
+    M[n:, n:] = np.eye(m)
+    L = _real_log(M) / sys.dt
+    return StateSpace(L[:n, :n], L[:n, n:], sys.C, sys.D, 0.0)
+
+
+def _check_zoh_poles(A: FloatArray) -> None:
+    """Refuse discrete poles no real continuous system maps to under ZOH."""
+    poles = np.linalg.eigvals(A)
     scale = max(1.0, float(np.max(np.abs(poles))) if poles.size else 1.0)
     tol = 1e-12 * scale
     for z in poles:
@@ -143,24 +156,26 @@ def d2c(sys: StateSpace) -> StateSpace:
                 "continuous-time equivalent under zero-order hold (sample faster, "
                 "or lower the model order)"
             )
-    n, m = sys.B.shape
-    M = np.zeros((n + m, n + m))
-    M[:n, :n] = sys.A
-    M[:n, n:] = sys.B
-    M[n:, n:] = np.eye(m)
-    L = _logm(M)
+
+
+def _real_log(M: FloatArray, parts: list[Any] | None = None) -> FloatArray:
+    """The principal logarithm of ``M``, refused when it is not real (no
+    real ZOH equivalent); ``parts`` receives the eigen-decomposition used,
+    when one was (see :func:`_logm`)."""
+    L = _logm(M, parts)
     if np.iscomplexobj(L):
         if np.max(np.abs(L.imag)) > 1e-9 * max(1.0, float(np.max(np.abs(L.real)))):
             raise ConversionError("matrix logarithm is not real: no real ZOH equivalent")
         L = L.real
-    L = np.asarray(L, dtype=np.float64) / sys.dt
-    return StateSpace(L[:n, :n], L[:n, n:], sys.C, sys.D, 0.0)
+    return np.asarray(L, dtype=np.float64)
 
 
-def _logm(M: FloatArray) -> NDArray[np.float64] | NDArray[np.complex128]:
+def _logm(M: FloatArray, parts: list[Any] | None = None
+          ) -> NDArray[np.float64] | NDArray[np.complex128]:
     """Principal matrix logarithm, by eigen-decomposition when that is well
     conditioned (about 30x faster than the Schur-Pade method for the 3x3 matrices
-    met here), else by :func:`scipy.linalg.logm`."""
+    met here), else by :func:`scipy.linalg.logm`. ``parts``, when given,
+    receives ``w, V, V⁻¹`` of the decomposition used (nothing in the other case)."""
     w, V = np.linalg.eig(M)
     try:
         Vi = np.linalg.inv(V)
@@ -170,6 +185,8 @@ def _logm(M: FloatArray) -> NDArray[np.float64] | NDArray[np.complex128]:
     # (the 2-norm one costs an SVD; the two agree within a factor of the size)
     if Vi is not None and float(np.linalg.norm(V, 1)) * float(np.linalg.norm(Vi, 1)) < 1e6:
         L = (V * np.log(w.astype(np.complex128))) @ Vi
+        if parts is not None:
+            parts.extend((w, V, Vi))
         return L.real if np.max(np.abs(L.imag)) < 1e-12 * max(1.0, np.max(np.abs(L))) else L
     from scipy import linalg  # the rare ill-conditioned case only
 
@@ -259,6 +276,119 @@ def tf_d2c(g: DiscreteTF) -> ContinuousTF:
     """
     den, nums = d2c_coefficients(g.den, g.nums, g.dt)
     return ContinuousTF(den, nums, g.outputs, g.input)
+
+
+def tf_d2c_jacobian(g: DiscreteTF) -> tuple[ContinuousTF, FloatArray]:
+    """:func:`tf_d2c` and the exact Jacobian of the continuous coefficients.
+
+    Parameters
+    ----------
+    g : DiscreteTF
+        Discrete model in q^-1, monic denominator.
+
+    Returns
+    -------
+    ContinuousTF
+        As :func:`tf_d2c`.
+    ndarray, shape (n + m n, n + m n)
+        ``∂c/∂θ``: ``c`` the continuous ``den[1:]`` then each output's
+        ``nums[j, 1:]``, ``θ`` the same of the discrete model (each direct
+        term ``nums[j, 0]`` held). [continuous unit / discrete unit]
+
+    Notes
+    -----
+    Derivatives in closed form, not by differences: the logarithm's Fréchet
+    derivative ``L(M, E) = V (F ∘ V⁻¹EV) V⁻¹``, ``F`` the divided differences
+    of ``log`` at the eigenvalues (Daleckii-Krein) [1]_, or, when the
+    eigenvector basis is ill-conditioned, the corner of ``log`` of the block
+    matrix ``[[M, E], [0, M]]``; then the characteristic polynomial's,
+    ``∂c_k = -tr(N_(k-1) dX)`` with ``adj(sI - X) = Σ N_k s^(n-1-k)``
+    (Jacobi's formula and the Faddeev-LeVerrier recursion).
+
+    .. [1] N. J. Higham, *Functions of Matrices*, SIAM, 2008, thm. 3.11.
+
+    Example
+    -------
+    >>> gd = tf_c2d(ContinuousTF([1.0, 3.0, 2.0], [[0.0, 0.0, 2.0]]), 0.01)
+    >>> cont, J = tf_d2c_jacobian(gd)
+    >>> J.shape, bool(np.all(np.isfinite(J)))
+    ((4, 4), True)
+    """
+    if abs(float(g.den[0]) - 1.0) > 0.0:
+        raise ModelError("tf_d2c_jacobian expects a monic discrete denominator")
+    A, B, C, D = _tf_to_ss(g.den, g.nums)
+    n, m = A.shape[0], C.shape[0]
+    _check_zoh_poles(A)
+    M = np.zeros((n + 1, n + 1))
+    M[:n, :n], M[:n, n:], M[n, n] = A, B, 1.0
+    parts: list[Any] = []
+    L = _real_log(M, parts) / g.dt
+    Ac, Bc = L[:n, :n], L[:n, n:]
+    cden, nums = _ss_to_tf(Ac, Bc, C, D)
+    if parts:
+        w, V, Vi = parts
+        F = _log_divided_differences(w)
+
+        def dlog(k: int) -> FloatArray:   # dM = -E(0, k): one entry, an outer product
+            inner = -np.outer(Vi[:, 0], V[k, :]) * F
+            return np.asarray((V @ inner @ Vi).real, dtype=np.float64) / g.dt
+    else:
+        from scipy import linalg  # the rare ill-conditioned case only
+
+        def dlog(k: int) -> FloatArray:
+            big = np.zeros((2 * n + 2, 2 * n + 2))
+            big[:n + 1, :n + 1] = big[n + 1:, n + 1:] = M
+            big[0, n + 1 + k] = -1.0
+            return np.asarray(np.real(linalg.logm(big))[:n + 1, n + 1:], dtype=np.float64) / g.dt
+    N_den = _adjugate_terms(Ac, cden)
+    N_num = [_adjugate_terms(Ac - Bc @ C[j:j + 1], nums[j] - (D[j, 0] - 1.0) * cden)
+             for j in range(m)]
+    J = np.zeros((n + m * n, n + m * n))
+    for k in range(n):   # discrete den[k + 1]: A's first row and C (through D) move
+        dL = dlog(k)
+        dA, dB = dL[:n, :n], dL[:n, n:]
+        dden = -(N_den @ dA.T.ravel())   # tr(N_k dA) for every k
+        J[:n, k] = dden
+        for j in range(m):
+            dX = dA - dB @ C[j:j + 1]
+            dX[:, k] += Bc[:, 0] * D[j, 0]
+            J[n + j * n: n + (j + 1) * n, k] = (-(N_num[j] @ dX.T.ravel())
+                                                + (D[j, 0] - 1.0) * dden)
+    for j in range(m):   # discrete nums[j, i + 1]: C[j, i]; exact, as nums are linear in C
+        J[n + j * n: n + (j + 1) * n, n + j * n: n + (j + 1) * n] = (
+            N_num[j].reshape(n, n, n) @ Bc)[:, :, 0]
+    return ContinuousTF(cden, nums, g.outputs, g.input), J
+
+
+def _log_divided_differences(w: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    """``F[i, j] = (log w_i - log w_j) / (w_i - w_j)``, ``1 / w_i`` where they
+    meet (principal logarithms; close pairs by ``log1p`` of their ratio, with
+    the branch of the two logarithms kept)."""
+    w = w.astype(np.complex128)
+    lw = np.log(w)
+    d = w[:, None] - w[None, :]
+    ratio = d / w[None, :]
+    close = np.abs(ratio) < 0.5
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dl = np.where(close, np.log1p(np.where(close, ratio, 0.0)), lw[:, None] - lw[None, :])
+        turns = np.round(((lw[:, None] - lw[None, :]).imag - dl.imag) / (2 * np.pi))
+        dl = dl + 2j * np.pi * turns
+        F = np.where(d != 0, dl / np.where(d != 0, d, 1.0), 1.0 / w[None, :])
+    return np.asarray(F, dtype=np.complex128)
+
+
+def _adjugate_terms(X: FloatArray, c: FloatArray) -> FloatArray:
+    """``N_0..N_(n-1)`` with ``adj(sI - X) = Σ_k N_k s^(n-1-k)``, from the
+    characteristic polynomial ``c`` of ``X`` (``N_0 = I``,
+    ``N_k = X N_(k-1) + c_k I``), each flattened: shape (n, n²), so that
+    ``N @ dXᵀ.ravel()`` is every ``tr(N_k dX)``."""
+    n = X.shape[0]
+    eye = np.eye(n)
+    N = np.empty((n, n, n))
+    N[0] = eye
+    for k in range(1, n):
+        N[k] = X @ N[k - 1] + c[k] * eye
+    return N.reshape(n, n * n)
 
 
 def d2c_coefficients(den: FloatArray, nums: FloatArray, dt: float

@@ -24,7 +24,7 @@ from condmon.errors import ConversionError, ModelError
 from condmon.models.transfer import ContinuousTF, DiscreteTF
 
 __all__ = ["StateSpace", "c2d", "d2c", "tf_c2d", "tf_d2c", "tf_d2c_jacobian",
-           "d2c_coefficients", "d2c_coefficients_fast"]
+           "d2c_coefficients"]
 
 FloatArray = NDArray[np.float64]
 
@@ -398,41 +398,9 @@ def d2c_coefficients(den: FloatArray, nums: FloatArray, dt: float
     Returns the monic continuous denominator (descending powers of s) and the
     numerators, shape (n_outputs, n+1).
     """
-    global _LAST_LOG
     A, B, C, D = _tf_to_ss(den, nums)
     cs = d2c(StateSpace(A, B, C, D, dt))
-    # the logarithm just taken, for a Jacobian's calls of the fast form that follow
-    n = A.shape[0]
-    L = np.zeros((n + 1, n + 1))
-    L[:n, :n], L[:n, n:] = cs.A, cs.B
-    _LAST_LOG = ((np.asarray(den, dtype=np.float64).tobytes(), float(dt)), L)
     return _ss_to_tf(cs.A, cs.B, cs.C, cs.D)
-
-
-def d2c_coefficients_fast(den: FloatArray, nums: FloatArray, dt: float
-                          ) -> tuple[FloatArray, FloatArray]:
-    """:func:`d2c_coefficients` without the pole checks, for perturbation loops
-    around a model that already passed them (e.g. a numerical Jacobian)."""
-    global _LAST_LOG
-    A, B, C, D = _tf_to_ss(den, nums)
-    n = A.shape[0]
-    # the logarithm depends on the denominator alone: a Jacobian's numerator
-    # columns reuse the last one (one (key, value) pair, read and set whole)
-    key = (np.asarray(den, dtype=np.float64).tobytes(), float(dt))
-    last = _LAST_LOG
-    if last and last[0] == key:
-        L = last[1]
-    else:
-        M = np.zeros((n + 1, n + 1))
-        M[:n, :n] = A
-        M[:n, n:] = B
-        M[n, n] = 1.0
-        L = np.real(_logm(M)) / dt
-        _LAST_LOG = (key, L)
-    return _ss_to_tf(L[:n, :n], L[:n, n:], C, D)
-
-
-_LAST_LOG: tuple[tuple[bytes, float], FloatArray] | tuple[()] = ()
 
 
 def tf_c2d(g: ContinuousTF, dt: float) -> DiscreteTF:

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from condmon.errors import ModelError
-from condmon.models.conversion import d2c_coefficients, d2c_coefficients_fast
+from condmon.models.conversion import tf_d2c_jacobian
 from condmon.models.transfer import ContinuousTF, DiscreteTF
 
 __all__ = ["DCMotorParameters", "PARAMETER_NAMES", "PARAMETER_UNITS", "dc_motor_tf",
@@ -129,22 +129,14 @@ def dc_motor_from_tf(g: ContinuousTF, gamma: float) -> DCMotorParameters:
                                                                    gamma)))
 
 
-def _physical_from_theta(theta: FloatArray, dt: float, gamma: float,
-                         checked: bool = True) -> FloatArray:
-    den = np.r_[1.0, theta[:2]]
-    nums = np.array([np.r_[0.0, theta[2:4]], np.r_[0.0, theta[4:6]]])
-    convert = d2c_coefficients if checked else d2c_coefficients_fast
-    cden, cnums = convert(den, nums, dt)
-    return _coefficients_to_physical(cden[1], cden[2], cnums[0, 1], cnums[0, 2],
-                                     cnums[1, 2], gamma)
-
-
 def dc_motor_from_discrete(model: DiscreteTF, covariance: FloatArray, gamma: float
                            ) -> tuple[DCMotorParameters, FloatArray]:
     """Physical parameters of a discrete estimate and their covariance.
 
     The covariance is propagated by the delta method, ``J Σ Jᵀ``, with the
-    Jacobian of the whole map (ZOH inverse, then A1) taken by central differences.
+    Jacobian of the whole map: the ZOH inverse's in closed form
+    (:func:`~condmon.models.conversion.tf_d2c_jacobian`), then that of the
+    algebraic map to the parameters by central differences.
 
     Parameters
     ----------
@@ -165,15 +157,22 @@ def dc_motor_from_discrete(model: DiscreteTF, covariance: FloatArray, gamma: flo
     if model.order != 2 or model.outputs != ("I", "omega"):
         raise ModelError(f"the DC-motor model needs outputs ('I', 'omega') of order 2, "
                          f"got {model.outputs} of order {model.order}")
-    theta = np.r_[model.den[1:], model.nums[0, 1:], model.nums[1, 1:]]
-    values = _physical_from_theta(theta, model.dt, gamma)
-    jac = np.empty((6, 6))
-    for k in range(6):
-        # Forward differences: the map is smooth and a relative error of ~1e-6 on
-        # a standard error is immaterial; half the cost of central differences.
-        h = 1e-7 * max(abs(theta[k]), 1e-3)
-        tp = theta.copy()
-        tp[k] += h
-        jac[:, k] = (_physical_from_theta(tp, model.dt, gamma, False) - values) / h
+    cont, J_cont = tf_d2c_jacobian(model)   # rows: a1, a0, bI1, bI0, bw1, bw0 (continuous)
+    used = [0, 1, 2, 3, 5]                   # bw1 is structurally zero
+    c = np.r_[cont.den[1:], cont.nums[0, 1:], cont.nums[1, 2]]
+
+    def physical(v: FloatArray) -> FloatArray:
+        a1, a0, b1, b0, c0 = map(float, v)
+        return _coefficients_to_physical(a1, a0, b1, b0, c0, gamma)
+
+    values = physical(c)
+    dphys = np.empty((6, c.size))
+    for k in range(c.size):   # (a few divisions: central differences cost nothing)
+        h = 1e-6 * max(abs(c[k]), 1e-12)
+        up, down = c.copy(), c.copy()
+        up[k] += h
+        down[k] -= h
+        dphys[:, k] = (physical(up) - physical(down)) / (2 * h)
+    jac = dphys @ J_cont[used]
     cov = jac @ covariance @ jac.T
     return DCMotorParameters(*map(float, values)), cov

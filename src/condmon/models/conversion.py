@@ -284,7 +284,7 @@ def tf_d2c_jacobian(g: DiscreteTF) -> tuple[ContinuousTF, FloatArray]:
     Parameters
     ----------
     g : DiscreteTF
-        Discrete model in q^-1, monic denominator.
+        Discrete model in q^-1 (its denominator kept monic).
 
     Returns
     -------
@@ -314,8 +314,6 @@ def tf_d2c_jacobian(g: DiscreteTF) -> tuple[ContinuousTF, FloatArray]:
     >>> J.shape, bool(np.all(np.isfinite(J)))
     ((4, 4), True)
     """
-    if abs(float(g.den[0]) - 1.0) > 0.0:
-        raise ModelError("tf_d2c_jacobian expects a monic discrete denominator")
     A, B, C, D = _tf_to_ss(g.den, g.nums)
     n, m = A.shape[0], C.shape[0]
     _check_zoh_poles(A)
@@ -393,7 +391,7 @@ def _adjugate_terms(X: FloatArray, c: FloatArray) -> FloatArray:
 
 def d2c_coefficients(den: FloatArray, nums: FloatArray, dt: float
                      ) -> tuple[FloatArray, FloatArray]:
-    """:func:`tf_d2c` on bare coefficient arrays (no model objects; for hot loops).
+    """:func:`tf_d2c` on bare coefficient arrays (no model objects).
 
     Returns the monic continuous denominator (descending powers of s) and the
     numerators, shape (n_outputs, n+1).

@@ -159,3 +159,33 @@ def test_plain_files_read_as_pandas_reads_them(text: str) -> None:
                 return
         if plain is not None:
             _same(plain, frame)
+
+
+@pytest.mark.parametrize("frame,whole", [
+    (pd.DataFrame({"t": [0.0, 0.1, 0.2], "V": [1.0, 2.0, 3.0]}), True),
+    (pd.DataFrame({"t": [0.0, 0.1, 0.2], "n": np.array([1, 2, 2**53 + 1])}), True),  # an int
+    (pd.DataFrame({"t": np.arange(3, dtype=np.int64), "V": [1, 2, 3]}), False),     # ints only
+    (pd.DataFrame({"t": [0.0, 0.1, 0.2], "V": np.ones(3, dtype=np.float32)}), True),
+    (pd.DataFrame({"t": np.ones(3, dtype=np.float32)}), False),
+    (pd.DataFrame({"t": [0.0, 0.1, 0.2], "V": ["a", "b", "c"]}), False),
+    (pd.DataFrame({"t": [0.0, 0.1, 0.2], "V": [True, False, True]}), False),
+    (pd.DataFrame([[0.0, 1.0], [0.1, 2.0]], columns=["t", "t"]), False),
+    (pd.DataFrame([[0.0, 1.0], [0.1, 2.0]], columns=["t", 3]), False),
+])
+def test_a_frame_becomes_columns_only_when_it_converts_as_its_columns_do(
+        frame: pd.DataFrame, whole: bool) -> None:
+    """A frame is taken whole when its columns' common dtype is float64 (an
+    integer or float32 column beside float64 ones converts exactly as the
+    column-by-column path converts it); otherwise it is returned unchanged."""
+    from condmon.io.columns import as_columns, column_values
+
+    frame.attrs["source"] = "rig.csv"
+    out = as_columns(frame)
+    assert isinstance(out, Columns) is whole
+    if whole:
+        assert out.attrs == {"source": "rig.csv"}
+        for name in frame.columns:
+            np.testing.assert_array_equal(out[name], column_values(frame, name))
+            assert out[name].dtype == np.float64
+    else:
+        assert out is frame

@@ -168,9 +168,18 @@ def _solve_coefficients(lin: LinearStructure, target: FloatArray, start: FloatAr
     # spurious far-away solution. A bounded trust-region search is the fallback.
     best: FloatArray | None = None
     best_cost = np.inf
+    exact = target.size == start.size
+    settled = False   # over-determined: a least-squares solution found (a misfit remains)
     for x0 in (start, -start):
         p = _newton(res, jac, x0)
-        if p is None or _squares(res(p)) > 1e-20:
+        if not exact and p is not None and _stationary(res, jac, p):
+            settled = True
+        elif settled:   # (over-determined, a solution in hand: this start's as Newton left it)
+            if p is None:
+                continue
+        # the search where Newton failed, or left an exact system unsolved, or
+        # (over-determined) stopped short of a stationary point
+        elif p is None or _squares(res(p)) > 1e-20:
             from scipy.optimize import least_squares
 
             try:
@@ -198,6 +207,16 @@ def _solve_coefficients(lin: LinearStructure, target: FloatArray, start: FloatAr
         raise ConversionError("no parameter values reproduce the estimated coefficients "
                               f"(relative mismatch {np.sqrt(best_cost):.2g})")
     return best
+
+
+def _stationary(res: Any, jac: Any, p: FloatArray) -> bool:
+    """Whether ``p`` is a stationary point of ``Σ res²``: the gradient ``Jᵀr``
+    within 1e-8 of ``‖J‖ ‖r‖`` (where Gauss-Newton has converged)."""
+    with np.errstate(all="ignore"):
+        r, J = res(p), jac(p)
+        g = float(np.linalg.norm(J.T @ r))
+        scale = float(np.linalg.norm(J)) * float(np.linalg.norm(r))
+    return bool(np.isfinite(g) and np.isfinite(scale) and g <= 1e-8 * scale)
 
 
 def _squares(r: FloatArray) -> float:

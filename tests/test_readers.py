@@ -6,6 +6,7 @@ is one DataError line naming the file: never a parser's own exception.
 
 from __future__ import annotations
 
+import json
 import time
 import warnings
 from pathlib import Path
@@ -613,3 +614,24 @@ def test_columns_naming_a_state_says_so_and_names_its_sensor(
     err = capsys.readouterr().err
     assert "'x' is a state of model 'my-machine', not a record column" in err
     assert "write pos=pos" in err and len(err.strip().splitlines()) == 1
+
+
+def test_the_readme_column_map_of_a_sensor_named_like_its_state_is_taken(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """README's `--columns V=volts,I=amps,omega=speed`: the DC motor's sensors
+    I and omega share their states' names, and the map was refused as naming
+    a state, with a hint to write what had been written."""
+    from condmon.cli.main import main
+
+    rec = tmp_path / "healthy.csv"
+    assert main(["simulate", "actuator", "--out", str(rec), "--seed", "1"]) == 0
+    frame = pd.read_csv(rec).rename(columns={"V": "volts", "I": "amps", "omega": "speed"})
+    renamed = tmp_path / "rig.csv"
+    frame.to_csv(renamed, index=False)
+    capsys.readouterr()
+    assert main(["estimate", str(renamed), "--columns", "V=volts,I=amps,omega=speed",
+                 "--json"]) == 0
+    mapped = json.loads(capsys.readouterr().out)
+    assert main(["estimate", str(rec), "--json"]) == 0
+    plain = json.loads(capsys.readouterr().out)
+    assert mapped["parameters"] == plain["parameters"]

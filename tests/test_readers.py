@@ -401,6 +401,30 @@ def test_parquet_datetime_time_column(tmp_path: Path) -> None:
     assert validate_record(df, ("V", "I")).dt == pytest.approx(DT)
 
 
+
+def test_repeated_column_names_are_refused_naming_the_column(tmp_path: Path) -> None:
+    """A Parquet file's repeated name gave Arrow's message about its internal
+    fields; a DataFrame's gave a raw AttributeError. A column named once is
+    still taken beside a repeated one the model does not read."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    s = _signals()
+    table = pa.table([s["t"], s["V"], s["I"], s["I"]], names=["t", "V", "I", "I"])
+    p = tmp_path / "twice.parquet"
+    pq.write_table(table, p)
+    with pytest.raises(DataError, match=r"twice\.parquet: the file has 2 columns named 'I'; "
+                                        r"rename one"):
+        read_record(p)
+    frame = pd.DataFrame(np.column_stack([s["t"], s["V"], s["I"], s["V"]]),
+                         columns=["t", "V", "I", "V"])
+    with pytest.raises(DataError, match=r"^rig: the frame has 2 columns named 'V'; rename"):
+        validate_record(frame, ("V", "I"), source="rig")
+    frame.columns = ["t", "V", "I", "x"]
+    frame = pd.concat([frame, frame[["x"]]], axis=1)
+    assert validate_record(frame, ("V", "I")).dt == pytest.approx(DT)
+
+
 # --------------------------------------------------------------------------- time base
 
 def test_check_time_base_reports_jitter_and_row() -> None:

@@ -150,6 +150,11 @@ def _read_parquet(p: Path) -> pd.DataFrame:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
+    names = pq.read_schema(p).names
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:  # Arrow's own message names its internal fields, not the file's
+        raise DataError(f"{p}: the file has {names.count(twice[0])} columns named "
+                        f"{twice[0]!r}; rename one (condmon would not know which to use)")
     table = pq.read_table(p)
     frame: pd.DataFrame = table.to_pandas(self_destruct=True, split_blocks=True)
     del table

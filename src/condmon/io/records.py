@@ -217,6 +217,13 @@ def validate_record(df: pd.DataFrame | Columns, required: Sequence[str],
             f"{missing[0]}=FILE_COLUMN in --columns or [record.columns])", tuple(missing),
             tuple(map(str, df.columns)))
     names += [c for c in optional if c in df.columns and c not in names]
+    if not isinstance(df, Columns) and not df.columns.is_unique:
+        listed = list(map(str, df.columns))
+        twice = [c for c in names if listed.count(c) > 1]
+        if twice:
+            raise DataError(f"{src}: the frame has {listed.count(twice[0])} columns named "
+                            f"{twice[0]!r}; rename or drop all but one (condmon would not "
+                            "know which to use)")
     n_rows = len(df)
     cols: dict[str, FloatArray] = {}
     for name in names:

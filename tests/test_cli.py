@@ -238,6 +238,55 @@ def test_bad_input_is_one_line_exit_2(args: list[str], message: str, tmp_path: P
     assert "Traceback" not in err and err.strip().startswith("error:")
 
 
+def test_a_value_near_the_float_limit_is_one_line_without_a_numpy_warning(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """1e300 in a column overflowed the record's fingerprint first, printing
+    numpy's "overflow encountered in square" above the error."""
+    frame = simulate_actuator(seed=0)
+    frame.loc[1234, "omega"] = 1e300
+    rec = tmp_path / "huge.csv"
+    frame.to_csv(rec, index=False)
+    assert main(["estimate", str(rec)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "overflow" not in err, err
+    assert "column 'omega' has 1 value(s) beyond 1e+15 in magnitude (row 1234" in err
+
+
+def test_a_method_written_in_capitals_is_taken(tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    rec = tmp_path / "r.csv"
+    simulate_actuator(seed=0).to_csv(rec, index=False)
+    assert main(["estimate", str(rec), "--method", "SRIV", "--json"]) == 0
+    upper = json.loads(capsys.readouterr().out)
+    assert main(["estimate", str(rec), "--json"]) == 0
+    assert upper["parameters"] == json.loads(capsys.readouterr().out)["parameters"]
+
+
+def test_a_baseline_add_that_fails_on_a_record_says_what_it_stored(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A bad third file ended the command with its own error only, while the
+    two before it were stored: the user could not tell."""
+    db = str(tmp_path / "h.db")
+    files = _healthy_files(tmp_path, 2)
+    empty = tmp_path / "empty.csv"
+    empty.write_text("")
+    assert main(["baseline", "add", *files, str(empty), "--unit", "U", "--db", db]) == 2
+    assert capsys.readouterr().err.strip() == f"error: {empty}: the file is empty"
+    assert not Path(db).exists()   # told before anything was estimated
+    frame = simulate_actuator(seed=9)
+    frame.loc[100, "I"] = float("nan")
+    bad = tmp_path / "nan.csv"
+    frame.to_csv(bad, index=False)
+    assert main(["baseline", "add", *files, str(bad), "--unit", "U", "--db", db]) == 2
+    err = capsys.readouterr().err.replace("\n", "")
+    assert "column 'I'" in err and "(record 3 of 3; the 2 record(s) before it are stored as " \
+        "tests of 'U' (" in err and "the stored ones are skipped)" in err
+    assert main(["history", "--unit", "U", "--db", db, "--json"]) == 0
+    assert len(json.loads(capsys.readouterr().out)) == 2
+    assert main(["baseline", "add", str(bad), *files, "--unit", "U", "--db", db]) == 2
+    assert "(record 1 of 3; nothing was stored)" in capsys.readouterr().err.replace("\n", "")
+
+
 def test_usage_error_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["estimate"]) == 2
 

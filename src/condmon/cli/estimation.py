@@ -40,6 +40,7 @@ def options(method: str, gamma: float | None, excitation: str, columns: str | No
     from condmon.io.rig import settings_from_options
     from condmon.workflows.records import EstimateOptions
 
+    method = method.strip().lower()  # SRIV, as papers write it, is sriv
     if method not in list_estimators():
         raise CondmonError(f"unknown --method {method!r}; allowed: {', '.join(list_estimators())}")
     exc: str | tuple[str, ...] | None

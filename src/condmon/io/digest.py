@@ -160,8 +160,12 @@ def fingerprint(df: pd.DataFrame | Columns, columns: Iterable[str] | None = None
     for name in _data_columns(df, columns):
         x = column_values(df, name)
         finite = x[np.isfinite(x)]
-        figures = [float(finite.mean()) if finite.size else math.nan,
-                   float(finite.std()) if finite.size else math.nan, *map(float, x[idx])]
+        # values near the float64 limit (a corrupt column, refused by the
+        # record's validation after this) overflow the mean and std: an inf
+        # figure is kept as None, as a NaN one is, without numpy's warning
+        with np.errstate(over="ignore", invalid="ignore"):
+            figures = [float(finite.mean()) if finite.size else math.nan,
+                       float(finite.std()) if finite.size else math.nan, *map(float, x[idx])]
         cols[name] = [v if math.isfinite(v) else None for v in figures]
     return fingerprint_prefix(n) + json.dumps({"columns": cols}, separators=(",", ":"))[1:]
 

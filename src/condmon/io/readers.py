@@ -35,7 +35,7 @@ from condmon.io.size import check_record_size
 if TYPE_CHECKING:  # pandas only where a DataFrame is made or read: not on import
     import pandas as pd
 
-__all__ = ["READABLE_SUFFIXES", "read_record"]
+__all__ = ["READABLE_SUFFIXES", "check_record_path", "read_record"]
 
 #: File suffixes :func:`read_record` reads (case-insensitive).
 READABLE_SUFFIXES = (".csv", ".parquet", ".pq", ".txt", ".tsv", ".mat", ".tdms")
@@ -90,15 +90,8 @@ def read_record(path: str | Path, columns: Mapping[str, str] | None = None) -> p
     ([0.0, 0.001], [1.5, 2.5], '2026-11-23T10:00:00')
     >>> d.cleanup()
     """
-    p = Path(path)
-    if not p.exists():
-        raise DataError(f"{p}: file not found")
+    p = check_record_path(path)
     suffix = p.suffix.lower()
-    if suffix not in READABLE_SUFFIXES:
-        raise DataError(f"{p}: unknown file type {suffix!r}; allowed: "
-                        f"{', '.join(READABLE_SUFFIXES)}")
-    if not p.is_file():
-        raise DataError(f"{p}: not a file")
     mapping = dict(columns or {})
     twice = sorted({f for f in mapping.values() if list(mapping.values()).count(f) > 1})
     if twice:
@@ -106,8 +99,6 @@ def read_record(path: str | Path, columns: Mapping[str, str] | None = None) -> p
         raise DataError(f"{p}: the column mapping gives the file's column {twice[0]!r} to "
                         f"{' and '.join(map(repr, takers))}; a file column reads as one "
                         "model column (map the others to other columns)")
-    if p.stat().st_size == 0:
-        raise DataError(f"{p}: the file is empty")
     try:
         check_record_size(p, suffix)
         return _finish(_read_raw(p, suffix, mapping.get("t")), p, mapping)
@@ -118,6 +109,36 @@ def read_record(path: str | Path, columns: Mapping[str, str] | None = None) -> p
                         "[records] max_samples of condmon/data/limits.toml") from None
     except Exception as err:  # parser errors of every kind become one clear line
         raise DataError(f"{p}: cannot read as a {_KINDS[suffix]} file: {one_line(err)}") from None
+
+
+def check_record_path(path: str | Path) -> Path:
+    """``path`` as a :class:`~pathlib.Path` once it names a non-empty file of
+    a readable type: what can be told of a record without reading it.
+
+    Raises
+    ------
+    DataError
+        The file is missing, not a file, empty or of an unknown type.
+
+    Example
+    -------
+    >>> check_record_path("rig.xlsx")
+    Traceback (most recent call last):
+    ...
+    condmon.errors.DataError: rig.xlsx: file not found
+    """
+    p = Path(path)
+    if not p.exists():
+        raise DataError(f"{p}: file not found")
+    suffix = p.suffix.lower()
+    if suffix not in READABLE_SUFFIXES:
+        raise DataError(f"{p}: unknown file type {suffix!r}; allowed: "
+                        f"{', '.join(READABLE_SUFFIXES)}")
+    if not p.is_file():
+        raise DataError(f"{p}: not a file")
+    if p.stat().st_size == 0:
+        raise DataError(f"{p}: the file is empty")
+    return p
 
 
 def _read_raw(p: Path, suffix: str, time_column: str | None) -> RawRecord:

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
 from datetime import datetime
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -22,9 +22,10 @@ import pandas as pd
 
 from condmon.diagnose.diagnoser import Diagnosis, diagnose
 from condmon.diagnose.rules import RuleBase, machine_rules
-from condmon.errors import DataError, EstimationError, MissingColumnsError
+from condmon.errors import CondmonError, DataError, EstimationError, MissingColumnsError
 from condmon.identify.estimate import EstimateResult
 from condmon.io.dates import parse_date
+from condmon.io.readers import check_record_path
 from condmon.models.machine import Machine
 from condmon.models.regimes import split_key
 from condmon.models.registry import get_model
@@ -43,6 +44,7 @@ from condmon.store.baselines import (  # read from the store only; kept here for
     StoredBaseline, _baseline_of, baseline_members, current_baseline,
 )
 from condmon.store.db import DuplicateTestError, HistoryStore
+from condmon.workflows.baseline_results import AddedTest, BaselineAddResult, say_what_was_stored
 from condmon.workflows.records import EstimateOptions, RecordKey, RecordLike, record_key
 from condmon.workflows.unit_model import session_timed, unit_options
 
@@ -53,74 +55,6 @@ __all__ = ["EstimateOptions", "AddedTest", "BaselineAddResult", "RecordKey",
            "no_baseline_yet", "baseline_notes", "in_time_order"]
 
 Progress = Callable[[int, int, str], None]
-
-
-@dataclass(frozen=True)
-class AddedTest:
-    """One record offered to the baseline: stored, rejected, a duplicate or refused.
-
-    ``refused`` records (a likely unit or sign error against the baseline so
-    far) are not stored; their ``test_id`` is -1 and ``reason`` says why.
-    ``warning`` is something to look at in a stored record (the same record
-    already filed under another unit).
-    """
-
-    source: str
-    test_id: int
-    accepted: bool
-    duplicate: bool
-    reason: str | None = None
-    refused: bool = False
-    warning: str | None = None
-
-
-@dataclass(frozen=True)
-class BaselineAddResult:
-    """Outcome of adding healthy tests.
-
-    Attributes
-    ----------
-    tests : tuple of AddedTest
-    baseline : Baseline or None
-        The unit's baseline after the additions (None while fewer than 3
-        accepted healthy tests exist).
-    baseline_id : int or None
-    message : str
-    flags : tuple of dict
-        Why the baseline may not be trustworthy (see
-        :func:`condmon.monitor.assess_baseline`: an outlier, a trend in time
-        order); empty when nothing is suspicious.
-    notes : tuple of str
-        What the user should know at once (a model monitored generically).
-    units : dict of str to str
-        Unit of each of the model's parameters (a regime's ``Tc@forward`` has
-        ``Tc``'s); empty without a baseline.
-    info : tuple of dict
-        What is known of the baseline and is no warning: the parameters whose
-        tests scatter more than their standard errors say (kind ``scatter``,
-        see :func:`condmon.monitor.baseline.baseline_scatter`).
-    """
-
-    tests: tuple[AddedTest, ...]
-    baseline: Baseline | None
-    baseline_id: int | None
-    message: str
-    flags: tuple[dict[str, Any], ...] = ()
-    notes: tuple[str, ...] = ()
-    units: dict[str, str] = field(default_factory=dict)
-    info: tuple[dict[str, Any], ...] = ()
-
-    def _repr_html_(self) -> str:
-        from condmon.report.notebook import html_table
-        from condmon.report.tables import esc
-
-        rows = [(t.source, t.test_id if t.test_id >= 0 else "—",
-                 "refused" if t.refused else "already there" if t.duplicate else
-                 "accepted" if t.accepted else "rejected", t.reason or "")
-                for t in self.tests]
-        warn = "".join(f"<p>warning: {esc(f.get('message', f))}</p>" for f in self.flags)
-        return (f"<p>{esc(self.message)}</p>" + warn
-                + html_table(["record", "test", "outcome", "reason"], rows))
 
 
 def unit_monitor(store: HistoryStore, unit: str, baseline: Baseline | None = None
@@ -496,7 +430,9 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
     """Estimate healthy records and store them as the unit's baseline tests.
 
     Each record is committed on its own, so an interruption keeps every record
-    finished before it. A record already in the unit's history (the same
+    finished before it. Every file is looked at before any is estimated (it
+    exists, is not empty, is of a readable type); a record refused with an
+    error later says which records before it were stored. A record already in the unit's history (the same
     content, whatever the file) is skipped. Once at least 3 accepted healthy
     tests exist, the new ones join the unit's active baseline (a new version,
     with its plausibility flags) and the unit's checks are evaluated against it.
@@ -510,13 +446,20 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
 
         check_name(group, "group name")
     machine = get_model(opts.model or "dc-motor")
-    added = []
+    for rec in records:
+        if isinstance(rec, (str, Path)):
+            check_record_path(rec)
+    added: list[AddedTest] = []
     for i, rec in enumerate(records):
         name = str(rec) if not isinstance(rec, pd.DataFrame) else rec.attrs.get("source", f"record {i}")
         if progress is not None:
             progress(i, len(records), str(name))
         prior = _existing_baseline(store, unit)
-        res, key, why = estimate_judged(opts, rec, test_date, prior)
+        try:
+            res, key, why = estimate_judged(opts, rec, test_date, prior)
+        except CondmonError as err:
+            say_what_was_stored(err, i, len(records), added, unit)
+            raise
         if why is not None:
             added.append(AddedTest(res.source, -1, False, False, why, refused=True))
             continue

@@ -253,12 +253,24 @@ def test_a_parquet_table_goes_in_through_the_notebook_api(tmp_path: Path) -> Non
     ("date,capacity\n" + "".join(f"{k:02d}/01/2024,{1.85 - 0.001 * k}\n"
                                    for k in range(1, 11)), "is not an ISO 8601 date"),
     ("Cycle,capacity\n1,1.9\n", "names are case-sensitive: 'Cycle'"),
+    ("cycle,capacity\n" + "".join(f"{k},{1850 - k}\n" for k in range(1, 11)),
+     "rows 1-5 (the baseline of unit 'C1'), column 'capacity': their mean 1847 is 924 times "
+     "the declared rated value (2 Ah); values in another unit than Ah?"),
+    ("cycle,capacity\n" + "".join(f"{k},{1.85 - 0.001 * k}\n" for k in range(1, 11))
+     + '11,"1,750"\n', "row 11 (line 12), column 'capacity': '1,750' has a comma, and the "
+                        "table's cells are separated by commas: a thousands separator or a "
+                        "decimal comma?"),
+    ("cycle;capacity\n" + "".join(f"{k};{1.85 - 0.001 * k}\n" for k in range(1, 11))
+     + "11;1,750\n", "row 11 (line 12), column 'capacity': '1,750' has a comma, and row 1 of "
+                      "the column has a decimal point"),
     ("cycle,capacity\n", "no rows under the header"),
 ])
 def test_values_a_unit_cannot_have_are_refused(tmp_path: Path, content: str,
                                                needle: str) -> None:
     """A value in other units (mAh for Ah), a missing reading written as 0, a
-    huge number, a day-first date, a header in other case, no rows."""
+    huge number, a day-first date, a header in other case, no rows; a whole
+    table in mAh against the declared 2 Ah; a comma that may separate
+    thousands (it was read as a decimal comma: "1,750" became 1.75)."""
     bad = tmp_path / "bad.csv"
     bad.write_text(content)
     with open_store("sqlite://") as store:

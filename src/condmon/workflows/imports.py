@@ -100,21 +100,49 @@ def _read(path: Path) -> pd.DataFrame:
             header = fh.readline()
         # a table written with ';' between cells (and ',' for the decimal point)
         semi = ";" in header and "," not in header
-        return pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True,
-                           sep=";" if semi else ",", encoding="utf-8-sig")
+        df = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True,
+                         sep=";" if semi else ",", encoding="utf-8-sig")
+        df.attrs["separator"] = ";" if semi else ","
+        return df
     except (OSError, ValueError, ImportError) as err:
         why = " ".join(str(err).split())
         raise DataError(f"{path}: cannot be read as a table ({why}); nothing was stored"
                         ) from None
 
 
+def _decimal_commas(path: Path, df: pd.DataFrame) -> pd.DataFrame:
+    """``df`` with each decimal comma of its text columns read as a point.
+
+    A comma is a decimal mark only in a column none of whose cells has a
+    point, of a table not separated by commas ("1,856" in a table of ';').
+    Otherwise ("1,750" quoted in a table of ',', or beside "1.85") it may as
+    well separate thousands: the first such cell is refused, not guessed."""
+    comma_table = df.attrs.get("separator") == ","
+    for col in df.columns:
+        if col in ("unit", "date") or pd.api.types.is_numeric_dtype(df[col]):
+            continue
+        text = df[col].astype(str)
+        commas = text.str.contains(",", regex=False).to_numpy()
+        if not commas.any():
+            continue
+        i = int(np.flatnonzero(commas)[0])
+        dotted = text.str.contains(".", regex=False).to_numpy()
+        if comma_table or dotted.any():
+            why = ("the table's cells are separated by commas" if comma_table else
+                   f"row {int(np.flatnonzero(dotted)[0]) + 1} of the column has a decimal point")
+            raise DataError(f"{path}: row {i + 1} (line {i + 2}), column {col!r}: "
+                            f"{text.iloc[i]!r} has a comma, and {why}: a thousands separator "
+                            "or a decimal comma? write the number without it; nothing was "
+                            "stored")
+        df[col] = text.str.replace(",", ".", regex=False)
+    return df
+
+
 def _numbers(path: Path, df: pd.DataFrame, col: str, *, nonneg: bool = False) -> np.ndarray:
     """A column as float64, every cell a finite number of sane size (the first
-    bad one named by the table's row). A decimal comma ("1,856" in a table
-    of ';') reads as a point."""
+    bad one named by the table's row)."""
     raw = df[col]
-    text = raw if pd.api.types.is_numeric_dtype(raw) else \
-        raw.astype(str).str.strip().str.replace(",", ".", regex=False)
+    text = raw if pd.api.types.is_numeric_dtype(raw) else raw.astype(str).str.strip()
     vals = pd.to_numeric(text, errors="coerce").to_numpy(dtype=np.float64)
     with np.errstate(invalid="ignore"):
         bad = ~np.isfinite(vals) | (np.abs(vals) > _HUGE) | ((vals < 0) if nonneg else False)
@@ -159,6 +187,7 @@ def read_indicator_table(path: str | Path | pd.DataFrame, model: IndicatorModel,
     df.columns = [str(c).strip() for c in df.columns]
     if not len(df):
         raise DataError(f"{p}: no rows under the header; nothing was stored")
+    df = _decimal_commas(p, df)
     axes = [a for a in AXES if a in df.columns]
     names = model.names
     if not axes:
@@ -406,6 +435,9 @@ def _plan_unit(store: HistoryStore, unit: str, table: pd.DataFrame, model: Indic
                                 f"{int(first['row'].iloc[-1])} (the baseline of unit {unit!r}), "
                                 f"column {n!r}: their mean is 0, so a change from it is "
                                 "undefined; nothing was stored")
+        for ind in mine.indicators:
+            if ind.name in names:
+                _near_its_declared_size(path, unit, first, ind)
         new_base = make_baseline([{n: float(r[n]) for n in names} for _, r in first.iterrows()])
         base, baseline_id = new_base, None
     for ind in mine.indicators:
@@ -431,6 +463,26 @@ def _plan_unit(store: HistoryStore, unit: str, table: pd.DataFrame, model: Indic
             pd.Timestamp(r["date"]).to_pydatetime() if "date" in r.index else None, judged))
     return _Plan(unit, tests, new_base, baseline_id, n_base, len(table) - len(fresh), last,
                  ", ".join(axes), eol)
+
+
+def _near_its_declared_size(path: Path, unit: str, first: pd.DataFrame, ind: Any) -> None:
+    """Refuse a new baseline whose mean is beyond :data:`MAX_CHANGE` times (or
+    a fraction) of the declared rated value or absolute end-of-life level:
+    values in another unit (mAh for a declared Ah) would else be trended,
+    judged against a level a thousand times off and forecast."""
+    mean = float(first[ind.name].mean())
+    sizes = [("rated value", ind.rated)] if ind.rated else []
+    if ind.end_of_life is not None and ind.end_of_life.kind == "level":
+        sizes.append(("end-of-life level", ind.end_of_life.value))
+    for what, size in sizes:
+        ratio = mean / size if size else math.nan
+        if 1.0 / MAX_CHANGE <= ratio <= MAX_CHANGE:
+            continue
+        raise DataError(f"{path}: rows {int(first['row'].iloc[0])}-{int(first['row'].iloc[-1])} "
+                        f"(the baseline of unit {unit!r}), column {ind.name!r}: their mean "
+                        f"{mean:.4g} is {ratio:.3g} times the declared {what} "
+                        f"({size:g} {ind.unit}); values in another unit than {ind.unit}? "
+                        f"(more than {MAX_CHANGE:g}x either way is refused); nothing was stored")
 
 
 def _believable(path: Path, unit: str, rows: pd.DataFrame, ind: Any, base: Baseline) -> None:

@@ -287,6 +287,37 @@ def test_a_baseline_add_that_fails_on_a_record_says_what_it_stored(
     assert "(record 1 of 3; nothing was stored)" in capsys.readouterr().err.replace("\n", "")
 
 
+def test_a_check_whose_record_leaves_a_parameter_held_says_which_faults_it_cannot_see(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Basic IV does not identify D on the built-in test (its relative standard
+    error would be 150 %): D is held at nominal, a 7x friction fault goes into
+    the other parameters, and the check said "go: no fault". It still is go,
+    but it now says that friction is not judged."""
+    db = str(tmp_path / "h.db")
+    files = _healthy_files(tmp_path, 4, seed0=11)
+    assert main(["baseline", "add", *files, "--unit", "M", "--db", db, "--method", "iv"]) == 0
+    worn = tmp_path / "worn.csv"
+    simulate_actuator(load_actuator_rig(faults=["D=*7"]), seed=2).to_csv(worn, index=False)
+    capsys.readouterr()
+    assert main(["check", str(worn), "--unit", "M", "--db", db, "--method", "iv", "--json",
+                 "--dry-run"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert "D" in doc["held"] and "D" not in doc["percent_change"]
+    assert doc["unseen"] == [{"fault": "friction increase", "parameters": ["D"],
+                              "text": "friction increase (no judged value of D)"}]
+    assert "not judged: friction increase (no judged value of D)" in doc["summary"]
+    assert main(["check", str(worn), "--unit", "M", "--db", db, "--method", "iv",
+                 "--dry-run"]) == 0
+    out = capsys.readouterr().out.replace("\n", " ")
+    assert "1 fault(s) not judged" in out and "not judged by this test" in out
+    (tmp_path / "more").mkdir()
+    healthy = _healthy_files(tmp_path / "more", 1, seed0=40)[0]
+    assert main(["check", healthy, "--unit", "M", "--db", db, "--method", "iv", "--json",
+                 "--dry-run"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["status"] == "go"
+
+
 def test_usage_error_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["estimate"]) == 2
 

@@ -183,3 +183,26 @@ def test_centroid_is_scikit_fuzzys_to_the_bit() -> None:
     ragged = rng.uniform(0.0, 1.0, _UNIVERSE.size) * (rng.uniform(size=_UNIVERSE.size) > 0.3)
     assert _centroid(_UNIVERSE, ragged) == float(fuzz.defuzz(_UNIVERSE, ragged, "centroid"))
 
+
+
+def test_a_fault_whose_symptom_has_no_value_is_not_judged_and_said() -> None:
+    """A parameter held (not identified by the record) has no symptom: its
+    faults cannot show, and a "go" must not read as their absence."""
+    zero = {"high": 0.0, "low": 0.0}
+    every = ("R", "L", "Ke", "Kt", "J", "D")
+    full = diagnose({p: dict(zero) for p in every}, parameters=every)
+    assert full.unseen == () and full.summary == "go: no fault"
+    without_d = diagnose({p: dict(zero) for p in every if p != "D"}, parameters=every)
+    assert without_d.status == "go"
+    assert [(u.fault, u.parameters) for u in without_d.unseen] == [("friction increase", ("D",))]
+    assert without_d.summary.endswith("not judged: friction increase (no judged value of D)")
+    assert without_d.to_dict()["unseen"][0]["fault"] == "friction increase"
+    # a rule that only needs L to be low-free still shows; those needing L do not
+    without_l = diagnose({p: dict(zero) for p in every if p != "L"}, parameters=every)
+    assert [u.fault for u in without_l.unseen] == ["winding fault", "shorted winding"]
+    # a symptom of a judged parameter still names its fault beside the unseen one
+    hot = {p: dict(zero) for p in every if p != "D"}
+    hot["R"]["high"] = 1.0
+    named = diagnose(hot, parameters=every)
+    assert named.status == "no-go" and named.faults[0].name == "winding resistance increase"
+    assert [u.fault for u in named.unseen] == ["friction increase"]

@@ -89,6 +89,8 @@ def register(app: typer.Typer) -> None:
                   + (f", regime {escape(res.estimate.regime_label)}"
                      if res.estimate.regime_label else "")
                   + (f", against {escape(res.against)}" if res.against != "unit" else "")
+                  + (f", {len(res.diagnosis.unseen)} fault(s) not judged"
+                     if res.diagnosis is not None and res.diagnosis.unseen else "")
                   + (f", test #{res.test_id})" if res.test_id >= 0 else ", not stored)"))
         if res.not_judged is not None:
             out.print(f"not judged: {res.not_judged}: the baseline's tests do not span these "
@@ -142,6 +144,10 @@ def register(app: typer.Typer) -> None:
             out.print(f"{u.text}: {u.kind}({u.parameter}) is {u.degree:.2f} and no fault rule "
                       "naming it holds to advisory level", highlight=False, markup=False,
                       soft_wrap=True)
+        if res.diagnosis.unseen:
+            out.print("not judged by this test (its status says nothing of them): " + ", ".join(
+                u.text for u in res.diagnosis.unseen), highlight=False, markup=False,
+                soft_wrap=True)
         if res.diagnosis.watch:
             out.print("to watch (below advisory level, not faults): " + ", ".join(
                 f"{f.name} ({f.degree:.2f})" for f in res.diagnosis.watch), highlight=False,

@@ -18,7 +18,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from condmon.diagnose.evidence import (
-    AMBIGUITY_TOLERANCE, CandidateSet, UnexplainedChange, candidate_sets, unexplained_changes,
+    AMBIGUITY_TOLERANCE, CandidateSet, UnexplainedChange, UnseenFault, candidate_sets,
+    unexplained_changes, unseen_faults,
 )
 from condmon.diagnose.rules import RuleBase, evaluate, load_rules
 from condmon.models.regimes import split_key
@@ -103,6 +104,10 @@ class Diagnosis:
         Clear symptoms (at least :func:`advisory_degree`) that no fault rule
         accounts for: "change detected in P (low), cause not determined".
         They never change the status.
+    unseen : tuple of UnseenFault
+        Faults the test cannot show: a symptom each of their rules needs is of
+        a parameter with no value in this test (not identified by the record,
+        held). "go" says nothing of them; they never change the status.
     calibrated : str
         How the calibrated change test governed the status, when it did
         (:func:`condmon.monitor.statistics.governed`); "" otherwise.
@@ -117,6 +122,7 @@ class Diagnosis:
     candidates: tuple[CandidateSet, ...] = ()
     undetermined: tuple[UnexplainedChange, ...] = ()
     calibrated: str = ""
+    unseen: tuple[UnseenFault, ...] = ()
 
     @property
     def no_fault(self) -> bool:
@@ -140,6 +146,8 @@ class Diagnosis:
                  if watched else "")
         changes = "".join(f"; {c.text}" for c in self.undetermined)
         changes += f"; {self.calibrated}" if self.calibrated else ""
+        if self.unseen:
+            changes += "; not judged: " + ", ".join(u.text for u in self.unseen)
         if self.no_fault:
             return f"{self.status}: no fault{' named' if changes else ''}{changes}{watch}"
         if self.candidates:
@@ -157,6 +165,7 @@ class Diagnosis:
                 "candidates": [c.to_dict() for c in self.candidates],
                 "ambiguous": self.ambiguous,
                 "undetermined": [c.to_dict() for c in self.undetermined],
+                "unseen": [u.to_dict() for u in self.unseen],
                 "calibrated": self.calibrated or None,
                 "preprocessing_applied": list(self.applied)}
 
@@ -276,6 +285,7 @@ def diagnose(symptoms: Mapping[str, Mapping[str, float]], rules: RuleBase | None
         high[p] = max(high.get(p, 0.0), float(v["high"]))
         low[p] = max(low.get(p, 0.0), float(v["low"]))
     rb.check_parameters(list(parameters) if parameters is not None else list(high))
+    unseen = unseen_faults(rb, rb.parameters() - set(high))
     for p in rb.parameters():
         high.setdefault(p, 0.0)
         low.setdefault(p, 0.0)
@@ -316,7 +326,7 @@ def diagnose(symptoms: Mapping[str, Mapping[str, float]], rules: RuleBase | None
                                 advisory_degree(rb))
     unexplained = unexplained_changes(degrees, rb, high, low, advisory_degree(rb))
     return Diagnosis(status, condition, tuple(faults), sym, tuple(applied), tuple(watch),
-                     candidates, unexplained)
+                     candidates, unexplained, unseen=unseen)
 
 
 def _infer(sets: tuple[FloatArray, ...], worst: float, major: float, minor: float

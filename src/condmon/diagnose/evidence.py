@@ -53,13 +53,14 @@ The rule, precisely (``mu(s)`` is the degree of symptom ``s`` = ``high(P)`` or
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from condmon.diagnose.rules import Atom, Expr, RuleBase
 
-__all__ = ["AMBIGUITY_TOLERANCE", "CandidateSet", "UnexplainedChange", "polarities",
+__all__ = ["AMBIGUITY_TOLERANCE", "CandidateSet", "UnexplainedChange", "UnseenFault",
+           "unseen_faults", "polarities",
            "discriminating", "candidate_sets", "unexplained_changes"]
 
 #: Degrees (and evidence) closer than this are "equal": no discrimination. [-]
@@ -179,6 +180,54 @@ def polarities(rules: RuleBase) -> dict[str, Polarity]:
         _walk(rule.condition, False, seen.setdefault(rule.name, {}))
     return {name: {a: (0 if len(s) == 2 else -1 if True in s else 1) for a, s in atoms.items()}
             for name, atoms in seen.items()}
+
+
+@dataclass(frozen=True)
+class UnseenFault:
+    """A fault this test cannot see: a symptom its rules need is of a
+    parameter the test has no value of (not identified by the record, held
+    at a declared or baseline value, or not in the baseline).
+
+    Example
+    -------
+    >>> UnseenFault("friction increase", ("D",)).text
+    'friction increase (no judged value of D)'
+    """
+
+    fault: str
+    parameters: tuple[str, ...]
+
+    @property
+    def text(self) -> str:
+        """``friction increase (no judged value of D)``."""
+        return f"{self.fault} (no judged value of {', '.join(self.parameters)})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return {"fault": self.fault, "parameters": list(self.parameters), "text": self.text}
+
+
+def unseen_faults(rules: RuleBase, absent: Collection[str]) -> tuple[UnseenFault, ...]:
+    """The faults whose every rule needs a positive symptom of a parameter in
+    ``absent``: with no value of it, the test cannot show them, and a "go"
+    says nothing of them.
+
+    Example
+    -------
+    >>> from condmon.diagnose.rules import load_rules
+    >>> [u.fault for u in unseen_faults(load_rules(), {"D"})]
+    ['friction increase']
+    """
+    if not absent:
+        return ()
+    needs: dict[str, list[set[str]]] = {}
+    for rule in rules.faults:
+        signs: dict[Atom, set[bool]] = {}
+        _walk(rule.condition, False, signs)
+        needs.setdefault(rule.name, []).append(
+            {a.parameter for a, s in signs.items() if False in s and a.parameter in absent})
+    return tuple(UnseenFault(name, tuple(sorted(set.union(*rules_))))
+                 for name, rules_ in needs.items() if all(rules_))
 
 
 def _mu(a: Atom, high: Mapping[str, float], low: Mapping[str, float]) -> float:

@@ -168,6 +168,8 @@ class CheckResult:
                            [c.to_dict() for c in self.diagnosis.candidates]),
             "undetermined": ([] if self.diagnosis is None else
                              [u.to_dict() for u in self.diagnosis.undetermined]),
+            "unseen": ([] if self.diagnosis is None else
+                       [u.to_dict() for u in self.diagnosis.unseen]),
             "regime": self.estimate.regime_label,
             "windows": est["windows"],
             "identifiable": {**est["identifiable"],

@@ -427,6 +427,28 @@ def test_repeated_column_names_are_refused_naming_the_column(tmp_path: Path) -> 
 
 # --------------------------------------------------------------------------- time base
 
+def test_a_float32_time_column_is_judged_at_its_own_resolution(tmp_path: Path) -> None:
+    """A 25 s record at 1 kHz saved as float32 Parquet: float32 holds 16 s to
+    1.9 µs, 0.19 % of the interval, and the record was refused as jittery."""
+    n = 25_000
+    t = np.arange(n) * 1e-3
+    rng = np.random.default_rng(3)
+    frame = pd.DataFrame({"t": t, "V": rng.standard_normal(n), "I": rng.standard_normal(n)})
+    p = tmp_path / "f32.parquet"
+    frame.astype(np.float32).to_parquet(p, index=False)
+    df = read_record(p)
+    assert df["t"].dtype == np.float32
+    assert validate_record(df, ("V", "I")).dt == pytest.approx(1e-3, rel=1e-6)
+    jittered = t.copy()
+    jittered[20_001:] += 5e-6    # one interval 0.5 % long: beyond 0.1 % + 0.19 %
+    frame.assign(t=jittered).astype(np.float32).to_parquet(p, index=False)
+    with pytest.raises(DataError, match=r"jitter 0\.\d+ % \(tolerance 0\.1 %, plus the values' "
+                                        r"own resolution 1\.91e-06 s\), .* at row 20001"):
+        validate_record(read_record(p), ("V", "I"))
+    with pytest.raises(DataError, match=r"jitter .* \(tolerance 0\.1 %\)"):
+        validate_record(frame.assign(t=jittered), ("V", "I"))  # float64: no resolution
+
+
 def test_check_time_base_reports_jitter_and_row() -> None:
     t = np.arange(100) * DT
     assert check_time_base(t, "rig.csv") == pytest.approx(DT)

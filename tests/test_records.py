@@ -28,8 +28,26 @@ def test_missing_column_names_file_and_column(noisy_record: pd.DataFrame, tmp_pa
 def test_nan_is_reported_with_its_row(noisy_record: pd.DataFrame) -> None:
     df = noisy_record.copy()
     df.loc[100, "omega"] = np.nan
-    with pytest.raises(DataError, match="column 'omega' has 1 NaN/inf value\\(s\\), first at row 100"):
+    with pytest.raises(DataError, match=r"column 'omega' has 1 NaN/inf value\(s\) \(an empty "
+                                        r"cell, NaN, inf or a spreadsheet error such as "
+                                        r"#DIV/0!\), first at row 100 \(from 0; line 102 of"):
         estimate(df, source="bench.csv")
+    with pytest.raises(DataError, match=r"first at row 100 \(from 0\)$"):
+        estimate(df, source="bench.mat")   # no lines in a MATLAB file or a frame
+
+
+def test_values_missing_at_the_end_are_said_with_their_rows(noisy_record: pd.DataFrame) -> None:
+    """Trailing empty rows (a spreadsheet's export) were said to be "mismatched
+    lengths", with no row."""
+    df = noisy_record.copy()
+    df.loc[len(df) - 3:, ["t", "V", "I", "omega"]] = np.nan
+    n = len(df)
+    with pytest.raises(DataError, match=rf"rig\.csv: column 't' has no value in the record's "
+                                        rf"last 3 row\(s\), from row {n - 3} \(from 0; line "
+                                        rf"{n - 1} of a file with a header line\): values "
+                                        rf"missing at the end, or a column shorter than the "
+                                        rf"others \({n - 3} samples against {n} rows\); drop"):
+        estimate(df, source="rig.csv")
 
 
 def test_inf_is_refused(noisy_record: pd.DataFrame) -> None:
@@ -43,7 +61,9 @@ def test_mismatched_lengths(noisy_record: pd.DataFrame, tmp_path: Path) -> None:
     df = noisy_record.copy()
     df.loc[3000:, "I"] = np.nan  # a shorter column in the file leaves empty cells
     p = _write(df, tmp_path)
-    with pytest.raises(DataError, match="column 'I' has 3000 samples but the record has 4000 rows"):
+    with pytest.raises(DataError, match=r"column 'I' has no value in the record's last 1000 "
+                                        r"row\(s\), from row 3000 .* a column shorter than "
+                                        r"the others \(3000 samples against 4000 rows\)"):
         estimate(read_record(p))
 
 

@@ -131,6 +131,8 @@ def _bad(rec: pd.DataFrame, kind: str) -> pd.DataFrame:
         x.loc[100, "I"] = 1e300
     elif kind == "ud is V":
         x["ud"] = x["V"]
+    elif kind == "time in ms, 2 ms apart":
+        x["t"] = x["t"] * 2000.0
     elif kind == "time / 1000":
         x["t"] = x["t"] / 1000.0
     return x
@@ -139,7 +141,9 @@ def _bad(rec: pd.DataFrame, kind: str) -> pd.DataFrame:
 @pytest.mark.parametrize("kind,expect", [
     ("V negated", "not physically possible: R = "),
     ("outputs negated", "a sign may be inverted"),
-    ("time in ms", "is column 't' in milliseconds"),
+    ("time in ms", "is column 't' a sample number (0, 1, 2, ...) or in milliseconds? give "
+                    "the sample rate: --sample-rate HZ"),
+    ("time in ms, 2 ms apart", "is column 't' in milliseconds? (condmon expects seconds)"),
     ("time / 1000", "outside the 1e-05..0.002 s"),
     ("short", "needs at least 1 s"),
     ("huge", "column 'V' has 4000 value"),
@@ -209,7 +213,8 @@ def _write(tmp: Path, name: str, df: pd.DataFrame) -> str:
     ("rpm", "column 'omega' (speed sensor) in rpm?"),
     ("mA", "column 'I' (current sensor) in mA?"),
     ("V negated", "retest"),
-    ("time in ms", "is column 't' in milliseconds"),
+    ("time in ms", "is column 't' a sample number (0, 1, 2, ...) or in milliseconds? give "
+                    "the sample rate: --sample-rate HZ"),
     ("short", "needs at least 1 s"),
 ])
 def test_check_refuses_unit_errors(unit_db: tuple[Path, Path], kind: str, expect: str,

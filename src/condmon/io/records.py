@@ -152,7 +152,7 @@ beyond the tolerance, first at row 3 (resample first)
         bad = np.flatnonzero(~np.isfinite(arr))   # beyond 1e308: no row then)
         if bad.size:
             raise DataError(f"{source}: column {column!r} has {bad.size} NaN/inf value(s), "
-                            f"first at {_row(int(bad[0]))}")
+                            f"first at {_row(int(bad[0]), source)}")
     with np.errstate(over="ignore", invalid="ignore"):
         dts = np.diff(arr)
     low, high = float(np.min(dts)), float(np.max(dts))
@@ -261,14 +261,19 @@ def validate_record(df: pd.DataFrame | Columns, required: Sequence[str],
             last_good = np.flatnonzero(np.isfinite(arr))
             if (last_good.size and np.all(bad_idx > last_good[-1])
                     and np.all(np.isnan(arr[bad_idx]))):
-                raise DataError(f"{src}: column {name!r} has {last_good[-1] + 1} samples "
-                                f"but the record has {n_rows} rows (mismatched lengths)")
-            raise DataError(f"{src}: column {name!r} has {bad_idx.size} NaN/inf value(s), "
-                            f"first at {_row(int(bad_idx[0]))}")
+                tail = n_rows - int(last_good[-1]) - 1
+                raise DataError(f"{src}: column {name!r} has no value in the record's last "
+                                f"{tail} row(s), from {_row(int(bad_idx[0]), src)}: values "
+                                "missing at the end, or a column shorter than the others "
+                                f"({last_good[-1] + 1} samples against {n_rows} rows); drop "
+                                "those rows")
+            raise DataError(f"{src}: column {name!r} has {bad_idx.size} NaN/inf value(s) "
+                            "(an empty cell, NaN, inf or a spreadsheet error such as #DIV/0!), "
+                            f"first at {_row(int(bad_idx[0]), src)}")
         huge = np.flatnonzero(np.abs(arr) > MAX_MAGNITUDE)
         if huge.size:
             raise DataError(f"{src}: column {name!r} has {huge.size} value(s) beyond "
-                            f"{MAX_MAGNITUDE:g} in magnitude ({_row(int(huge[0]))}: {arr[huge[0]]:.6g}); "
+                            f"{MAX_MAGNITUDE:g} in magnitude ({_row(int(huge[0]), src)}: {arr[huge[0]]:.6g}); "
                             "a corrupt or mis-scaled column?")
         cols[name] = arr
     if n_rows < min_samples:
@@ -361,7 +366,10 @@ def write_record(df: pd.DataFrame, path: str | Path) -> Path:
     return p
 
 
-def _row(i: int) -> str:
-    """A 0-based sample index said both ways a user looks it up: the frame's row,
-    and the line of a file whose first line is the header."""
-    return f"row {i} (from 0; line {i + 2} of a file with a header line)"
+def _row(i: int, src: str = "") -> str:
+    """A 0-based sample index said as a user looks it up: the frame's row and,
+    in a text file (``src`` ends .csv, .tsv or .txt), the line it is on when
+    the first line is the header."""
+    if src.lower().endswith((".csv", ".tsv", ".txt")):
+        return f"row {i} (from 0; line {i + 2} of a file with a header line)"
+    return f"row {i} (from 0)"

@@ -180,7 +180,11 @@ class Plausibility:
         # 0.002 +- 2e-16 s, and 0.002 s is the bound
         if not lo * (1 - 1e-9) <= dt <= hi * (1 + 1e-9):
             hint = ""
-            if dt >= 0.05 and lo <= dt / 1000.0 <= hi:
+            if dt == 1.0:   # 0, 1, 2, ...: the rig's sample counter, or ms at 1 kHz
+                hint = (" — is column 't' a sample number (0, 1, 2, ...) or in "
+                        "milliseconds? give the sample rate: --sample-rate HZ (or "
+                        "sample_rate in [record]); condmon expects t in seconds")
+            elif dt >= 0.05 and lo <= dt / 1000.0 <= hi:
                 hint = " — is column 't' in milliseconds? (condmon expects seconds)"
             elif dt < lo and lo <= dt * 1000.0 <= hi:
                 hint = " — is column 't' in kiloseconds or scaled by 1/1000?"

@@ -161,3 +161,16 @@ def test_the_median_and_the_level_count_are_numpys() -> None:
         assert _distinct(np.round(x, 1)) == np.unique(np.round(x, 1)).size
     assert _median(np.array([1e308, 1.5e308, 1.7e308])) == 1.5e308  # no overflow
     assert _distinct(np.array([0.0, -0.0, 1.0])) == 2
+
+
+def test_a_frame_s_time_spans_or_date_times_are_read_as_seconds(
+        noisy_record: pd.DataFrame) -> None:
+    """A notebook user's t as Timedelta or Timestamp read as nanoseconds: the
+    interval "1e+06 s" or the values "beyond 1e+15"."""
+    plain = estimate(noisy_record)
+    spans = noisy_record.assign(t=pd.to_timedelta(noisy_record["t"], unit="s"))
+    stamps = noisy_record.assign(t=pd.Timestamp("2026-11-29 08:00")
+                                 + pd.to_timedelta(noisy_record["t"], unit="s"))
+    for frame in (spans, stamps):
+        got = estimate(frame)
+        assert got.parameters == pytest.approx(plain.parameters, rel=1e-9)

@@ -305,10 +305,21 @@ def validate_record(df: pd.DataFrame | Columns, required: Sequence[str],
 
 def _numeric_column(df: pd.DataFrame, name: str, src: str) -> FloatArray:
     """A DataFrame's column as float64, or the DataError naming its first
-    value that is not a number."""
+    value that is not a number. A ``t`` of time spans (``timedelta64``) is
+    their seconds; of date-times, the seconds from the first."""
     import pandas as pd
 
     series = df[name]
+    if name == "t" and pd.api.types.is_timedelta64_dtype(series.dtype):
+        return np.asarray(series.dt.total_seconds().to_numpy(dtype=np.float64, na_value=np.nan),
+                          dtype=np.float64)
+    if name == "t" and pd.api.types.is_datetime64_any_dtype(series.dtype):
+        from condmon.io.raw import time_to_seconds   # as the file readers take a date-time t
+
+        seconds = time_to_seconds(series, src)
+        if seconds is not None:
+            return np.asarray(seconds[0].to_numpy(dtype=np.float64, na_value=np.nan),
+                              dtype=np.float64)
     try:
         if pd.api.types.is_numeric_dtype(series.dtype) and not pd.api.types.is_bool_dtype(series.dtype):
             return np.asarray(series.to_numpy(dtype=np.float64, na_value=np.nan),

@@ -262,6 +262,21 @@ def test_a_method_written_in_capitals_is_taken(tmp_path: Path,
     assert upper["parameters"] == json.loads(capsys.readouterr().out)["parameters"]
 
 
+def test_an_arx_fit_without_physical_parameters_names_its_bias_and_the_method_without_it(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """ARX on the built-in test puts a pole on the negative real axis: its
+    reason said to sample faster or lower the order, neither of which helps."""
+    rec = tmp_path / "r.csv"
+    simulate_actuator(seed=1).to_csv(rec, index=False)
+    assert main(["estimate", str(rec), "--method", "arx", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["accepted"] is False
+    assert "negative real axis" in doc["reason"]
+    assert "(ARX) is biased by output noise: --method sriv estimates" in doc["reason"]
+    assert main(["estimate", str(rec), "--method", "sriv", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["accepted"] is True
+
+
 def test_a_baseline_add_that_fails_on_a_record_says_what_it_stored(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A bad third file ended the command with its own error only, while the

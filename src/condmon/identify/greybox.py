@@ -309,7 +309,13 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
     try:
         cont, J_cont = tf_d2c_jacobian(est.model)
     except ModelError as err:
-        return LinearRouteResult(nan, nan_cov, est, None, fit, f"no physical parameters: {err}")
+        # least squares over the equation error is biased by output noise, and the
+        # bias can put a pole where no continuous model has one
+        biased = ("; equation-error least squares (ARX) is biased by output noise: "
+                  "--method sriv estimates the same model without that bias"
+                  if est.method.lower() == "arx" else "")
+        return LinearRouteResult(nan, nan_cov, est, None, fit,
+                                 f"no physical parameters: {err}{biased}")
     if order != lin.order:
         return LinearRouteResult(nan, nan_cov, est, cont, fit,
                                  f"order {order} differs from the model's {lin.order}")

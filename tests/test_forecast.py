@@ -940,3 +940,30 @@ def test_peers_wear_fitted_after_a_method_change_is_kept_for_the_next_check(
         rows = {r["unit"]: r for r in fleet_summaries(store)}
         assert rows["OLD1"]["forecast_reason"] is not None or rows["OLD1"]["forecast"]
         assert store.kept_forecasts(["OLD1"])["OLD1"][1] != PEER_RATES_ONLY
+
+
+def test_checks_within_one_session_are_forecast_per_clock_hour(
+        tmp_path: Path, demo_rig, capsys: pytest.CaptureFixture[str]) -> None:  # type: ignore[no-untyped-def]
+    """Checks 10 minutes apart gave slopes in %/day: a 26-minute session's
+    trend extrapolated to a day (-30516 %/day). Friction rising 60 % of its
+    healthy value an hour reads about +60 %/h; --json still counts days."""
+    db = tmp_path / "h.db"
+    with open_store(str(db)) as store:
+        add_baseline_tests(store, "SHIFT", [simulate_actuator(demo_rig, seed=s) for s in (1, 2, 3)],
+                           test_date="2026-01-01T07:00:00")
+        for k in range(1, 9):
+            f = 1.0 + 0.1 * k          # +10 % every 10 minutes
+            rig = demo_rig.with_faults([f"D=*{f}", f"coulomb_friction=*{f}"])
+            check_test(store, "SHIFT", simulate_actuator(rig, seed=500 + k),
+                       test_date=f"2026-01-01T{8 + (k - 1) // 6:02d}:{10 * ((k - 1) % 6):02d}:00")
+    assert main(["forecast", "--unit", "SHIFT", "--db", str(db), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    d = next(p for p in doc["parameters"] if p["parameter"] == "D")
+    assert doc["by"] == "days" and d["slope"] == pytest.approx(60 * 24, rel=0.35)
+    assert main(["forecast", "--unit", "SHIFT", "--db", str(db)]) == 0
+    text = " ".join(capsys.readouterr().out.replace("│", " ").split())
+    assert "slope [%/h]" in text and "clock hours left (90 %)" in text
+    assert "the checks span 1.2 h: slopes and times left are per hour of clock time" in text
+    row = text[text.index(" D ") + 3:].split()
+    assert float(row[0]) == pytest.approx(d["slope"] / 24, rel=0.02)
+    assert "earliest: D in" in text and "clock hours" in text.split("earliest: D in")[1][:30]

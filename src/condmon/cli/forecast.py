@@ -59,6 +59,12 @@ def register(app: typer.Typer) -> None:
                 "cycles": "cycles left"}[res.by]
         per = {"tests": "%/test", "days": "%/day", "hours": "%/h", "cycles": "%/cycle"}[res.by]
         span = {"tests": " tests", "days": " d", "hours": " h", "cycles": " cycles"}[res.by]
+        # checks within a day or two (one session): a slope per day extrapolates
+        # minutes to a day; per hour of clock time reads at the scale measured
+        days = max((p.span for p in res.parameters), default=math.nan)
+        scale = 24.0 if res.by == "days" and days < 2.0 else 1.0
+        if scale != 1.0:
+            left, per = "clock hours left", "%/h"   # (a --horizon stays in days)
         table = Table(title=f"{unit}: forecast to no-go from {res.checks} checks since the "
                       "baseline", title_justify="left")
         hours = res.by == "hours"
@@ -72,6 +78,7 @@ def register(app: typer.Typer) -> None:
         def n(v: float) -> str:   # 1443, not 1.44e+03
             if not math.isfinite(v):
                 return "beyond"
+            v *= scale
             return f"{v:.0f}" if abs(v) >= 100 else f"{v:.3g}"
 
         for p in res.parameters:
@@ -86,11 +93,14 @@ def register(app: typer.Typer) -> None:
             # where both can)
             at = ("none (see --json)" if f.unreachable else
                   f"{f.threshold:+.3g} %" + (f" ({p.rule})" if p.rule and f.trend else ""))
-            table.add_row(p.parameter, slope_text(f.slope), rem, (p.date or "—")[:10],
+            table.add_row(p.parameter, slope_text(f.slope / scale), rem, (p.date or "—")[:10],
                           *([n(p.hours) if p.hours is not None else "—"] if hours else []),
                           *([f"{f.p_within:.2f}" if f.p_within is not None else "—"]
                             if horizon is not None else []), at)
         out.print(table)
+        if scale != 1.0:
+            out.print(f"the checks span {days * 24:.2g} h: slopes and times left are per hour "
+                      "of clock time (--json counts days)", markup=False, highlight=False)
         out.print(f"slope: the trend at the last check, {per} of the baseline mean; "
                   f"{left}: median and 90 % interval (exp.: an exponential trend; path: a "
                   "measured degradation path, its interval's measured coverage in --json "
@@ -103,7 +113,7 @@ def register(app: typer.Typer) -> None:
         out.print("no parameter trends towards no-go" if r is None or e is None else
                   f"earliest: {e.parameter}, at no-go now" if e.forecast.at_nogo else
                   f"earliest: {e.parameter}, due now (its trend is past no-go)" if r[2] == 0 else
-                  f"earliest: {e.parameter} in {n(r[0])} {left.split()[0]} "
+                  f"earliest: {e.parameter} in {n(r[0])} {left.rsplit(' ', 1)[0]} "
                   f"(90 %: {n(r[1])}–{n(r[2])})", markup=False, highlight=False)
         for note in res.notes:
             out.print(f"note: {note}", markup=False, highlight=False, soft_wrap=True)

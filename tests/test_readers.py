@@ -300,6 +300,26 @@ def test_every_dialect_reads_the_same_numbers(tmp_path: Path, noisy_record: pd.D
     assert validate_record(df, ("V", "I", "omega")).dt == pytest.approx(1e-3)
 
 
+def test_comment_lines_above_the_header_are_skipped_and_lines_still_counted(
+        tmp_path: Path, noisy_record: pd.DataFrame) -> None:
+    """A logger's "# rig 7, operator jo" lines above the header were read as the
+    header ("cannot tell the separator")."""
+    plain = tmp_path / "plain.csv"
+    noisy_record.to_csv(plain, index=False)
+    noted = tmp_path / "noted.csv"
+    noted.write_text("# rig 7, operator jo\n  # date 2026-03-01; 1 kHz\n" + plain.read_text())
+    a, b = _read_quiet(plain), _read_quiet(noted)
+    pd.testing.assert_frame_equal(a, b, check_like=False, check_flags=False)
+    broken = noisy_record.copy()
+    broken.loc[50, "I"] = np.nan
+    broken.to_csv(plain, index=False)
+    noted.write_text("sep=,\n# rig 7\n" + plain.read_text())
+    with pytest.raises(DataError, match=r"first at row 50 \(from 0; line 54 of the file, its "
+                                        r"header on line 3\)"):
+        validate_record(_read_quiet(noted), ("V", "I"))
+    assert noted.read_text().splitlines()[53].split(",")[2] == ""
+
+
 def test_european_csv(tmp_path: Path) -> None:
     p = tmp_path / "eu.csv"
     p.write_text("t;V;I\n0,000;1,25;-3,5\n0,001;1,5e-3;3\n0,002;2;4,0\n")

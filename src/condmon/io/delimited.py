@@ -56,7 +56,8 @@ class Dialect:
     encoding : str
         ``"utf-8-sig"``, or ``"latin-1"`` when the bytes are not UTF-8.
     skip : int
-        Lines before the header: 1 for Excel's ``sep=;`` line.
+        Lines before the header: Excel's ``sep=;`` line, and comment lines
+        starting with ``#``.
     """
 
     sep: str
@@ -233,12 +234,21 @@ def read_delimited(path: Path) -> RawRecord:
     said = _EXCEL_SEP.match(text)
     if said is not None:  # Excel's "sep=;" line: the separator, said before the header
         text = text[said.end():]
+    # a logger's notes above the header ("# rig 7, operator jo"): comments, as
+    # numpy.loadtxt and most rigs take a leading "#"
+    notes = 0
+    while text.lstrip(" \t").startswith("#"):
+        end = text.find("\n")
+        text = text[end + 1:] if end >= 0 else ""
+        notes += 1
     dialect = sniff_dialect(text, path, path.suffix.lower(), encoding)
     if said is not None:
         if said.group(1) != dialect.sep:
             raise DataError(f"{path}: line 1 says sep={said.group(1)}, but the lines after it "
                             f"read as {dialect.describe()}")
-        dialect = Dialect(dialect.sep, dialect.decimal, encoding, skip=1)
+    skip = notes + (said is not None)
+    if skip:
+        dialect = Dialect(dialect.sep, dialect.decimal, encoding, skip=skip)
     header = next(csv.reader([text.splitlines()[0] if text else ""], delimiter=dialect.sep), [])
     names = [h.strip() for h in header]
     twice = sorted({n for n in names if n and names.count(n) > 1})
@@ -253,6 +263,8 @@ def read_delimited(path: Path) -> RawRecord:
         alt = _parse(path, other)
         if _typed_columns(alt) > _typed_columns(frame):
             frame = alt
+    if skip:
+        frame.attrs["header_line"] = skip + 1   # for the lines messages name
     return RawRecord(frame)
 
 

@@ -248,6 +248,7 @@ def validate_record(df: pd.DataFrame | Columns, required: Sequence[str],
                             f"{twice[0]!r}; rename or drop all but one (condmon would not "
                             "know which to use)")
     n_rows = len(df)
+    header = int(df.attrs.get("header_line", 1))
     cols: dict[str, FloatArray] = {}
     for name in names:
         arr = df[name] if isinstance(df, Columns) else _numeric_column(df, name, src)
@@ -263,17 +264,17 @@ def validate_record(df: pd.DataFrame | Columns, required: Sequence[str],
                     and np.all(np.isnan(arr[bad_idx]))):
                 tail = n_rows - int(last_good[-1]) - 1
                 raise DataError(f"{src}: column {name!r} has no value in the record's last "
-                                f"{tail} row(s), from {_row(int(bad_idx[0]), src)}: values "
+                                f"{tail} row(s), from {_row(int(bad_idx[0]), src, header)}: values "
                                 "missing at the end, or a column shorter than the others "
                                 f"({last_good[-1] + 1} samples against {n_rows} rows); drop "
                                 "those rows")
             raise DataError(f"{src}: column {name!r} has {bad_idx.size} NaN/inf value(s) "
                             "(an empty cell, NaN, inf or a spreadsheet error such as #DIV/0!), "
-                            f"first at {_row(int(bad_idx[0]), src)}")
+                            f"first at {_row(int(bad_idx[0]), src, header)}")
         huge = np.flatnonzero(np.abs(arr) > MAX_MAGNITUDE)
         if huge.size:
             raise DataError(f"{src}: column {name!r} has {huge.size} value(s) beyond "
-                            f"{MAX_MAGNITUDE:g} in magnitude ({_row(int(huge[0]), src)}: {arr[huge[0]]:.6g}); "
+                            f"{MAX_MAGNITUDE:g} in magnitude ({_row(int(huge[0]), src, header)}: {arr[huge[0]]:.6g}); "
                             "a corrupt or mis-scaled column?")
         cols[name] = arr
     if n_rows < min_samples:
@@ -377,10 +378,12 @@ def write_record(df: pd.DataFrame, path: str | Path) -> Path:
     return p
 
 
-def _row(i: int, src: str = "") -> str:
+def _row(i: int, src: str = "", header: int = 1) -> str:
     """A 0-based sample index said as a user looks it up: the frame's row and,
-    in a text file (``src`` ends .csv, .tsv or .txt), the line it is on when
-    the first line is the header."""
-    if src.lower().endswith((".csv", ".tsv", ".txt")):
+    in a text file (``src`` ends .csv, .tsv or .txt), the line it is on
+    (``header``: the header's line, after comments or Excel's ``sep=``)."""
+    if not src.lower().endswith((".csv", ".tsv", ".txt")):
+        return f"row {i} (from 0)"
+    if header == 1:
         return f"row {i} (from 0; line {i + 2} of a file with a header line)"
-    return f"row {i} (from 0)"
+    return f"row {i} (from 0; line {i + header + 1} of the file, its header on line {header})"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -174,3 +175,13 @@ def test_a_frame_s_time_spans_or_date_times_are_read_as_seconds(
     for frame in (spans, stamps):
         got = estimate(frame)
         assert got.parameters == pytest.approx(plain.parameters, rel=1e-9)
+
+
+def test_names_that_carry_their_units_get_the_column_map_to_write(
+        noisy_record: pd.DataFrame) -> None:
+    named = noisy_record.rename(columns={"t": "t [s]", "V": "V [V]", "I": "I (A)"})
+    with pytest.raises(DataError, match=re.escape(
+            "missing column(s) 't', 'V', 'I'; the record has ['t [s]', 'V [V]', 'I (A)', "
+            "'omega', 'position', 'yd', 'ud'] (their names carry units: --columns "
+            "'t=t [s],V=V [V],I=I (A)' (check each unit is the model's))")):
+        estimate(named)

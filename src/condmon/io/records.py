@@ -234,11 +234,17 @@ def validate_record(df: pd.DataFrame | Columns, required: Sequence[str],
     names = ["t", *required]
     missing = [c for c in names if c not in df.columns]
     if missing:
+        have = list(map(str, df.columns))
+        # "t [s]", "omega (rad/s)": a name with its unit written beside it
+        near = {m: c for m in missing for c in have
+                if c.startswith(m) and c[len(m):].lstrip().startswith(("[", "("))}
+        how = (f"their names carry units: --columns '{','.join(f'{m}={c}' for m, c in near.items())}'"
+               f" (check each unit is the model's)" if near else
+               f"map names with the record settings: {missing[0]}=FILE_COLUMN in --columns or "
+               "[record.columns]")
         raise MissingColumnsError(
             f"{src}: missing column(s) {', '.join(repr(m) for m in missing)}; the record has "
-            f"{list(map(str, df.columns))} (map names with the record settings: "
-            f"{missing[0]}=FILE_COLUMN in --columns or [record.columns])", tuple(missing),
-            tuple(map(str, df.columns)))
+            f"{have} ({how})", tuple(missing), tuple(have))
     names += [c for c in optional if c in df.columns and c not in names]
     if not isinstance(df, Columns) and not df.columns.is_unique:
         listed = list(map(str, df.columns))

@@ -77,9 +77,31 @@ def test_bad_record_settings_name_the_entry(table: dict[str, object], message: s
 
 
 def test_a_time_column_that_does_not_count_samples_is_refused() -> None:
-    df = pd.DataFrame({"t": [0.0, 0.004, 0.008]})
+    df = pd.DataFrame({"t": [0.0, 0.002, 0.004]})
     with pytest.raises(DataError, match="does not count samples"):
         apply_record_settings(df, RecordSettings(sample_rate=250.0), "rig.csv")
+
+
+@pytest.mark.parametrize("t,fs,seconds", [
+    ([0.0, 0.004, 0.008], 250.0, [0.0, 0.004, 0.008]),   # seconds at the stated rate
+    ([0.0, 4.0, 8.0, 12.0], 0.25, [0.0, 4.0, 8.0, 12.0]),  # (a counter read 16 s apart)
+    ([1.0, 2.0, 3.0, 4.0], 0.25, [0.0, 4.0, 8.0, 12.0]),   # a counter
+    ([1.0, 2.0, 4.0, 5.0], 0.25, [0.0, 4.0, 12.0, 16.0]),  # a counter that lost a sample
+])
+def test_a_time_column_is_a_counter_or_seconds_at_the_stated_rate(
+        t: list[float], fs: float, seconds: list[float]) -> None:
+    """The cascaded tanks' declaration states 0.25 Hz; a record whose t was
+    already in seconds (0, 4, 8, ...) was read as a counter: every rate 4x
+    off, still a 99 % fit."""
+    got = apply_record_settings(pd.DataFrame({"t": t}), RecordSettings(sample_rate=fs), "r")
+    assert got["t"].tolist() == pytest.approx(seconds, abs=1e-12)
+
+
+def test_a_time_column_stepping_by_neither_one_nor_the_period_is_refused() -> None:
+    df = pd.DataFrame({"t": [0.0, 2.0, 4.0, 6.0]})
+    with pytest.raises(DataError, match=r"column 't' steps by 2: a sample counter steps by 1, "
+                                        r"and seconds at the stated 0\.25 Hz by 4; which is it"):
+        apply_record_settings(df, RecordSettings(sample_rate=0.25), "rig.csv")
 
 
 def test_a_mapped_column_missing_from_the_file_is_named() -> None:

@@ -469,7 +469,8 @@ def rig_layout(df: pd.DataFrame, settings: RecordSettings | None) -> pd.DataFram
 
 
 def _seconds(df: pd.DataFrame, fs: float, src: str) -> np.ndarray[Any, np.dtype[np.float64]]:
-    """``t`` in seconds from a sample counter (or the row number) at ``fs`` [Hz]."""
+    """``t`` in seconds from a sample counter (or the row number) at ``fs`` [Hz];
+    a ``t`` already stepping by ``1/fs`` is taken as seconds."""
     import pandas as pd
 
     n = len(df)
@@ -481,6 +482,10 @@ def _seconds(df: pd.DataFrame, fs: float, src: str) -> np.ndarray[Any, np.dtype[
         raise DataError(f"{src}: column 't' is not a sample counter (row {row}: "
                         f"{df['t'].iloc[row]!r})")
     steps = np.diff(counter)
+    if steps.size and bool(np.all(np.abs(steps * fs - 1.0) <= 1e-6)):
+        # already seconds at the stated rate (t = 0, 4, 8 at 0.25 Hz): read as a
+        # counter, a record 4 s apart became 16 s apart, and every rate 4x off
+        return counter - counter[0]
     bad = np.flatnonzero((np.abs(steps - np.round(steps)) > 1e-6) | (steps <= 0))
     if bad.size:
         k = int(bad[0])
@@ -488,6 +493,11 @@ def _seconds(df: pd.DataFrame, fs: float, src: str) -> np.ndarray[Any, np.dtype[
                         f"{k + 1}) although a sample rate ({fs:g} Hz) is given; give the "
                         "sample rate only when t is a sample index, or map t to a time in "
                         "seconds")
+    if steps.size and float(np.median(steps)) != 1.0:
+        raise DataError(f"{src}: column 't' steps by {float(np.median(steps)):g}: a sample "
+                        f"counter steps by 1, and seconds at the stated {fs:g} Hz by "
+                        f"{1.0 / fs:g}; which is it? give t in seconds and no sample rate, "
+                        "or a counter")
     return (counter - counter[0]) / fs if n else counter
 
 

@@ -116,12 +116,30 @@ no_go = [0.5, 0.75, 1.0, 1.0]
     ('[[fault]]\nname="x"\nif="high(R"\nseverity="major"\nadvice="a"\n', r"\(x\).*ends early"),
     ('[[fault]]\nname="x"\nseverity="major"\nadvice="a"\n', "has no 'if'"),
     ('', "no \\[\\[fault\\]\\] rules"),
+    # one name is one fault: a second rule of it with another severity was merged
+    # and its severity taken (a 7x friction check turned advisory, not no-go)
+    ('[[fault]]\nname="wear"\nif="high(D)"\nseverity="major"\nadvice="a"\n'
+     '[[fault]]\nname="wear"\nif="high(R)"\nseverity="minor"\nadvice="a"\n',
+     r"\[\[fault\]\] #2 \(wear\): another rule of this name has another severity"),
+    ('[[fault]]\nname="wear"\nif="high(D)"\nseverity="major"\nadvice="a"\n'
+     '[[fault]]\nname="wear"\nif="high(R)"\nseverity="major"\nadvice="b"\n',
+     r"another rule of this name has another advice"),
 ])
 def test_bad_rule_files_are_explained(tmp_path: Path, body: str, message: str) -> None:
     p = tmp_path / "r.toml"
     p.write_text(body + '[status]\ngo=[0,0,0.25,0.5]\nadvisory=[0.25,0.5,0.75]\nno_go=[0.5,0.75,1,1]\n')
     with pytest.raises(ConfigError, match=message):
         load_rules(p)
+
+
+def test_rules_of_one_name_with_one_severity_and_advice_are_one_fault(tmp_path: Path) -> None:
+    p = tmp_path / "r.toml"
+    p.write_text('[[fault]]\nname="wear"\nif="high(D)"\nseverity="major"\nadvice="a"\n'
+                 '[[fault]]\nname="wear"\nif="high(R) and not high(L)"\nseverity="major"\n'
+                 'advice="a"\n[status]\ngo=[0,0,0.25,0.5]\nadvisory=[0.25,0.5,0.75]\n'
+                 'no_go=[0.5,0.75,1,1]\n')
+    d = diagnose(sym(R=(1.0, 0.0)), load_rules(p))
+    assert d.status == "no-go" and [f.name for f in d.faults] == ["wear"]
 
 
 def test_rules_about_unknown_parameters_are_refused(tmp_path: Path) -> None:

@@ -253,8 +253,16 @@ def load_rules(path: str | Path | None = None) -> RuleBase:
             cond = parse_condition(str(item["if"]))
         except ConfigError as err:
             raise ConfigError(f"{where} ({item['name']}): {err}") from None
-        faults.append(FaultRule(str(item["name"]), cond, str(item["if"]),
-                                str(item["severity"]), str(item["advice"])))
+        rule = FaultRule(str(item["name"]), cond, str(item["if"]), str(item["severity"]),
+                         str(item["advice"]))
+        # rules of one name are one fault (the largest degree): one severity, one advice
+        first = next((f for f in faults if f.name == rule.name), None)
+        if first is not None and (first.severity, first.advice) != (rule.severity, rule.advice):
+            what = "severity" if first.severity != rule.severity else "advice"
+            raise ConfigError(f"{where} ({rule.name}): another rule of this name has another "
+                              f"{what}; rules of one name are one fault, with one severity and "
+                              "one advice: give them the same, or name the faults apart")
+        faults.append(rule)
     if not faults:
         raise ConfigError(f"{src}: no [[fault]] rules")
     pre = []

@@ -565,3 +565,22 @@ def test_a_declared_initial_state_that_is_wrong_is_said(tanks: Path, tmp_path: P
     assert bool(said) is warned, res.notes
     if warned:
         assert "misses y by" in said[0] and " V RMS" in said[0]
+
+
+def test_simulate_record_never_writes_over_its_record_nor_into_a_missing_folder(
+        tanks: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`--out` naming the record itself replaced the raw record; a missing
+    folder gave pandas' message after the whole simulation."""
+    est = tmp_path / "est.json"
+    est.write_text(json.dumps({"model": "two-tanks", "parameters": TRUTH}))
+    rec = _record(tmp_path / "v.csv", tanks, n=100)
+    before = rec.read_bytes()
+    args = ["simulate", "record", str(rec), "--model", str(tanks), "--params", str(est)]
+    assert main([*args, "--out", str(tmp_path / "." / "v.csv")]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"error: {tmp_path / '.' / 'v.csv'}: the output is the record being simulated, which "
+        "it would overwrite; write the simulation to another file")
+    assert rec.read_bytes() == before
+    assert main([*args, "--out", str(tmp_path / "nodir" / "s.csv")]) == 2
+    assert "the folder" in capsys.readouterr().err and not (tmp_path / "nodir").exists()
+    assert main([*args, "--out", str(tmp_path / "s.csv")]) == 0

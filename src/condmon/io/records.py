@@ -360,6 +360,26 @@ def _constant(u: FloatArray) -> bool:
     return float(np.std(u)) <= 1e-12 * max(1.0, float(np.max(np.abs(u))))
 
 
+def check_output_path(path: str | Path) -> Path:
+    """``path`` once a record can be written there: a ``.csv`` or Parquet
+    name in a folder that exists (told before any work is done for it).
+
+    Example
+    -------
+    >>> check_output_path("no/such/folder/r.csv")
+    Traceback (most recent call last):
+    ...
+    condmon.errors.DataError: no/such/folder/r.csv: the folder 'no/such/folder' does not exist; create it first
+    """
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix not in (".csv", ".parquet", ".pq"):
+        raise DataError(f"{p}: unknown file type {suffix!r}; allowed: .csv, .parquet")
+    if not p.parent.is_dir():
+        raise DataError(f"{p}: the folder {str(p.parent)!r} does not exist; create it first")
+    return p
+
+
 def write_record(df: pd.DataFrame, path: str | Path) -> Path:
     """Write a record as CSV or Parquet, chosen by the file's suffix.
 
@@ -373,14 +393,15 @@ def write_record(df: pd.DataFrame, path: str | Path) -> Path:
     """
     import pandas as pd
 
-    p = Path(path)
+    p = check_output_path(path)
     suffix = p.suffix.lower()
-    if suffix == ".csv":
-        df.to_csv(p, index=False)
-    elif suffix in (".parquet", ".pq"):
-        df.to_parquet(p, index=False)
-    else:
-        raise DataError(f"{p}: unknown file type {suffix!r}; allowed: .csv, .parquet")
+    try:
+        if suffix == ".csv":
+            df.to_csv(p, index=False)
+        else:
+            df.to_parquet(p, index=False)
+    except OSError as err:
+        raise DataError(f"{p}: cannot be written: {err.strerror or err}") from None
     return p
 
 

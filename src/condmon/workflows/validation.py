@@ -292,8 +292,12 @@ def simulate_file(record: str | Path, model: str, out: str | Path, *,
     the simulated sensor readings (as ``<sensor>_sim``), the measured ones
     when the record has them (then compared), and the simulated states (as
     ``<state>_sim``) to ``out`` (CSV or Parquet)."""
-    from condmon.io.records import write_record
+    from condmon.io.records import check_output_path, write_record
 
+    check_output_path(out)
+    if isinstance(record, (str, Path)) and Path(out).resolve() == Path(record).resolve():
+        raise DataError(f"{out}: the output is the record being simulated, which it would "
+                        "overwrite; write the simulation to another file")
     opts = options or EstimateOptions(model=model)
     machine = get_model(model)
     frame = opts.read(record)

@@ -224,3 +224,29 @@ def test_a_fault_whose_symptom_has_no_value_is_not_judged_and_said() -> None:
     named = diagnose(hot, parameters=every)
     assert named.status == "no-go" and named.faults[0].name == "winding resistance increase"
     assert [u.fault for u in named.unseen] == ["friction increase"]
+
+
+def test_breakpoints_of_a_parameter_the_model_does_not_have_are_refused(tmp_path: Path) -> None:
+    """`d = {r1 = 30, r2 = 60}` for D was ignored, D judged by the scatter's
+    default with nothing said; a rules file of unknown names was refused."""
+    from condmon.models.registry import get_model
+    from condmon.monitor import load_monitor_config
+    from condmon.monitor.baseline import make_baseline
+    from condmon.workflows.monitoring import monitoring_of
+
+    machine = get_model("dc-motor")
+    baseline = make_baseline([{p: 1.0 + 0.01 * i for p in machine.monitored} for i in range(3)])
+    p = tmp_path / "m.toml"
+    p.write_text("k = 2.0\n[breakpoints]\nR = { r1 = 20.0, r2 = 40.0 }\n"
+                 "d = { r1 = 30.0, r2 = 60.0 }\n")
+    with pytest.raises(ConfigError, match=r"m\.toml: breakpoints or spreads name unknown "
+                                          r"parameter\(s\) \['d'\]; the parameters of model "
+                                          r"'dc-motor' are R, L, Ke, Kt, J, D"):
+        monitoring_of(machine, baseline, load_monitor_config(p))
+    p.write_text("k = 2.0\n[breakpoints]\nR = { r1 = 20.0, r2 = 40.0 }\n"
+                 "[between_units]\nX = 10.0\n")
+    with pytest.raises(ConfigError, match=r"unknown parameter\(s\) \['X'\]"):
+        monitoring_of(machine, baseline, load_monitor_config(p))
+    p.write_text("k = 2.0\n[breakpoints]\nR = { r1 = 20.0, r2 = 40.0 }\n")
+    cfg, _ = monitoring_of(machine, baseline, load_monitor_config(p))
+    assert cfg.r1 == {"R": 20.0}

@@ -83,6 +83,24 @@ class MonitorConfig:
     insist: frozenset[str] = frozenset()
     between_units: dict[str, float] = dataclasses.field(default_factory=dict)
 
+    def check_parameters(self, available: Sequence[str], model: str = "") -> None:
+        """Refuse breakpoints or a between-unit spread of a name the model
+        does not monitor: a misspelt one (``d`` for ``D``) would be ignored,
+        its parameter judged by the scatter's default instead.
+
+        Raises
+        ------
+        ConfigError
+            Naming the file, the unknown names and the allowed ones.
+        """
+        unknown = sorted({split_key(p)[0] for p in (*self.r1, *self.between_units)}
+                         - set(available))
+        if unknown:
+            of = f" of model {model!r}" if model else ""
+            raise ConfigError(f"{self.source}: breakpoints or spreads name unknown "
+                              f"parameter(s) {unknown}; the parameters{of} are "
+                              f"{', '.join(available)}")
+
     def arrays(self, parameters: Sequence[str]) -> tuple[FloatArray, FloatArray]:
         """``r1`` and ``r2`` in the order of ``parameters``; a regime's parameter
         (``Tc@forward``) takes its own breakpoints if configured, else its

@@ -71,6 +71,7 @@ def monitoring_of(machine: Machine, baseline: Baseline, monitor: MonitorConfig |
     :func:`~condmon.diagnose.rules.machine_rules`); the rules must name only
     the machine's parameters."""
     cfg = monitor or machine_monitor(machine, baseline)
+    cfg.check_parameters(machine.monitored, machine.name)
     rb = rules or machine_rules(machine)
     rb.check_parameters(machine.monitored)
     return cfg, rb

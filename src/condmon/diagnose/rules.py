@@ -240,7 +240,7 @@ def load_rules(path: str | Path | None = None) -> RuleBase:
     """
     src = str(path) if path is not None else "condmon/data/rules.toml"
     raw = load_toml(path) if path is not None else load_default("rules.toml")
-    faults = []
+    faults: list[FaultRule] = []
     for i, item in enumerate(raw.get("fault", [])):
         where = f"{src}: [[fault]] #{i + 1}"
         for key in ("name", "if", "severity", "advice"):

@@ -485,7 +485,7 @@ def _seconds(df: pd.DataFrame, fs: float, src: str) -> np.ndarray[Any, np.dtype[
     if steps.size and bool(np.all(np.abs(steps * fs - 1.0) <= 1e-6)):
         # already seconds at the stated rate (t = 0, 4, 8 at 0.25 Hz): read as a
         # counter, a record 4 s apart became 16 s apart, and every rate 4x off
-        return counter - counter[0]
+        return np.asarray(counter - counter[0], dtype=np.float64)
     bad = np.flatnonzero((np.abs(steps - np.round(steps)) > 1e-6) | (steps <= 0))
     if bad.size:
         k = int(bad[0])

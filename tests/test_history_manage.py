@@ -182,6 +182,14 @@ def test_cli_management_and_dates(files: dict[str, Path], tmp_path: Path,
     assert all(a["actor"] for a in trail)
     assert main(["check", str(files["c_ok"]), "--unit", "E1", "--db", db, "--date", "yesterday"]) == 2
     assert "is not a date" in capsys.readouterr().err
+    # a baseline test excluded with too few left: the version stays, and history says
+    # it no longer stands (it showed the version as if whole)
+    assert main(["exclude", "2", "--db", db, "--reason", "wrong sensor"]) == 0
+    assert "would keep 2 test(s)" in capsys.readouterr().out.replace("\n", " ")
+    assert main(["history", "--unit", "E1", "--db", db]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert "baseline 'default' v2 (N = 3): #1-#3 #2 excluded since: this version no longer " \
+        "stands" in out
 
 
 def test_date_from_the_record_metadata(files: dict[str, Path], tmp_path: Path) -> None:

@@ -282,6 +282,13 @@ def register(app: typer.Typer) -> None:
         if baseline is not None:
             out.print(f"baseline {baseline.name!r} v{baseline.version} (N = {baseline.baseline.n}): "
                       + id_runs(baseline.test_ids), highlight=False, markup=False)
+            gone = [int(i) for i in baseline.test_ids
+                    if i in hist.index and hist.loc[i, "status"] == "excluded"]
+            if gone:   # excluded since, with too few left for a new version
+                out.print(f"  {id_runs(gone)} excluded since: this version no longer stands; "
+                          "the checks above were judged against it, and new checks are "
+                          "refused until healthy tests are added (baseline add)",
+                          highlight=False, markup=False)
             print_flags(baseline.flags, unit)
 
 

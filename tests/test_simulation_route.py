@@ -584,3 +584,26 @@ def test_simulate_record_never_writes_over_its_record_nor_into_a_missing_folder(
     assert main([*args, "--out", str(tmp_path / "nodir" / "s.csv")]) == 2
     assert "the folder" in capsys.readouterr().err and not (tmp_path / "nodir").exists()
     assert main([*args, "--out", str(tmp_path / "s.csv")]) == 0
+
+
+def test_a_misspelt_parameter_or_a_value_given_twice_is_refused(
+        tanks: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A parameter file's `KP` for `kp` was skipped as if derived (the
+    declared kp used, one note); `--set a=1,a=2` took the last."""
+    rec = _record(tmp_path / "v.csv", tanks, n=100)
+    est = tmp_path / "est.json"
+    args = ["validate", str(rec), "--model", str(tanks), "--params", str(est)]
+    typo = {("A" if k == "a" else k): v for k, v in TRUTH.items()}
+    est.write_text(json.dumps({"model": "two-tanks", "parameters": typo}))
+    assert main(args) == 2
+    assert "est.json: parameters.A is not a parameter of 'two-tanks'; its parameters: " \
+        in capsys.readouterr().err
+    est.write_text(json.dumps({"model": "two-tanks", "parameters": TRUTH}))
+    assert main([*args, "--set", "a=1,a=2"]) == 2
+    assert "--set: a is given twice; give each parameter once" in capsys.readouterr().err
+    est.write_text("x,y\n1,2\n")
+    assert main(args) == 2
+    assert "not a parameter file (the JSON of condmon estimate --json): no JSON from line 1, " \
+        "column 1 on" in capsys.readouterr().err
+    est.write_text(json.dumps({"model": "two-tanks", "parameters": TRUTH}))
+    assert main(args) == 0

@@ -20,6 +20,7 @@ import numpy as np
 from condmon.errors import ConfigError, DataError
 from condmon.io.records import Record, validate_record
 from condmon.models.machine import Machine
+from condmon.models.regimes import split_key
 from condmon.models.registry import get_model
 from condmon.simulate.compare import Comparison, compare_model, initial_states
 from condmon.workflows.records import EstimateOptions
@@ -67,8 +68,10 @@ def read_parameter_file(path: str | Path, machine: Machine) -> ParameterFile:
     except FileNotFoundError:
         raise DataError(f"{src}: no such parameter file") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        why = (f"no JSON from line {err.lineno}, column {err.colno} on"
+               if isinstance(err, json.JSONDecodeError) else str(err))
         raise DataError(f"{src}: not a parameter file (the JSON of condmon estimate "
-                        f"--json): {err}") from None
+                        f"--json): {why}") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("parameters"), dict):
         raise DataError(f"{src}: not a parameter file: no 'parameters' table (write one with "
                         "condmon estimate RECORD --model M --json > est.json)")
@@ -82,10 +85,15 @@ def read_parameter_file(path: str | Path, machine: Machine) -> ParameterFile:
                         f"{machine.name!r} ({machine.origin or 'shipped'}); estimate with "
                         "this model first")
     names = set(machine.plant.parameter_names)
+    reported = names | set(machine.monitored) | set(machine.spec.report)
     values: dict[str, float] = {}
     for table in ("constants", "parameters"):
         for k, v in dict(doc.get(table) or {}).items():
             if k not in names:
+                if table == "parameters" and split_key(k)[0] not in reported:
+                    raise DataError(f"{src}: parameters.{k} is not a parameter of "
+                                    f"{machine.name!r}; its parameters: "
+                                    f"{', '.join(machine.plant.parameter_names)}")
                 continue  # a derived quantity: computed, not simulated with
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise DataError(f"{src}: {table}.{k} is {v!r}, not a finite number")
@@ -129,6 +137,8 @@ def parse_assignments(text: str | None, allowed: tuple[str, ...], what: str,
         if name not in allowed:
             raise ConfigError(f"{option}: {name!r} is not a {what} of the model; allowed: "
                               f"{', '.join(allowed)}")
+        if name in out:
+            raise ConfigError(f"{option}: {name} is given twice; give each {what} once")
         try:
             v = float(value)
         except ValueError:

@@ -394,3 +394,18 @@ def test_help_lists_every_command_in_workflow_order(capsys: pytest.CaptureFixtur
     import typer.main
 
     assert set(typer.main.get_command(app).commands) == set(WORKFLOW)  # type: ignore[attr-defined]
+
+
+def test_the_notebook_history_takes_one_record_as_well_as_a_list(tmp_path: Path) -> None:
+    """`History.baseline_add("U", "rec.csv")` read the path letter by letter
+    ("r: file not found")."""
+    import condmon
+
+    files = _healthy_files(tmp_path, 3)
+    with condmon.History(tmp_path / "h.db") as h:
+        one = h.baseline_add("U", files[0])
+        assert [t.source for t in one.tests] == [files[0]] and one.baseline is None
+        frame = simulate_actuator(seed=7)
+        assert len(h.baseline_add("U", frame).tests) == 1
+        done = h.baseline_add("U", files[1:])
+        assert done.baseline is not None and done.baseline.n == 4

@@ -117,16 +117,20 @@ class History:
 
     # -- records in ---------------------------------------------------------------------
 
-    def baseline_add(self, unit: str, records: Sequence[RecordLike], *,
+    def baseline_add(self, unit: str, records: Sequence[RecordLike] | RecordLike, *,
                      model: str | None = None, test_date: str | datetime | None = None,
                      group: str | None = None, options: EstimateOptions | None = None
                      ) -> BaselineAddResult:
         """Estimate healthy records and add them to the unit's baseline
-        (``condmon baseline add``). ``model``: the unit's model at its first
-        record (a shipped name or a declaration file); afterwards its own."""
+        (``condmon baseline add``). ``records``: a list, or one record (a
+        path, a DataFrame). ``model``: the unit's model at its first record
+        (a shipped name or a declaration file); afterwards its own."""
+        from condmon.io.columns import Columns
+
+        one = isinstance(records, (str, Path, pd.DataFrame, Columns))
         opts = options or EstimateOptions(model=model)
-        return add_baseline_tests(self.store, unit, list(records), opts, test_date=test_date,
-                                  group=group)
+        return add_baseline_tests(self.store, unit, [records] if one else list(records),  # type: ignore[list-item, arg-type]
+                                  opts, test_date=test_date, group=group)
 
     def check(self, unit: str, record: RecordLike, *, model: str | None = None,
               test_date: str | datetime | None = None, against: str | None = None,

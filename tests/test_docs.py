@@ -28,3 +28,14 @@ def test_public_api_is_documented(name: str) -> None:
         obj = getattr(module, attr)
         if inspect.isfunction(obj) or inspect.isclass(obj):
             assert obj.__doc__, f"{name}.{attr} has no docstring"
+
+
+def test_a_notebook_sees_the_public_api_at_the_top_not_the_module_s_helpers() -> None:
+    """dir(condmon) listed Any, TYPE_CHECKING, annotations, load and names."""
+    shown = {n for n in dir(condmon) if not n.startswith("_")}
+    assert set(condmon.__all__) - {"__version__"} <= shown
+    assert not shown & {"Any", "TYPE_CHECKING", "annotations", "load", "names"}
+    for name in ("condmon.identify", "condmon.monitor", "condmon.forecast"):
+        package = importlib.import_module(name)
+        assert set(getattr(package, "__all__", ())) <= set(dir(package)), name
+        assert "TYPE_CHECKING" not in dir(package) and "annotations" not in dir(package)

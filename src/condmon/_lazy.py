@@ -37,9 +37,15 @@ def load(package: str, exports: Mapping[str, str], name: str) -> Any:
     return value
 
 
-def names(namespace: Iterable[str], exports: Mapping[str, str]) -> list[str]:
-    """``dir()`` of a package with lazy re-exports."""
-    return sorted({*namespace, *exports})
+def names(namespace: Mapping[str, Any], exports: Mapping[str, str]) -> list[str]:
+    """``dir()`` of a package with lazy re-exports: its ``__all__`` (when it
+    has one; not its helpers such as ``TYPE_CHECKING`` or ``annotations``),
+    the re-exports, the submodules imported so far and its dunder names."""
+    listed = namespace.get("__all__")
+    if listed is None:
+        return sorted({*namespace, *exports})
+    modules = {n for n, v in namespace.items() if isinstance(v, types.ModuleType)}
+    return sorted({*listed, *exports, *modules, *(n for n in namespace if n.startswith("__"))})
 
 
 class _Shielded(types.ModuleType):

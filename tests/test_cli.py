@@ -277,6 +277,21 @@ def test_an_arx_fit_without_physical_parameters_names_its_bias_and_the_method_wi
     assert json.loads(capsys.readouterr().out)["accepted"] is True
 
 
+def test_a_voltage_in_millivolts_is_named_not_called_unexcited(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """V read 1000x too large: every unknown was "not excited", and nothing
+    pointed at the column (a current in mA was already named)."""
+    frame = simulate_actuator(seed=1)
+    frame["V"] *= 1000.0
+    rec = tmp_path / "mv.csv"
+    frame.to_csv(rec, index=False)
+    assert main(["estimate", str(rec), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["accepted"] is False and doc["reason"].startswith("not identifiable")
+    assert doc["reason"].endswith("column 'V' (drive voltage) in mV? (converted to V, the "
+                                  "record's estimate is accepted)")
+
+
 def test_a_baseline_add_that_fails_on_a_record_says_what_it_stored(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A bad third file ended the command with its own error only, while the

@@ -100,6 +100,10 @@ def estimate_cmd(
                     sample_rate, scale, offset, ignore, meta, window)
     if len(records) == 1:
         res, _ = opts.run(records[0])
+        if not res.usable:   # a column in other units? (imported only for a rejection)
+            from condmon.workflows.monitoring import with_unit_hint
+
+            res = with_unit_hint(opts, records[0], res)
     else:
         from condmon.identify.estimate import estimate_joint
 

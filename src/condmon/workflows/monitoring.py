@@ -410,12 +410,30 @@ def estimate_judged(opts: EstimateOptions, record: RecordLike,
 
 def _scale_sensitive(res: EstimateResult) -> bool:
     """Whether a rejection could come from a column in the wrong unit: a value
-    outside its physical bounds, or one the record does not measure. A fit
-    below its threshold, or an unknown the record does not identify, reads
-    the same whatever a column's scale, so no re-reading is tried for them
-    (each would cost a whole estimate)."""
+    outside its physical bounds, or one the record does not measure; or a
+    good fit whose every unknown the record is said not to identify (the
+    model's fixed relations, Ke = gamma Kt, cannot hold with a voltage in mV
+    against the others, and the search lands far from every nominal value).
+    A fit below its threshold reads the same whatever a column's scale, so
+    no re-reading is tried for it (each would cost a whole estimate)."""
     return any((p.rejection or "").startswith(("not physically possible", "not a measurement"))
+               or (p.fit.accepted and p.identifiability is not None
+                   and not p.identifiability.identifiable
+                   and (p.rejection or "").startswith("not identifiable"))
                for p in res.regimes)
+
+
+def with_unit_hint(opts: EstimateOptions, record: RecordLike,
+                   res: EstimateResult) -> EstimateResult:
+    """``res`` with, when it is rejected in a way a column in the wrong unit
+    would explain, the column whose other unit would make it accepted
+    (``condmon estimate``; checks and baselines do it in
+    :func:`estimate_judged`)."""
+    if res.usable or not _scale_sensitive(res):
+        return res
+    df, _, source = opts.parse(record)
+    hint = opts.unit_hint(df, source, lambda r: r.usable)
+    return dataclasses.replace(res, rejection=f"{res.reason}{hint}") if hint else res
 
 
 def _held(baseline: Baseline | None) -> dict[str, float] | None:

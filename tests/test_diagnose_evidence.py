@@ -248,6 +248,15 @@ def test_rules_check_of_a_shipped_model(capsys: pytest.CaptureFixture[str]) -> N
     assert doc["ok"] and doc["indistinguishable"] == [] and doc["model"] == "dc-motor"
 
 
+def test_rules_check_of_a_model_diagnosed_by_isolation_says_so(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """It printed "0 faults over " and then "fine"."""
+    assert main(["rules", "check", "hst"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "error: model 'hst' reports no parameters or features, so no fault rule names them: "
+        "its faults are isolated from residuals (condmon isolate RECORD --model hst)")
+
+
 def test_rules_check_lists_what_cannot_be_told_apart(tmp_path: Path,
                                                     capsys: pytest.CaptureFixture[str]) -> None:
     p = tmp_path / "r.toml"

@@ -38,6 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from condmon.diagnose.rules import RuleBase, atoms, evaluate
+from condmon.errors import ConfigError
 
 if TYPE_CHECKING:
     from condmon.models.machine import Machine
@@ -289,6 +290,9 @@ def check_model_rules(model: str | Path, rules: str | Path | None = None) -> Rul
     ------
     ModelError
         An unknown model.
+    ConfigError
+        A model that reports nothing for rules to name (one diagnosed by
+        isolation from its residuals).
 
     Example
     -------
@@ -300,5 +304,9 @@ def check_model_rules(model: str | Path, rules: str | Path | None = None) -> Rul
     from condmon.models.registry import get_model
 
     machine: Machine = get_model(model)
+    if not machine.monitored:
+        raise ConfigError(f"model {machine.name!r} reports no parameters or features, so no "
+                          "fault rule names them: its faults are isolated from residuals "
+                          f"(condmon isolate RECORD --model {machine.name})")
     rb = load_rules(rules) if rules is not None else machine_rules(machine)
     return check_rules(rb, machine.monitored, machine.name)

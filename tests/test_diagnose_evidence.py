@@ -90,7 +90,7 @@ def test_or_of_the_same_patterns_is_indistinguishable(tmp_path: Path) -> None:
 
 
 def test_the_shipped_and_example_rules_tell_every_fault_apart() -> None:
-    for model in ("dc-motor", "dc-motor-coulomb", "hst", "examples/emps/emps.toml"):
+    for model in ("dc-motor", "dc-motor-coulomb", "examples/emps/emps.toml"):
         check = check_model_rules(model)
         assert check.ok, (model, check.findings())
     # the actuator's friction alone cannot tell a leak from the drive train, and says so

@@ -250,3 +250,15 @@ def test_breakpoints_of_a_parameter_the_model_does_not_have_are_refused(tmp_path
     p.write_text("k = 2.0\n[breakpoints]\nR = { r1 = 20.0, r2 = 40.0 }\n")
     cfg, _ = monitoring_of(machine, baseline, load_monitor_config(p))
     assert cfg.r1 == {"R": 20.0}
+
+
+def test_one_reason_for_several_parameters_is_said_once() -> None:
+    from condmon.cli.check import folded_judgement
+
+    lines = ["R: no spread between units is stated", "Tc@forward: judged against oil",
+             "L: no spread between units is stated", "vib1@forward: judged against oil",
+             "Ke: the declared r1 20 % lies inside the healthy scatter"]
+    assert folded_judgement(lines) == [
+        "R, L: no spread between units is stated",
+        "Tc@forward, vib1@forward: judged against oil",
+        "Ke: the declared r1 20 % lies inside the healthy scatter"]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Annotated, Any, Optional
 
@@ -18,7 +19,23 @@ from condmon.cli.estimation import (
 from condmon.cli.history import print_flags
 from condmon.identify.defaults import DEFAULT_FIT_THRESHOLD
 
-__all__ = ["register"]
+__all__ = ["register", "folded_judgement"]
+
+
+def folded_judgement(lines: Sequence[str]) -> list[str]:
+    """``P: why`` lines that give one reason for several parameters as one
+    line naming them all, in their order.
+
+    Example
+    -------
+    >>> folded_judgement(["R: no spread stated", "L: no spread stated", "J: fitted"])
+    ['R, L: no spread stated', 'J: fitted']
+    """
+    names: dict[str, list[str]] = {}
+    for line in lines:
+        name, sep, why = line.partition(": ")
+        names.setdefault(why if sep else line, []).append(name if sep else "")
+    return [f"{', '.join(n)}: {why}" if all(n) else why for why, n in names.items()]
 
 
 def register(app: typer.Typer) -> None:
@@ -104,7 +121,7 @@ def register(app: typer.Typer) -> None:
                       "Retest.", markup=False)
             _print_forecast(res.forecast)
             return
-        for line in res.judgement:
+        for line in folded_judgement(res.judgement):
             out.print(f"judged: {line}", highlight=False, markup=False, soft_wrap=True)
         table = Table()
         for col in ("parameter", "value", "unit", "change %", "SymH", "SymL"):

@@ -183,6 +183,10 @@ def test_validate_says_what_it_took_from_the_declaration(tanks: Path, tmp_path: 
     bare, _ = validate_file(rec, str(tanks), initial="x1=6")
     assert "no parameter file (--params): the declaration's values of k = 0.04, a = 0.03, " \
         "b = 0.03" in " ".join(bare.notes)
+    assert "lies outside [estimation.initial]" not in " ".join(bare.notes)
+    below, _ = validate_file(rec, str(tanks), initial="x1=-5")
+    assert "--initial x1=-5 lies outside [estimation.initial] x1 (0 .. 30); simulated as " \
+        "given" in " ".join(below.notes)
 
 
 def test_the_command_line_scale_holds_beside_its_column_map(tanks: Path, tmp_path: Path,

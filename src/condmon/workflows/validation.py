@@ -171,6 +171,11 @@ def _setup(record: str | Path, model: str, params: str | Path | None, set_values
     if "=" in initial:
         given = parse_assignments(initial, plant.state_names, "state", "--initial")
         rule = "estimated"
+        for k, v in given.items():
+            box = machine.spec.simulation.of(k)
+            if not box.low <= v <= box.high:
+                notes.append(f"--initial {k}={v:g} lies outside [estimation.initial] {k} "
+                             f"({box.low:g} .. {box.high:g}); simulated as given")
     else:
         given, rule = {}, initial.strip()
     if not sensors and rule in ("first-sample", "fit"):

@@ -320,6 +320,17 @@ def test_comment_lines_above_the_header_are_skipped_and_lines_still_counted(
     assert noted.read_text().splitlines()[53].split(",")[2] == ""
 
 
+def test_a_separator_ending_every_line_adds_no_column(tmp_path: Path) -> None:
+    """A spreadsheet's export with "," at the end of each line: the empty
+    column 'Unnamed: 3' was listed among the record's columns."""
+    p = tmp_path / "trail.csv"
+    p.write_text("t,V,I,\n0.0,1.5,0.1,\n0.001,2.5,0.2,\n")
+    assert list(_read_quiet(p).columns) == ["t", "V", "I"]
+    kept = tmp_path / "kept.csv"
+    kept.write_text("t,V,I,\n0.0,1.5,0.1,7\n0.001,2.5,0.2,\n")  # a value: kept, named
+    assert list(_read_quiet(kept).columns) == ["t", "V", "I", "Unnamed: 3"]
+
+
 def test_european_csv(tmp_path: Path) -> None:
     p = tmp_path / "eu.csv"
     p.write_text("t;V;I\n0,000;1,25;-3,5\n0,001;1,5e-3;3\n0,002;2;4,0\n")

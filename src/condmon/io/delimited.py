@@ -263,6 +263,12 @@ def read_delimited(path: Path) -> RawRecord:
         alt = _parse(path, other)
         if _typed_columns(alt) > _typed_columns(frame):
             frame = alt
+    # a separator at the end of every line (a spreadsheet's export) makes an
+    # empty column with no name: not a column of the record
+    empty = [c for c in frame.columns if not c.strip() or c.startswith("Unnamed: ")]
+    empty = [c for c in empty if bool(frame[c].isna().all())]
+    if empty:
+        frame = frame.drop(columns=empty)
     if skip:
         frame.attrs["header_line"] = skip + 1   # for the lines messages name
     return RawRecord(frame)

@@ -46,6 +46,21 @@ def test_healthy_records_raise_no_detection(hst: PlantModel, settings: Isolation
             peaks.append(float(np.abs(d.normalised[res.t >= 1.0]).max()))
     assert max(peaks) < 1.5
     assert isolate(simulate_plant(hst, seed=1000), hst, workers=1).isolated == ()
+    assert learned.notes == ()     # healthy: within twice the declared noise
+
+
+def test_a_faulty_record_given_as_healthy_is_said_to_spread_beyond_the_noise(
+        hst: PlantModel) -> None:
+    """The record itself as its own healthy reference: "no fault detected",
+    the residual's spread 23x the pressure sensor's noise unsaid."""
+    faulty = simulate_plant(hst, ["Rv=+25%@10s"], seed=3)
+    norm = healthy_normalisation(hst, [faulty])
+    said = " ".join(norm.notes)
+    assert "the healthy records' residual r_Ps spreads" in said
+    assert "x the declared 2.5e+04 noise of sensor Ps" in said
+    res = isolate(faulty, hst, normalisation=norm, workers=1)
+    assert not res.detected and any(n.startswith("the healthy records' residual r_Ps")
+                                    for n in res.notes)
 
 
 @pytest.mark.parametrize("param", ["Rv", "Dm"])

@@ -171,7 +171,11 @@ def _print_isolation(res: IsolationResult) -> None:
         out.print(f"note: {note}", highlight=False, markup=False)
     if not res.detected:
         if res.decided:
-            out.print("[green]no fault detected[/]")
+            wide = sum(n.startswith("the healthy records' residual") for n in res.notes)
+            out.print("[green]no fault detected[/]" + (
+                f" against a reference whose {wide} residual(s) spread well above the "
+                "sensors' noise (notes above): a smaller fault would not show"
+                if wide else ""), highlight=False)
         else:
             out.print(f"[bold yellow]undecided[/]: {res.reason}", highlight=False)
         return

@@ -276,7 +276,32 @@ def healthy_normalisation(model: PlantModel, healthy: Sequence[pd.DataFrame | Co
     sets = [compute_residuals(model, validate_plant_record(model, r, name, record), gens,
                               limits=limits, source=name)
             for r, name in zip(healthy, names)]
-    return learn_normalisation(sets, settings or DetectionSettings.from_config())
+    norm = learn_normalisation(sets, settings or DetectionSettings.from_config())
+    return dataclasses.replace(norm, notes=(*norm.notes, *_beyond_noise(model, sets[0], norm)))
+
+
+#: How far above the declared sensor noise a healthy residual's spread is said:
+#: twice the noise is no longer noise alone (the model misses the machine, or the
+#: "healthy" record holds a fault). [-]
+NOISE_FACTOR_SAID = 2.0
+
+
+def _beyond_noise(model: PlantModel, residuals: Residuals, norm: Normalisation) -> list[str]:
+    """A note for each residual whose healthy spread exceeds its sensor's
+    declared noise by :data:`NOISE_FACTOR_SAID` or more: a fault must then
+    move it that many times further to be detected than the sensor alone
+    would need (a faulty record given as healthy hides its own fault)."""
+    noise = {s.name: s.noise for s in model.sensors}
+    notes = []
+    for name, sensor, raw in zip(norm.names, residuals.sensors, norm.raw_std):
+        sd = noise.get(sensor, 0.0)
+        if sd > 0 and raw >= NOISE_FACTOR_SAID * sd:
+            notes.append(f"the healthy records' residual {name} spreads {raw:.4g} "
+                         f"({raw / sd:.3g}x the declared {sd:.4g} noise of sensor {sensor}): "
+                         "a fault must move it that much further to be detected; healthy "
+                         "records this far from the model hold a fault, or the model's "
+                         "parameters do not fit this machine")
+    return notes
 
 
 @one_blas_thread

@@ -124,3 +124,25 @@ def test_a_unit_file_too_large_is_refused_unread(tmp_path: Path) -> None:
         f.truncate(MAX_UNIT_FILE + 1)
     unit = read_unit_file(tmp_path / "U1")
     assert unit.error is not None and "beyond the 1000000 a unit file may hold" in unit.error
+
+
+def test_a_unit_s_folder_or_stream_settings_are_refused_before_watching(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`watch inbox/HST-A` watched the unit's folder and never read its
+    records; `--settings` was ignored by a watched folder, even a CSV."""
+    from condmon.cli.main import main
+
+    unit = tmp_path / "inbox" / "U1"
+    unit.mkdir(parents=True)
+    simulate_actuator(seed=1).to_csv(unit / "r1.csv", index=False)
+    db = str(tmp_path / "h.db")
+    assert main(["watch", str(unit), "--db", db, "--duration", "1"]) == 2
+    assert capsys.readouterr().err.strip().endswith(
+        f"{unit} holds record files, not unit folders — did you mean {unit.parent}?")
+    settings = tmp_path / "iso.toml"
+    settings.write_text("[detection]\nz = 1000.0\n")
+    assert main(["watch", str(unit.parent), "--db", db, "--duration", "1",
+                 "--settings", str(settings)]) == 2
+    assert "applies to an --mqtt stream; a watched folder's records are processed as " \
+        "`condmon fleet run` processes them" in capsys.readouterr().err
+    assert not Path(db).exists()

@@ -23,7 +23,7 @@ def register(app: typer.Typer) -> None:
         model: Annotated[Optional[str], typer.Option(help="Model of units new to the history (MQTT): a shipped name (hst, dc-motor) or a declaration file (.toml); known units keep their own.")] = None,
         duration: Annotated[Optional[float], typer.Option(help="Stop after this long [s] (default: until Ctrl-C or SIGTERM).", min=0)] = None,
         isolate_after: Annotated[Optional[float], typer.Option(help="Data after a detection before its isolation starts [s] (default: what the isolation's settings need).", min=0)] = None,
-        settings: Annotated[Optional[Path], typer.Option(help="Detection/estimation/isolation settings TOML, as for isolate (default: the shipped isolation.toml).")] = None,
+        settings: Annotated[Optional[Path], typer.Option(help="Detection/estimation/isolation settings TOML of the --mqtt stream, as for isolate (default: the shipped isolation.toml); a watched folder's records use the shipped ones, as fleet run does.")] = None,
         settle: Annotated[float, typer.Option(help="With --complete settle, a dropped file is complete once unchanged this long [s].", min=0)] = 2.0,
         complete: Annotated[str, typer.Option(help="How a dropped file is known to be complete: rename (written under a hidden or .part/.tmp name, then renamed into place: complete at once; best), marker (NAME.done written beside NAME), or settle (unchanged for --settle; a file written on after a longer pause is stored again and its part excluded as replaced).")] = "settle",
         client_id: Annotated[Optional[str], typer.Option(help="MQTT client id: the broker keeps this session's messages while the watcher is away; two watchers with one id push each other off (default: one per history).")] = None,
@@ -63,8 +63,16 @@ def register(app: typer.Typer) -> None:
         pattern = unit_pattern(units)
         if complete not in COMPLETE:
             raise ConfigError(f"--complete {complete!r}: allowed: {', '.join(COMPLETE)}")
-        if folder is not None and not folder.is_dir():
-            raise ConfigError(f"{folder}: not a folder (watch a fleet inbox: FOLDER/UNIT/records)")
+        if folder is not None:
+            from condmon.workflows.fleet_inbox import check_inbox
+
+            check_inbox(folder)   # a unit's own folder is refused before watching
+        if settings is not None:
+            if mqtt is None:   # records dropped in a folder are isolated as fleet run does
+                raise ConfigError(f"--settings {settings}: applies to an --mqtt stream; a "
+                                  "watched folder's records are processed as `condmon fleet "
+                                  "run` processes them, with the shipped isolation settings")
+            IsolationSettings.load(settings)   # a bad file is refused before connecting
 
         def log(line: str) -> None:
             err.print(line, markup=False, highlight=False, soft_wrap=True)

@@ -225,6 +225,29 @@ def _broken_link(path: Path) -> bool:
     return path.is_symlink() and not path.exists()
 
 
+def check_inbox(inbox: str | Path) -> Path:
+    """``inbox`` as a Path once it is a folder of unit folders, not a unit's
+    own folder (record files and no folders, or a ``unit.toml``): watched or
+    run, a unit's folder would have its records never looked at.
+
+    Raises
+    ------
+    ConfigError
+        Not a folder, or a unit's folder ("did you mean" its parent).
+    """
+    root = Path(inbox)
+    if not root.is_dir():
+        raise ConfigError(f"{root}: not a folder; the inbox holds a folder per unit "
+                          "(INBOX/UNIT/record files)")
+    entries = [e for e in root.iterdir() if not e.name.startswith(".")]
+    stray = [e for e in entries if _is_record(e)]
+    if stray and ((root / UNIT_FILE).is_file() or not any(e.is_dir() for e in entries)):
+        parent = root.parent if root.parent.name else root.absolute().parent
+        raise ConfigError(f"{root} holds record files, not unit folders — did you mean "
+                          f"{parent}?")
+    return root
+
+
 def inbox_records(inbox: str | Path) -> list[FleetRecord]:
     """The records of an inbox folder: ``INBOX/UNIT/...`` (a folder per unit).
 
@@ -253,17 +276,9 @@ def inbox_records(inbox: str | Path) -> list[FleetRecord]:
     >>> [(r.path.name, r.error is None) for r in inbox_records(root)]
     [('notes.md', False), ('rec-2.csv', True), ('rec-10.csv', True)]
     """
-    root = Path(inbox)
-    if not root.is_dir():
-        raise ConfigError(f"{root}: not a folder; the inbox holds a folder per unit "
-                          "(INBOX/UNIT/record files)")
+    root = check_inbox(inbox)
     entries = [e for e in sorted(root.iterdir(), key=lambda p: _natural(p.name))
                if not e.name.startswith(".")]
-    stray = [e for e in entries if _is_record(e)]
-    if stray and ((root / UNIT_FILE).is_file() or not any(e.is_dir() for e in entries)):
-        parent = root.parent if root.parent.name else root.absolute().parent
-        raise ConfigError(f"{root} holds record files, not unit folders — did you mean "
-                          f"{parent}?")
     records: list[FleetRecord] = []
     for entry in entries:
         if entry.is_dir():

@@ -117,9 +117,9 @@ def watch_folder(folder: str | Path, db: str, *, settle: float = 2.0, poll: floa
     """
     from condmon.workflows.fleet_engine import local_cluster
 
-    root = Path(folder)
-    if not root.is_dir():
-        raise ConfigError(f"{root}: not a folder (watch a fleet inbox: FOLDER/UNIT/records)")
+    from condmon.workflows.fleet_inbox import check_inbox
+
+    root = check_inbox(folder)
     if complete not in COMPLETE:
         raise ConfigError(f"--complete {complete!r}: allowed: {', '.join(COMPLETE)}")
     halt = stop or threading.Event()

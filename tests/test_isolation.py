@@ -230,3 +230,24 @@ def test_a_measured_noisy_input_column_is_followed(hst: PlantModel) -> None:
     res = isolate(rec, hst, normalisation=norm, workers=1)
     assert res.isolated == ("Rv",)
     assert res.estimates["Rv"].value == pytest.approx(11.271 * 1.25, rel=0.03)
+
+
+def test_isolate_options_that_store_nothing_or_cannot_run_are_refused(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`--db` without `--unit` stored nothing and said nothing; `--workers 0`
+    and `--workers -3` ran."""
+    from condmon.cli.main import main
+
+    rec = tmp_path / "h.csv"
+    rec.write_text("t\n0\n")   # refused later than the options are
+    db = tmp_path / "iso.db"
+    assert main(["isolate", "hst", str(rec), "--db", str(db)]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "error: --db applies to an isolation stored in a unit's history: give --unit NAME "
+        "too (without it nothing is stored)")
+    assert main(["isolate", "hst", str(rec), "--date", "2026-01-01"]) == 2
+    assert "error: --date applies to an isolation stored" in capsys.readouterr().err
+    for n in ("0", "-3"):
+        assert main(["isolate", "hst", str(rec), "--workers", n]) == 2
+        assert "Invalid value for '--workers'" in capsys.readouterr().err
+    assert not db.exists()

@@ -57,10 +57,10 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
         healthy: Annotated[Optional[list[Path]], typer.Option(help="Healthy records to learn the residuals' normalisation from (--healthy h1.csv h2.csv, or h*.csv; default: the sensors' declared noise).")] = None,
         residuals: Annotated[str, typer.Option(help="Residual set: simulation (one per sensor, the model from its inputs) or structured (every MSO computable by integration).")] = "simulation",
         settings: Annotated[Optional[Path], typer.Option(help="Detection/estimation/isolation settings TOML (default: the shipped isolation.toml).")] = None,
-        workers: Annotated[Optional[int], typer.Option(help="Processes for the suspects' models (1: one after the other).")] = None,
+        workers: Annotated[Optional[int], typer.Option(help="Processes for the suspects' models (1: one after the other).", min=1)] = None,
         plots: Annotated[Optional[Path], typer.Option(help="Folder for the residual and model-error figures.")] = None,
         unit: Annotated[Optional[str], typer.Option("--unit", help="Store the isolation in this unit's history (with --db).")] = None,
-        db: Annotated[str, typer.Option("--db", help="History database for --unit: a SQLite file or a postgresql:// URL.")] = "condmon.db",
+        db: Annotated[Optional[str], typer.Option("--db", help="History database for --unit: a SQLite file or a postgresql:// URL (default condmon.db).")] = None,
         date: Annotated[Optional[str], typer.Option(help="When the test was run, ISO 8601 (UTC unless a zone is given); default: the record's own date, if any.")] = None,
         sample_rate: RateOpt = None,
         scale: ScaleOpt = None,
@@ -88,6 +88,10 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
         plant = load_plant_model(model, params)
         cfg = IsolationSettings.load(settings)
         rec = reader.read(record)
+        if unit is None and (db is not None or date is not None):
+            given = "--db" if db is not None else "--date"
+            raise ConfigError(f"{given} applies to an isolation stored in a unit's history: "
+                              "give --unit NAME too (without it nothing is stored)")
         if unit is not None:
             from condmon.store.base import check_name
             from condmon.io.dates import parse_date
@@ -123,7 +127,7 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
             from condmon.store.engine import redact
             from condmon.workflows.isolation import store_isolation
 
-            with open_store(db) as store:
+            with open_store(db or "condmon.db") as store:
                 kept = store_isolation(store, unit, res, rec, record, model, date)
         if as_json:
             doc = res.to_dict()
@@ -135,7 +139,7 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
         _print_isolation(res)
         if kept is not None:
             what = ("already in the history of" if kept.duplicate else "stored in the history of")
-            out.print(f"isolation i{kept.isolation_id} {what} {kept.unit!r} ({redact(db)})",
+            out.print(f"isolation i{kept.isolation_id} {what} {kept.unit!r} ({redact(db or 'condmon.db')})",
                       highlight=False, markup=False)
 
 

@@ -171,7 +171,7 @@ def test_settings_are_validated(tmp_path: pytest.TempPathFactory) -> None:
 
     p = Path(str(tmp_path)) / "s.toml"
     p.write_text("[detection]\nz = -1\n")
-    with pytest.raises(ConfigError, match="z > 0"):
+    with pytest.raises(ConfigError, match=r"s\.toml: \[detection\] z = -1 \(must be > 0\)"):
         IsolationSettings.load(p)
     p.write_text("[detection]\nzz = 1\n")
     with pytest.raises(ConfigError, match="unknown key 'zz'"):
@@ -251,3 +251,15 @@ def test_isolate_options_that_store_nothing_or_cannot_run_are_refused(
         assert main(["isolate", "hst", str(rec), "--workers", n]) == 2
         assert "Invalid value for '--workers'" in capsys.readouterr().err
     assert not db.exists()
+
+
+def test_a_bad_settings_value_names_the_file_and_the_key(tmp_path: Path) -> None:
+    """It printed the settings' dataclass and no file."""
+    p = tmp_path / "neg_z.toml"
+    p.write_text("[detection]\nz = -4\nwindow = -1\n")
+    with pytest.raises(Exception, match=r"neg_z\.toml: \[detection\] window = -1 \(must be "
+                                        r">= 0\); z = -4 \(must be > 0\)$"):
+        IsolationSettings.load(p)
+    p.write_text("[isolation]\nsignificance = 2\n")
+    with pytest.raises(Exception, match=r"neg_z\.toml: \[isolation\]\.significance must be"):
+        IsolationSettings.load(p)

@@ -113,8 +113,17 @@ class IsolationSettings:
 
     @classmethod
     def load(cls, path: str | Path | None = None) -> IsolationSettings:
-        """Settings from the shipped file, overridden by ``path``."""
-        cfg = load_settings(path)
+        """Settings from the shipped file, overridden by ``path`` (named in
+        every error of its values)."""
+        try:
+            return cls._checked(load_settings(path))
+        except ConfigError as err:
+            if path is None or str(err).startswith(str(path)):
+                raise
+            raise ConfigError(f"{path}: {err}") from None
+
+    @classmethod
+    def _checked(cls, cfg: Mapping[str, Any]) -> IsolationSettings:
         iso = cfg["isolation"]
         out = cls(DetectionSettings.from_config(cfg), float(cfg["estimation"]["settle"]),
                   float(cfg["estimation"]["min_window"]), float(iso["settle"]),

@@ -86,10 +86,13 @@ class DetectionSettings:
         out = cls(float(d["window"]), float(d["z"]), float(d["persistence"]), float(d["startup"]),
                   bool(d["by_operating_point"]), float(d["min_point_time"]),
                   float(d["input_settle"]))
-        if not (out.window >= 0 and out.z > 0 and out.persistence >= 0 and out.startup >= 0
-                and out.input_settle >= 0):
-            raise ConfigError(f"[detection]: window, persistence, startup, input_settle must be "
-                              f">= 0 and z > 0 (got {out})")
+        bad = [f"{k} = {v:g} (must be {'> 0' if k == 'z' else '>= 0'})"
+               for k, v in (("window", out.window), ("z", out.z),
+                            ("persistence", out.persistence), ("startup", out.startup),
+                            ("input_settle", out.input_settle))
+               if not (v > 0 if k == "z" else v >= 0)]
+        if bad:
+            raise ConfigError(f"[detection] {'; '.join(bad)}")
         return out
 
     def judged(self, t: FloatArray, inputs: FloatArray) -> NDArray[np.bool_]:

@@ -140,8 +140,11 @@ def test_bad_records_name_the_column(hst: PlantModel) -> None:
         validate_plant_record(hst, rec.drop(columns="omega_m"), "rig.csv")
     bad = rec.copy()
     bad.loc[7, "Ps"] = np.nan
-    with pytest.raises(DataError, match="column 'Ps' has a missing or non-numeric value at row 7"):
+    with pytest.raises(DataError, match=r"column 'Ps' has a missing or non-numeric value at "
+                                        r"row 7 \(from 0; line 9 of a file with a header line\)"):
         isolate(bad, hst, workers=1, source="rig.csv")
+    with pytest.raises(DataError, match=r"at row 7 \(from 0\)$"):
+        isolate(bad, hst, workers=1, source="rig.parquet")
     jitter = rec.copy()
     jitter.loc[5, "t"] = 0.0525
     with pytest.raises(DataError, match="'t' is not uniformly sampled"):

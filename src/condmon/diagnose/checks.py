@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from condmon.io.records import check_time_base
+from condmon.io.records import check_time_base, row_text
 from condmon.errors import ConfigError, DataError, DataWarning, MissingColumnsError
 from condmon.io.columns import Columns
 from condmon.io.config import load_default
@@ -127,7 +127,9 @@ def validate_plant_record(model: PlantModel, record: pd.DataFrame | Columns,
         v = record[c] if isinstance(record, Columns) else _numbers(record, c)
         if not np.all(np.isfinite(v)):
             k = int(np.flatnonzero(~np.isfinite(v))[0])
-            raise DataError(f"{source}: column {c!r} has a missing or non-numeric value at row {k}")
+            header = int(record.attrs.get("header_line", 1))
+            raise DataError(f"{source}: column {c!r} has a missing or non-numeric value at "
+                            f"{row_text(k, source, header)}")
         values[c] = v
     t = values["t"]
     if len(t) < 10:

@@ -28,7 +28,7 @@ if TYPE_CHECKING:  # pandas only where a DataFrame is made or read: not on impor
     import pandas as pd
 
 __all__ = ["Record", "read_record", "validate_record", "check_time_base", "parse_column_map",
-           "write_record"]
+           "write_record", "check_output_path", "row_text"]
 
 FloatArray = NDArray[np.float64]
 
@@ -152,7 +152,7 @@ beyond the tolerance, first at row 3 (resample first)
         bad = np.flatnonzero(~np.isfinite(arr))   # beyond 1e308: no row then)
         if bad.size:
             raise DataError(f"{source}: column {column!r} has {bad.size} NaN/inf value(s), "
-                            f"first at {_row(int(bad[0]), source)}")
+                            f"first at {row_text(int(bad[0]), source)}")
     with np.errstate(over="ignore", invalid="ignore"):
         dts = np.diff(arr)
     low, high = float(np.min(dts)), float(np.max(dts))
@@ -270,17 +270,17 @@ def validate_record(df: pd.DataFrame | Columns, required: Sequence[str],
                     and np.all(np.isnan(arr[bad_idx]))):
                 tail = n_rows - int(last_good[-1]) - 1
                 raise DataError(f"{src}: column {name!r} has no value in the record's last "
-                                f"{tail} row(s), from {_row(int(bad_idx[0]), src, header)}: values "
+                                f"{tail} row(s), from {row_text(int(bad_idx[0]), src, header)}: values "
                                 "missing at the end, or a column shorter than the others "
                                 f"({last_good[-1] + 1} samples against {n_rows} rows); drop "
                                 "those rows")
             raise DataError(f"{src}: column {name!r} has {bad_idx.size} NaN/inf value(s) "
                             "(an empty cell, NaN, inf or a spreadsheet error such as #DIV/0!), "
-                            f"first at {_row(int(bad_idx[0]), src, header)}")
+                            f"first at {row_text(int(bad_idx[0]), src, header)}")
         huge = np.flatnonzero(np.abs(arr) > MAX_MAGNITUDE)
         if huge.size:
             raise DataError(f"{src}: column {name!r} has {huge.size} value(s) beyond "
-                            f"{MAX_MAGNITUDE:g} in magnitude ({_row(int(huge[0]), src, header)}: {arr[huge[0]]:.6g}); "
+                            f"{MAX_MAGNITUDE:g} in magnitude ({row_text(int(huge[0]), src, header)}: {arr[huge[0]]:.6g}); "
                             "a corrupt or mis-scaled column?")
         cols[name] = arr
     if n_rows < min_samples:
@@ -405,10 +405,16 @@ def write_record(df: pd.DataFrame, path: str | Path) -> Path:
     return p
 
 
-def _row(i: int, src: str = "", header: int = 1) -> str:
+def row_text(i: int, src: str = "", header: int = 1) -> str:
     """A 0-based sample index said as a user looks it up: the frame's row and,
     in a text file (``src`` ends .csv, .tsv or .txt), the line it is on
-    (``header``: the header's line, after comments or Excel's ``sep=``)."""
+    (``header``: the header's line, after comments or Excel's ``sep=``).
+
+    Example
+    -------
+    >>> row_text(1500, "rig.csv"), row_text(7, "rig.mat")
+    ('row 1500 (from 0; line 1502 of a file with a header line)', 'row 7 (from 0)')
+    """
     if not src.lower().endswith((".csv", ".tsv", ".txt")):
         return f"row {i} (from 0)"
     if header == 1:

@@ -89,7 +89,15 @@ def test_isolations_are_kept_in_the_units_history(tmp_path: Path,
     assert main(["isolate", "hst", str(copy), "--unit", "HST-1", "--db", db, "--json",
                  "--workers", "1"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert doc["stored"] is False and doc["isolation_id"] == 2
+    assert doc["stored"] is False and doc["isolation_id"] == 2 and doc["warning"] is None
+    # the same record under another unit is stored, with a warning (tests had one)
+    assert main(["isolate", "hst", str(faulty), "--unit", "HST-9", "--db", db, "--json",
+                 "--workers", "1"]) == 0
+    captured = capsys.readouterr()
+    doc = json.loads(captured.out)
+    assert doc["stored"] is True and doc["warning"] == (
+        "the same record is also isolation i2 of 'HST-1'; is it filed under the right unit?")
+    assert f"warning: {faulty}: the same record is also isolation i2 of 'HST-1'" in captured.err
     assert main(["history", "--unit", "HST-1", "--db", db, "--json"]) == 0
     rows = json.loads(capsys.readouterr().out)
     assert [(r["kind"], r["status"], r["isolated"]) for r in rows] == [

@@ -129,11 +129,14 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
 
             with open_store(db or "condmon.db") as store:
                 kept = store_isolation(store, unit, res, rec, record, model, date)
+            if kept.warning:
+                err.print(f"warning: {record}: {kept.warning}", highlight=False, markup=False,
+                          soft_wrap=True)
         if as_json:
             doc = res.to_dict()
             if kept is not None:
                 doc.update(unit=kept.unit, isolation_id=kept.isolation_id,
-                           stored=not kept.duplicate)
+                           stored=not kept.duplicate, warning=kept.warning)
             write_json(doc)
             return
         _print_isolation(res)

@@ -33,12 +33,16 @@ class StoredIsolation:
         The record was already among the unit's isolations (nothing written).
     test_date : datetime or None
         When the test was run, if known (UTC).
+    warning : str or None
+        The same record is also an isolation of another unit (a mix-up of
+        serial numbers or folders?).
     """
 
     unit: str
     isolation_id: int
     duplicate: bool
     test_date: datetime | None
+    warning: str | None = None
 
 
 def store_isolation(store: HistoryStore, unit: str, result: IsolationResult,
@@ -68,4 +72,8 @@ def store_isolation(store: HistoryStore, unit: str, result: IsolationResult,
                                   test_date=key.test_date, model_source=machine.origin)
     except DuplicateTestError as dup:
         return StoredIsolation(unit, dup.test_id, True, key.test_date)
-    return StoredIsolation(unit, iid, False, key.test_date)
+    others = store.isolation_copies_elsewhere(unit, key.content)
+    where = ", ".join(f"isolation i{i} of {u!r}" for u, i in others[:3])
+    return StoredIsolation(unit, iid, False, key.test_date,
+                           f"the same record is also {where}; is it filed under the right "
+                           "unit?" if others else None)

@@ -196,3 +196,22 @@ def test_isolate_reads_a_record_as_the_rig_writes_it(
     capsys.readouterr()
     assert main(["isolate", str(decl), str(rec)]) == 0
     assert "fault isolated: Dm" in capsys.readouterr().out
+
+
+def test_a_parameter_file_of_the_other_sign_or_beyond_the_declared_range_is_refused(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`Rv = -5` was taken as the nominal value, and a healthy record then
+    "had" a fault."""
+    rec = tmp_path / "ok.csv"
+    assert main(["simulate", "hst", "--out", str(rec), "--seed", "5"]) == 0
+    p = tmp_path / "p.toml"
+    for text, said in (("Rv = -5\n", "p.toml: Rv = -5 N m s/rad is not of the sign of its "
+                                     "declared value 11.271 N m s/rad"),
+                       ("Tld = 900\n", "p.toml: Tld = 900 N m lies outside its declared range "
+                                       "[-450, 450] N m")):
+        p.write_text(text)
+        capsys.readouterr()
+        assert main(["isolate", "hst", str(rec), "--params", str(p)]) == 2
+        assert said in capsys.readouterr().err
+    p.write_text("Rv = 12.0\n")
+    assert main(["simulate", "hst", "--out", str(tmp_path / "b.csv"), "--params", str(p)]) == 0

@@ -254,6 +254,17 @@ def load_plant_model(model: str | Path = "hst", params: str | Path | Mapping[str
     if bad:
         k = next(iter(bad))
         raise ConfigError(f"{params}: parameter {k!r} must be a number, not {bad[k]!r}")
+    for k, v in values.items():
+        if not any(p.name == k for p in plant.parameters):
+            continue   # named by with_parameters below
+        declared = plant.parameter(k)
+        unit = f" {declared.unit}" if declared.unit else ""
+        if declared.range is not None and not declared.range[0] <= v <= declared.range[1]:
+            raise ConfigError(f"{params}: {k} = {v:g}{unit} lies outside its declared range "
+                              f"[{declared.range[0]:g}, {declared.range[1]:g}]{unit}")
+        if declared.range is None and declared.value != 0 and not v * declared.value > 0:
+            raise ConfigError(f"{params}: {k} = {v:g}{unit} is not of the sign of its declared "
+                              f"value {declared.value:g}{unit}: a sign or unit error?")
     try:
         return plant.with_parameters(values, str(params))
     except ConfigError as err:

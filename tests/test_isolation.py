@@ -4,6 +4,7 @@ isolation against known faults (the issue's acceptance), on the simulated plant.
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pandas as pd
@@ -266,3 +267,14 @@ def test_a_bad_settings_value_names_the_file_and_the_key(tmp_path: Path) -> None
     p.write_text("[isolation]\nsignificance = 2\n")
     with pytest.raises(Exception, match=r"neg_z\.toml: \[isolation\]\.significance must be"):
         IsolationSettings.load(p)
+
+
+def test_a_suspect_never_estimated_shows_no_value_not_its_nominal(hst: PlantModel) -> None:
+    """A fault too late for a steady window: each suspect was shown at its
+    nominal value with a +0.0 % change, and stored so."""
+    late = simulate_plant(hst, ["Rv=+25%@27s"], seed=3)
+    res = isolate(late, hst, workers=1)
+    assert res.detected and res.isolated == ()
+    assert set(res.rejected) == set(res.suspects)
+    assert all(math.isnan(res.estimates[p].value) for p in res.suspects)
+    assert all(v is None for v in res.to_dict()["estimates"].values())

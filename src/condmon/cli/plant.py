@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Optional
 
@@ -198,11 +200,13 @@ def _print_isolation(res: IsolationResult) -> None:
                          overflow="fold")
     for p in sorted(res.suspects, key=lambda p: res.errors.get(p, float("inf"))):
         e = res.estimates[p]
-        change = "" if e.change_percent is None else percent_text(e.change_percent)
+        made = not math.isnan(e.value)   # NaN: not estimated (no window, a failed solve)
+        change = "" if e.change_percent is None or not made else percent_text(e.change_percent)
         cons = "" if e.consistency is None else f"{e.consistency:.2f}"
         error = f"{res.errors[p]:.2f}" if p in res.errors else "—"
         name = f"[bold]{p}[/]" if p in res.isolated else p
-        table.add_row(name, estimate_text(e.value, e.change_percent, fmt), fmt(e.nominal),
+        table.add_row(name, estimate_text(e.value if made else None, e.change_percent, fmt),
+                      fmt(e.nominal),
                       escape(res.units.get(p, "")), change,
                       cons,
                       "rejected" if p in res.rejected else error)

@@ -461,8 +461,9 @@ def _estimate(model: PlantModel, parameter: str, windows: Sequence[SteadyWindow]
     except Exception as exc:  # noqa: BLE001 - a failed estimate rejects only this suspect
         return (SteadyStateEstimate(parameter, math.nan, nominal, None, False),
                 f"estimation failed: {type(exc).__name__}: {exc}")
-    if not windows:
-        return est, "no steady window to estimate from"
+    if not windows:   # nothing estimated: no value to show, not the nominal one
+        return (SteadyStateEstimate(parameter, math.nan, nominal, None, False),
+                "no steady window to estimate from")
     if not math.isfinite(est.value):
         return est, "estimate is not finite"
     bounds = plausible_range(param, factor)

@@ -553,6 +553,9 @@ def test_a_port_in_use_is_one_line(fleet: dict[str, Any],
     err = capsys.readouterr().err
     assert err == (f"error: cannot listen on 127.0.0.1:{port}: Address already in use; "
                    "choose another --port or --host\n")
+    assert main(["serve", "--db", fleet["db"], "--host", "999.1.1.1"]) == 2
+    assert capsys.readouterr().err == ("error: cannot listen on 999.1.1.1:8050: Invalid "
+                                       "host/port specified; choose another --port or --host\n")
 
 
 def _chromium() -> str | None:

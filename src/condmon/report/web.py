@@ -374,7 +374,7 @@ def serve(app: Any, host: str = "127.0.0.1", port: int = 8050, *, threads: int =
                                     ident="condmon")
     except (OSError, ValueError) as err:  # in use, no such address; waitress's own checks
         wasyncore.close_all(sockets)
-        why = err.strerror if isinstance(err, OSError) and err.strerror else str(err)
+        why = (err.strerror if isinstance(err, OSError) and err.strerror else str(err)).rstrip(".")
         raise CondmonError(f"cannot listen on {host}:{port}: {why}; choose another --port "
                            "or --host") from None
     listen = getattr(server, "effective_listen", None) or [

@@ -219,6 +219,20 @@ class StoreBase:
                 return cand[:2]
         return None
 
+    def _copies_elsewhere(self, table: sa.Table, unit: str, digest: str
+                          ) -> list[tuple[str, int]]:
+        """``(unit, id)`` of the rows of ``table`` (tests or isolations) of
+        *other* units with this content hash: one record filed under two
+        machines is most likely a mistake."""
+        def run(c: sa.Connection) -> list[tuple[str, int]]:
+            rows = c.execute(sa.select(S.units.c.name, table.c.id)
+                             .join(S.units, S.units.c.id == table.c.unit_id)
+                             .where(table.c.record_hash == digest, S.units.c.name != unit)
+                             .order_by(table.c.id)).all()
+            return [(str(r[0]), int(r[1])) for r in rows]
+
+        return self._read(run)
+
     def _unit_row(self, conn: sa.Connection, name: str) -> Any:
         return conn.execute(sa.select(S.units).where(S.units.c.name == name)).first()
 

@@ -146,15 +146,7 @@ class TestsMixin(StoreBase):
     def copies_elsewhere(self, unit: str, digest: str) -> list[tuple[str, int]]:
         """``(unit, test id)`` of the tests of *other* units with this content
         hash: one test record filed under two machines is most likely a mistake."""
-        def run(c: sa.Connection) -> list[tuple[str, int]]:
-            t = S.tests
-            rows = c.execute(sa.select(S.units.c.name, t.c.id)
-                             .join(S.units, S.units.c.id == t.c.unit_id)
-                             .where(t.c.record_hash == digest, S.units.c.name != unit)
-                             .order_by(t.c.id)).all()
-            return [(str(r[0]), int(r[1])) for r in rows]
-
-        return self._read(run)
+        return self._copies_elsewhere(S.tests, unit, digest)
 
     def add_test(self, unit: str, result: Any, *, role: str, digest: str,
                  file_digest: str | None = None, test_date: datetime | None = None,

@@ -115,15 +115,7 @@ class IsolationsMixin(StoreBase):
     def isolation_copies_elsewhere(self, unit: str, digest: str) -> list[tuple[str, int]]:
         """``(unit, isolation id)`` of the isolations of *other* units with this
         content hash (as :meth:`copies_elsewhere` for tests)."""
-        def run(c: sa.Connection) -> list[tuple[str, int]]:
-            i = S.isolations
-            rows = c.execute(sa.select(S.units.c.name, i.c.id)
-                             .join(S.units, S.units.c.id == i.c.unit_id)
-                             .where(i.c.record_hash == digest, S.units.c.name != unit)
-                             .order_by(i.c.id)).all()
-            return [(str(r[0]), int(r[1])) for r in rows]
-
-        return self._read(run)
+        return self._copies_elsewhere(S.isolations, unit, digest)
 
     def isolation_info(self, isolation_id: int) -> dict[str, Any]:
         """One isolation's ``id, unit_id, unit, source, excluded, excluded_reason``.

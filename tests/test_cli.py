@@ -424,3 +424,18 @@ def test_the_notebook_history_takes_one_record_as_well_as_a_list(tmp_path: Path)
         assert len(h.baseline_add("U", frame).tests) == 1
         done = h.baseline_add("U", files[1:])
         assert done.baseline is not None and done.baseline.n == 4
+
+
+def test_a_check_against_the_unit_itself_is_refused(tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """`--against U --unit U` silently used U's own baseline: most likely the
+    peer's name was mistyped."""
+    db = str(tmp_path / "h.db")
+    files = _healthy_files(tmp_path, 4)
+    assert main(["baseline", "add", *files[:3], "--unit", "U", "--db", db]) == 0
+    capsys.readouterr()
+    assert main(["check", files[3], "--unit", "U", "--against", "U", "--db", db]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "error: --against U: that is the unit itself; a check is judged against the unit's "
+        "own baseline without --against")
+    assert main(["check", files[3], "--unit", "U", "--db", db, "--dry-run"]) == 0

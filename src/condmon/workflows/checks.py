@@ -22,7 +22,7 @@ import pandas as pd
 
 from condmon.diagnose.diagnoser import Diagnosis
 from condmon.diagnose.rules import RuleBase, machine_rules
-from condmon.errors import DataError
+from condmon.errors import ConfigError, DataError
 from condmon.identify.estimate import EstimateResult
 from condmon.models.machine import Machine
 from condmon.models.regimes import regime_key, split_key
@@ -292,7 +292,8 @@ def reference_for(store: HistoryStore, unit: str, machine: Machine, against: str
         if kind == "group":
             return group_reference(store, name, machine.origin or machine.name, exclude=unit)
         if name == unit:
-            return None
+            raise ConfigError(f"--against {against}: that is the unit itself; a check is "
+                              "judged against the unit's own baseline without --against")
         other = store.unit_model(name)
         if other not in (machine.name, machine.origin):
             raise DataError(f"--against unit {name!r} is monitored with model {other!r}; "

@@ -424,6 +424,9 @@ def test_the_notebook_history_takes_one_record_as_well_as_a_list(tmp_path: Path)
         assert len(h.baseline_add("U", frame).tests) == 1
         done = h.baseline_add("U", files[1:])
         assert done.baseline is not None and done.baseline.n == 4
+        doc = json.loads(json.dumps(done.to_dict()))   # JSON-ready, as a check's is
+        assert [t["test_id"] for t in doc["tests"]] == [3, 4]
+        assert doc["baseline"]["n"] == 4 and doc["message"] == done.message
 
 
 def test_a_check_against_the_unit_itself_is_refused(tmp_path: Path,

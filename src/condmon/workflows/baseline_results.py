@@ -4,6 +4,7 @@ outcome, the baseline, and what an error part-way left stored."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -70,6 +71,15 @@ class BaselineAddResult:
     notes: tuple[str, ...] = ()
     units: dict[str, str] = field(default_factory=dict)
     info: tuple[dict[str, Any], ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready result: each record's outcome, the baseline, the message,
+        its flags, notes and what is known of it."""
+        return {"tests": [dataclasses.asdict(t) for t in self.tests],
+                "baseline": None if self.baseline is None else self.baseline.to_dict(),
+                "baseline_id": self.baseline_id, "message": self.message,
+                "flags": list(self.flags), "notes": list(self.notes),
+                "units": dict(self.units), "info": list(self.info)}
 
     def _repr_html_(self) -> str:
         from condmon.report.notebook import html_table

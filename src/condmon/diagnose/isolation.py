@@ -582,8 +582,10 @@ def _conclude(sus: Sequence[str], errors: Mapping[str, float], n: int, alpha: fl
                             key=lambda p: errors[p]))
     note = ""
     if errors[best] ** 2 > limit:
-        note = (f" — but even its model leaves an error of {errors[best]:.1f} noise "
-                "standard deviations: the fault may be none of the candidates, or several")
+        note = (f" — but even its model leaves an error of {errors[best]:.3g} noise "
+                f"standard deviations, beyond the {math.sqrt(limit):.3g} that noise alone "
+                f"reaches at {alpha:g} over {n} samples (F test): the fault may be none of "
+                "the candidates, or several, or a sensor's")
     if len(isolated) == 1:
         return isolated, f"fault isolated: {best}{note}"
     why = " (a single operating point after the fault)" if len(windows) < 2 else ""

@@ -53,6 +53,7 @@ The rule, precisely (``mu(s)`` is the degree of symptom ``s`` = ``high(P)`` or
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -220,14 +221,25 @@ def unseen_faults(rules: RuleBase, absent: Collection[str]) -> tuple[UnseenFault
     """
     if not absent:
         return ()
-    needs: dict[str, list[set[str]]] = {}
+    out = []
+    for name, positives in _positive_parameters(rules):
+        missing = [p & set(absent) for p in positives]
+        if all(missing):
+            out.append(UnseenFault(name, tuple(sorted(set().union(*missing)))))
+    return tuple(out)
+
+
+@functools.lru_cache(maxsize=32)
+def _positive_parameters(rules: RuleBase) -> tuple[tuple[str, tuple[frozenset[str], ...]], ...]:
+    """Each fault's rules as the parameters of their positive symptoms (one
+    walk of the rule base, however many checks ask)."""
+    needs: dict[str, list[frozenset[str]]] = {}
     for rule in rules.faults:
         signs: dict[Atom, set[bool]] = {}
         _walk(rule.condition, False, signs)
         needs.setdefault(rule.name, []).append(
-            {a.parameter for a, s in signs.items() if False in s and a.parameter in absent})
-    return tuple(UnseenFault(name, tuple(sorted(set.union(*rules_))))
-                 for name, rules_ in needs.items() if all(rules_))
+            frozenset(a.parameter for a, s in signs.items() if False in s))
+    return tuple((name, tuple(sets)) for name, sets in needs.items())
 
 
 def _mu(a: Atom, high: Mapping[str, float], low: Mapping[str, float]) -> float:

@@ -9,6 +9,7 @@ import shutil
 import signal
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
+from typing import Any
 from pathlib import Path
 
 import pandas as pd
@@ -34,6 +35,54 @@ if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
 if "CONDMON_CACHE_DIR" not in os.environ:
     os.environ["CONDMON_CACHE_DIR"] = tempfile.mkdtemp(prefix="condmon-test-cache-")
     atexit.register(shutil.rmtree, os.environ["CONDMON_CACHE_DIR"], True)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _one_blas_thread() -> Iterator[None]:
+    """The whole run on one BLAS thread, as every command and API entry point
+    runs (:mod:`condmon._threads`): the tests also call inner functions, where
+    OpenBLAS's spinning threads would spend a fifth of the run's CPU for nothing."""
+    from condmon._threads import small_blas
+
+    with small_blas():
+        yield
+
+
+@dataclasses.dataclass(frozen=True)
+class DemoRun:
+    """``condmon demo`` as a user runs it: its result, what it printed, its folder."""
+
+    result: Any   # condmon.workflows.demo.DemoResult
+    printed: str
+    folder: Path
+
+
+@pytest.fixture(scope="session")
+def demo_run(tmp_path_factory: pytest.TempPathFactory) -> DemoRun:
+    """``condmon demo --out FOLDER`` run once for the whole run (about 15 s of CPU),
+    through the command line, with the workflow's result kept for the tests that
+    read it."""
+    import contextlib
+    import io
+
+    import condmon.workflows.demo as demo_module
+    from condmon.cli.main import main
+
+    folder = tmp_path_factory.mktemp("demo") / "demo"
+    kept: list[Any] = []
+    real = demo_module.run_demo
+
+    def keep(*args: Any, **kwargs: Any) -> Any:
+        kept.append(real(*args, **kwargs))
+        return kept[-1]
+
+    printed = io.StringIO()
+    with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stdout(printed):
+        mp.setattr(demo_module, "run_demo", keep)
+        mp.setenv("COLUMNS", "80")
+        assert main(["demo", "--out", str(folder)]) == 0
+    assert len(kept) == 1
+    return DemoRun(kept[0], printed.getvalue(), folder)
 
 
 @pytest.fixture(scope="session")

@@ -8,11 +8,12 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
 
-from condmon.workflows.demo import DemoResult, run_demo
+from condmon.workflows.demo import DemoResult
 from condmon.identify import estimate
 from condmon.workflows.checks import check_test
 from condmon.workflows.monitoring import add_baseline_tests
@@ -21,10 +22,15 @@ from condmon.store import open_store
 
 UNCHANGED_CORE = ("R", "L", "Ke", "Kt", "J")
 
+if TYPE_CHECKING:
+    from conftest import DemoRun
+
 
 @pytest.fixture(scope="module")
-def demo(tmp_path_factory: pytest.TempPathFactory) -> DemoResult:
-    return run_demo(tmp_path_factory.mktemp("demo"))
+def demo(demo_run: DemoRun) -> DemoResult:
+    """The result of ``condmon demo`` (run once for the run)."""
+    result: DemoResult = demo_run.result
+    return result
 
 
 def _checks(demo: DemoResult, unit: str) -> list:  # type: ignore[type-arg]

@@ -6,6 +6,7 @@ import dataclasses
 import json
 import re
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
 
@@ -13,13 +14,16 @@ from _tables import row
 from condmon.cli.main import main
 from condmon.simulate import ActuatorRig, load_actuator_rig, simulate_actuator
 
+if TYPE_CHECKING:
+    from conftest import DemoRun
+
 
 @pytest.mark.tables
-def test_demo_writes_history_and_report(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                        monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setenv("COLUMNS", "80")
-    assert main(["demo", "--out", str(tmp_path / "demo")]) == 0
-    out = capsys.readouterr().out
+def test_demo_writes_history_and_report(demo_run: DemoRun,
+                                        capsys: pytest.CaptureFixture[str]) -> None:
+    """``condmon demo`` (run once for the run, :func:`conftest.demo_run`): its tables,
+    its report and a history the other commands read."""
+    out = demo_run.printed
     assert "friction increase" in out and "winding fault" in out and "Rlkgm=-50%@10s" in out
     # each experiment's row: its status and the changes [%] of R, L and D
     for label, status, changed, percent in (("friction x7", "no-go", 2, 600),
@@ -34,9 +38,9 @@ def test_demo_writes_history_and_report(tmp_path: Path, capsys: pytest.CaptureFi
         assert float(found[2]) == pytest.approx(float(found[3]), rel=0.02)
         assert float(found[3]) == pytest.approx(truth, rel=1e-3)
     row(out, "Rlkgp=+50%@10s", "no", "—", "—")  # too small to see
-    assert (tmp_path / "demo" / "index.html").exists()
-    assert (tmp_path / "demo" / "EMA-friction-trends.png").stat().st_size > 10_000
-    assert main(["history", "--unit", "EMA-resistance", "--db", str(tmp_path / "demo" / "condmon.db")]) == 0
+    assert (demo_run.folder / "index.html").exists()
+    assert (demo_run.folder / "EMA-friction-trends.png").stat().st_size > 10_000
+    assert main(["history", "--unit", "EMA-resistance", "--db", str(demo_run.folder / "condmon.db")]) == 0
     assert "winding resistance" in capsys.readouterr().out
 
 

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import Any
 
 import importlib
 
 import pytest
-from threadpoolctl import threadpool_info
+from threadpoolctl import threadpool_info, threadpool_limits
 
 from condmon import estimate
 from condmon.cli.main import main
@@ -17,6 +18,15 @@ from condmon.simulate import simulate_actuator
 
 def _blas_threads() -> list[int]:
     return [int(i["num_threads"]) for i in threadpool_info() if i["user_api"] == "blas"]
+
+
+@pytest.fixture(autouse=True)
+def two_threads() -> Iterator[None]:
+    """Two BLAS threads around each test (the run itself keeps one), so that
+    "limited, and given back" can be told from "one all along"."""
+    with threadpool_limits(limits=2, user_api="blas"):
+        assert _blas_threads() and all(n == 2 for n in _blas_threads())
+        yield
 
 
 @pytest.fixture
@@ -40,7 +50,7 @@ def test_an_estimate_runs_on_one_blas_thread_and_gives_them_back(
     before = _blas_threads()
     estimate(simulate_actuator(rig, seed=1), "dc-motor")
     assert seen and all(n == 1 for n in seen[-1])
-    assert _blas_threads() == before
+    assert _blas_threads() == before == [2] * len(before)
 
 
 def test_a_user_may_ask_for_more_or_leave_it_be(rig, seen: list[list[int]],  # type: ignore[no-untyped-def]
@@ -67,3 +77,21 @@ def test_the_command_line_limits_and_refuses_in_one_line(
     assert main(["estimate", str(rec)]) == 2
     err = capsys.readouterr().err.strip()
     assert err == "error: CONDMON_BLAS_THREADS='0': a number of threads >= 1, or 'auto'"
+
+
+def test_a_simulation_runs_on_one_blas_thread_and_gives_them_back(
+        rig, monkeypatch: pytest.MonkeyPatch) -> None:  # type: ignore[no-untyped-def]
+    """OpenBLAS's idle threads spin: a simulated test took twice its CPU on two."""
+    A = importlib.import_module("condmon.simulate.actuator")
+    found: list[list[int]] = []
+    real = A._zoh_matrices
+
+    def spy(*args: Any, **kwargs: Any) -> Any:
+        found.append(_blas_threads())
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(A, "_zoh_matrices", spy)
+    monkeypatch.delenv("CONDMON_BLAS_THREADS", raising=False)
+    simulate_actuator(rig, seed=3)
+    assert found and all(n == 1 for n in found[-1])
+    assert all(n == 2 for n in _blas_threads())

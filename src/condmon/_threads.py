@@ -3,10 +3,14 @@
 condmon's matrices are small (a regression of a few thousand rows by a few
 dozen columns, a covariance of six parameters): a threaded BLAS spends longer
 waking its threads than multiplying, and on a busy machine much longer (a
-1 ms product took 40 ms with every core asked for). So every estimation entry
-point (``estimate``, ``estimate_joint``, ``isolate``, the command line and the
-fleet's workers) runs with the BLAS limited to one thread, through
-threadpoolctl, and gives the threads back on return.
+1 ms product took 40 ms with every core asked for), and OpenBLAS's idle
+threads spin: ten simulated built-in tests took 0.55 s of CPU in 0.28 s on
+two cores, and 0.32 s of CPU on one thread. So every entry point that computes
+(``estimate``, ``estimate_joint``, ``isolate``, ``simulate_actuator``,
+``simulate_plant``, :class:`~condmon.History`'s ``baseline_add``, ``check``,
+``import_table`` and ``forecast``, the command line and the fleet's workers)
+runs with the BLAS limited to one thread, through threadpoolctl, and gives the
+threads back on return.
 
 A user who wants otherwise sets ``CONDMON_BLAS_THREADS``: a number of
 threads, or ``auto`` to leave the BLAS as it is.

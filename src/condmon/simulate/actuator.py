@@ -27,6 +27,7 @@ import pandas as pd
 from numpy.typing import NDArray
 from scipy import linalg, signal
 
+from condmon._threads import one_blas_thread
 from condmon.errors import ConfigError
 from condmon.io.config import load_default, load_toml, merge
 from condmon.simulate.faults import Fault, parse_fault
@@ -266,6 +267,7 @@ def _zoh_matrices(rig: ActuatorRig, h: float) -> tuple[FloatArray, FloatArray]:
     return E[:3, :3], E[:3, 3:]
 
 
+@one_blas_thread
 def simulate_actuator(rig: ActuatorRig | None = None, *, seed: int | None = 0,
                       linear: bool = False) -> pd.DataFrame:
     """Run one closed-loop built-in test of the actuator.

@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
+from condmon._threads import one_blas_thread
 from condmon.errors import CondmonError, ConfigError, DataError, EstimationError
 from condmon.io.columns import Columns, column_values
 from condmon.io.config import load_default
@@ -344,6 +345,7 @@ def _solve(rhs: Any, a: float, b: float, x: FloatArray, t_eval: FloatArray, uk: 
     return sol
 
 
+@one_blas_thread
 def simulate_plant(model: PlantModel, faults: Iterable[str | Fault] = (), *, seed: int = 0,
                    duration: float | None = None, sample_rate: float | None = None,
                    noise: bool = True, limits: SimulationLimits | None = None) -> pd.DataFrame:

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 import pandas as pd
 
+from condmon._threads import one_blas_thread
 from condmon.workflows.checks import CheckResult, check_test
 from condmon.workflows.imports import ImportedUnit, import_table
 from condmon.workflows.monitoring import BaselineAddResult, add_baseline_tests
@@ -117,6 +118,7 @@ class History:
 
     # -- records in ---------------------------------------------------------------------
 
+    @one_blas_thread
     def baseline_add(self, unit: str, records: Sequence[RecordLike] | RecordLike, *,
                      model: str | None = None, test_date: str | datetime | None = None,
                      group: str | None = None, options: EstimateOptions | None = None
@@ -132,6 +134,7 @@ class History:
         return add_baseline_tests(self.store, unit, [records] if one else list(records),  # type: ignore[list-item, arg-type]
                                   opts, test_date=test_date, group=group)
 
+    @one_blas_thread
     def check(self, unit: str, record: RecordLike, *, model: str | None = None,
               test_date: str | datetime | None = None, against: str | None = None,
               dry_run: bool = False, options: EstimateOptions | None = None) -> CheckResult:
@@ -141,6 +144,7 @@ class History:
         return check_test(self.store, unit, record, opts, test_date=test_date,
                           against=against, dry_run=dry_run)
 
+    @one_blas_thread
     def import_table(self, table: str | Path, model: str | Path, *, unit: str | None = None,
                      indicator: str | None = None, no_go: Sequence[str] = (),
                      baseline: int = 5) -> list[ImportedUnit]:
@@ -164,6 +168,7 @@ class History:
         """The audit trail, oldest first (``condmon audit``)."""
         return self.store.audit(unit)
 
+    @one_blas_thread
     def forecast(self, unit: str, horizon: float | None = None) -> Forecast:
         """Each parameter's remaining life to no-go (``condmon forecast``).
 

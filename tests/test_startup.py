@@ -89,21 +89,14 @@ def test_estimating_a_record_imports_neither_store_nor_plots(record: Path,
     assert not _loaded(code, warm_cache) & {*NEVER, "sympy"}
 
 
-def test_the_estimate_command_imports_no_plots(record: Path, warm_cache: Path) -> None:
-    code = ("from condmon.cli.main import main\n"
-            "import contextlib, io\n"
-            "with contextlib.redirect_stdout(io.StringIO()):\n"
-            f"    assert main(['estimate', {str(record)!r}]) == 0")
-    assert not _loaded(code, warm_cache) & {"matplotlib", "sklearn", "faultdiagnosistoolbox",
-                                            "sympy"}
-
-
-def test_the_estimate_command_imports_no_store(record: Path, warm_cache: Path) -> None:
+def test_the_estimate_command_imports_neither_plots_nor_store(record: Path,
+                                                             warm_cache: Path) -> None:
     code = ("from condmon.cli.main import main\n"
             "import contextlib, io\n"
             "with contextlib.redirect_stdout(io.StringIO()):\n"
             f"    assert main(['estimate', {str(record)!r}]) == 0")
     loaded = _loaded(code, warm_cache)
+    assert not loaded & {"matplotlib", "sklearn", "faultdiagnosistoolbox", "sympy"}
     assert "sqlalchemy" not in loaded  # no database for an estimate
     assert "scipy.signal" not in loaded and "scipy.stats" not in loaded  # ~1 s of imports
 
@@ -132,14 +125,15 @@ def history(tmp_path_factory: pytest.TempPathFactory, warm_cache: Path) -> tuple
     from condmon.io.records import write_record
     from condmon.simulate import simulate_actuator
 
+    from condmon import History
+
     folder = tmp_path_factory.mktemp("history")
     db = folder / "h.db"
     healthy = [write_record(simulate_actuator(seed=s), folder / f"h{s}.csv") for s in (4, 5, 6)]
-    _loaded(_command("baseline", "add", *map(str, healthy), "--unit", "u1", "--db", str(db)),
-            warm_cache)
-    for s in (8, 9, 10, 11, 12, 13):  # checks enough for an exponential to be fitted
-        path = write_record(simulate_actuator(seed=s), folder / f"c{s}.csv")
-        _loaded(_command("check", str(path), "--unit", "u1", "--db", str(db)), warm_cache)
+    with History(db) as h:  # built in this process: only the probed check runs apart
+        h.baseline_add("u1", healthy)
+        for s in (8, 9, 10, 11, 12, 13):  # checks enough for an exponential to be fitted
+            h.check("u1", write_record(simulate_actuator(seed=s), folder / f"c{s}.csv"))
     return db, write_record(simulate_actuator(seed=7), folder / "check.csv")
 
 

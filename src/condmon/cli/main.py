@@ -6,6 +6,7 @@ on stderr and exit with status 2; no traceback.
 
 from __future__ import annotations
 
+import functools
 import math
 import sys
 import warnings
@@ -399,6 +400,17 @@ def _show_warning(message: Warning | str, category: type[Warning], filename: str
     err.print(f"warning: {message}", highlight=False, markup=False)
 
 
+@functools.lru_cache(maxsize=1)
+def _command() -> Any:
+    """The click command of :data:`app`, built once per process: typer builds it
+    anew at every ``app()`` call (every command's options read from its
+    annotations, 65 ms), which a notebook or a test calling :func:`main` many
+    times would pay each time."""
+    import typer.main
+
+    return typer.main.get_command(app)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``condmon`` console script; returns the exit status."""
     warnings.showwarning = _show_warning
@@ -407,7 +419,7 @@ def main(argv: list[str] | None = None) -> int:
         from condmon._threads import small_blas
 
         with small_blas():  # small matrices: one BLAS thread (CONDMON_BLAS_THREADS)
-            rc = app(args=argv, prog_name="condmon", standalone_mode=False)
+            rc = _command().main(args=argv, prog_name="condmon", standalone_mode=False)
         return rc if isinstance(rc, int) else 0
     except SystemExit as exc:
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)

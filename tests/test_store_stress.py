@@ -19,7 +19,7 @@ from condmon.store import open_store
 
 WORKER = Path(__file__).with_name("_stress_worker.py")
 N_PROCESSES = 8
-N_RECORDS = 20
+N_RECORDS = 12
 
 
 @pytest.fixture(scope="module")

@@ -76,6 +76,7 @@ def _spread(index: pd.Index, ids: Sequence[int], names: Sequence[str], values: S
     out[rows[keep], cols[keep]] = vals[keep]
     return pd.DataFrame(out, index=index, columns=[f"{n}{suffix}" for n in order])
 
+
 class ViewsMixin(StoreBase):
     """History tables (part of :class:`HistoryStore`)."""
 
@@ -146,7 +147,7 @@ class ViewsMixin(StoreBase):
             order = self._ordered(unit, sorted(set(names)))
             blocks += [_spread(df.index, ids, names, value, order, ""),
                        _spread(df.index, ids, names, se, order, "_se")]
-            if any(v is not None for v in sys_):   # where sensors state an accuracy
+            if any(v is not None and v == v for v in sys_):   # where sensors state an accuracy
                 blocks.append(_spread(df.index, ids, names, sys_, order, "_sys"))
         if sym:
             ids, names, change, high, low = zip(*sym)

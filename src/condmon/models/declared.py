@@ -260,7 +260,8 @@ class CompiledModel:
 
     def rhs_batch(self, x: FloatArray, u: FloatArray, p: FloatArray) -> FloatArray:
         """Derivatives of many copies at once: ``x`` (n_states, N), ``u``
-        (n_inputs, N), ``p`` (n_params,) shared; returns (n_states, N)."""
+        (n_inputs, N), ``p`` (n_params,) shared or (n_params, N) each copy's;
+        returns (n_states, N)."""
         return _stacked(self._rhs_raw(x, u, p), x.shape[1:])
 
     def outputs_batch(self, x: FloatArray, u: FloatArray, p: FloatArray) -> FloatArray:

@@ -100,19 +100,15 @@ def simulate_copies(compiled: CompiledModel, u: FloatArray, dt: float, x0: Float
     n = u.shape[0]
     b = x0.shape[1]
     h = dt / substeps
-    f = compiled._rhs_raw
+    f = compiled.rhs_batch   # each copy's own parameters: p is (n_params, B)
     out_fn = compiled._outputs_raw
     xs = np.empty((n, x0.shape[0], b))
     ys = np.empty((n, len(compiled.model.sensors), b))
     x = np.array(x0, dtype=np.float64)
     ub = np.empty((u.shape[1], b))
-    n_x = x0.shape[0]
 
     def rhs(xx: FloatArray) -> FloatArray:
-        d = np.empty((n_x, b))
-        for i, v in enumerate(f(xx, ub, p)):
-            d[i] = v
-        return d
+        return f(xx, ub, p)
 
     with np.errstate(all="ignore"):  # a diverging copy goes non-finite; judged by the caller
         for k in range(n):

@@ -120,7 +120,7 @@ def test_running_again_stores_nothing(inbox: Path,
     db, first, _ = first_run
     again = run_fleet(inbox, db, workers=1)
     assert (again.stored, again.count("rejected"), again.count("refused")) == (0, 0, 1)
-    assert again.skipped == 22
+    assert again.skipped == 22 and again.failed   # a record file that cannot be read, still
     with open_store(db, create=False) as store:
         assert sum(s["tests"] + s["isolations"] for s in store.unit_summaries()) == 21
 
@@ -520,6 +520,29 @@ def test_a_run_that_stores_nothing_and_refuses_something_exits_2(
     assert "nothing was stored: 1 record(s) refused and none taken (exit 2)" in err
     assert main(["fleet", "run", str(tmp_path / "inbox"), "--db", db, "--workers", "1",
                  "--json"]) == 2
+
+
+def test_a_stray_file_does_not_fail_an_up_to_date_fleet(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A notes.md in a unit's folder made every later run exit 2 (nothing new
+    stored, one file refused), and the rate counted the records skipped. It is
+    still named at every run; a record file that cannot be read still fails."""
+    root = tmp_path / "inbox"
+    simulated_inbox(root, [SimulatedUnit("EMA-1", records=1)], seed=5)
+    (root / "EMA-1" / "notes.md").write_text("serviced 2026-03-02\n")
+    db = str(tmp_path / "f.db")
+    assert main(["fleet", "run", str(root), "--db", db]) == 0
+    first = capsys.readouterr()
+    assert "records stored/s" in first.out
+    assert main(["fleet", "run", str(root), "--db", db]) == 0
+    again = capsys.readouterr()
+    assert again.err.startswith(f"refused {root / 'EMA-1' / 'notes.md'}: not a record file")
+    assert "0 stored, 1 skipped, 0 rejected, 1 refused" in again.out
+    assert "/s)" not in again.out and "nothing was stored" not in again.err
+    (root / "EMA-1" / "r9.csv").write_text("x,y\n1,2\n")
+    assert main(["fleet", "run", str(root), "--db", db]) == 2
+    assert "nothing was stored: 2 record(s) refused and none taken (exit 2)" in \
+        capsys.readouterr().err
 
 
 def test_a_small_fleet_runs_in_process_with_the_clusters_results(

@@ -77,6 +77,24 @@ def test_with_markers_a_file_waits_for_its_marker(tmp_path: Path) -> None:
     assert files.ready() == []
 
 
+def test_a_record_dropped_at_the_top_is_refused_not_left_unseen(tmp_path: Path) -> None:
+    """A record file dropped beside the unit folders was never looked at: no
+    line said it would never be stored. It is handed over and refused as
+    `fleet run` refuses it; other files there are no records."""
+    from condmon.workflows.fleet import run_fleet
+
+    inbox = tmp_path / "inbox"
+    (inbox / "EMA-1").mkdir(parents=True)
+    files = _Files(inbox, "rename", settle=0.0)
+    stray = inbox / "r1.csv"
+    stray.write_text("t,V\n0,1\n")
+    (inbox / "notes.md").write_text("the inbox of line 3\n")
+    assert files.ready() == [stray]
+    res = run_fleet(inbox, str(tmp_path / "w.db"), files=[stray])
+    assert [(r.outcome, r.reason) for r in res.records] == [
+        ("refused", f"{stray}: not in a unit's folder (INBOX/UNIT/record files)")]
+
+
 def test_renamed_into_place_is_complete_at_once_and_temporaries_wait(tmp_path: Path) -> None:
     inbox = tmp_path / "inbox"
     (inbox / "EMA-1").mkdir(parents=True)

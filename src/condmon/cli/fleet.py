@@ -53,8 +53,9 @@ def register(app: typer.Typer) -> None:
         gets fault isolation. Records already in the history (same file or same
         content) are skipped, so running again stores nothing new. A record
         that cannot be read or estimated is refused with its reason; the others
-        go on. Exits 2 when records were refused and none was stored (a run
-        that only skips what is stored already exits 0).
+        go on. Exits 2 when records were refused and none was stored; a run
+        that only skips what is stored already exits 0, also when a unit's
+        folder holds a file that is no record (notes.md: named, not read).
         """
         from condmon.errors import ConfigError
         from condmon.io.records import parse_column_map
@@ -84,7 +85,7 @@ def register(app: typer.Typer) -> None:
             write_json(res.to_dict())
         else:
             _print_result(res, str(source))
-        if res.count("refused") and not (res.count("stored") or res.count("rejected")):
+        if res.failed:
             err.print(f"nothing was stored: {res.count('refused')} record(s) refused and none "
                       "taken (exit 2)", highlight=False, markup=False, soft_wrap=True)
             raise typer.Exit(2)
@@ -139,8 +140,9 @@ def _print_result(res: FleetResult, source: str) -> None:
         label = f"[bold {color}]{status}[/]" if color else escape(status)
         table.add_row(label, str(len(names)), escape(shown))
     out.print(table)
-    rate = (f" ({len(res.records) / res.seconds:.1f} records/s)"
-            if res.workers > 0 and res.seconds > 0 else "")
+    taken = res.count("stored") + res.count("rejected")
+    rate = (f" ({taken / res.seconds:.1f} records stored/s)"
+            if res.workers > 0 and res.seconds > 0 and taken else "")
     from condmon.workflows.fleet import SMALL_FLEET
 
     if res.engine == "in-process":

@@ -58,7 +58,7 @@ from condmon.workflows.fleet_inbox import MANIFEST_COLUMNS as MANIFEST_COLUMNS
 from condmon.workflows.fleet_state import UnitView
 from condmon.workflows.fleet_inbox import UNIT_FILE as UNIT_FILE
 from condmon.workflows.fleet_inbox import (
-    FleetRecord, _natural, inbox_records, read_manifest,
+    FleetRecord, _natural, _readable_suffix, inbox_records, read_manifest,
 )
 from condmon.workflows.fleet_work import Kind as Kind
 from condmon.workflows.fleet_work import RecordOutcome, RecordTask, _named, process_record
@@ -184,6 +184,26 @@ class FleetResult:
     def skipped(self) -> int:
         """Records already in the history, or offered twice in this run."""
         return self.count("skipped")
+
+    @property
+    def not_records(self) -> int:
+        """Refused files that are no record by their suffix (a unit folder's
+        ``notes.md``): named at every run, but no failure of a record."""
+        return sum(1 for r in self.records if r.outcome == "refused"
+                   and not _readable_suffix(Path(r.file)))
+
+    @property
+    def failed(self) -> bool:
+        """Whether the run failed its input (``fleet run`` exits 2): records
+        were refused and none was taken (stored or rejected), and either a
+        refused file was a record file or nothing was in the history already.
+        So an up-to-date fleet with a stray ``notes.md`` in a unit's folder
+        does not fail at every run, while an inbox of files no reader takes,
+        or a record that cannot be read, does."""
+        refused = self.count("refused")
+        if not refused or self.count("stored") or self.count("rejected"):
+            return False
+        return refused > self.not_records or not self.count("skipped")
 
     def to_dict(self) -> dict[str, Any]:
         """The ``condmon fleet run --json`` document: ``stored, skipped,

@@ -99,9 +99,13 @@ def _name_key(path: Path) -> tuple[Any, ...]:
     return (_natural(str(path.with_suffix(""))), path.suffix)
 
 
+def _readable_suffix(path: Path) -> bool:
+    """Whether a reader takes files named like ``path`` (its suffix)."""
+    return path.suffix.lower() in READABLE_SUFFIXES
+
+
 def _is_record(path: Path) -> bool:
-    return (path.is_file() and not path.name.startswith(".")
-            and path.suffix.lower() in READABLE_SUFFIXES)
+    return path.is_file() and not path.name.startswith(".") and _readable_suffix(path)
 
 
 #: Suffixes of compressed files, named with the suffix before them (``.csv.gz``).

@@ -1,7 +1,9 @@
 """``condmon watch FOLDER``: record files dropped in a fleet inbox, handled as they complete.
 
 The folder is laid out as ``condmon fleet run`` expects (``FOLDER/UNIT/record
-files``, an optional ``unit.toml`` per unit). When a file is complete is said by
+files``, an optional ``unit.toml`` per unit; a record file dropped beside the
+unit folders is refused, as ``fleet run`` refuses it, not left unseen). When a
+file is complete is said by
 ``complete``, best first:
 
 - ``rename``: the logger writes each file under a hidden or temporary name
@@ -38,7 +40,7 @@ from pathlib import Path
 
 from condmon.errors import ConfigError
 from condmon.workflows.fleet import FleetResult, run_fleet
-from condmon.workflows.fleet_inbox import MARKER, TEMPORARY, UNIT_FILE
+from condmon.workflows.fleet_inbox import MARKER, TEMPORARY, UNIT_FILE, _readable_suffix
 from condmon.workflows.watch import WatchEvent
 
 __all__ = ["FolderSummary", "watch_folder", "COMPLETE"]
@@ -199,8 +201,12 @@ class _Files:
                                 continue
                             if e.is_dir(follow_symlinks=False):
                                 dirs.append(Path(e.path))
-                            elif depth > 0 and not e.name.endswith(MARKER) \
-                                    and e.name != UNIT_FILE:
+                            elif e.name.endswith(MARKER) or e.name == UNIT_FILE:
+                                continue
+                            elif depth > 0 or _readable_suffix(Path(e.name)):
+                                # a record file at the top is handed over too, and
+                                # refused as in no unit's folder (fleet run's answer),
+                                # not left unseen; other files there are no records
                                 names.append(Path(e.path))
                 except OSError:
                     continue

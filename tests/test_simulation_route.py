@@ -105,6 +105,30 @@ def test_validate_on_a_record_it_was_not_fitted_on_gives_the_noise(tanks: Path,
     assert first.initial["x1"] == (6.0, "estimated")
 
 
+def test_validate_from_python_takes_an_estimate_and_names_its_own_arguments(
+        tanks: Path, tmp_path: Path) -> None:
+    """condmon.validate: an estimate in memory, a DataFrame, values and initial
+    states as mappings; a bad one is refused naming the argument, not a CLI
+    option."""
+    import condmon
+
+    est = estimate(pd.read_csv(_record(tmp_path / "r.csv", tanks)), str(tanks))
+    frame = pd.read_csv(_record(tmp_path / "v.csv", tanks, seed=3, noise=0.01))
+    c = condmon.validate(frame, tanks, parameters=est)
+    assert c.rmse["y"] == pytest.approx(0.01, rel=0.2) and c.initial["x1"][1] == "estimated"
+    given = condmon.validate(frame, tanks, parameters=est, values={"b": 2 * TRUTH["b"]},
+                             initial={"x1": 6.0})
+    assert given.parameters["b"] == 2 * TRUTH["b"] and given.initial["x1"] == (6.0, "given")
+    assert given.rmse["y"] > 10 * c.rmse["y"]
+    with pytest.raises(ConfigError, match=r"^values: 'q' is not a parameter of the model; "
+                                          r"allowed: k, a, b$"):
+        condmon.validate(frame, tanks, values={"q": 1.0})
+    with pytest.raises(ConfigError, match=r"^initial: x1=nan is not finite$"):
+        condmon.validate(frame, tanks, initial={"x1": float("nan")})
+    with pytest.raises(DataError, match=r"^the estimate: the parameters are of model 'dc-motor'"):
+        condmon.validate(frame, tanks, parameters=condmon.estimate(condmon.simulate_actuator()))
+
+
 def test_validate_cli_json_and_a_given_initial_state(tanks: Path, tmp_path: Path,
                                                     capsys: pytest.CaptureFixture[str]) -> None:
     est = tmp_path / "est.json"

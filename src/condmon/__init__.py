@@ -32,14 +32,14 @@ if TYPE_CHECKING:
     from condmon.identify import EstimateResult, estimate
     from condmon.io import read_record
     from condmon.simulate import load_actuator_rig, simulate_actuator
-    from condmon.workflows.api import Forecast, History, isolate, load_model
+    from condmon.workflows.api import Forecast, History, isolate, load_model, validate
     from condmon.workflows.checks import CheckResult
 
 __version__ = "0.1.0"
 
 __all__ = [
     "estimate", "EstimateResult", "read_record", "simulate_actuator", "load_actuator_rig",
-    "History", "CheckResult", "Forecast", "isolate", "load_model",
+    "History", "CheckResult", "Forecast", "isolate", "load_model", "validate",
     "CondmonError", "DataError", "ConfigError", "ModelError", "ConversionError",
     "EstimationError", "CondmonWarning", "DataWarning", "ConvergenceWarning",
     "__version__",
@@ -50,7 +50,8 @@ _EXPORTS = {"estimate": "condmon.identify", "EstimateResult": "condmon.identify"
             "read_record": "condmon.io", "simulate_actuator": "condmon.simulate",
             "load_actuator_rig": "condmon.simulate", "History": "condmon.workflows.api",
             "Forecast": "condmon.workflows.api", "isolate": "condmon.workflows.api",
-            "load_model": "condmon.workflows.api", "CheckResult": "condmon.workflows.checks"}
+            "load_model": "condmon.workflows.api", "validate": "condmon.workflows.api",
+            "CheckResult": "condmon.workflows.checks"}
 
 
 def __getattr__(name: str) -> Any:

@@ -25,7 +25,7 @@ Example
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
@@ -41,12 +41,13 @@ from condmon.workflows.records import EstimateOptions, RecordLike
 
 if TYPE_CHECKING:
     from condmon.diagnose.isolation import IsolationResult
+    from condmon.simulate.compare import Comparison
     from condmon.models.machine import Machine
     from condmon.forecast.unit import UnitForecast
     from condmon.store.db import HistoryStore
     from condmon.workflows.manage import ChangeResult
 
-__all__ = ["History", "Forecast", "load_model", "isolate"]
+__all__ = ["History", "Forecast", "load_model", "isolate", "validate"]
 
 
 @dataclass(frozen=True)
@@ -242,3 +243,54 @@ def isolate(record: RecordLike, model: str | Path = "hst", **options: Any) -> Is
     frame = read_record(record) if isinstance(record, (str, Path)) else record
     source = str(record) if isinstance(record, (str, Path)) else "record"
     return _isolate(frame, plant, source=source, **options)
+
+
+@one_blas_thread
+def validate(record: RecordLike, model: str | Path, *, parameters: Any = None,
+             values: Mapping[str, float] | None = None,
+             initial: str | Mapping[str, float] = "estimated",
+             figure: str | Path | None = None) -> Comparison:
+    """Simulate a model on a record's inputs and compare it with the record's
+    outputs (``condmon validate``; MATLAB's ``compare``): the way a model is
+    checked on data it was not fitted on.
+
+    Parameters
+    ----------
+    record : str, Path or DataFrame
+        The model's inputs and sensors (the declaration's ``[record]`` applies).
+    model : str or Path
+        A shipped model's name or a declaration file.
+    parameters : EstimateResult, str or Path, optional
+        An estimate of this model (its parameters and, from the simulation
+        route, its initial states), or the file ``condmon estimate --json``
+        wrote. Without it: the declaration's values.
+    values : mapping of str to float, optional
+        Parameter values over the estimate's and the declaration's. [SI]
+    initial : str or mapping
+        "estimated" (the estimate's initial states), "first-sample", "fit"
+        (fitted on this record, the parameters fixed), or ``{state: value}``.
+    figure : str or Path, optional
+        Where to write the measured-against-model figure (PNG).
+
+    Returns
+    -------
+    Comparison
+        ``rmse`` [sensor unit] and ``fit_percent`` [%] per output, the
+        initial states used and where each came from, ``notes``.
+
+    Example
+    -------
+    >>> import condmon
+    >>> est = condmon.estimate(condmon.simulate_actuator(seed=1))
+    >>> c = validate(condmon.simulate_actuator(seed=2), "dc-motor", parameters=est,
+    ...              initial="first-sample")
+    >>> {k: round(v) for k, v in c.fit_percent.items()}   # the sensors' noise bounds it
+    {'I': 75, 'omega': 86}
+    """
+    from condmon.workflows.validation import validate_file
+
+    doc = parameters.to_dict() if hasattr(parameters, "to_dict") else parameters
+    names = {"set": "values", "initial": "initial"}
+    comparison, _ = validate_file(record, model, params=doc, set_values=values,
+                                  initial=initial, figure=figure, names=names)
+    return comparison

@@ -23,13 +23,14 @@ from condmon.models.machine import Machine
 from condmon.models.regimes import split_key
 from condmon.models.registry import get_model
 from condmon.simulate.compare import Comparison, compare_model, initial_states
-from condmon.workflows.records import EstimateOptions
+from condmon.workflows.records import EstimateOptions, RecordLike
 
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["ParameterFile", "read_parameter_file", "parse_assignments", "validate_file",
-           "simulate_file", "describe_initial"]
+__all__ = ["ParameterFile", "read_parameter_file", "parameter_document", "parse_assignments",
+           "checked_assignments", "validate_file", "simulate_file", "describe_initial",
+           "CLI_NAMES"]
 
 
 @dataclass(frozen=True)
@@ -72,6 +73,18 @@ def read_parameter_file(path: str | Path, machine: Machine) -> ParameterFile:
                if isinstance(err, json.JSONDecodeError) else str(err))
         raise DataError(f"{src}: not a parameter file (the JSON of condmon estimate "
                         f"--json): {why}") from None
+    return parameter_document(doc, src, machine)
+
+
+def parameter_document(doc: Any, src: str, machine: Machine) -> ParameterFile:
+    """An estimate's document (``EstimateResult.to_dict()``, the JSON of
+    ``condmon estimate --json``) for ``machine``, ``src`` naming it in messages.
+
+    Raises
+    ------
+    DataError
+        No estimate document, or of another model (naming both models).
+    """
     if not isinstance(doc, dict) or not isinstance(doc.get("parameters"), dict):
         raise DataError(f"{src}: not a parameter file: no 'parameters' table (write one with "
                         "condmon estimate RECORD --model M --json > est.json)")
@@ -126,50 +139,83 @@ def parse_assignments(text: str | None, allowed: tuple[str, ...], what: str,
     >>> parse_assignments("R=1.2, L=0.003", ("R", "L"), "parameter", "--set")
     {'R': 1.2, 'L': 0.003}
     """
-    out: dict[str, float] = {}
+    pairs: list[tuple[str, Any]] = []
     for part in (text or "").split(","):
         if not part.strip():
             continue
         name, sep, value = part.partition("=")
-        name = name.strip()
         if not sep:
             raise ConfigError(f"{option}: {part.strip()!r} is not NAME=VALUE")
+        pairs.append((name.strip(), value.strip()))
+    return checked_assignments(pairs, allowed, what, option)
+
+
+def checked_assignments(pairs: Any, allowed: tuple[str, ...], what: str,
+                        option: str) -> dict[str, float]:
+    """``(name, value)`` pairs (or a mapping) as ``{name: float}``, every name one
+    of ``allowed`` and given once, every value a finite number; ``option``
+    names them in messages (``--set``, or an argument of the Python call)."""
+    items = list(pairs.items()) if isinstance(pairs, Mapping) else list(pairs)
+    out: dict[str, float] = {}
+    for name, value in items:
         if name not in allowed:
             raise ConfigError(f"{option}: {name!r} is not a {what} of the model; allowed: "
                               f"{', '.join(allowed)}")
         if name in out:
             raise ConfigError(f"{option}: {name} is given twice; give each {what} once")
         try:
+            if isinstance(value, bool):
+                raise TypeError
             v = float(value)
-        except ValueError:
-            raise ConfigError(f"{option}: {name}={value.strip()!r} is not a number") from None
+        except (TypeError, ValueError):
+            raise ConfigError(f"{option}: {name}={value!r} is not a number") from None
         if not math.isfinite(v):
-            raise ConfigError(f"{option}: {name}={value.strip()} is not finite")
+            raise ConfigError(f"{option}: {name}={value} is not finite")
         out[name] = v
     return out
 
 
-def _setup(record: str | Path, model: str, params: str | Path | None, set_values: str | None,
-           initial: str, opts: EstimateOptions, sensors: bool = True
+#: How the CLI names the settings in messages; the Python call names its arguments.
+CLI_NAMES = {"set": "--set", "initial": "--initial"}
+
+
+def _setup(record: RecordLike, model: str | Path,
+           params: str | Path | Mapping[str, Any] | None,
+           set_values: str | Mapping[str, float] | None,
+           initial: str | Mapping[str, float], opts: EstimateOptions, sensors: bool = True,
+           names: Mapping[str, str] = CLI_NAMES
            ) -> tuple[Machine, Record, dict[str, float], dict[str, tuple[float, str]],
                       tuple[str, ...]]:
-    machine = get_model(model)
+    machine = get_model(str(model))
     plant = machine.plant
-    pf = read_parameter_file(params, machine) if params is not None else None
+    if isinstance(params, Mapping):
+        pf: ParameterFile | None = parameter_document(dict(params), "the estimate", machine)
+    else:
+        pf = read_parameter_file(params, machine) if params is not None else None
     values = dict(pf.parameters) if pf else {}
-    given_values = parse_assignments(set_values, plant.parameter_names, "parameter", "--set")
+    given_values = (checked_assignments(set_values, plant.parameter_names, "parameter",
+                                        names["set"]) if isinstance(set_values, Mapping) else
+                    parse_assignments(set_values, plant.parameter_names, "parameter",
+                                      names["set"]))
     values.update(given_values)
     notes = list(pf.notes) if pf else []
     notes += _parameter_notes(machine, values, given_values, pf)
-    frame = opts.read(record)
+    if isinstance(record, (str, Path)):
+        frame = opts.read(record)
+        source = str(record)
+    else:
+        frame = opts.prepared(record)
+        source = str(record.attrs.get("source", "record"))
     # ten samples per state and one more: fewer cannot show a state's dynamics, and an
     # RMSE over a handful of samples is no validation
     rec = validate_record(frame, (*plant.input_names, *(plant.sensor_names if sensors else ())),
-                          min_samples=10 * (len(plant.state_names) + 1), source=str(record))
+                          min_samples=10 * (len(plant.state_names) + 1), source=source)
     machine.spec.plausibility.check_timing(rec.dt, rec.dt * len(rec), rec.source, machine.name,
                                            purpose="a trustworthy validation")
-    if "=" in initial:
-        given = parse_assignments(initial, plant.state_names, "state", "--initial")
+    if isinstance(initial, Mapping) or "=" in initial:
+        given = (checked_assignments(initial, plant.state_names, "state", names["initial"])
+                 if isinstance(initial, Mapping) else
+                 parse_assignments(initial, plant.state_names, "state", names["initial"]))
         rule = "estimated"
         for k, v in given.items():
             box = machine.spec.simulation.of(k)
@@ -179,7 +225,7 @@ def _setup(record: str | Path, model: str, params: str | Path | None, set_values
     else:
         given, rule = {}, initial.strip()
     if not sensors and rule in ("first-sample", "fit"):
-        raise DataError(f"{record}: --initial {rule} needs the sensor columns "
+        raise DataError(f"{source}: {names['initial']} {rule} needs the sensor columns "
                         f"({', '.join(plant.sensor_names)}), which the record does not have; "
                         "use 'estimated' or NAME=VALUE,...")
     start = initial_states(machine, rec, rule, pf.initial if pf else None, given, values)
@@ -255,37 +301,44 @@ def _start_mismatch(machine: Machine, rec: Record, start: Mapping[str, tuple[flo
             "--initial fit fits them on this record, --initial first-sample reads them"]
 
 
-def validate_file(record: str | Path, model: str, *, params: str | Path | None = None,
-                  set_values: str | None = None, initial: str = "estimated",
+def validate_file(record: RecordLike, model: str | Path, *,
+                  params: str | Path | Mapping[str, Any] | None = None,
+                  set_values: str | Mapping[str, float] | None = None,
+                  initial: str | Mapping[str, float] = "estimated",
                   options: EstimateOptions | None = None,
-                  figure: str | Path | None = None) -> tuple[Comparison, Path | None]:
+                  figure: str | Path | None = None,
+                  names: Mapping[str, str] = CLI_NAMES) -> tuple[Comparison, Path | None]:
     """Simulate ``model`` on ``record``'s inputs and compare with its outputs.
 
     Parameters
     ----------
-    record : str or Path
-    model : str
+    record : str, Path or DataFrame
+    model : str or Path
         A shipped model's name or a declaration file.
-    params : str or Path, optional
-        An ``estimate --json`` document.
-    set_values : str, optional
-        ``NAME=VALUE,...`` parameters over the file's and the declaration's. [SI]
-    initial : str
+    params : str, Path or mapping, optional
+        An ``estimate --json`` document, or an estimate's ``to_dict()``.
+    set_values : str or mapping, optional
+        ``NAME=VALUE,...`` (or ``{name: value}``) parameters over the file's
+        and the declaration's. [SI]
+    initial : str or mapping
         "estimated" (the file's initial states), "first-sample", "fit" (fitted
-        on this record with the parameters fixed), or ``NAME=VALUE,...`` per
-        state (the others as "estimated").
+        on this record with the parameters fixed), or ``NAME=VALUE,...`` (or
+        ``{state: value}``) per state (the others as "estimated").
     options : EstimateOptions, optional
         How to read the record (columns, sample rate, scale, offset).
     figure : str or Path, optional
         Where to write the measured-against-model figure (PNG).
+    names : mapping
+        How messages name ``set_values`` and ``initial`` (the CLI's options).
 
     Returns
     -------
     (Comparison, Path or None)
         The figures, and the figure's path when one was written.
     """
-    opts = options or EstimateOptions(model=model)
-    machine, rec, values, start, notes = _setup(record, model, params, set_values, initial, opts)
+    opts = options or EstimateOptions(model=str(model))
+    machine, rec, values, start, notes = _setup(record, model, params, set_values, initial, opts,
+                                                names=names)
     c = compare_model(rec, machine, values, start, notes=notes)
     path = None
     if figure is not None:

@@ -260,3 +260,26 @@ def test_the_forecast_band_is_drawn_and_named(tmp_path: Path, demo_rig: Actuator
                for line in d.get_lines())
     assert FORECAST_LABEL not in [t.get_text() for leg in stable.legends
                                   for t in leg.get_texts()]
+
+
+def test_a_friction_panel_does_not_draw_falls_beyond_minus_100_percent() -> None:
+    """r2 = +600 % drew the panel down to -690 %: half of it for changes a
+    positive friction cannot make. Its lower limit now follows the data."""
+    import matplotlib.pyplot as plt
+
+    from condmon.report.figures import trend_figure
+    from condmon.report.trends import TrendData
+
+    def panel(change: list[float], r2: float) -> Any:
+        c = np.array(change)
+        d = TrendData("D", tuple(range(len(c))), np.arange(len(c)), "test", c,
+                      np.full(len(c), 20.0), np.full(len(c), 2.0), np.zeros(len(c)),
+                      np.zeros(len(c)), ("go",) * len(c), 15.0, r2 / 2, r2, 2.0)
+        fig = trend_figure([d])
+        lims = fig.axes[0].get_ylim()
+        plt.close(fig)
+        return lims
+
+    assert panel([5.0, 40.0, 250.0], 600.0) == pytest.approx((-110.0, 690.0))
+    assert panel([5.0, -95.0, 250.0], 600.0)[0] == pytest.approx(-1.1 * 115.0)
+    assert panel([5.0, 40.0], 60.0) == pytest.approx((-69.0, 69.0))   # below 100 %: symmetric

@@ -234,6 +234,15 @@ def _forecast(ax: Any, d: TrendData, band: ForecastBand) -> bool:
     return True
 
 
+def _bottom(d: TrendData, top: float) -> float:
+    """The panel's lower limit: ``-top``, but not far below -100 % unless a
+    check's bar goes there. A fall of more than 100 % turns a positive
+    quantity's sign, so a no-go band at -600 % (a friction's r2) would take
+    half the panel for changes that cannot happen."""
+    low = np.nanmax(np.nan_to_num(d.width) - d.change, initial=0.0) if len(d.change) else 0.0
+    return -top if d.r2 < 100.0 else -min(top, max(110.0, 1.1 * float(low)))
+
+
 def trend_figure(trends: Sequence[TrendData], bands: Sequence[ForecastBand] = ()) -> Any:
     """The trend figure of :func:`plot_trends` (a matplotlib ``Figure``)."""
     from matplotlib.lines import Line2D
@@ -270,7 +279,7 @@ def trend_figure(trends: Sequence[TrendData], bands: Sequence[ForecastBand] = ()
                 if pick.any():
                     ax.plot(d.x[pick], d.change[pick], "o", ms=5, mec=colour,
                             mfc=colour if fill else "white", zorder=4)
-        ax.set_ylim(-top, top)
+        ax.set_ylim(_bottom(d, top), top)
         ax.set_ylabel(f"{d.parameter} change [%]")
         ax.grid(alpha=0.3)
     k = trends[0].k if trends else float("nan")

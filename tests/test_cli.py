@@ -433,6 +433,31 @@ def test_the_notebook_history_takes_one_record_as_well_as_a_list(tmp_path: Path)
         assert doc["baseline"]["n"] == 4 and doc["message"] == done.message
 
 
+def test_the_notebook_history_s_errors_name_its_arguments_not_options(tmp_path: Path) -> None:
+    """A notebook user was told `--against 'nobody'` and `give --unit NAME`: the
+    shared workflows quote the CLI's options. The History's errors name the
+    method's arguments; the error keeps its type."""
+    import condmon
+
+    files = _healthy_files(tmp_path, 3)
+    with condmon.History(tmp_path / "h.db") as h:
+        h.baseline_add("U", files)
+        with pytest.raises(condmon.DataError, match=r"^against='nobody': no such unit or group"):
+            h.check("U", files[0], against="nobody", dry_run=True)
+        with pytest.raises(condmon.DataError, match=r"^horizon must be a finite number > 0"):
+            h.forecast("U", horizon=-1.0)
+        with pytest.raises(condmon.ConfigError, match=r"needs a reason \(reason=TEXT\)"):
+            h.exclude(1, "")
+    with pytest.raises(condmon.DataError, match=r"no such unit or group") as info:
+        from condmon.store import open_store
+        from condmon.workflows.checks import check_test
+        from condmon.workflows.records import EstimateOptions
+
+        with open_store(str(tmp_path / "h.db")) as store:   # the CLI's path keeps its option
+            check_test(store, "U", files[0], EstimateOptions(), against="nobody", dry_run=True)
+    assert str(info.value).startswith("--against 'nobody'")
+
+
 def test_a_check_against_the_unit_itself_is_refused(tmp_path: Path,
                                                     capsys: pytest.CaptureFixture[str]) -> None:
     """`--against U --unit U` silently used U's own baseline: most likely the

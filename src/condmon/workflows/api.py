@@ -25,15 +25,18 @@ Example
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import functools
+import re
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import pandas as pd
 
 from condmon._threads import one_blas_thread
+from condmon.errors import CondmonError
 from condmon.workflows.checks import CheckResult, check_test
 from condmon.workflows.imports import ImportedUnit, import_table
 from condmon.workflows.monitoring import BaselineAddResult, add_baseline_tests
@@ -48,6 +51,32 @@ if TYPE_CHECKING:
     from condmon.workflows.manage import ChangeResult
 
 __all__ = ["History", "Forecast", "load_model", "isolate", "validate"]
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+#: A CLI option in a message (``--against 'X'``), with the space before its value
+#: (``against='X'``); before a word that goes on the sentence (``--horizon must
+#: be``) it is the bare name.
+_OPTION = re.compile(r"--([a-z][a-z-]*)( (?!(?:must|is|are|needs|and|or|to|of)\b)(?=['\"\w]))?")
+
+
+def _as_arguments(fn: F) -> F:
+    """Let a method's errors name its arguments (``against='X'``), not the
+    command line's options (``--against 'X'``) that the shared workflow
+    functions quote: a notebook user has no options. The error is the same
+    object (its type and attributes kept), its text rewritten."""
+    @functools.wraps(fn)
+    def wrapped(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return fn(*args, **kwargs)
+        except CondmonError as err:
+            if err.args and isinstance(err.args[0], str):
+                err.args = (_OPTION.sub(lambda m: m.group(1).replace("-", "_")
+                                        + ("=" if m.group(2) else ""), err.args[0]),
+                            *err.args[1:])
+            raise
+
+    return wrapped  # type: ignore[return-value]
 
 
 @dataclass(frozen=True)
@@ -120,6 +149,7 @@ class History:
     # -- records in ---------------------------------------------------------------------
 
     @one_blas_thread
+    @_as_arguments
     def baseline_add(self, unit: str, records: Sequence[RecordLike] | RecordLike, *,
                      model: str | None = None, test_date: str | datetime | None = None,
                      group: str | None = None, options: EstimateOptions | None = None
@@ -136,6 +166,7 @@ class History:
                                   opts, test_date=test_date, group=group)
 
     @one_blas_thread
+    @_as_arguments
     def check(self, unit: str, record: RecordLike, *, model: str | None = None,
               test_date: str | datetime | None = None, against: str | None = None,
               dry_run: bool = False, options: EstimateOptions | None = None) -> CheckResult:
@@ -146,6 +177,7 @@ class History:
                           against=against, dry_run=dry_run)
 
     @one_blas_thread
+    @_as_arguments
     def import_table(self, table: str | Path, model: str | Path, *, unit: str | None = None,
                      indicator: str | None = None, no_go: Sequence[str] = (),
                      baseline: int = 5) -> list[ImportedUnit]:
@@ -170,6 +202,7 @@ class History:
         return self.store.audit(unit)
 
     @one_blas_thread
+    @_as_arguments
     def forecast(self, unit: str, horizon: float | None = None) -> Forecast:
         """Each parameter's remaining life to no-go (``condmon forecast``).
 
@@ -191,18 +224,21 @@ class History:
 
     # -- looking after it ---------------------------------------------------------------
 
+    @_as_arguments
     def exclude(self, test_id: int, reason: str) -> ChangeResult:
         """Exclude a wrong test (``condmon exclude``; kept, marked, audited)."""
         from condmon.workflows.manage import exclude_test
 
         return exclude_test(self.store, test_id, reason)
 
+    @_as_arguments
     def include(self, test_id: int, reason: str | None = None) -> ChangeResult:
         """Include an excluded test again (``condmon include``)."""
         from condmon.workflows.manage import include_test
 
         return include_test(self.store, test_id, reason)
 
+    @_as_arguments
     def set_model(self, unit: str, model: str, reason: str | None = None) -> ChangeResult:
         """Point a unit at its declaration file again (``condmon unit set-model``)."""
         from condmon.workflows.manage import set_unit_model

@@ -448,6 +448,8 @@ def test_the_notebook_history_s_errors_name_its_arguments_not_options(tmp_path: 
             h.forecast("U", horizon=-1.0)
         with pytest.raises(condmon.ConfigError, match=r"needs a reason \(reason=TEXT\)"):
             h.exclude(1, "")
+        with pytest.raises(condmon.DataError, match=r"^test_date: 'yesterday' is not a date"):
+            h.check("U", files[0], test_date="yesterday", dry_run=True)
     with pytest.raises(condmon.DataError, match=r"no such unit or group") as info:
         from condmon.store import open_store
         from condmon.workflows.checks import check_test

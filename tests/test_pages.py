@@ -117,7 +117,7 @@ def test_a_unit_page_pages_its_tests_the_latest_first(tmp_path: Path) -> None:
     html = _get(client, "/units/LONG").get_data(as_text=True)
     assert html.count('<tr id="t') == 50 and f'id="t{ids[-1]}"' in html
     assert "50 of 450 tests (page 3 of 3; the figures show them all)" in html
-    assert "450 tests (450 baseline" in html and 'href="?page=2#tests"' in html
+    assert "450 tests (450 for the baseline, 0 checks" in html and 'href="?page=2#tests"' in html
     first = _get(client, "/units/LONG?page=1").get_data(as_text=True)
     assert first.count('<tr id="t') == 200 and f'id="t{ids[0]}"' in first
     assert f'id="t{ids[200]}"' not in first

@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     from condmon.monitor.fuzzy import MonitorConfig
     from condmon.report.reading import CheckFault
 
-__all__ = ["CSS", "STATUSES", "esc", "badge", "when", "page", "flags_box", "test_note",
+__all__ = ["CSS", "STATUSES", "esc", "badge", "when", "page", "flags_box", "test_note", "test_counts",
            "baseline_section", "faults_table", "tests_table", "isolations_table", "with_unit",
            "SuspectCell", "SUSPECT_HEADS", "isolation_suspects", "suspect_cells",
            "latest_isolation", "suspects_table", "unit_of"]
@@ -95,6 +95,41 @@ def flags_box(stored: Any) -> str:
             "A check against it can hide a fault or raise a false alarm. Exclude a wrong "
             "test with <code>condmon exclude TEST --reason ...</code>; the baseline is "
             "rebuilt and the checks re-evaluated.</div>")
+
+
+def test_counts(hist: Any, stored: Any) -> str:
+    """What a unit's tests are, for a page's header: in the baseline in use
+    (``stored``'s tests, which a rebuild from chosen tests makes of checks too),
+    left out of it, checks, excluded; without a stored baseline, the tests
+    added for one. The counts add up to the tests.
+
+    Example
+    -------
+    >>> import pandas as pd
+    >>> hist = pd.DataFrame({"role": ["baseline"] * 3 + ["check"] * 3,
+    ...                      "excluded": [False, False, True] + [False] * 3}, index=range(1, 7))
+    >>> class V2:
+    ...     test_ids = (2, 4, 5)
+    >>> test_counts(hist, V2())
+    '3 in the baseline in use, 1 left out of it, 1 check, 1 excluded'
+    >>> test_counts(hist, None)
+    '2 for the baseline, 3 checks, 1 excluded'
+    """
+    if not len(hist):
+        return "none"
+    excluded = hist["excluded"].astype(bool).to_numpy()
+    role = hist["role"].to_numpy()
+    member = (hist.index.isin(stored.test_ids) if stored is not None else
+              role == "baseline") & ~excluded
+    left = (role == "baseline") & ~member & ~excluded
+    checks = ~member & ~left & ~excluded
+    parts = [f"{int(member.sum())} " + ("in the baseline in use" if stored is not None else
+                                        "for the baseline")]
+    if left.any():
+        parts.append(f"{int(left.sum())} left out of it")
+    n = int(checks.sum())
+    parts += [f"{n} check{'' if n == 1 else 's'}", f"{int(excluded.sum())} excluded"]
+    return ", ".join(parts)
 
 
 def unit_of(units: Mapping[str, str], key: str) -> str:

@@ -59,6 +59,9 @@ F = TypeVar("F", bound=Callable[..., Any])
 #: be``) it is the bare name.
 _OPTION = re.compile(r"--([a-z][a-z-]*)( (?!(?:must|is|are|needs|and|or|to|of)\b)(?=['\"\w]))?")
 
+#: Options whose argument has another name in Python.
+_RENAMED = {"date": "test_date"}
+
 
 def _as_arguments(fn: F) -> F:
     """Let a method's errors name its arguments (``against='X'``), not the
@@ -71,9 +74,9 @@ def _as_arguments(fn: F) -> F:
             return fn(*args, **kwargs)
         except CondmonError as err:
             if err.args and isinstance(err.args[0], str):
-                err.args = (_OPTION.sub(lambda m: m.group(1).replace("-", "_")
-                                        + ("=" if m.group(2) else ""), err.args[0]),
-                            *err.args[1:])
+                err.args = (_OPTION.sub(lambda m: _RENAMED.get(m.group(1), m.group(1))
+                                        .replace("-", "_") + ("=" if m.group(2) else ""),
+                                        err.args[0]), *err.args[1:])
             raise
 
     return wrapped  # type: ignore[return-value]

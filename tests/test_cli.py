@@ -473,3 +473,14 @@ def test_a_check_against_the_unit_itself_is_refused(tmp_path: Path,
         "error: --against U: that is the unit itself; a check is judged against the unit's "
         "own baseline without --against")
     assert main(["check", files[3], "--unit", "U", "--db", db, "--dry-run"]) == 0
+
+
+def test_model_given_as_an_option_where_it_is_the_first_argument(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """`estimate REC --model M` but `isolate M REC`: `isolate REC --model hst`
+    answered "No such option: --model (Possible options: --date, --help)"."""
+    assert main(["isolate", "rec.csv", "--model", "hst"]) == 2
+    assert capsys.readouterr().err == ("error: condmon isolate takes the model as its first "
+                                       "argument, not --model: condmon isolate MODEL RECORD\n")
+    assert main(["simulate", "plant", "--model", "hst", "--out", "x.csv"]) == 2
+    assert "condmon simulate plant MODEL" in capsys.readouterr().err

@@ -460,6 +460,16 @@ def _usage_error(exc: Exception) -> int:
     if "ClickException" not in names:
         raise exc
     ctx = getattr(exc, "ctx", None)
+    if "NoSuchOption" in names and getattr(exc, "option_name", None) == "--model" and \
+            ctx is not None and any(p.name == "model" and not p.param_type_name == "option"
+                                    for p in ctx.command.params):
+        # estimate and check take --model; isolate and simulate plant take it first
+        usage = " ".join(p.name.upper() for p in ctx.command.params
+                         if p.param_type_name == "argument")
+        err.print(f"error: {ctx.command_path} takes the model as its first argument, not "
+                  f"--model: {ctx.command_path} {usage}", highlight=False, markup=False,
+                  soft_wrap=True)
+        return 2
     where = f" (`{ctx.command_path} --help` lists the options)" if ctx is not None and \
         "UsageError" in names else ""
     err.print(f"error: {exc.format_message()}{where}", highlight=False,  # type: ignore[attr-defined]

@@ -343,8 +343,9 @@ def test_every_file_of_a_unit_is_accounted_for(tmp_path: Path,
         f"refused {unit / name}: not a record file ({what}); readable: {readable}"
         for name, what in (("a.dat", ".dat"), ("b.csv.gz", ".csv.gz"), ("noext", "no suffix"),
                            ("notes.xyz", ".xyz"))] + [
-        "nothing was stored: 4 record(s) refused and none taken (exit 2)"]
-    assert "4 records: 0 stored, 0 skipped, 0 rejected, 4 refused" in got.out
+        "nothing new was stored: 4 record(s) refused and none taken (exit 2)"]
+    assert "4 records: 0 stored, 0 skipped, 0 rejected, 4 refused (4 of them no unit's " \
+        "record)" in got.out
     assert "records/s" not in got.out and not db.exists()
 
 
@@ -517,7 +518,7 @@ def test_a_run_that_stores_nothing_and_refuses_something_exits_2(
     db = str(tmp_path / "f.db")
     assert main(["fleet", "run", str(tmp_path / "inbox"), "--db", db, "--workers", "1"]) == 2
     err = capsys.readouterr().err
-    assert "nothing was stored: 1 record(s) refused and none taken (exit 2)" in err
+    assert "nothing new was stored: 1 record(s) refused and none taken (exit 2)" in err
     assert main(["fleet", "run", str(tmp_path / "inbox"), "--db", db, "--workers", "1",
                  "--json"]) == 2
 
@@ -538,10 +539,13 @@ def test_a_stray_file_does_not_fail_an_up_to_date_fleet(
     again = capsys.readouterr()
     assert again.err.startswith(f"refused {root / 'EMA-1' / 'notes.md'}: not a record file")
     assert "0 stored, 1 skipped, 0 rejected, 1 refused" in again.out
-    assert "/s)" not in again.out and "nothing was stored" not in again.err
+    assert "/s)" not in again.out and "nothing new was stored" not in again.err
+    (root / "README.txt").write_text("the inbox of line 3\n")   # beside the unit folders
+    assert main(["fleet", "run", str(root), "--db", db]) == 0
+    assert "2 refused (2 of them no unit's record)" in capsys.readouterr().out
     (root / "EMA-1" / "r9.csv").write_text("x,y\n1,2\n")
     assert main(["fleet", "run", str(root), "--db", db]) == 2
-    assert "nothing was stored: 2 record(s) refused and none taken (exit 2)" in \
+    assert "nothing new was stored: 3 record(s) refused and none taken (exit 2)" in \
         capsys.readouterr().err
 
 

@@ -86,8 +86,8 @@ def register(app: typer.Typer) -> None:
         else:
             _print_result(res, str(source))
         if res.failed:
-            err.print(f"nothing was stored: {res.count('refused')} record(s) refused and none "
-                      "taken (exit 2)", highlight=False, markup=False, soft_wrap=True)
+            err.print(f"nothing new was stored: {res.count('refused')} record(s) refused and "
+                      "none taken (exit 2)", highlight=False, markup=False, soft_wrap=True)
             raise typer.Exit(2)
 
 
@@ -153,8 +153,9 @@ def _print_result(res: FleetResult, source: str) -> None:
                f"connected to {res.engine}")
         rate += (f"; {how} in {res.engine_start:.1f} s, stopped in {res.engine_stop:.1f} s"
                  if res.engine == "local" else f"; {how} in {res.engine_start:.2f} s")
+    stray = (f" ({res.not_records} of them no unit's record)" if res.not_records else "")
     out.print(f"{len(res.records)} records: {res.count('stored')} stored, "
               f"{res.count('skipped')} skipped, {res.count('rejected')} rejected, "
-              f"{res.count('refused')} refused — {len(res.units)} units, "
+              f"{res.count('refused')} refused{stray} — {len(res.units)} units, "
               f"{res.workers} worker(s), {res.seconds:.1f} s{rate}",
               highlight=False, markup=False)

@@ -97,7 +97,8 @@ class FleetInterrupted(KeyboardInterrupt):
     """
 
     def __init__(self, stored: int, total: int) -> None:
-        super().__init__(f"interrupted: {stored} of {total} records stored; run again to finish")
+        super().__init__(f"interrupted: {stored} of {total} records stored"
+                         + ("; run again to finish" if stored < total else ""))
         self.stored = stored
         self.total = total
 
@@ -187,10 +188,11 @@ class FleetResult:
 
     @property
     def not_records(self) -> int:
-        """Refused files that are no record by their suffix (a unit folder's
-        ``notes.md``): named at every run, but no failure of a record."""
+        """Refused files that are no unit's record: no record by their suffix (a
+        unit folder's ``notes.md``), or in no unit's folder (a ``README.txt``
+        beside them). Named at every run, but no failure of a record."""
         return sum(1 for r in self.records if r.outcome == "refused"
-                   and not _readable_suffix(Path(r.file)))
+                   and (not r.unit or not _readable_suffix(Path(r.file))))
 
     @property
     def failed(self) -> bool:

@@ -127,6 +127,15 @@ def test_validate_from_python_takes_an_estimate_and_names_its_own_arguments(
         condmon.validate(frame, tanks, initial={"x1": float("nan")})
     with pytest.raises(DataError, match=r"^the estimate: the parameters are of model 'dc-motor'"):
         condmon.validate(frame, tanks, parameters=condmon.estimate(condmon.simulate_actuator()))
+    # a file with its own column names; the estimate's values as a plain mapping
+    renamed = _record(tmp_path / "w.csv", tanks, seed=3, noise=0.01, u_name="pump", y_name="lvl")
+    plain = condmon.validate(renamed, tanks, parameters=dict(est.parameters),
+                             columns={"u": "pump", "y": "lvl"}, initial={"x1": 6.0, "x2": 2.5})
+    assert plain.rmse["y"] < 0.05 and plain.parameters["b"] == est.parameters["b"]
+    # an implausible value that makes the run diverge is named as the likely cause
+    with pytest.raises(EstimationError, match=r"values a=-1 lies outside \[estimation.plausible\]"
+                                              r", the likely cause$"):
+        condmon.validate(frame, tanks, parameters=est, values={"a": -1.0})
 
 
 def test_validate_cli_json_and_a_given_initial_state(tanks: Path, tmp_path: Path,
@@ -635,3 +644,23 @@ def test_a_misspelt_parameter_or_a_value_given_twice_is_refused(
         "column 1 on" in capsys.readouterr().err
     est.write_text(json.dumps({"model": "two-tanks", "parameters": TRUTH}))
     assert main(args) == 0
+
+
+def test_a_run_that_diverges_at_any_step_says_so_at_once() -> None:
+    """`validate --set R=-1` on a 4 s motor record took 41 s: every step count up
+    to 64 ran its 2,000 samples, and the run went on after every state was
+    infinite. A divergence that a finer step does not put off ends the search."""
+    from condmon.models.registry import load_plant_model
+    from condmon.simulate.recorded import Diverged, choose_substeps, simulate_recorded
+
+    c = load_plant_model("dc-motor").compile()
+    u = np.full((2000, 1), 12.0)
+    p = c.parameter_vector({"R": -1.0})
+    sub = choose_substeps(c, u, 1e-3, np.zeros((2, 1)), p[:, None], np.array([1e-3, 1e-3]))
+    with pytest.raises(Diverged, match=r"the simulation diverged at t = "):
+        simulate_recorded(c, u, 1e-3, np.zeros(2), p, substeps=sub)
+    assert sub <= 4   # the search stopped: a step of 1/64 would diverge there too
+    good = choose_substeps(c, u, 1e-3, np.zeros((2, 1)), c.parameter_vector()[:, None],
+                           np.array([1e-3, 1e-3]))
+    assert np.isfinite(simulate_recorded(c, u, 1e-3, np.zeros(2), c.parameter_vector(),
+                                         substeps=good).states).all()

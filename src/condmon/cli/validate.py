@@ -37,7 +37,7 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
         scale: ScaleOpt = None,
         offset: OffsetOpt = None,
         ignore: IgnoreOpt = None,
-        figure: Annotated[Optional[Path], typer.Option(help="Measured-against-model figure (PNG); default beside the parameter file (or the record): NAME.validation.png.")] = None,
+        figure: Annotated[Optional[Path], typer.Option(help="Measured-against-model figure (PNG); default beside the parameter file, PARAMS-RECORD.validation.png (without one, beside the record: RECORD.validation.png).")] = None,
         as_json: Annotated[bool, typer.Option("--json", help="Print the figures as JSON.")] = False,
     ) -> None:
         """Simulate the model on a record's inputs and compare with its outputs: RMSE and fit % per output (MATLAB's compare)."""
@@ -45,8 +45,11 @@ def register(app: typer.Typer, simulate_app: typer.Typer) -> None:
 
         opts = options("sriv", None, "auto", columns, 0.0, model, None, None, sample_rate,
                        scale, offset, ignore)
-        beside = params if params is not None else record
-        path = figure or beside.with_name(f"{beside.stem}.validation.png")
+        # beside the parameter file, named after it and the record: one parameter file
+        # validated on several records keeps a figure for each
+        path = figure or (params.with_name(f"{params.stem}-{record.stem}.validation.png")
+                          if params is not None else
+                          record.with_name(f"{record.stem}.validation.png"))
         c, written = validate_file(record, model, params=params, set_values=set_values,
                                    initial=initial, options=opts, figure=path)
         if as_json:

@@ -116,6 +116,12 @@ def simulate_copies(compiled: CompiledModel, u: FloatArray, dt: float, x0: Float
             xs[k] = x
             for i, v in enumerate(out_fn(x, ub, p)):
                 ys[k, i] = v
+            if not np.isfinite(x).all(axis=0).any():
+                # every copy has left the finite numbers, for good (inf and NaN stay so
+                # under the RK steps): the rest of the record would only cost time
+                xs[k + 1:] = np.nan
+                ys[k + 1:] = np.nan
+                break
             for _ in range(substeps):
                 k1 = rhs(x)
                 k2 = rhs(x + 0.5 * h * k1)
@@ -123,6 +129,12 @@ def simulate_copies(compiled: CompiledModel, u: FloatArray, dt: float, x0: Float
                 k4 = rhs(x + h * k3)
                 x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
     return xs, ys
+
+
+def _first_bad(y: FloatArray) -> int:
+    """The first sample at which any copy's output is not finite (``len(y)``: none)."""
+    bad = ~np.isfinite(y).all(axis=tuple(range(1, y.ndim)))
+    return int(np.argmax(bad)) if bad.any() else len(y)
 
 
 def choose_substeps(compiled: CompiledModel, u: FloatArray, dt: float, x0: FloatArray,
@@ -142,6 +154,11 @@ def choose_substeps(compiled: CompiledModel, u: FloatArray, dt: float, x0: Float
                 else np.full(tolerance.shape, np.inf)
         if np.all(np.isfinite(prev)) and np.all(moved <= tolerance):
             return sub
+        before, after = _first_bad(prev), _first_bad(nxt)
+        if before < m and after < m and after <= before + max(2, before // 10):
+            # halving the step did not put the divergence off: the model diverges with
+            # these values, at any step (finer ones would only take longer to say so)
+            return 2 * sub
         sub, prev = 2 * sub, nxt
     return sub
 

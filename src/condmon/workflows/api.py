@@ -60,7 +60,17 @@ F = TypeVar("F", bound=Callable[..., Any])
 _OPTION = re.compile(r"--([a-z][a-z-]*)( (?!(?:must|is|are|needs|and|or|to|of)\b)(?=['\"\w]))?")
 
 #: Options whose argument has another name in Python.
-_RENAMED = {"date": "test_date"}
+_RENAMED = {"date": "test_date", "set": "values", "params": "parameters"}
+
+
+def _python_text(text: str) -> str:
+    """``text`` with the CLI's options named as the Python call's arguments."""
+    def python(m: re.Match[str]) -> str:
+        name = _RENAMED.get(m.group(1), m.group(1)).replace("-", "_")
+        # --set R=2 is values R=2 (its value is an assignment of its own)
+        return name + (("" if not m.group(2) else " " if name == "values" else "="))
+
+    return _OPTION.sub(python, text)
 
 
 def _as_arguments(fn: F) -> F:
@@ -74,9 +84,7 @@ def _as_arguments(fn: F) -> F:
             return fn(*args, **kwargs)
         except CondmonError as err:
             if err.args and isinstance(err.args[0], str):
-                err.args = (_OPTION.sub(lambda m: _RENAMED.get(m.group(1), m.group(1))
-                                        .replace("-", "_") + ("=" if m.group(2) else ""),
-                                        err.args[0]), *err.args[1:])
+                err.args = (_python_text(err.args[0]), *err.args[1:])
             raise
 
     return wrapped  # type: ignore[return-value]
@@ -285,9 +293,11 @@ def isolate(record: RecordLike, model: str | Path = "hst", **options: Any) -> Is
 
 
 @one_blas_thread
+@_as_arguments
 def validate(record: RecordLike, model: str | Path, *, parameters: Any = None,
              values: Mapping[str, float] | None = None,
              initial: str | Mapping[str, float] = "estimated",
+             columns: Mapping[str, str] | None = None,
              figure: str | Path | None = None) -> Comparison:
     """Simulate a model on a record's inputs and compare it with the record's
     outputs (``condmon validate``; MATLAB's ``compare``): the way a model is
@@ -299,15 +309,19 @@ def validate(record: RecordLike, model: str | Path, *, parameters: Any = None,
         The model's inputs and sensors (the declaration's ``[record]`` applies).
     model : str or Path
         A shipped model's name or a declaration file.
-    parameters : EstimateResult, str or Path, optional
+    parameters : EstimateResult, str, Path or mapping, optional
         An estimate of this model (its parameters and, from the simulation
-        route, its initial states), or the file ``condmon estimate --json``
-        wrote. Without it: the declaration's values.
+        route, its initial states), the file ``condmon estimate --json``
+        wrote, or ``{name: value}`` (as ``values``). Without it: the
+        declaration's values.
     values : mapping of str to float, optional
         Parameter values over the estimate's and the declaration's. [SI]
     initial : str or mapping
         "estimated" (the estimate's initial states), "first-sample", "fit"
         (fitted on this record, the parameters fixed), or ``{state: value}``.
+    columns : mapping of str to str, optional
+        The model's names of the record's columns (``{"u": "uVal"}``), over
+        the declaration's ``[record.columns]``.
     figure : str or Path, optional
         Where to write the measured-against-model figure (PNG).
 
@@ -328,8 +342,14 @@ def validate(record: RecordLike, model: str | Path, *, parameters: Any = None,
     """
     from condmon.workflows.validation import validate_file
 
+    import dataclasses
+
     doc = parameters.to_dict() if hasattr(parameters, "to_dict") else parameters
+    if isinstance(doc, Mapping) and "parameters" not in doc:   # plain values, as values=
+        values, doc = {**doc, **(values or {})}, None
     names = {"set": "values", "initial": "initial"}
+    opts = EstimateOptions(model=str(model), columns=dict(columns) if columns else None)
     comparison, _ = validate_file(record, model, params=doc, set_values=values,
-                                  initial=initial, figure=figure, names=names)
-    return comparison
+                                  initial=initial, figure=figure, names=names, options=opts)
+    return dataclasses.replace(comparison,
+                               notes=tuple(_python_text(n) for n in comparison.notes))

@@ -123,10 +123,10 @@ def parameter_document(doc: Any, src: str, machine: Machine) -> ParameterFile:
         initial[k] = float(value)
     notes = []
     if doc.get("accepted") is False:
-        notes.append(f"the estimate in {src} was not accepted: {doc.get('reason')}")
+        notes.append(f"{src}: the estimate was not accepted: {doc.get('reason')}")
     held = dict(doc.get("held") or {})
     if held:
-        notes.append(f"held in {src} (not estimated): {', '.join(sorted(held))}")
+        notes.append(f"{src}: held (not estimated): {', '.join(sorted(held))}")
     return ParameterFile(src, values, initial, tuple(notes))
 
 
@@ -254,6 +254,26 @@ def _setup(record: RecordLike, model: str | Path,
     return machine, rec, values, start, tuple(notes)
 
 
+def _compare(rec: Record, machine: Machine, values: Mapping[str, float],
+             start: Mapping[str, tuple[float, str]], notes: tuple[str, ...]) -> Comparison:
+    """:func:`compare_model`; a simulation that diverges with a value outside
+    ``[estimation.plausible]`` names that value as the likely cause (the note
+    that says so would else be lost with the run)."""
+    from condmon.simulate.recorded import Diverged
+
+    try:
+        return compare_model(rec, machine, values, start, notes=notes)
+    except Diverged as err:
+        implausible = [n.split(" lies outside")[0] for n in notes
+                       if "lies outside [estimation.plausible]" in n]
+        if not implausible:
+            raise
+        verb = "lies" if len(implausible) == 1 else "lie"
+        err.args = (f"{err}; {', '.join(implausible)} {verb} outside "
+                    "[estimation.plausible], the likely cause", *err.args[1:])
+        raise
+
+
 def _parameter_notes(machine: Machine, values: Mapping[str, float],
                      given: Mapping[str, float], pf: ParameterFile | None) -> list[str]:
     """Which estimated quantities fall back on the declaration, and which given
@@ -339,7 +359,7 @@ def validate_file(record: RecordLike, model: str | Path, *,
     opts = options or EstimateOptions(model=str(model))
     machine, rec, values, start, notes = _setup(record, model, params, set_values, initial, opts,
                                                 names=names)
-    c = compare_model(rec, machine, values, start, notes=notes)
+    c = _compare(rec, machine, values, start, notes)
     path = None
     if figure is not None:
         from condmon.report.comparison import plot_comparison
@@ -372,7 +392,7 @@ def simulate_file(record: str | Path, model: str, out: str | Path, *,
     sensed = all(n in frame.columns for n in machine.plant.sensor_names)
     machine, rec, values, start, notes = _setup(record, model, params, set_values, initial,
                                                 opts, sensors=sensed)
-    c = compare_model(rec, machine, values, start, notes=notes)
+    c = _compare(rec, machine, values, start, notes)
     rec_frame = _frame(c, machine, record, opts)
     write_record(rec_frame, out)
     return c

@@ -283,3 +283,23 @@ def test_a_friction_panel_does_not_draw_falls_beyond_minus_100_percent() -> None
     assert panel([5.0, 40.0, 250.0], 600.0) == pytest.approx((-110.0, 690.0))
     assert panel([5.0, -95.0, 250.0], 600.0)[0] == pytest.approx(-1.1 * 115.0)
     assert panel([5.0, 40.0], 60.0) == pytest.approx((-69.0, 69.0))   # below 100 %: symmetric
+
+
+def test_a_unit_at_no_go_has_no_forecast_in_its_legend() -> None:
+    """The legend named a forecast band and a continued trend that a unit at
+    no-go already has no room to draw; the no-go line alone is drawn."""
+    import matplotlib.pyplot as plt
+
+    from condmon.report.figures import trend_figure
+    from condmon.report.trends import FORECAST_LABEL, ForecastBand, TrendData
+
+    c = np.array([100.0, 300.0, 550.0])
+    d = TrendData("D", (1, 2, 3), np.arange(3), "test", c, np.full(3, 20.0), np.full(3, 2.0),
+                  np.zeros(3), np.zeros(3), ("go", "advisory", "no-go"), 15.0, 300.0, 600.0, 2.0)
+    for ahead, shown in ((np.linspace(0.0, 1e-9, 40), False), (np.linspace(0.0, 3.0, 40), True)):
+        band = ForecastBand("D", "tests", (1, 2, 3), ahead, np.full(40, 560.0),
+                            np.full(40, 540.0), np.full(40, 580.0), 513.0)
+        fig = trend_figure([d], [band])
+        labels = [t.get_text() for leg in fig.legends for t in leg.get_texts()]
+        plt.close(fig)
+        assert "no-go change" in labels and (FORECAST_LABEL in labels) is shown

@@ -212,26 +212,30 @@ def _bottom_axes(axes: Any, n: int) -> list[Any]:
                                      for c in range(min(2, len(flat)))})]
 
 
-def _forecast(ax: Any, d: TrendData, band: ForecastBand) -> bool:
+def _forecast(ax: Any, d: TrendData, band: ForecastBand) -> set[str]:
     """The fitted trend continued from the last check to the no-go line, its
-    90 % band shaded, and the no-go line; whether it was drawn."""
+    90 % band shaded, and the no-go line; what was drawn (``band``, ``line``).
+    A unit at no-go already has no future to draw: the line alone."""
     from condmon.report.trends import FORECAST_LABEL
 
     where = {i: j for j, i in enumerate(d.test_ids)}
     at = [where[i] for i in band.test_ids if i in where]
     dated = _dated(d.x)
     if len(at) < 2 or (band.by == "days" and not dated):
-        return False
+        return set()
     x = d.x[at].astype("datetime64[ns]").astype(np.int64).astype(np.float64) if dated \
         else np.asarray(d.x[at], dtype=np.float64)
     ahead = band.x(x, 86400e9)
-    xs = ahead.astype(np.int64).astype("datetime64[ns]") if dated else ahead
-    ax.fill_between(xs, band.low, band.high, color="#7e57c2", alpha=0.4, lw=0,
-                    label=FORECAST_LABEL, zorder=1)
-    ax.plot(xs, band.median, "--", color="#5e35b1", lw=1.0, zorder=2,
-            label="forecast: the fitted trend continued")
+    drawn = {"line"}
+    if float(np.ptp(band.ahead)) >= 0.01:   # [tests or days]: a future to draw
+        xs = ahead.astype(np.int64).astype("datetime64[ns]") if dated else ahead
+        ax.fill_between(xs, band.low, band.high, color="#7e57c2", alpha=0.4, lw=0,
+                        label=FORECAST_LABEL, zorder=1)
+        ax.plot(xs, band.median, "--", color="#5e35b1", lw=1.0, zorder=2,
+                label="forecast: the fitted trend continued")
+        drawn.add("band")
     ax.axhline(band.threshold, color="#b71c1c", ls=":", lw=1.2, zorder=2, label="no-go change")
-    return True
+    return drawn
 
 
 def _bottom(d: TrendData, top: float) -> float:
@@ -254,10 +258,10 @@ def trend_figure(trends: Sequence[TrendData], bands: Sequence[ForecastBand] = ()
     fig, axes = _grid(n, 2.4, 1.4)
     statuses: dict[str, None] = {}
     ahead = {b.parameter: b for b in bands}
-    forecast = False
+    forecast: set[str] = set()
     for ax, d in zip(axes.ravel(), trends):
         if d.parameter in ahead:
-            forecast = _forecast(ax, d, ahead[d.parameter]) or forecast
+            forecast |= _forecast(ax, d, ahead[d.parameter])
         reach = np.abs(d.change) + np.nan_to_num(d.width)
         top = max(d.r2 * 1.15, float(np.nanmax(reach)) * 1.1 if np.isfinite(reach).any() else 0)
         _bands(ax, d.r1, d.r2, top)
@@ -297,14 +301,16 @@ def trend_figure(trends: Sequence[TrendData], bands: Sequence[ForecastBand] = ()
         seen[f"error bar {error_bar(k)}"] = Line2D([], [], ls="-", color="0.3", lw=0.8)
         seen["filled: this symptom > 0"] = Line2D([], [], ls="", marker="o", color="0.3")
         seen["open: this symptom = 0"] = Line2D([], [], ls="", marker="o", mec="0.3", mfc="white")
-        if forecast:  # whichever panel drew it
+        if "band" in forecast:  # whichever panel drew it
             seen[FORECAST_LABEL] = Patch(color="#7e57c2", alpha=0.4, lw=0)
             seen["forecast: the fitted trend continued"] = Line2D([], [], ls="--",
                                                                   color="#5e35b1", lw=1.0)
+        if "line" in forecast:
             seen["no-go change"] = Line2D([], [], ls=":", color="#b71c1c", lw=1.2)
         legend_below(fig, (list(seen.values()), list(seen)), ncol=5)
-    fig.suptitle("Change against the healthy baseline (excluded and rejected tests not "
-                 f"drawn)\nerror bars: {error_bar(k)}, the symptom half-width (σ: baseline "
+    fig.suptitle("Change against the healthy baseline (checks only: baseline, excluded and "
+                 f"rejected tests not drawn)\nerror bars: {error_bar(k)}, the symptom "
+                 "half-width (σ: baseline "
                  "std, SE: the estimate's standard error)", fontsize=9)
     return fig
 

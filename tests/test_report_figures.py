@@ -237,7 +237,7 @@ def test_the_forecast_band_is_drawn_and_named(tmp_path: Path, demo_rig: Actuator
         for n, (unit, pace) in enumerate((("WEAR", 0.3), ("STABLE", 0.0))):
             add_baseline_tests(store, unit, [simulate_actuator(demo_rig, seed=10 * n + s)
                                              for s in (1, 2, 3)], test_date="2026-03-01")
-            for day in range(1, 9):
+            for day in range(1, 6):
                 f = 1.0 + pace * day
                 rig = demo_rig.with_faults([f"D=*{f}", f"coulomb_friction=*{f}"])
                 check_test(store, unit, simulate_actuator(rig, seed=100 * n + day),

@@ -664,7 +664,7 @@ def test_figures_in_a_browser(fleet: dict[str, Any], browser_page: tuple[Any, st
 def wearing_page(tmp_path_factory: pytest.TempPathFactory, demo_rig: ActuatorRig,
                  browser_page: tuple[Any, str]) -> Iterator[tuple[Any, str]]:
     """The browser's page and a second server, over a history of three units with
-    8 dated checks: friction (viscous and Coulomb) rising fast (WEAR-FAST, +40 %
+    5 dated checks: friction (viscous and Coulomb) rising fast (WEAR-FAST, +40 %
     of healthy a day), slowly (WEAR-SLOW, +20 % a day) and not at all (STABLE)."""
     db = str(tmp_path_factory.mktemp("wear") / "wear.db")
     with open_store(db) as store:
@@ -673,7 +673,7 @@ def wearing_page(tmp_path_factory: pytest.TempPathFactory, demo_rig: ActuatorRig
             add_baseline_tests(store, unit,
                                _records(demo_rig, [], range(10 * n, 10 * n + 3), "h"),
                                test_date="2026-03-01")
-            for day in range(1, 9):
+            for day in range(1, 6):
                 f = 1.0 + pace * day
                 rec = _records(demo_rig, [f"D=*{f}", f"coulomb_friction=*{f}"],
                                range(100 * n + day, 100 * n + day + 1), "c")[0]

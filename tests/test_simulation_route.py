@@ -107,15 +107,20 @@ def test_validate_on_a_record_it_was_not_fitted_on_gives_the_noise(tanks: Path,
 
 def test_validate_from_python_takes_an_estimate_and_names_its_own_arguments(
         tanks: Path, tmp_path: Path) -> None:
-    """condmon.validate: an estimate in memory, a DataFrame, values and initial
-    states as mappings; a bad one is refused naming the argument, not a CLI
-    option."""
+    """condmon.validate: an estimate in memory or its document, a DataFrame,
+    values, initial states and columns as mappings; a bad one is refused
+    naming the argument, not a CLI option."""
     import condmon
 
-    est = estimate(pd.read_csv(_record(tmp_path / "r.csv", tanks)), str(tanks))
+    motor = condmon.estimate(condmon.simulate_actuator(seed=1))
+    c = condmon.validate(condmon.simulate_actuator(seed=2), "dc-motor", parameters=motor,
+                         initial="first-sample")
+    assert c.parameters["R"] == motor.parameters["R"] and c.fit_percent["omega"] > 80
+    est = {"model": "two-tanks", "parameters": TRUTH,
+           "initial_states": {"x1": {"value": 6.0}, "x2": {"value": 2.5}}}
     frame = pd.read_csv(_record(tmp_path / "v.csv", tanks, seed=3, noise=0.01))
     c = condmon.validate(frame, tanks, parameters=est)
-    assert c.rmse["y"] == pytest.approx(0.01, rel=0.2) and c.initial["x1"][1] == "estimated"
+    assert c.rmse["y"] == pytest.approx(0.01, rel=0.2) and c.initial["x1"] == (6.0, "estimated")
     given = condmon.validate(frame, tanks, parameters=est, values={"b": 2 * TRUTH["b"]},
                              initial={"x1": 6.0})
     assert given.parameters["b"] == 2 * TRUTH["b"] and given.initial["x1"] == (6.0, "given")
@@ -126,12 +131,12 @@ def test_validate_from_python_takes_an_estimate_and_names_its_own_arguments(
     with pytest.raises(ConfigError, match=r"^initial: x1=nan is not finite$"):
         condmon.validate(frame, tanks, initial={"x1": float("nan")})
     with pytest.raises(DataError, match=r"^the estimate: the parameters are of model 'dc-motor'"):
-        condmon.validate(frame, tanks, parameters=condmon.estimate(condmon.simulate_actuator()))
-    # a file with its own column names; the estimate's values as a plain mapping
+        condmon.validate(frame, tanks, parameters=motor)
+    # a file with its own column names; the values as a plain mapping
     renamed = _record(tmp_path / "w.csv", tanks, seed=3, noise=0.01, u_name="pump", y_name="lvl")
-    plain = condmon.validate(renamed, tanks, parameters=dict(est.parameters),
+    plain = condmon.validate(renamed, tanks, parameters=dict(TRUTH),
                              columns={"u": "pump", "y": "lvl"}, initial={"x1": 6.0, "x2": 2.5})
-    assert plain.rmse["y"] < 0.05 and plain.parameters["b"] == est.parameters["b"]
+    assert plain.rmse["y"] < 0.05 and plain.parameters["b"] == TRUTH["b"]
     # an implausible value that makes the run diverge is named as the likely cause
     with pytest.raises(EstimationError, match=r"values a=-1 lies outside \[estimation.plausible\]"
                                               r", the likely cause$"):
@@ -654,7 +659,7 @@ def test_a_run_that_diverges_at_any_step_says_so_at_once() -> None:
     from condmon.simulate.recorded import Diverged, choose_substeps, simulate_recorded
 
     c = load_plant_model("dc-motor").compile()
-    u = np.full((2000, 1), 12.0)
+    u = np.full((1200, 1), 12.0)   # R = -1: diverges at 0.9 s
     p = c.parameter_vector({"R": -1.0})
     sub = choose_substeps(c, u, 1e-3, np.zeros((2, 1)), p[:, None], np.array([1e-3, 1e-3]))
     with pytest.raises(Diverged, match=r"the simulation diverged at t = "):

@@ -56,8 +56,9 @@ F = TypeVar("F", bound=Callable[..., Any])
 
 #: A CLI option in a message (``--against 'X'``), with the space before its value
 #: (``against='X'``); before a word that goes on the sentence (``--horizon must
-#: be``) it is the bare name.
-_OPTION = re.compile(r"--([a-z][a-z-]*)( (?!(?:must|is|are|needs|and|or|to|of)\b)(?=['\"\w]))?")
+#: be``) it is the bare name; ``my--file.csv`` is no option.
+_OPTION = re.compile(r"(?<![\w-])--([a-z][a-z-]*)"
+                     r"( (?!(?:must|is|are|needs|and|or|to|of)\b)(?=['\"\w]))?")
 
 #: Options whose argument has another name in Python.
 _RENAMED = {"date": "test_date", "set": "values", "params": "parameters"}

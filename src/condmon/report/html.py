@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 from condmon.identify.defaults import DEFAULT_FIT_THRESHOLD
 from condmon.report.names import INDEX, page_name
 from condmon.report.tables import (
-    badge, baseline_section, esc, faults_table, flags_box, isolations_table, page, test_counts,
+    badge, baseline_section, esc, faults_table, flags_box, isolations_table, page, tests_summary,
     tests_table, when,
 )
 
@@ -102,7 +102,7 @@ def _latest_check(hist: Any) -> Any:
 def _head(unit: str, model: str, hist: Any, isos: Any, summary: Mapping[str, Any],
           stored: Any) -> list[str]:
     n = len(hist)
-    counts = f"{n} tests ({test_counts(hist, stored)})" if n else "no tests"
+    counts = f"{n} tests ({tests_summary(hist, stored)})" if n else "no tests"
     latest = summary.get("latest_source")
     in_use = ("" if not n else "<p class='sub' id='in-use'>No baseline in use yet.</p>"
               if stored is None else

@@ -16,7 +16,8 @@ if TYPE_CHECKING:
     from condmon.monitor.fuzzy import MonitorConfig
     from condmon.report.reading import CheckFault
 
-__all__ = ["CSS", "STATUSES", "esc", "badge", "when", "page", "flags_box", "test_note", "test_counts",
+__all__ = ["CSS", "STATUSES", "esc", "badge", "when", "page", "flags_box", "test_note",
+           "tests_summary",
            "baseline_section", "faults_table", "tests_table", "isolations_table", "with_unit",
            "SuspectCell", "SUSPECT_HEADS", "isolation_suspects", "suspect_cells",
            "latest_isolation", "suspects_table", "unit_of"]
@@ -97,7 +98,7 @@ def flags_box(stored: Any) -> str:
             "rebuilt and the checks re-evaluated.</div>")
 
 
-def test_counts(hist: Any, stored: Any) -> str:
+def tests_summary(hist: Any, stored: Any) -> str:
     """What a unit's tests are, for a page's header: in the baseline in use
     (``stored``'s tests, which a rebuild from chosen tests makes of checks too),
     left out of it, checks, excluded; without a stored baseline, the tests
@@ -110,9 +111,9 @@ def test_counts(hist: Any, stored: Any) -> str:
     ...                      "excluded": [False, False, True] + [False] * 3}, index=range(1, 7))
     >>> class V2:
     ...     test_ids = (2, 4, 5)
-    >>> test_counts(hist, V2())
+    >>> tests_summary(hist, V2())
     '3 in the baseline in use, 1 left out of it, 1 check, 1 excluded'
-    >>> test_counts(hist, None)
+    >>> tests_summary(hist, None)
     '2 for the baseline, 3 checks, 1 excluded'
     """
     if not len(hist):

@@ -60,7 +60,7 @@ from condmon.errors import CondmonError
 from condmon.forecast.unit import remaining_text
 from condmon.report.figures import STATUS_COLOURS
 from condmon.report.live import LiveFeed, with_live
-from condmon.report.tables import test_counts, unit_of
+from condmon.report.tables import tests_summary, unit_of
 from condmon.report.trends import error_bar
 from condmon.report.web_data import (
     PER_PAGE, SORTS, STATUSES, TESTS_PER_PAGE, FilterError, UnitData, UnknownUnitError, _History,
@@ -291,7 +291,7 @@ def create_app(db: str | Path, *, refresh: float = 30.0, live: LiveFeed | None =
                       isinstance(r["summary"], str) else f"retest: {r['reason']}",
                       "date": _fmt_date(r["date"])}
         hist = data.history
-        counts = test_counts(hist, data.baseline)
+        counts = tests_summary(hist, data.baseline)
         # the tests' table a page at a time (the latest page first); the figures use them all
         pages = max(1, -(-len(hist) // TESTS_PER_PAGE))
         at = number("page", pages)

@@ -348,9 +348,8 @@ def validate(record: RecordLike, model: str | Path, *, parameters: Any = None,
     doc = parameters.to_dict() if hasattr(parameters, "to_dict") else parameters
     if isinstance(doc, Mapping) and "parameters" not in doc:   # plain values, as values=
         values, doc = {**doc, **(values or {})}, None
-    names = {"set": "values", "initial": "initial"}
     opts = EstimateOptions(model=str(model), columns=dict(columns) if columns else None)
     comparison, _ = validate_file(record, model, params=doc, set_values=values,
-                                  initial=initial, figure=figure, names=names, options=opts)
+                                  initial=initial, figure=figure, options=opts)
     return dataclasses.replace(comparison,
                                notes=tuple(_python_text(n) for n in comparison.notes))

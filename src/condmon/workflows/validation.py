@@ -29,8 +29,7 @@ if TYPE_CHECKING:
     import pandas as pd
 
 __all__ = ["ParameterFile", "read_parameter_file", "parameter_document", "parse_assignments",
-           "checked_assignments", "validate_file", "simulate_file", "describe_initial",
-           "CLI_NAMES"]
+           "validate_file", "simulate_file", "describe_initial"]
 
 
 @dataclass(frozen=True)
@@ -130,9 +129,11 @@ def parameter_document(doc: Any, src: str, machine: Machine) -> ParameterFile:
     return ParameterFile(src, values, initial, tuple(notes))
 
 
-def parse_assignments(text: str | None, allowed: tuple[str, ...], what: str,
-                      option: str) -> dict[str, float]:
-    """``"a=1,b=2.5"`` -> ``{"a": 1.0, "b": 2.5}``, every name one of ``allowed``.
+def parse_assignments(given: str | Mapping[str, Any] | None, allowed: tuple[str, ...],
+                      what: str, option: str) -> dict[str, float]:
+    """``"a=1,b=2.5"`` (or a mapping) -> ``{"a": 1.0, "b": 2.5}``, every name one
+    of ``allowed`` and given once, every value a finite number; ``option``
+    names them in messages.
 
     Example
     -------
@@ -140,24 +141,17 @@ def parse_assignments(text: str | None, allowed: tuple[str, ...], what: str,
     {'R': 1.2, 'L': 0.003}
     """
     pairs: list[tuple[str, Any]] = []
-    for part in (text or "").split(","):
+    if isinstance(given, Mapping):
+        pairs = list(given.items())
+    for part in ("" if isinstance(given, Mapping) else given or "").split(","):
         if not part.strip():
             continue
         name, sep, value = part.partition("=")
         if not sep:
             raise ConfigError(f"{option}: {part.strip()!r} is not NAME=VALUE")
         pairs.append((name.strip(), value.strip()))
-    return checked_assignments(pairs, allowed, what, option)
-
-
-def checked_assignments(pairs: Any, allowed: tuple[str, ...], what: str,
-                        option: str) -> dict[str, float]:
-    """``(name, value)`` pairs (or a mapping) as ``{name: float}``, every name one
-    of ``allowed`` and given once, every value a finite number; ``option``
-    names them in messages (``--set``, or an argument of the Python call)."""
-    items = list(pairs.items()) if isinstance(pairs, Mapping) else list(pairs)
     out: dict[str, float] = {}
-    for name, value in items:
+    for name, value in pairs:
         if name not in allowed:
             raise ConfigError(f"{option}: {name!r} is not a {what} of the model; allowed: "
                               f"{', '.join(allowed)}")
@@ -175,15 +169,10 @@ def checked_assignments(pairs: Any, allowed: tuple[str, ...], what: str,
     return out
 
 
-#: How the CLI names the settings in messages; the Python call names its arguments.
-CLI_NAMES = {"set": "--set", "initial": "--initial"}
-
-
 def _setup(record: RecordLike, model: str | Path,
            params: str | Path | Mapping[str, Any] | None,
            set_values: str | Mapping[str, float] | None,
-           initial: str | Mapping[str, float], opts: EstimateOptions, sensors: bool = True,
-           names: Mapping[str, str] = CLI_NAMES
+           initial: str | Mapping[str, float], opts: EstimateOptions, sensors: bool = True
            ) -> tuple[Machine, Record, dict[str, float], dict[str, tuple[float, str]],
                       tuple[str, ...]]:
     machine = get_model(str(model))
@@ -193,10 +182,7 @@ def _setup(record: RecordLike, model: str | Path,
     else:
         pf = read_parameter_file(params, machine) if params is not None else None
     values = dict(pf.parameters) if pf else {}
-    given_values = (checked_assignments(set_values, plant.parameter_names, "parameter",
-                                        names["set"]) if isinstance(set_values, Mapping) else
-                    parse_assignments(set_values, plant.parameter_names, "parameter",
-                                      names["set"]))
+    given_values = parse_assignments(set_values, plant.parameter_names, "parameter", "--set")
     values.update(given_values)
     notes = list(pf.notes) if pf else []
     notes += _parameter_notes(machine, values, given_values, pf)
@@ -213,9 +199,7 @@ def _setup(record: RecordLike, model: str | Path,
     machine.spec.plausibility.check_timing(rec.dt, rec.dt * len(rec), rec.source, machine.name,
                                            purpose="a trustworthy validation")
     if isinstance(initial, Mapping) or "=" in initial:
-        given = (checked_assignments(initial, plant.state_names, "state", names["initial"])
-                 if isinstance(initial, Mapping) else
-                 parse_assignments(initial, plant.state_names, "state", names["initial"]))
+        given = parse_assignments(initial, plant.state_names, "state", "--initial")
         rule = "estimated"
         for k, v in given.items():
             box = machine.spec.simulation.of(k)
@@ -225,7 +209,7 @@ def _setup(record: RecordLike, model: str | Path,
     else:
         given, rule = {}, initial.strip()
     if not sensors and rule in ("first-sample", "fit"):
-        raise DataError(f"{source}: {names['initial']} {rule} needs the sensor columns "
+        raise DataError(f"{source}: --initial {rule} needs the sensor columns "
                         f"({', '.join(plant.sensor_names)}), which the record does not have; "
                         "use 'estimated' or NAME=VALUE,...")
     start = initial_states(machine, rec, rule, pf.initial if pf else None, given, values)
@@ -326,8 +310,7 @@ def validate_file(record: RecordLike, model: str | Path, *,
                   set_values: str | Mapping[str, float] | None = None,
                   initial: str | Mapping[str, float] = "estimated",
                   options: EstimateOptions | None = None,
-                  figure: str | Path | None = None,
-                  names: Mapping[str, str] = CLI_NAMES) -> tuple[Comparison, Path | None]:
+                  figure: str | Path | None = None) -> tuple[Comparison, Path | None]:
     """Simulate ``model`` on ``record``'s inputs and compare with its outputs.
 
     Parameters
@@ -348,8 +331,6 @@ def validate_file(record: RecordLike, model: str | Path, *,
         How to read the record (columns, sample rate, scale, offset).
     figure : str or Path, optional
         Where to write the measured-against-model figure (PNG).
-    names : mapping
-        How messages name ``set_values`` and ``initial`` (the CLI's options).
 
     Returns
     -------
@@ -357,8 +338,8 @@ def validate_file(record: RecordLike, model: str | Path, *,
         The figures, and the figure's path when one was written.
     """
     opts = options or EstimateOptions(model=str(model))
-    machine, rec, values, start, notes = _setup(record, model, params, set_values, initial, opts,
-                                                names=names)
+    machine, rec, values, start, notes = _setup(record, model, params, set_values, initial,
+                                                opts)
     c = _compare(rec, machine, values, start, notes)
     path = None
     if figure is not None:

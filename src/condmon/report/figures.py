@@ -227,7 +227,9 @@ def _forecast(ax: Any, d: TrendData, band: ForecastBand) -> set[str]:
         else np.asarray(d.x[at], dtype=np.float64)
     ahead = band.x(x, 86400e9)
     drawn = {"line"}
-    if float(np.ptp(band.ahead)) >= 0.01:   # [tests or days]: a future to draw
+    # a future to draw: the band's reach beyond a thousandth of the checks' span (at
+    # no-go already it is nil; a minutes-long history forecast in days still has one)
+    if float(np.ptp(ahead)) > 1e-3 * float(np.ptp(x)):
         xs = ahead.astype(np.int64).astype("datetime64[ns]") if dated else ahead
         ax.fill_between(xs, band.low, band.high, color="#7e57c2", alpha=0.4, lw=0,
                         label=FORECAST_LABEL, zorder=1)

@@ -41,7 +41,7 @@ def test_every_example_declaration_is_found() -> None:
 
 def _cases() -> list[object]:
     """The declarations, the ones whose estimate is a long study (the cascaded
-    tanks' 4,096 s record fitted by simulation error: about 75 s) marked slow."""
+    tanks' 4,096 s record fitted by simulation error: about a minute) marked slow."""
     return [pytest.param(m, marks=pytest.mark.slow) if Path(m).stem == "cascaded-tanks" else m
             for m in _declarations()]
 

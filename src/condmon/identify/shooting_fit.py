@@ -8,7 +8,7 @@ one batched pass, and the batch-means widening of the standard errors.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -234,10 +234,12 @@ def residuals(prob: FitProblem, zc: FloatArray, sigma: FloatArray, xscale: Float
 
 
 def jacobian(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: FloatArray,
-              lo: FloatArray, hi: FloatArray) -> FloatArray:
+              lo: FloatArray, hi: FloatArray,
+              evaluate: Callable[[FloatArray], FloatArray] | None = None) -> FloatArray:
     """Forward differences, every unknown at once: one column per parameter
     and one per state (every segment's start moved together; a segment's rows
-    depend on its own start only)."""
+    depend on its own start only). ``evaluate`` gives the residual columns of
+    unknowns' columns (default: :func:`residuals` of ``prob``)."""
     nf, nx = len(prob.free), prob.n_x
     cols = [z]
     steps = []
@@ -256,7 +258,8 @@ def jacobian(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: FloatAr
             if jj == j:
                 c[idx] += hx[j] if z[idx] + hx[j] <= hi[idx] else -hx[j]
         cols.append(c)
-    r, _ = residuals(prob, np.column_stack(cols), sigma, xscale)
+    zc = np.column_stack(cols)
+    r = residuals(prob, zc, sigma, xscale)[0] if evaluate is None else evaluate(zc)
     J = np.zeros((r.shape[0], z.size))
     for i in range(nf):
         J[:, i] = (r[:, 1 + i] - r[:, 0]) / steps[i]

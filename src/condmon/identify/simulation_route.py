@@ -50,6 +50,7 @@ from condmon.errors import EstimationError
 from condmon.identify.fit import FitCheck, residual_figures
 from condmon.identify.greybox import RouteResult
 from condmon.identify.identifiability import assess_identifiability
+from condmon.identify.multistart import Evaluate, Jacobian, solve, solve_starts
 from condmon.identify.shooting_fit import (
     batch_widened, fit_bounds, first_initials, jacobian, fit_layout, FitProblem, residuals,
     restart_vector, start_vector, state_owners,
@@ -65,7 +66,6 @@ FloatArray = NDArray[np.float64]
 _SHORT_RUN = 10         # optimiser evaluations of each start before the best is polished
 _POLISH = 200
 _SAME_COST = 0.01       # starts within 1 % of the best cost reached it
-_FAR = 1e100           # residuals beyond this are a diverged run (their squares would overflow)
 _REFINE = 3             # a drifting fit's segments are doubled at most this many times
 # The whole record is simulated from the segments' optimum and kept when its error stays
 # within a quarter of theirs: a right model's errors are the noise either way, while a
@@ -186,12 +186,10 @@ def simulation_route(rec: Record | Sequence[Record], machine: Machine,
         z = z0.copy()
         z[:nf] = z0[:nf] * np.exp(rng.normal(0.0, 0.5, nf))
         points.append(np.clip(z, lo, hi))
-    evaluations = 0
-    runs = []
-    for z in points:
-        sol = _solve(prob, z, lo, hi, sigma, xscale, _SHORT_RUN)
-        evaluations += sol[2]
-        runs.append(sol)
+    # the starts run together, one pass over the record per round (multistart.py)
+    runs = solve_starts(_evaluator(prob, sigma, xscale), _differences(prob, sigma, xscale, lo, hi),
+                        points, lo, hi, _SHORT_RUN, sum(y.size for y in prob.y))
+    evaluations = sum(r[2] for r in runs)
     finite = [r for r in runs if math.isfinite(r[1])]
     if not finite:
         raise EstimationError("simulation-error route: no start simulates the record (every "
@@ -377,30 +375,23 @@ def _on_bounds(prob: FitProblem, z: FloatArray) -> list[str]:
     return out
 
 
+def _evaluator(prob: FitProblem, sigma: FloatArray, xscale: FloatArray) -> Evaluate:
+    """The residual columns of ``prob``'s unknowns' columns."""
+    return lambda zc: residuals(prob, zc, sigma, xscale)[0]
+
+
+def _differences(prob: FitProblem, sigma: FloatArray, xscale: FloatArray, lo: FloatArray,
+                 hi: FloatArray) -> Jacobian:
+    """The forward-difference Jacobian of ``prob``, its simulations through the evaluator given."""
+    return lambda z, evaluate: jacobian(prob, z, sigma, xscale, lo, hi, evaluate)
+
+
 def _solve(prob: FitProblem, z0: FloatArray, lo: FloatArray, hi: FloatArray, sigma: FloatArray,
            xscale: FloatArray, max_nfev: int) -> tuple[FloatArray, float, int]:
     """One bounded least-squares run: (optimum, RMS of the normalised
     output residuals, simulations); cost inf when it does not simulate."""
-    from scipy.optimize import least_squares  # ~0.25 s of imports: only when fitting
-
-    def fun(z: FloatArray) -> FloatArray:
-        # a run that left the numbers, or went so far that its squared sum would
-        # overflow, is a step the optimiser refuses (it shrinks its trust region)
-        r = residuals(prob, z[:, None], sigma, xscale)[0][:, 0]
-        ok = np.all(np.isfinite(r)) and float(np.max(np.abs(r), initial=0.0)) < _FAR
-        return r if ok else np.full(r.size, np.inf)
-
-    r0 = fun(z0)
-    if not np.all(np.isfinite(r0)):
-        return z0, math.inf, 1
-    try:
-        sol = least_squares(fun, z0, jac=lambda z: jacobian(prob, z, sigma, xscale, lo, hi),
-                            bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=max_nfev)
-    except (ValueError, np.linalg.LinAlgError) as err:
-        raise EstimationError(f"simulation-error route failed: {err}") from None
-    z = np.asarray(sol.x, dtype=np.float64)
-    n_out = sum(y.size for y in prob.y)
-    return z, float(np.sqrt(np.mean(sol.fun[:n_out] ** 2))), int(sol.nfev + sol.njev)
+    return solve(_evaluator(prob, sigma, xscale), _differences(prob, sigma, xscale, lo, hi),
+                 z0, lo, hi, max_nfev, sum(y.size for y in prob.y))
 
 
 def _covariance(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: FloatArray

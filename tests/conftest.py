@@ -156,3 +156,44 @@ def store_url(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
     engine = sa.create_engine(url.replace("postgresql://", "postgresql+psycopg://", 1))
     schema.metadata.drop_all(engine)
     engine.dispose()
+
+
+@pytest.fixture(scope="session")
+def wearing(tmp_path_factory: pytest.TempPathFactory, demo_rig: ActuatorRig) -> tuple[Path, float]:
+    """A unit whose friction (viscous and Coulomb alike, as a brake) rises
+    linearly by 20 % of its healthy value a day: +600 % (no-go, r2) about day
+    30; 15 dated checks stored; a unit wearing at half that pace (SLOW) and a
+    stable unit. Shared by the modules that read a wearing history; a test that
+    writes works on a copy."""
+    from condmon.store import open_store
+    from condmon.workflows.checks import check_test
+    from condmon.workflows.monitoring import add_baseline_tests
+
+    db = tmp_path_factory.mktemp("forecast") / "h.db"
+    with open_store(str(db)) as store:
+        add_baseline_tests(store, "WEAR", [simulate_actuator(demo_rig, seed=s) for s in (1, 2, 3)],
+                           test_date="2026-01-01")
+        add_baseline_tests(store, "STABLE", [simulate_actuator(demo_rig, seed=s)
+                                             for s in (4, 5, 6)], test_date="2026-01-01")
+        add_baseline_tests(store, "SLOW", [simulate_actuator(demo_rig, seed=s)
+                                           for s in (7, 8, 9)], test_date="2026-01-01")
+        for k in range(1, 16):
+            f = 1.0 + 0.2 * k
+            rig = demo_rig.with_faults([f"D=*{f}", f"coulomb_friction=*{f}"])
+            check_test(store, "WEAR", simulate_actuator(rig, seed=100 + k),
+                       test_date=f"2026-01-{1 + k:02d}")
+            f = 1.0 + 0.1 * k
+            rig = demo_rig.with_faults([f"D=*{f}", f"coulomb_friction=*{f}"])
+            check_test(store, "SLOW", simulate_actuator(rig, seed=300 + k),
+                       test_date=f"2026-01-{1 + k:02d}")
+            check_test(store, "STABLE", simulate_actuator(demo_rig, seed=200 + k),
+                       test_date=f"2026-01-{1 + k:02d}")
+        # the truth: the day the unit's check turns no-go (dry runs, nothing stored)
+        for k in range(16, 46):
+            f = 1.0 + 0.2 * k
+            rig = demo_rig.with_faults([f"D=*{f}", f"coulomb_friction=*{f}"])
+            later = check_test(store, "WEAR", simulate_actuator(rig, seed=100 + k),
+                               dry_run=True)
+            if later.status == "no-go":
+                return db, float(k - 15)
+    raise AssertionError("the unit never turned no-go")

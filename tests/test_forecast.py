@@ -86,42 +86,6 @@ def test_bad_series_are_refused(args: dict, message: str) -> None:
         forecast_series([1.0, 2.0, 3.0], [1.0, 2.0, 3.0], [1.0] * 3, 1.0, 50.0, horizon=0.0)
 
 
-@pytest.fixture(scope="module")
-def wearing(tmp_path_factory: pytest.TempPathFactory, demo_rig) -> tuple[Path, float]:  # type: ignore[no-untyped-def]
-    """A unit whose friction (viscous and Coulomb alike, as a brake) rises
-    linearly by 20 % of its healthy value a day: +600 % (no-go, r2) about day
-    30; 15 dated checks stored; a unit wearing at half that pace (SLOW) and a
-    stable unit."""
-    db = tmp_path_factory.mktemp("forecast") / "h.db"
-    with open_store(str(db)) as store:
-        add_baseline_tests(store, "WEAR", [simulate_actuator(demo_rig, seed=s) for s in (1, 2, 3)],
-                           test_date="2026-01-01")
-        add_baseline_tests(store, "STABLE", [simulate_actuator(demo_rig, seed=s)
-                                             for s in (4, 5, 6)], test_date="2026-01-01")
-        add_baseline_tests(store, "SLOW", [simulate_actuator(demo_rig, seed=s)
-                                           for s in (7, 8, 9)], test_date="2026-01-01")
-        for k in range(1, 16):
-            f = 1.0 + 0.2 * k
-            rig = demo_rig.with_faults([f"D=*{f}", f"coulomb_friction=*{f}"])
-            check_test(store, "WEAR", simulate_actuator(rig, seed=100 + k),
-                       test_date=f"2026-01-{1 + k:02d}")
-            f = 1.0 + 0.1 * k
-            rig = demo_rig.with_faults([f"D=*{f}", f"coulomb_friction=*{f}"])
-            check_test(store, "SLOW", simulate_actuator(rig, seed=300 + k),
-                       test_date=f"2026-01-{1 + k:02d}")
-            check_test(store, "STABLE", simulate_actuator(demo_rig, seed=200 + k),
-                       test_date=f"2026-01-{1 + k:02d}")
-        # the truth: the day the unit's check turns no-go (dry runs, nothing stored)
-        for k in range(16, 46):
-            f = 1.0 + 0.2 * k
-            rig = demo_rig.with_faults([f"D=*{f}", f"coulomb_friction=*{f}"])
-            later = check_test(store, "WEAR", simulate_actuator(rig, seed=100 + k),
-                               dry_run=True)
-            if later.status == "no-go":
-                return db, float(k - 15)
-    raise AssertionError("the unit never turned no-go")
-
-
 def test_a_unit_whose_friction_rises_is_forecast_by_date(
         wearing: tuple[Path, float], capsys: pytest.CaptureFixture[str]) -> None:
     db, truth = wearing

@@ -223,25 +223,21 @@ def test_figures_and_pages_state_one_error_bar(history: str, tmp_path: Path,
     assert isinstance(hist.loc[d.test_ids[0], "date"], pd.Timestamp)
 
 
-def test_the_forecast_band_is_drawn_and_named(tmp_path: Path, demo_rig: ActuatorRig,
+def test_the_forecast_band_is_drawn_and_named(tmp_path: Path, wearing: tuple[Path, float],
                                               drawn: list[Any]) -> None:
-    """A unit whose friction rises over dated checks: its trend figure draws the
-    forecast band on the friction panel only, and the legend (below the axes,
-    covering nothing) names it; a stable unit's figure has none."""
+    """A unit whose friction rises over dated checks (conftest's wearing history):
+    its trend figure draws the forecast band on the friction panel only, and the
+    legend (below the axes, covering nothing) names it; a stable unit's figure
+    has none."""
+    import shutil
+
     from matplotlib.collections import PolyCollection
 
     from condmon.report.trends import FORECAST_LABEL
 
     db = str(tmp_path / "wear.db")
+    shutil.copy(wearing[0], db)
     with open_store(db) as store:
-        for n, (unit, pace) in enumerate((("WEAR", 0.3), ("STABLE", 0.0))):
-            add_baseline_tests(store, unit, [simulate_actuator(demo_rig, seed=10 * n + s)
-                                             for s in (1, 2, 3)], test_date="2026-03-01")
-            for day in range(1, 6):
-                f = 1.0 + pace * day
-                rig = demo_rig.with_faults([f"D=*{f}", f"coulomb_friction=*{f}"])
-                check_test(store, unit, simulate_actuator(rig, seed=100 * n + day),
-                           test_date=f"2026-03-{1 + day:02d}")
         write_report(store, "WEAR", tmp_path / "w")
         wear = _titled(drawn, "Change against")
         drawn.clear()

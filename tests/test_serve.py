@@ -661,23 +661,13 @@ def test_figures_in_a_browser(fleet: dict[str, Any], browser_page: tuple[Any, st
 
 
 @pytest.fixture(scope="module")
-def wearing_page(tmp_path_factory: pytest.TempPathFactory, demo_rig: ActuatorRig,
+def wearing_page(tmp_path_factory: pytest.TempPathFactory, wearing: tuple[Path, float],
                  browser_page: tuple[Any, str]) -> Iterator[tuple[Any, str]]:
-    """The browser's page and a second server, over a history of three units with
-    5 dated checks: friction (viscous and Coulomb) rising fast (WEAR-FAST, +40 %
-    of healthy a day), slowly (WEAR-SLOW, +20 % a day) and not at all (STABLE)."""
+    """The browser's page and a second server, over a copy of the wearing history
+    (conftest): friction rising fast (WEAR), at half that pace (SLOW) and not at
+    all (STABLE)."""
     db = str(tmp_path_factory.mktemp("wear") / "wear.db")
-    with open_store(db) as store:
-        for n, (unit, pace) in enumerate((("WEAR-SLOW", 0.2), ("STABLE", 0.0),
-                                          ("WEAR-FAST", 0.4))):
-            add_baseline_tests(store, unit,
-                               _records(demo_rig, [], range(10 * n, 10 * n + 3), "h"),
-                               test_date="2026-03-01")
-            for day in range(1, 6):
-                f = 1.0 + pace * day
-                rec = _records(demo_rig, [f"D=*{f}", f"coulomb_friction=*{f}"],
-                               range(100 * n + day, 100 * n + day + 1), "c")[0]
-                check_test(store, unit, rec, test_date=f"2026-03-{1 + day:02d}")
+    shutil.copy(wearing[0], db)
     proc, url = _start(db)
     try:
         yield browser_page[0], url
@@ -695,16 +685,15 @@ def test_forecast_band_in_a_browser(wearing_page: tuple[Any, str],
     expect_url = url + "?sort=forecast"
     page.wait_for_url(expect_url)
     rows = page.locator("#units-body tr")
-    assert [r.get_attribute("data-unit") for r in rows.all()] == [
-        "WEAR-FAST", "WEAR-SLOW", "STABLE"]
+    assert [r.get_attribute("data-unit") for r in rows.all()] == ["WEAR", "SLOW", "STABLE"]
     assert [r.get_attribute("data-forecast") for r in rows.all()] == ["D", "D", None]
     assert "no trend" in page.locator('tr[data-unit="STABLE"] td.forecast').inner_text()
     api = page.evaluate("(u) => fetch(u).then(r => r.json())", url + "api/units?sort=forecast")
     fast = api["units"][0]["forecast"]
-    cell = page.locator('tr[data-unit="WEAR-FAST"] td.forecast').inner_text()
+    cell = page.locator('tr[data-unit="WEAR"] td.forecast').inner_text()
     assert cell.startswith(f"D: {fast['median']:.2g} d (") or cell.startswith(
         f"D: {fast['median']:.0f} d (")
-    page.get_by_role("link", name="WEAR-FAST").click()
+    page.get_by_role("link", name="WEAR", exact=True).click()
     page.wait_for_selector("svg.trend circle")
     band = page.locator('svg.trend g.forecast[data-forecast="D"] polygon.forecast-band')
     assert band.count() == 1

@@ -154,8 +154,10 @@ def _print_result(res: FleetResult, source: str) -> None:
         rate += (f"; {how} in {res.engine_start:.1f} s, stopped in {res.engine_stop:.1f} s"
                  if res.engine == "local" else f"; {how} in {res.engine_start:.2f} s")
     stray = (f" ({res.not_records} of them no unit's record)" if res.not_records else "")
+    ran = (f"{res.workers} worker{'s' if res.workers != 1 else ''}" if res.workers else
+           "nothing new to estimate, no worker started")
     out.print(f"{len(res.records)} records: {res.count('stored')} stored, "
               f"{res.count('skipped')} skipped, {res.count('rejected')} rejected, "
-              f"{res.count('refused')} refused{stray} — {len(res.units)} units, "
-              f"{res.workers} worker(s), {res.seconds:.1f} s{rate}",
+              f"{res.count('refused')} refused{stray} — {len(res.units)} "
+              f"unit{'s' if len(res.units) != 1 else ''}, {ran}, {res.seconds:.1f} s{rate}",
               highlight=False, markup=False)

@@ -40,6 +40,7 @@ import time
 from collections import Counter
 from contextlib import redirect_stderr, redirect_stdout
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -65,8 +66,18 @@ def _cli(*args: str) -> tuple[int, str, str]:
 
 
 def _files(data: Path, unit: str) -> list[str]:
-    files = sorted(data.glob(f"{unit}/*.txt"),
-                   key=lambda p: int(re.search(r"_000_(\d+)_", p.name).group(1)))  # type: ignore[union-attr]
+    """A unit's records in the stand's order: the number after ``<Kind>_000_`` in
+    their names (``Base_000_12_...``, ``Leak_000_12_...``); names written another
+    way, in natural order (their numbers compared as numbers)."""
+    def key(p: Path) -> tuple[int, list[Any]]:
+        m = re.search(r"^[A-Za-z]+_\d+_(\d+)_", p.name)
+        if m:
+            return 0, [int(m.group(1))]
+        return 1, [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", p.name)]
+
+    files = sorted(data.glob(f"{unit}/*.txt"), key=key)
+    if not files:
+        raise SystemExit(f"{data / unit}: no *.txt records")
     return [str(p) for p in files]
 
 

@@ -166,8 +166,8 @@ def test_isolation_reports_a_timed_out_suspect_and_still_isolates(
     assert res.decided and res.isolated == ("Rv",)
     # the statement alone says a candidate was not compared (it could have fitted better);
     # the ones the record rules out (Rlkgm, Rlkgp: implausible estimates) are not named
-    assert res.statement == ("fault isolated: Rv; not compared: Dm (its estimate or model run "
-                             "failed; see the reasons)")
+    assert res.statement == ("fault isolated: Rv; not compared: Dm (estimate or run failed; "
+                             "see why)")
     doc = res.to_dict()
     assert doc["rejected"]["Dm"].startswith("timed out") and "Dm" not in doc["errors"]
 

@@ -442,10 +442,10 @@ def isolate(record: pd.DataFrame | Columns, model: PlantModel, *,
                                         settings.significance, windows)
         # a run or estimate that failed, not one the record rules out, could have fitted better
         unjudged = sorted(p for p, why in rejected.items()
-                          if "outside the plausible range" not in why and "not converged" not in why)
+                          if not any(k in why for k in ("plausible range", "not converged")))
         if unjudged:
-            statement += (f"; not compared: {', '.join(unjudged)} (its estimate or model run "
-                          "failed; see the reasons)")
+            statement += (f"; not compared: {', '.join(unjudged)} (estimate or run failed; "
+                          "see why)")
     tick(4, 4, "isolated")
     return dataclasses.replace(quiet, detected=True, detection_time=det.time,
                                onset_time=det.onset, fired_residuals=det.fired, suspects=sus,

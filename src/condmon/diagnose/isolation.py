@@ -414,6 +414,7 @@ def isolate(record: pd.DataFrame | Columns, model: PlantModel, *,
         estimates[p], why = _estimate(model, p, windows, settings.range_factor)
         if why is not None:
             rejected[p] = why
+    ruled_out = {p for p in rejected if math.isfinite(estimates[p].value)}  # by the record
     tick(2, 4, "steady-state estimates")
     limit = min(settings.simulation.time_limit,
                 max(settings.time_limit_floor, settings.time_limit_factor * nominal_time))
@@ -441,8 +442,7 @@ def isolate(record: pd.DataFrame | Columns, model: PlantModel, *,
         isolated, statement = _conclude(sus, errors, int(mask.sum()) * y.shape[1],
                                         settings.significance, windows)
         # a run or estimate that failed, not one the record rules out, could have fitted better
-        unjudged = sorted(p for p, why in rejected.items()
-                          if not any(k in why for k in ("plausible range", "not converged")))
+        unjudged = sorted(set(rejected) - ruled_out)
         if unjudged:
             statement += (f"; not compared: {', '.join(unjudged)} (estimate or run failed; "
                           "see why)")

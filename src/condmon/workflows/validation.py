@@ -143,13 +143,12 @@ def parse_assignments(given: str | Mapping[str, Any] | None, allowed: tuple[str,
     pairs: list[tuple[str, Any]] = []
     if isinstance(given, Mapping):
         pairs = list(given.items())
-    for part in ("" if isinstance(given, Mapping) else given or "").split(","):
-        if not part.strip():
-            continue
-        name, sep, value = part.partition("=")
-        if not sep:
-            raise ConfigError(f"{option}: {part.strip()!r} is not NAME=VALUE")
-        pairs.append((name.strip(), value.strip()))
+    else:
+        for part in filter(str.strip, (given or "").split(",")):
+            name, sep, value = part.partition("=")
+            if not sep:
+                raise ConfigError(f"{option}: {part.strip()!r} is not NAME=VALUE")
+            pairs.append((name.strip(), value.strip()))
     out: dict[str, float] = {}
     for name, value in pairs:
         if name not in allowed:

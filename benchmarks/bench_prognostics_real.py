@@ -2,6 +2,7 @@
 
     python benchmarks/bench_prognostics_real.py [--data DIR] [--level 1.4]
                                                 [--level-for B0007=1.5] [--every 5] [--start 0.3]
+                                                [--draw-sets 5] [--no-progpy]
     pip install '.[bench]'      # ProgPy (and SIPPY): the peer is skipped with a note without it
 
 The cells B0005, B0006, B0007 and B0018 (``../shared/external/batteries/nasa/``,
@@ -43,6 +44,12 @@ nearest each) and over every rolling forecast, the median interval width
 relative to the true remaining life, and the share of forecasts that came too
 early (median below the truth). Nothing here is tuned to these cells: the
 settings are the forecast's defaults, the same for every cell.
+
+condmon's path rows are Monte-Carlo figures. The table gives the seeds
+``condmon forecast`` uses; a second table repeats both rows with
+``--draw-sets`` sets of draws (the forecasts' and their peers') and gives
+each figure's median, lowest and highest, so a ratio to a peer is read with
+its Monte-Carlo spread.
 """
 
 from __future__ import annotations
@@ -53,7 +60,7 @@ import os
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
 
@@ -70,6 +77,10 @@ DATA = Path(__file__).resolve().parents[2] / "shared" / "external" / "batteries"
 EOL = {"B0005": 1.4, "B0006": 1.4, "B0007": 1.5, "B0018": 1.4}
 BASELINE = 5          # healthy cycles that make the baseline (condmon import's default)
 ALPHA = 0.2           # the α of α-λ
+#: Seeds of one Monte-Carlo draw set from the next (a prime, past any cycle count).
+SEED_STRIDE = 7919
+#: condmon's rows whose Monte-Carlo spread is measured over ``--draw-sets``.
+PATH_METHODS = ("condmon", "condmon, recalibrated on the other cells")
 #: ProgPy 1.9 (Kalman filter + Monte Carlo) on these cells, as the data set's README
 #: gives it (../shared/external/batteries/README.md: its own run, 77 forecasts).
 PROGPY = {"coverage": 0.84, "alpha_lambda_rolling": 0.31}
@@ -100,17 +111,16 @@ def _change(cycle: np.ndarray, capacity: np.ndarray, k: int, level: float
 
 
 def condmon_row(cycle: np.ndarray, capacity: np.ndarray, k: int, level: float,
-                levels: Calibration | None = None) -> tuple[float, float, float] | None:
+                levels: Calibration | None = None, draw_set: int = 0
+                ) -> tuple[float, float, float] | None:
     """condmon's remaining cycles (median, 5 %, 95 %) from the cycles up to index
     ``k``, as ``condmon forecast`` gives them after ``condmon import``; read at
-    ``levels`` when recalibrated on the fleet's failed units."""
+    ``levels`` when recalibrated on the fleet's failed units. ``draw_set`` 0
+    is the seed ``condmon forecast`` uses; others give other Monte-Carlo draws."""
     x, change, spread, threshold = _change(cycle, capacity, k, level)
     try:
-        if levels is None:
-            f = forecast_path(x, change, np.zeros(x.size), spread, threshold, step=1.0, seed=k)
-            return f.remaining
-        f = forecast_path(x, change, np.zeros(x.size), spread, threshold, step=1.0, seed=k,
-                          calibration=levels)
+        f = forecast_path(x, change, np.zeros(x.size), spread, threshold, step=1.0,
+                          seed=k + SEED_STRIDE * draw_set, calibration=levels)
     except CondmonError:
         return None
     return f.remaining
@@ -127,13 +137,60 @@ def trend_row(cycle: np.ndarray, capacity: np.ndarray, k: int, level: float
     return f.remaining
 
 
-def peer_pits(cycle: np.ndarray, capacity: np.ndarray, level: float) -> list[float]:
+def peer_pits(cycle: np.ndarray, capacity: np.ndarray, level: float, draw_set: int = 0
+              ) -> list[float]:
     """Where a failed peer's true remaining life fell in condmon's forecasts
     along its series, as ``condmon forecast`` reads its peers
     (:func:`condmon.forecast.calibration.path_pits`)."""
     end = int(np.searchsorted(cycle, end_of_life(cycle, capacity, level)))
     x, change, _, threshold = _change(cycle, capacity, end, level)
-    return path_pits(x, change, threshold)
+    return path_pits(x, change, threshold, seed=SEED_STRIDE * draw_set)
+
+
+def forecast_points(cells: dict[str, tuple[np.ndarray, np.ndarray]], levels: dict[str, float],
+                    start: float, every: int, started: float | None = None
+                    ) -> Iterator[tuple[str, int, dict[str, Any]]]:
+    """Each cell's rolling forecast points: the cell, the index of the last
+    cycle used, and the row's common fields (cycle, life, true remaining
+    life); a progress line per cell on stderr when ``started`` is given."""
+    for cell, (cycle, capacity) in cells.items():
+        life = end_of_life(cycle, capacity, levels[cell])
+        first = math.ceil(start * life)
+        points = np.arange(first, life, every)
+        if started is not None:
+            print(f"  {cell}: {points.size} forecast points, cycles {first:g}-{life:g} "
+                  f"({time.perf_counter() - started:.0f} s so far)", file=sys.stderr, flush=True)
+        for c in points:
+            k = int(np.searchsorted(cycle, c))
+            yield cell, k, {"cell": cell, "cycle": float(cycle[k]), "life": life,
+                            "truth": life - float(cycle[k])}
+
+
+def recalibrations(cells: dict[str, tuple[np.ndarray, np.ndarray]], levels: dict[str, float],
+                   draw_set: int = 0, say: bool = False) -> dict[str, Calibration | None]:
+    """Each cell's recalibration on the others (leave-one-out)."""
+    pits = {}
+    for c in cells:
+        if say:
+            print(f"  {c}: forecasts along its series for the others' recalibration ...",
+                  file=sys.stderr, flush=True)
+        pits[c] = peer_pits(*cells[c], levels[c], draw_set)
+    return {cell: calibrate([p for c in cells if c != cell for p in pits[c]], len(cells) - 1)
+            for cell in cells}
+
+
+def path_scores(cells: dict[str, tuple[np.ndarray, np.ndarray]], levels: dict[str, float],
+                start: float, every: int, draw_set: int) -> dict[str, dict[str, float]]:
+    """condmon's two path rows scored with another set of Monte-Carlo draws."""
+    recal = recalibrations(cells, levels, draw_set)
+    rows: dict[str, list[dict[str, Any]]] = {m: [] for m in PATH_METHODS}
+    for cell, k, common in forecast_points(cells, levels, start, every):
+        cycle, capacity = cells[cell]
+        rows[PATH_METHODS[0]].append({**common, "forecast": condmon_row(
+            cycle, capacity, k, levels[cell], draw_set=draw_set)})
+        rows[PATH_METHODS[1]].append({**common, "forecast": condmon_row(
+            cycle, capacity, k, levels[cell], recal[cell], draw_set) if recal[cell] else None})
+    return {m: score(r) for m, r in rows.items()}
 
 
 def line_forecast(cycle: np.ndarray, capacity: np.ndarray, k: int, level: float,
@@ -186,6 +243,27 @@ def score(rows: list[dict[str, Any]]) -> dict[str, float]:
             "too_early": float(np.mean(med < truth))}
 
 
+def draw_spread(spread: dict[str, list[dict[str, float]]], best: float,
+                progpy_width: float | None) -> list[dict[str, str]]:
+    """Per path row, each figure's median [lowest, highest] over the draw sets,
+    and its ratios to the best peer's α-λ and ProgPy's median width."""
+    def says(values: list[float]) -> str:
+        v = np.asarray(values, dtype=np.float64)
+        return f"{np.median(v):.3g} [{v.min():.3g}, {v.max():.3g}]"
+
+    out = []
+    for method, sets in spread.items():
+        row = {"method": method}
+        for key in ("coverage", "alpha_lambda_rolling", "median_relative_width"):
+            row[key] = says([s[key] for s in sets])
+        row["alpha_lambda / best peer's"] = says([s["alpha_lambda_rolling"] / best for s in sets])
+        if progpy_width:
+            row["width / ProgPy's"] = says([s["median_relative_width"] / progpy_width
+                                            for s in sets])
+        out.append(row)
+    return out
+
+
 def _levels(text: list[str]) -> dict[str, float]:
     out = {}
     for item in text:
@@ -204,7 +282,12 @@ def main() -> None:
     ap.add_argument("--every", type=int, default=5, help="cycles between forecasts")
     ap.add_argument("--start", type=float, default=0.3, help="first forecast, fraction of life")
     ap.add_argument("--no-progpy", action="store_true", help="skip the ProgPy peer")
+    ap.add_argument("--draw-sets", type=int, default=5,
+                    help="Monte-Carlo draw sets condmon's path rows are repeated with, for "
+                         "the spread of their figures (1: only the seeds `condmon forecast` uses)")
     args = ap.parse_args()
+    if args.draw_sets < 1:
+        sys.exit(f"--draw-sets {args.draw_sets}: give 1 or more")
     if not args.data.is_dir():
         sys.exit(f"{args.data}: no such folder (give --data DIR with B0005.csv ...)")
     files = sorted(args.data.glob("*.csv"))
@@ -225,29 +308,30 @@ def main() -> None:
              "straight line"] + (["ProgPy 1.9 (measured here)"] if progpy else [])
     rows: dict[str, list[dict[str, Any]]] = {m: [] for m in names}
     started = time.perf_counter()
-    pits = {c: peer_pits(*cells[c], levels[c]) for c in cells}
+    recal = recalibrations(cells, levels, say=True)
     timing = {m: 0.0 for m in names}
-    for cell, (cycle, capacity) in cells.items():
+    for cell, k, common in forecast_points(cells, levels, args.start, args.every, started):
+        cycle, capacity = cells[cell]
         level = levels[cell]
-        life = end_of_life(cycle, capacity, level)
-        recal = calibrate([p for c in cells if c != cell for p in pits[c]], len(cells) - 1)
-        first = math.ceil(args.start * life)
-        for c in np.arange(first, life, args.every):
-            k = int(np.searchsorted(cycle, c))
-            truth = life - float(cycle[k])
-            common = {"cell": cell, "cycle": float(cycle[k]), "life": life, "truth": truth}
-            made = {
-                "condmon": lambda: condmon_row(cycle, capacity, k, level),
-                "condmon, recalibrated on the other cells": lambda: condmon_row(
-                    cycle, capacity, k, level, recal) if recal else None,
-                "condmon, trend method": lambda: trend_row(cycle, capacity, k, level),
-                "straight line": lambda: line_forecast(cycle, capacity, k, level, rng),
-                "ProgPy 1.9 (measured here)": lambda: progpy(cycle, capacity, k, level, seed=k)
-                if progpy else None}
-            for m in names:
-                t0 = time.perf_counter()
-                rows[m].append({**common, "forecast": made[m]()})
-                timing[m] += time.perf_counter() - t0
+        made = {
+            "condmon": lambda: condmon_row(cycle, capacity, k, level),
+            "condmon, recalibrated on the other cells": lambda: condmon_row(
+                cycle, capacity, k, level, recal[cell]) if recal[cell] else None,
+            "condmon, trend method": lambda: trend_row(cycle, capacity, k, level),
+            "straight line": lambda: line_forecast(cycle, capacity, k, level, rng),
+            "ProgPy 1.9 (measured here)": lambda: progpy(cycle, capacity, k, level, seed=k)
+            if progpy else None}
+        for m in names:
+            t0 = time.perf_counter()
+            rows[m].append({**common, "forecast": made[m]()})
+            timing[m] += time.perf_counter() - t0
+    spread: dict[str, list[dict[str, float]]] = {
+        m: [score(rows[m])] for m in PATH_METHODS}
+    for draw_set in range(1, args.draw_sets):
+        print(f"  Monte-Carlo draw set {draw_set + 1} of {args.draw_sets} "
+              f"({time.perf_counter() - started:.0f} s so far)", file=sys.stderr, flush=True)
+        for m, sc in path_scores(cells, levels, args.start, args.every, draw_set).items():
+            spread[m].append(sc)
     elapsed = time.perf_counter() - started
     scores = [{"method": m, **score(r), "seconds": timing[m]} for m, r in rows.items()]
     scores.append({"method": "ProgPy 1.9 (published, 77 forecasts)", "forecasts": 77,
@@ -276,8 +360,12 @@ def main() -> None:
                      f"{ours['median_relative_width'] / measured[0]['median_relative_width']:.2f}")
         print(line, end="")
     print()
+    ranges = draw_spread(spread, best, measured[0]["median_relative_width"] if measured else None)
+    print(table(ranges, f"\ncondmon's path rows over {args.draw_sets} Monte-Carlo draw set(s) "
+                        "(median [lowest, highest]); the first set is the table's"))
     path = write_json("prognostics_real", {"load": [load, end], "seconds": elapsed,
-                                           "levels": levels, "scores": scores, "forecasts": rows})
+                                           "levels": levels, "scores": scores, "forecasts": rows,
+                                           "draw_sets": spread})
     print(f"wrote {path}")
 
 

@@ -11,7 +11,7 @@ import pytest
 
 from condmon.forecast.calibration import MIN_PITS, calibrate, path_pits
 from condmon.forecast.measured import coverage_note, forecast_by, forecast_path
-from condmon.forecast.path import fit_path
+from condmon.forecast.path import PathFit, _draws, fit_path, path_remaining
 from condmon.errors import DataError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -50,6 +50,24 @@ def test_its_90_percent_interval_covers_at_its_level_on_its_own_model() -> None:
         hits.append(r is not None and r[1] <= first - seen <= r[2])
     assert len(hits) >= 90
     assert 0.80 <= np.mean(hits) <= 0.97, np.mean(hits)
+
+
+def test_paths_carried_on_only_while_running_each_keep_their_own_crossing() -> None:
+    """:func:`path_remaining` carries on only the paths that have not crossed,
+    packing its arrays as they cross. Known truth: a line whose rate is
+    uncertain (−0.05 ± 0.01 a check) and whose level, walk and deviations
+    are nil, from 1.0 down to 0.0. Each drawn path crosses at the first whole
+    check past ``1/|rate|``; its own rate is the one drawn first (the same
+    seed), so a path given another's state after a packing shows."""
+    grid = ((1.0, 1.0, -0.05, 1e-12, 0.0, 1e4, 1e-5),)
+    fit = PathFit((1.0, -0.05), ((0.0, 0.0), (0.0, 1e-4)), 0.0, grid, 1000, 0.0, 0.0,
+                  10.0, 10.0, 1.0, 12)
+    left, step = path_remaining(fit, 0.0, seed=3, horizon=100.0, draws=2000)
+    level, rate, *_ = _draws(fit, np.random.default_rng(3), 2000)
+    assert step == 1.0 and np.all(rate < 0)
+    truth = np.ceil(level / -rate)
+    assert np.ptp(truth) >= 10               # paths cross over many checks: packed often
+    assert np.mean(left == truth) >= 0.99, np.mean(left == truth)
 
 
 def test_a_steady_fade_is_forecast_where_it_ends() -> None:

@@ -303,20 +303,31 @@ def path_remaining(fit: PathFit, threshold: float, seed: int = 0,
     level, rate, phis, sd, w, walks = _draws(fit, rng, draws)
     sign = 1.0 if threshold > fit.coef[0] + fit.deviation else -1.0
     dev = np.full(draws, fit.deviation)
-    walk = walks * fit.step
+    wander = np.sqrt(walks * fit.step)
     left = np.full(draws, np.inf)
+    # Only the paths still running are carried on (``slot``: the draw each
+    # array element is): a heavy right tail would otherwise cost every draw's
+    # random numbers until its last path crosses. The arrays are packed when
+    # a quarter of them have crossed, so at most a third more is drawn.
+    slot = np.arange(draws)
     alive = np.ones(draws, dtype=bool)
     steps = max(int(math.ceil(_FAR_SPANS * max(fit.span, fit.step) / fit.step)), 1)
     for k in range(1, steps + 1):
-        w = w + rng.normal(0.0, np.sqrt(walk))
+        w = w + rng.standard_normal(slot.size) * wander
         level = level + rate * np.exp(np.minimum(w, _EXP_MAX))
-        dev = phis * dev + rng.normal(0.0, 1.0, draws) * sd
+        dev = phis * dev + rng.standard_normal(slot.size) * sd
         hit = alive & (sign * (level + dev - threshold) >= 0)
-        left[hit] = k * fit.step
+        left[slot[hit]] = k * fit.step
         alive &= ~hit
-        if np.count_nonzero(alive) < 0.05 * draws and (
-                horizon is None or k * fit.step >= horizon):
+        running = int(np.count_nonzero(alive))
+        if running == 0 or (running < 0.05 * draws and (
+                horizon is None or k * fit.step >= horizon)):
             break
+        if running < 0.75 * slot.size:
+            slot = slot[alive]
+            w, level, rate, dev, phis, sd, wander = (
+                a[alive] for a in (w, level, rate, dev, phis, sd, wander))
+            alive = np.ones(running, dtype=bool)
     return left, fit.step
 
 

@@ -1,4 +1,9 @@
-"""Many writers at once, some killed: nothing reported as stored is lost or doubled."""
+"""Many writers at once, some killed: nothing reported as stored is lost or doubled.
+
+A study of many processes (16 Python processes per back-end, each importing
+pandas and SQLAlchemy and estimating its records): a minute of CPU over both
+back-ends, a tenth of the default run's budget. It is marked slow and run by
+``.ci/run`` (``pytest -m slow tests/test_store_stress.py``), with PostgreSQL."""
 
 from __future__ import annotations
 
@@ -16,6 +21,8 @@ import pytest
 
 from condmon.simulate import ActuatorRig, simulate_actuator
 from condmon.store import open_store
+
+pytestmark = pytest.mark.slow
 
 WORKER = Path(__file__).with_name("_stress_worker.py")
 N_PROCESSES = 8

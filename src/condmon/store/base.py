@@ -414,7 +414,7 @@ def unknown_unit_message(name: str, known: Sequence[str], where: str) -> str:
     Example
     -------
     >>> unknown_unit_message("EMA-l", ["EMA-1", "EMA-2", "HST-7"], "h.db")
-    "unknown unit 'EMA-l' in h.db; did you mean 'EMA-1' or 'EMA-2'? (units: EMA-1, EMA-2, HST-7; a new unit starts with its healthy tests: condmon baseline add REC... --unit EMA-l)"
+    "unknown unit 'EMA-l' in h.db; did you mean 'EMA-1' or 'EMA-2'? (units: EMA-1, EMA-2, HST-7; a new unit starts with its healthy tests: condmon baseline add REC... --unit EMA-l, or with values measured elsewhere: condmon import TABLE --unit EMA-l --model M)"
     """
     # the names a few keystrokes away (case aside): a mistyped serial number
     target = name.lower()
@@ -422,7 +422,8 @@ def unknown_unit_message(name: str, known: Sequence[str], where: str) -> str:
     close = [k for d, k in near if d <= max(1, len(target) // 4)][:3]
     shown = ", ".join(known[:20]) + (f", ... {len(known) - 20} more" if len(known) > 20 else "")
     units = f"units: {shown or 'none yet'}; a new unit starts with its healthy tests: " \
-            f"condmon baseline add REC... --unit {name}"
+            f"condmon baseline add REC... --unit {name}, or with values measured " \
+            f"elsewhere: condmon import TABLE --unit {name} --model M"
     guess = f"did you mean {' or '.join(map(repr, close))}? ({units})" if close else units
     return f"unknown unit {name!r} in {where}; {guess}"
 

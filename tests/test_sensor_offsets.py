@@ -1,7 +1,7 @@
 """Sensor offsets declared as candidate faults (examples/hst-sensor-offsets):
 a drifting sensor is isolated as such, the machine's faults as before, and a
-healthy record raises nothing. Without them the shipped plant names a machine
-fault for a sensor's drift (the example's README)."""
+healthy record raises nothing. (The shipped plant weighs its sensors' own
+gain and offset errors: tests/test_sensor_faults.py.)"""
 
 from __future__ import annotations
 

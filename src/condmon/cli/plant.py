@@ -213,5 +213,5 @@ def _print_isolation(res: IsolationResult) -> None:
     out.print(table)
     for p, why in res.rejected.items():
         out.print(f"rejected {p}: {why}", highlight=False, markup=False)
-    color = "red" if len(res.isolated) == 1 else "yellow"
+    color = "red" if len(res.isolated) == 1 and not res.sensor_faults else "yellow"
     out.print(f"[bold {color}]{res.statement}[/]", highlight=False)

@@ -39,12 +39,16 @@ from numpy.typing import NDArray
 
 from condmon._threads import one_blas_thread
 from condmon.diagnose.checks import RecordSettings, validate_plant_record
+from condmon.diagnose.isolation_result import IsolationResult
+from condmon.diagnose.sensor_faults import (
+    alike, f_limit, own_sensor_faults, sensor_fits, sensor_statement,
+)
 from condmon.diagnose.residuals import (
     Detection, DetectionSettings, Normalisation, Residuals, compute_residuals, detect,
     learn_normalisation, load_settings, noise_normalisation,
 )
 from condmon.diagnose.structure import (
-    FaultSignature, ResidualKind, fault_signature, residual_generators, suspects,
+    ResidualKind, fault_signature, residual_generators, suspects,
 )
 from condmon.diagnose.suspects import SuspectTask, plausible_range, run_suspects, simulate_suspect
 from condmon.errors import ConfigError, DataError, EstimationError
@@ -54,7 +58,7 @@ from condmon.identify.steady_state import (
 )
 from condmon.models.declared import PlantModel
 from condmon.simulate.plant import (
-    SimulationLimits, integrate, operating_segments, simulate_plant,
+    SimulationLimits, integrate, operating_segments, sensor_readings, simulate_plant,
 )
 
 if TYPE_CHECKING:  # pandas only where a DataFrame is made or read: not on import
@@ -139,114 +143,6 @@ class IsolationSettings:
                               f"{out.time_limit_factor:g}, {out.time_limit_floor:g}, "
                               f"{out.explain_limit:g}, {out.range_factor:g})")
         return out
-
-
-@dataclass(frozen=True)
-class IsolationResult:
-    """Everything the isolation found, with what it was found from.
-
-    Attributes
-    ----------
-    model : str
-    detected : bool
-    detection_time, onset_time : float or None
-        [s]
-    fired_residuals : tuple of str
-    fsm : FaultSignature
-    suspects : tuple of str
-    estimates : dict of str to SteadyStateEstimate
-    errors : dict of str to float
-        RMS of each suspect model's output error after the transient, in units
-        of each sensor's noise (about 1 for a model that explains the data). [-]
-    isolated : tuple of str
-        The least-error suspect and those not significantly worse (ambiguity set).
-    statement : str
-        The conclusion in words.
-    residuals : Residuals
-    normalisation : Normalisation
-    detection : Detection
-    outputs : dict of str to ndarray
-        Each suspect model's sensor readings. [sensor units]
-    compare_from : float or None
-        Start of the comparison window. [s]
-    sensor_noise : ndarray
-        Per-sample noise of each sensor the errors are expressed in. [sensor units]
-    decided : bool
-        False when the record could not settle the question: too short to show a
-        fault, or a fault detected but not isolable from it.
-    reason : str or None
-        Why it is not decided (None when it is).
-    rejected : dict of str to str
-        Suspects left out of the comparison, with the reason (estimate outside
-        its plausible range, not converged, simulation failed or timed out).
-    notes : tuple of str
-        Other things the user should know (pooled normalisation, ...).
-    time_limit : float or None
-        Wall-time limit of each suspect's model run. [s]
-    units : dict of str to str
-        Unit of each parameter of the model (of an estimate and its nominal).
-    """
-
-    model: str
-    detected: bool
-    detection_time: float | None
-    onset_time: float | None
-    fired_residuals: tuple[str, ...]
-    fsm: FaultSignature
-    suspects: tuple[str, ...]
-    estimates: dict[str, SteadyStateEstimate]
-    errors: dict[str, float]
-    isolated: tuple[str, ...]
-    statement: str
-    residuals: Residuals
-    normalisation: Normalisation
-    detection: Detection
-    outputs: dict[str, FloatArray]
-    compare_from: float | None
-    sensor_noise: FloatArray
-    decided: bool = True
-    reason: str | None = None
-    rejected: dict[str, str] = field(default_factory=dict)
-    notes: tuple[str, ...] = ()
-    time_limit: float | None = None
-    units: dict[str, str] = field(default_factory=dict)
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready summary (keys ``detected``, ``decided``, ``reason``,
-        ``detection_time``, ``fired_residuals``, ``fsm``, ``suspects``,
-        ``estimates``, ``rejected``, ``errors``, ``isolated``, ...); a number
-        that is not finite is ``null``."""
-        return {
-            "model": self.model,
-            "detected": self.detected,
-            "decided": self.decided,
-            "reason": self.reason,
-            # times come from sample grids (k * dt): shown to the nanosecond
-            "detection_time": _finite(None if self.detection_time is None
-                                      else round(self.detection_time, 9)),
-            "onset_time": _finite(None if self.onset_time is None else round(self.onset_time, 9)),
-            "fired_residuals": list(self.fired_residuals),
-            "fsm": self.fsm.to_dict(),
-            "suspects": list(self.suspects),
-            "estimates": {p: _finite(e.value) for p, e in self.estimates.items()},
-            "units": {p: self.units.get(p, "") for p in self.estimates},
-            "estimate_change_percent": {p: _finite(e.change_percent)
-                                        for p, e in self.estimates.items()},
-            "consistency": {p: _finite(e.consistency) for p, e in self.estimates.items()},
-            "rejected": dict(self.rejected),
-            "errors": {p: _finite(v) for p, v in self.errors.items()},
-            "isolated": list(self.isolated),
-            "ambiguous": len(self.isolated) > 1,
-            "statement": self.statement,
-            "notes": list(self.notes),
-            "time_limit": _finite(self.time_limit),
-            "normalisation": self.normalisation.to_dict(),
-        }
-
-
-def _finite(value: float | None) -> float | None:
-    """``value`` as a float, None when missing or not finite (JSON has no NaN)."""
-    return None if value is None or not math.isfinite(value) else float(value)
 
 
 def healthy_normalisation(model: PlantModel, healthy: Sequence[pd.DataFrame | Columns],
@@ -434,13 +330,28 @@ def isolate(record: pd.DataFrame | Columns, model: PlantModel, *,
     for p in outputs if mask.any() else ():
         e = (y[mask] - outputs[p][mask]) / noise
         errors[p] = float(math.sqrt(np.mean(e ** 2)))
+    n = int(mask.sum()) * y.shape[1]
+    # a sensor's gain or offset error beside the components (simulation residuals: the
+    # nominal model's readings are the plant's from its inputs alone)
+    fits = tuple(f for f in sensor_fits(
+        y, sensor_readings(model.compile(), x_nominal, u, (), t), noise, mask,
+        model.sensor_names, [s.unit for s in model.sensors])
+        if f.sensor not in own_sensor_faults(model)) if kind == "simulation" and errors else ()
+    sensed, alike_components = alike(fits, errors, n, settings.significance,
+                                     settings.explain_limit)
     why_not = _undecided(windows, errors, rejected, det.time, float(t[-1]), settings)
-    if why_not is not None:
+    if sensed:  # (with suspects compared, what is undecided is "none explains the record")
+        statement, why_not = sensor_statement(sensed, alike_components, errors, n,
+                                              settings.significance)
+        isolated: tuple[str, ...] = alike_components if why_not is None else ()
+        if why_not is not None:
+            statement = f"fault detected at {det.time:.2f} s but not isolated: {why_not}"
+    elif why_not is not None:
         statement = f"fault detected at {det.time:.2f} s but not isolated: {why_not}"
-        isolated: tuple[str, ...] = ()
+        isolated = ()
     else:
-        isolated, statement = _conclude(sus, errors, int(mask.sum()) * y.shape[1],
-                                        settings.significance, windows)
+        isolated, statement = _conclude(sus, errors, n, settings.significance, windows)
+    if why_not is None:
         # a run or estimate that failed, not one the record rules out, could have fitted better
         unjudged = sorted(set(rejected) - ruled_out)
         if unjudged:
@@ -452,7 +363,7 @@ def isolate(record: pd.DataFrame | Columns, model: PlantModel, *,
                                estimates=estimates, errors=errors, isolated=isolated,
                                statement=statement, outputs=outputs, compare_from=compare_from,
                                decided=why_not is None, reason=why_not, rejected=rejected,
-                               time_limit=limit)
+                               time_limit=limit, sensor_faults=sensed)
 
 
 def _estimate(model: PlantModel, parameter: str, windows: Sequence[SteadyWindow],
@@ -580,9 +491,7 @@ def _conclude(sus: Sequence[str], errors: Mapping[str, float], n: int, alpha: fl
     best = min(usable, key=lambda p: errors[p])
     # mean squared errors of white noise: their ratio is F(n, n) when both models
     # explain the data; beyond the (1 - alpha) quantile a model is significantly worse
-    from scipy.special import fdtri  # the F quantile, without scipy.stats' import (~0.5 s)
-
-    limit = float(fdtri(n, n, 1.0 - alpha))
+    limit = f_limit(n, alpha)
     floor = max(errors[best], 1e-300)
     isolated = tuple(sorted((p for p in usable if (errors[p] / floor) ** 2 <= limit),
                             key=lambda p: errors[p]))

@@ -411,9 +411,10 @@ class Watcher:
         else:
             kept = store_isolation(self.store, unit, res, record, None, name)
         self.counters.isolations += 0 if kept.duplicate else 1
-        what = (res.statement if len(res.isolated) > 1 and res.statement else
-                "isolated: " + ", ".join(res.isolated) if res.isolated else
-                res.statement or "not isolated")
+        plain = len(res.isolated) == 1 and not res.sensor_faults
+        what = ("isolated: " + res.isolated[0] if plain else
+                res.statement or ("isolated: " + ", ".join(res.isolated) if res.isolated
+                                  else "not isolated"))
         return [self._event(unit, "no-go", f"{what} (isolation i{kept.isolation_id}"
                             + (", already stored" if kept.duplicate else "") + ")",
                             "isolated", tuple(res.isolated),

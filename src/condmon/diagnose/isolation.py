@@ -5,7 +5,9 @@ and debounced detection → suspects from the fault signature matrix (single-fau
 hypothesis) → steady-state estimate of each suspect → one model per suspect,
 simulated with its estimate, in parallel → the least output error isolates the
 fault; suspects whose error is not significantly worse are reported with it as
-an ambiguity set.
+an ambiguity set. Each sensor's own gain and offset error compete with them
+(:mod:`condmon.diagnose.sensor_faults`): a sensor that reads wrong is named as
+such, not as the component that imitates it best.
 
 Each suspect's simulation is a pure function of a small picklable task
 (:func:`simulate_suspect`), so it can be shipped to a process pool, as here, or
@@ -333,10 +335,11 @@ def isolate(record: pd.DataFrame | Columns, model: PlantModel, *,
     n = int(mask.sum()) * y.shape[1]
     # a sensor's gain or offset error beside the components (simulation residuals: the
     # nominal model's readings are the plant's from its inputs alone)
+    own = own_sensor_faults(model)
     fits = tuple(f for f in sensor_fits(
         y, sensor_readings(model.compile(), x_nominal, u, (), t), noise, mask,
         model.sensor_names, [s.unit for s in model.sensors])
-        if f.sensor not in own_sensor_faults(model)) if kind == "simulation" and errors else ()
+        if f.sensor not in own) if kind == "simulation" and errors else ()
     sensed, alike_components = alike(fits, errors, n, settings.significance,
                                      settings.explain_limit)
     why_not = _undecided(windows, errors, rejected, det.time, float(t[-1]), settings)

@@ -98,7 +98,8 @@ def test_two_faults_that_no_candidate_explains_name_nothing(hst: PlantModel) -> 
     misses by several noise sd, so neither it nor a component is named."""
     res = isolate(simulate_plant(hst, ["Rv=+20%@10s", "Dm=-5%@10s"], seed=4), hst, workers=1)
     assert res.detected and not res.decided and res.isolated == ()
-    assert "not isolated: the best explanation" in res.statement
+    assert "not isolated: no candidate explains the record: the best" in res.statement
+    assert res.to_dict()["ambiguous"] is False
     assert "none of the candidates, several, or a sensor's" in res.statement
 
 
@@ -110,7 +111,22 @@ def test_component_faults_are_isolated_as_before(hst: PlantModel) -> None:
 
 
 def test_a_declaration_that_models_a_sensor_s_error_keeps_its_own_candidate() -> None:
+    """The offsets example adds ``bPs`` and ``bw`` to its sensors' readings:
+    their offsets are its own candidates, and only their gains are weighed
+    beside them."""
     offsets = load_plant_model(OFFSETS)
-    assert own_sensor_faults(offsets) == {"Ps", "omega_m"}
-    res = isolate(simulate_plant(offsets, ["bPs=+1e5@10s"], seed=3), offsets, workers=1)
+    assert own_sensor_faults(offsets) == {("Ps", "offset"), ("omega_m", "offset")}
+    rec = simulate_plant(offsets, ["bPs=+1e5@10s"], seed=3)
+    res = isolate(rec, offsets, workers=1)
     assert res.isolated == ("bPs",) and res.sensor_faults == ()
+    gained = simulate_plant(offsets, seed=1)
+    gained["Ps"] *= 1.05                     # a gain the declaration does not model
+    res = isolate(gained, offsets, workers=1)
+    assert res.isolated == () and res.sensor_faults[0].name == "Ps sensor gain"
+
+
+def test_structured_residuals_say_they_weigh_no_sensor_error(hst: PlantModel) -> None:
+    res = isolate(simulate_plant(hst, ["Tld=+20@10s"], seed=4), hst, kind="structured",
+                  workers=1)
+    assert res.isolated == ("Tld",) and res.sensor_faults == ()
+    assert any("simulation residuals only" in n for n in res.notes)

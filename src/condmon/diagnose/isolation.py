@@ -339,7 +339,7 @@ def isolate(record: pd.DataFrame | Columns, model: PlantModel, *,
     fits = tuple(f for f in sensor_fits(
         y, sensor_readings(model.compile(), x_nominal, u, (), t), noise, mask,
         model.sensor_names, [s.unit for s in model.sensors])
-        if f.sensor not in own) if kind == "simulation" and errors else ()
+        if (f.sensor, f.kind) not in own) if kind == "simulation" and errors else ()
     sensed, alike_components = alike(fits, errors, n, settings.significance,
                                      settings.explain_limit)
     why_not = _undecided(windows, errors, rejected, det.time, float(t[-1]), settings)
@@ -366,7 +366,10 @@ def isolate(record: pd.DataFrame | Columns, model: PlantModel, *,
                                estimates=estimates, errors=errors, isolated=isolated,
                                statement=statement, outputs=outputs, compare_from=compare_from,
                                decided=why_not is None, reason=why_not, rejected=rejected,
-                               time_limit=limit, sensor_faults=sensed)
+                               time_limit=limit, sensor_faults=sensed,
+                               notes=quiet.notes + (() if kind == "simulation" or not errors else (
+                                   "a sensor's own gain or offset error is weighed with "
+                                   "simulation residuals only (the default), not these",)))
 
 
 def _estimate(model: PlantModel, parameter: str, windows: Sequence[SteadyWindow],

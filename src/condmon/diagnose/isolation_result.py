@@ -120,7 +120,7 @@ class IsolationResult:
             "rejected": dict(self.rejected),
             "errors": {p: _finite(v) for p, v in self.errors.items()},
             "isolated": list(self.isolated),
-            "ambiguous": len(self.isolated) + len(self.sensor_faults) > 1,
+            "ambiguous": self.decided and len(self.isolated) + len(self.sensor_faults) > 1,
             "sensor_faults": [f.to_dict() for f in self.sensor_faults],
             "statement": self.statement,
             "notes": list(self.notes),

@@ -212,18 +212,19 @@ def sensor_statement(sensors: Sequence[SensorFit], components: Sequence[str],
     >>> sensor_statement(s, ("Dp",), {"Dp": 1.03}, 9808, 0.01)[0]
     'ambiguous: Dp, or the w sensor reading 10.0 % high, explain the data equally well'
     >>> sensor_statement([SensorFit("w", "gain", 0.29, 6.5)], (), {"Rv": 8.6}, 9808, 0.01)[1]
-    "the best explanation, the w sensor reading 29.0 % high, leaves 6.5 noise sd, beyond the 1.02 that noise alone reaches (F test at 0.01), and no component's model does better: the fault may be none of the candidates, several, or a sensor's"
+    "no candidate explains the record: the best, the w sensor reading 29.0 % high (6.5), leaves more error [noise sd] than the 1.02 noise alone reaches (F test at 0.01): the fault may be none of the candidates, several, or a sensor's"
     """
     said = " or ".join(f.describe() for f in sensors)
     best = min([sensors[0].error, *(errors[p] for p in components)])
     limit = f_limit(n, alpha)
     if best ** 2 > limit:   # not explained: neither a component nor a sensor is named
-        also = f"{', '.join(components)} and " if components else ""
-        return "", (f"the best explanation{'s' if components else ''}, {also}{said}, leave"
-                    f"{'' if components else 's'} {best:.3g} noise sd, beyond the "
-                    f"{math.sqrt(limit):.3g} that noise alone reaches (F test at {alpha:g}), "
-                    f"and no {'other ' if components else ''}component's model does better: the "
-                    "fault may be none of the candidates, several, or a sensor's")
+        each = [f"{p} ({errors[p]:.3g})" for p in components] + [
+            f"{f.describe()} ({f.error:.3g})" for f in sensors]
+        return "", (f"no candidate explains the record: the best, {', '.join(each)}, "
+                    f"leave{'s' if len(each) == 1 else ''} "
+                    f"more error [noise sd] than the {math.sqrt(limit):.3g} noise alone "
+                    f"reaches (F test at {alpha:g}): the fault may be none of the candidates, "
+                    "several, or a sensor's")
     if components:
         return (f"ambiguous: {', '.join(components)}, or {said}, explain the data equally "
                 "well"), None
@@ -237,10 +238,12 @@ def sensor_statement(sensors: Sequence[SensorFit], components: Sequence[str],
     return text, None
 
 
-def own_sensor_faults(model: PlantModel) -> frozenset[str]:
-    """Sensors whose reading names a fault-candidate parameter (``measures =
-    "Ps + bPs"``): the declaration models their error itself, so they get no
-    gain or offset candidate of their own.
+def own_sensor_faults(model: PlantModel) -> frozenset[tuple[str, str]]:
+    """The ``(sensor, kind)`` errors the declaration models itself: a sensor
+    whose reading names a fault-candidate parameter added to it (``measures
+    = "Ps + bPs"``) has its offset modelled, one multiplied (``"omega_m *
+    kw"``) its gain, and one written otherwise both. These get no candidate
+    of their own, so the two never compete.
 
     Example
     -------
@@ -249,5 +252,15 @@ def own_sensor_faults(model: PlantModel) -> frozenset[str]:
     []
     """
     faults = set(model.fault_candidates)
-    return frozenset(s.name for s in model.sensors
-                     if faults & set(re.findall(r"[A-Za-z_]\w*", s.measures)))
+    out = set()
+    for s in model.sensors:
+        text = s.measures.replace(" ", "")
+        for p in faults & set(re.findall(r"[A-Za-z_]\w*", text)):
+            beside = "".join(re.findall(rf"(.?)(?<![\w.]){re.escape(p)}(?![\w.])(.?)", text)[0])
+            if beside and set(beside) <= set("+-"):
+                out.add((s.name, "offset"))
+            elif beside and set(beside) <= set("*/") and "+" not in text and "-" not in text:
+                out.add((s.name, "gain"))
+            else:
+                out.update({(s.name, "offset"), (s.name, "gain")})
+    return frozenset(out)

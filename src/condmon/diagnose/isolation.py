@@ -43,7 +43,7 @@ from condmon._threads import one_blas_thread
 from condmon.diagnose.checks import RecordSettings, validate_plant_record
 from condmon.diagnose.isolation_result import IsolationResult
 from condmon.diagnose.sensor_faults import (
-    alike, f_limit, own_sensor_faults, sensor_fits, sensor_statement,
+    SensorFit, alike, f_limit, own_sensor_faults, sensor_fits, sensor_statement,
 )
 from condmon.diagnose.residuals import (
     Detection, DetectionSettings, Normalisation, Residuals, compute_residuals, detect,
@@ -335,11 +335,12 @@ def isolate(record: pd.DataFrame | Columns, model: PlantModel, *,
     n = int(mask.sum()) * y.shape[1]
     # a sensor's gain or offset error beside the components (simulation residuals: the
     # nominal model's readings are the plant's from its inputs alone)
-    own = own_sensor_faults(model)
-    fits = tuple(f for f in sensor_fits(
-        y, sensor_readings(model.compile(), x_nominal, u, (), t), noise, mask,
-        model.sensor_names, [s.unit for s in model.sensors])
-        if (f.sensor, f.kind) not in own) if kind == "simulation" and errors else ()
+    fits: tuple[SensorFit, ...] = ()
+    if kind == "simulation" and errors:
+        own = own_sensor_faults(model)   # the sensors' errors the declaration models itself
+        fits = tuple(f for f in sensor_fits(
+            y, sensor_readings(model.compile(), x_nominal, u, (), t), noise, mask,
+            model.sensor_names, [s.unit for s in model.sensors]) if (f.sensor, f.kind) not in own)
     sensed, alike_components = alike(fits, errors, n, settings.significance,
                                      settings.explain_limit)
     why_not = _undecided(windows, errors, rejected, det.time, float(t[-1]), settings)

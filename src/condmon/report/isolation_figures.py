@@ -5,6 +5,7 @@ error against the measurements. Legends sit below the axes, never on a curve
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -73,8 +74,9 @@ def plot_model_errors(res: IsolationResult, model: PlantModel, measured: np.ndar
         ax.set_ylim(-lim, lim)
     legend_below(fig, axes[0, 0].get_legend_handles_labels(), ncol=4)
     axes[-1, 0].set_xlabel("time [s]")
-    fig.suptitle(f"{res.model}: output error of each suspect's model — {res.statement}",
-                 fontsize=10)
+    # a statement runs to several clauses: wrapped to the figure's width, not cut off
+    fig.suptitle(textwrap.fill(f"{res.model}: output error of each suspect's model — "
+                               f"{res.statement}", 130), fontsize=10)
     return save_figure(fig, path)
 
 

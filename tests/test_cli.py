@@ -484,3 +484,32 @@ def test_model_given_as_an_option_where_it_is_the_first_argument(
                                        "argument, not --model: condmon isolate MODEL RECORD\n")
     assert main(["simulate", "plant", "--model", "hst", "--out", "x.csv"]) == 2
     assert "condmon simulate plant MODEL" in capsys.readouterr().err
+
+
+def test_a_warning_shown_on_stderr_is_also_in_the_json(tmp_path: Path,
+                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    """A ``--json`` reader that keeps only stdout loses no warning: a saturating
+    drive is warned of on stderr and listed under ``warnings``; a clean record's
+    document has no such key (the list is per command)."""
+    import warnings
+
+    import numpy as np
+    import pandas as pd
+
+    rec = tmp_path / "r.csv"
+    assert main(["simulate", "actuator", "--out", str(rec), "--seed", "2"]) == 0
+    df = pd.read_csv(rec)
+    lo, hi = np.percentile(df["V"], [6.0, 94.0])
+    clipped = tmp_path / "clipped.csv"
+    df.assign(V=df["V"].clip(lo, hi)).to_csv(clipped, index=False)
+    capsys.readouterr()
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")
+        assert main(["estimate", str(clipped), "--json"]) == 0
+        captured = capsys.readouterr()
+        assert main(["estimate", str(rec), "--json"]) == 0
+        clean = json.loads(capsys.readouterr().out)
+    doc = json.loads(captured.out)
+    assert "the drive saturates" in captured.err
+    assert len(doc["warnings"]) == 1 and "the drive saturates" in doc["warnings"][0]
+    assert "warnings" not in clean

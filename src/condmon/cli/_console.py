@@ -13,11 +13,16 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from condmon.io.jsonable import json_safe
 
-__all__ = ["out", "err", "fmt", "write_json", "write_json_list", "json_safe", "progress",
+__all__ = ["out", "err", "fmt", "warned", "write_json", "write_json_list", "json_safe", "progress",
            "status_text", "fit_to_output", "PIPED_WIDTH", "fitted_widths"]
 
 out = Console()
 err = Console(stderr=True)
+
+#: The warnings shown on stderr during the running command (``main`` clears it):
+#: :func:`write_json` carries them into the document, so a ``--json`` reader
+#: that keeps only stdout loses none of them.
+warned: list[str] = []
 
 #: Columns of a table printed into a pipe or a file: wide enough that a
 #: plant's or a fleet's table is not folded (80, rich's default there, folded
@@ -109,7 +114,10 @@ def id_runs(ids: Any) -> str:
 def write_json(doc: Any) -> None:
     """Print ``doc`` as JSON. Never raises on the content: a non-finite number
     (NaN, ±inf) becomes null, numpy scalars and arrays become numbers and lists,
-    anything else unknown its text."""
+    anything else unknown its text. A document (a mapping) gets the command's
+    warnings (:data:`warned`) as ``warnings`` when there were any."""
+    if warned and isinstance(doc, Mapping):
+        doc = {**doc, "warnings": [*doc.get("warnings", ()), *warned]}
     sys.stdout.write(json.dumps(json_safe(doc), indent=2, allow_nan=False) + "\n")
 
 

@@ -19,7 +19,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from condmon.cli._console import (
-    err, fit_to_output, fmt, out, progress, status_text, write_json,
+    err, fit_to_output, fmt, out, progress, status_text, warned, write_json,
 )
 from condmon.cli.check import register as register_check_command
 from condmon.cli.estimation import (
@@ -398,6 +398,7 @@ register_view_commands(app)  # after the commands above: their order in --help
 def _show_warning(message: Warning | str, category: type[Warning], filename: str,
                   lineno: int, file: Any = None, line: str | None = None) -> None:
     err.print(f"warning: {message}", highlight=False, markup=False)
+    warned.append(str(message))
 
 
 @functools.lru_cache(maxsize=1)
@@ -414,6 +415,7 @@ def _command() -> Any:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``condmon`` console script; returns the exit status."""
     warnings.showwarning = _show_warning
+    warned.clear()
     fit_to_output()
     try:
         from condmon._threads import small_blas

@@ -669,3 +669,81 @@ def test_a_run_that_diverges_at_any_step_says_so_at_once() -> None:
                            np.array([1e-3, 1e-3]))
     assert np.isfinite(simulate_recorded(c, u, 1e-3, np.zeros(2), c.parameter_vector(),
                                          substeps=good).states).all()
+
+
+
+THERMAL = """
+name = "two-masses"
+[parameters]
+C1 = { value = 400.0, unit = "J/K" }
+C2 = { value = 2500.0, unit = "J/K" }
+R12 = { value = 0.4, unit = "K/W" }
+R2a = { value = 1.2, unit = "K/W" }
+[inputs]
+P = { nominal = 30.0, unit = "W" }
+[states]
+T1 = { derivative = "(P - (T1 - T2)/R12)/C1", initial = 0.0, unit = "K" }
+T2 = { derivative = "((T1 - T2)/R12 - T2/R2a)/C2", initial = 0.0, unit = "K" }
+[sensors]
+T1m = { measures = "T1", noise = 0.05, unit = "K" }
+[test]
+duration = 4000.0
+sample_rate = 1.0
+[estimation]
+estimate = ["C1", "C2", "R12", "R2a"]
+starts = 2
+min_duration = 600.0
+sample_interval = [0.05, 20.0]
+[estimation.initial]
+T1 = { ge = -50.0, le = 150.0 }
+T2 = { ge = -50.0, le = 150.0 }
+[estimation.plausible]
+C1 = { gt = 0.0, lt = 1.0e5 }
+C2 = { gt = 0.0, lt = 1.0e5 }
+R12 = { gt = 0.0, lt = 100.0 }
+R2a = { gt = 0.0, lt = 100.0 }
+"""
+
+
+@pytest.mark.parametrize("x0", [(15.0, 10.0), (0.0, 0.0)], ids=["not at rest", "at rest"])
+def test_a_linear_model_on_a_record_not_at_rest_is_estimated_by_simulation_error(
+        tmp_path: Path, x0: tuple[float, float]) -> None:
+    """The linear route starts the model at rest: on a record that does not (a
+    block 15 K above its rest), its fit was accepted with C2 at 2.5 times the
+    truth. Route auto now takes the simulation error, which estimates the
+    initial states, and says why; asked for, the linear route refuses the record
+    with that reason. A record at rest keeps the linear route. Both within four
+    standard errors of the truth."""
+    model = tmp_path / "thermal.toml"
+    model.write_text(THERMAL)
+    truth = {"C1": 500.0, "C2": 2000.0, "R12": 0.5, "R2a": 1.0}
+    c = get_model(str(model)).plant.compile()
+    n = 4000   # (in 2,000 s the slow mode is too brief: R2a is not identified and held)
+    p = np.repeat(30.0 + 20.0 * np.sign(np.random.default_rng(1).standard_normal(n // 150 + 1)),
+                  150)[:n]
+    sim = simulate_recorded(c, p[:, None], 1.0, np.array(x0), c.parameter_vector(truth),
+                            substeps=4)
+    y = sim.outputs[:, 0] + 0.05 * np.random.default_rng(2).standard_normal(n)
+    rec = pd.DataFrame({"t": np.arange(n, dtype=float), "P": p, "T1m": y})
+    res = estimate(rec, str(model))
+    assert res.accepted
+    for k, v in truth.items():
+        assert abs(res.parameters[k] - v) < 4.0 * res.std_errors[k], k
+    if x0[0]:
+        assert res.route == "simulation"
+        assert any(n.startswith("route auto took the simulation error, which estimates the "
+                                "initial states: the linear route refused the record "
+                                "(structure mismatch") for n in res.notes)
+        linear = estimate(rec, str(model), route="linear")
+        assert not linear.accepted and linear.rejection is not None
+        assert linear.rejection.startswith("structure mismatch") and (
+            "may not start at rest" in linear.rejection)
+    else:
+        assert res.route == "linear"
+
+def test_a_route_asked_for_is_not_said_to_be_auto_s_choice(tanks: Path, tmp_path: Path) -> None:
+    rec = pd.read_csv(_record(tmp_path / "r.csv", tanks))
+    asked = estimate(rec, str(tanks), route="simulation")
+    assert not any(n.startswith("route auto") for n in asked.notes)
+    assert any(n.startswith("route auto took the simulation error")
+               for n in estimate(rec, str(tanks)).notes)

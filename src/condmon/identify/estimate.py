@@ -23,7 +23,7 @@ from condmon.identify.defaults import list_estimators
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD, FitCheck
 from condmon.identify.greybox import auto_reason, choose_route
 from condmon.identify.regime_estimate import (
-    ESTIMATOR_FUNCTIONS, estimate_regime, has_balances, plan, unusable,
+    ESTIMATOR_FUNCTIONS, STRUCTURE_MISMATCH, estimate_regime, has_balances, plan, unusable,
 )
 from condmon.identify.result import EstimateResult
 from condmon.io.columns import Columns, as_columns
@@ -242,7 +242,7 @@ def estimate(record: pd.DataFrame | Columns, model: str | Machine = "dc-motor", 
     def run(r: Record) -> EstimateResult:
         return with_features(estimate_record(
             r, machine, method=method, excitation=exc, fit_threshold=fit_threshold,
-            route=chosen, constants=consts, metadata=metadata, window=window, hold=hold,
+            route=route or machine.spec.route, constants=consts, metadata=metadata, window=window, hold=hold,
             fixed=fixed, notes=notes), r, machine, metadata, tuple(map(str, df.columns)))
 
     res = run(rec)
@@ -485,8 +485,9 @@ def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-m
     for r in records:
         spec.plausibility.check_timing(r.dt, r.dt * len(r), r.source, machine.name)
     chosen = choose_route(machine, route)
+    auto = (route or spec.route) == "auto"
     notes = list(notes)
-    if chosen == "simulation" and spec.route == "auto" and auto_reason(machine):
+    if chosen == "simulation" and auto and auto_reason(machine):
         notes.append(str(auto_reason(machine)))
     if len(records) > 1:
         if chosen == "linear":
@@ -526,8 +527,30 @@ def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-m
                                excitation=excitation, fit_threshold=fit_threshold,
                                consts=consts, hold=hold, fixed=dict(fixed or {}),
                                notes=notes, sliced=sliced, common=common)
+        if auto and chosen in ("linear", "oe") and (res.rejection or "").startswith(
+                STRUCTURE_MISMATCH):
+            res = _by_simulation(records, res, regime, machine, method=method,
+                                 excitation=excitation, fit_threshold=fit_threshold,
+                                 consts=consts, hold=hold, fixed=dict(fixed or {}),
+                                 notes=notes, metadata=metadata, window=window,
+                                 common=common)
         results.append(res)
     return dataclasses.replace(results[0], others=tuple(
         dataclasses.replace(r, windows=()) for r in results[1:]))
 
 
+def _by_simulation(records: Sequence[Record], refused: EstimateResult, regime: str,
+                   machine: Machine, *, notes: Sequence[str], metadata: Mapping[str, Any] | None,
+                   window: tuple[float, float] | None, common: dict[str, Any],
+                   **given: Any) -> EstimateResult:
+    """Route "auto" after the linear (or output-error) route refused a residual it
+    cannot follow: the simulation error, which estimates the initial states, with a
+    note saying why. Its own result stands, accepted or not."""
+    plans = [plan(r, machine, "simulation", metadata, window) for r in records]
+    first = str(refused.rejection).split(";")[0]
+    why = (f"route auto took the simulation error, which estimates the initial states: the "
+           f"{common['route']} route refused the record ({first}: a record that does not "
+           "start at rest, or dynamics the model misses)")
+    sliced = machine.regimes.declared or window is not None
+    return estimate_regime(plans, regime, machine, "simulation", notes=[*notes, why],
+                           sliced=sliced, common={**common, "route": "simulation"}, **given)

@@ -32,9 +32,13 @@ from condmon.io.records import Record
 from condmon.models.machine import Machine
 from condmon.models.regimes import regime_key
 
-__all__ = ["Plan", "plan", "estimate_regime", "unusable", "has_balances", "ESTIMATOR_FUNCTIONS"]
+__all__ = ["Plan", "plan", "estimate_regime", "unusable", "has_balances", "ESTIMATOR_FUNCTIONS",
+           "STRUCTURE_MISMATCH"]
 
 FloatArray = NDArray[np.float64]
+
+#: How a rejection for a residual the model cannot follow begins.
+STRUCTURE_MISMATCH = "structure mismatch"
 IntArray = NDArray[np.intp]
 
 
@@ -261,7 +265,7 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
                 worst = max(inv.whiteness, key=lambda k: inv.whiteness[k])
                 limit = spec.max_residual_correlation
                 if inv.whiteness[worst] > limit:
-                    rejection = (f"structure mismatch: the residual of {worst} is strongly "
+                    rejection = (f"{STRUCTURE_MISMATCH}: the residual of {worst} is strongly "
                                  f"correlated ({inv.whiteness[worst]:.2f} > {limit:g}); the "
                                  "model misses part of the dynamics (friction, offset, "
                                  "another mode?)")
@@ -274,7 +278,19 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
         raise EstimationError(f"{source}: the estimate failed numerically "
                               f"({type(err).__name__}: {err})") from None
     white = {k.split(" ", 1)[1]: v for k, v in diagnostics.items() if k.startswith("whiteness ")}
-    if chosen in ("linear", "oe") and white and max(white.values()) > spec.residual_warning:
+    if (chosen in ("linear", "oe") and white
+            and max(white.values()) > spec.max_residual_correlation):
+        # The inverse route's limit. These routes start the model at rest (or at its
+        # declared state), so a record that does not is a transient the model cannot
+        # follow: the residual is then almost wholly one slow swing.
+        worst = max(white, key=lambda k: white[k])
+        rejection = (f"{STRUCTURE_MISMATCH}: the residual of {worst} is strongly correlated "
+                     f"({white[worst]:.2f} > {spec.max_residual_correlation:g}); the record "
+                     f"may not start at rest (the {chosen} route takes the model's declared "
+                     "initial state; --route simulation estimates it), or the model misses "
+                     "part of the dynamics" + (f"; the fit is also refused as {rejection}"
+                                               if rejection else ""))
+    elif chosen in ("linear", "oe") and white and max(white.values()) > spec.residual_warning:
         worst = max(white, key=lambda k: white[k])
         notes.append(f"possible structure mismatch: the residual of {worst} is correlated "
                      f"({white[worst]:.2f} > {spec.residual_warning:g}); the model may miss "
@@ -284,7 +300,7 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
     identified = set(idf.identifiable) if idf is not None else set(spec.unknowns)
     if idf is not None and not idf.identifiable and rejection is None:
         rejection = "not identifiable: " + "; ".join(f"{k}: {v}" for k, v in idf.reasons.items())
-    if rejection is None or rejection.startswith(("structure mismatch", "not identifiable")):
+    if rejection is None or rejection.startswith((STRUCTURE_MISMATCH, "not identifiable")):
         params, G = machine.report_jacobian({**consts, **values})
         pcov = G @ ucov @ G.T
         vals = np.array([params[k] for k in names])

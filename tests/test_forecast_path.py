@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from condmon.forecast.calibration import MIN_PITS, calibrate, path_pits
+from condmon.forecast.calibration import MIN_PEERS, MIN_PITS, calibrate, path_pits
 from condmon.forecast.measured import coverage_note, forecast_by, forecast_path
 from condmon.forecast.path import PathFit, _draws, fit_path, path_remaining
 from condmon.errors import DataError
@@ -104,9 +104,11 @@ def test_a_short_series_is_forecast_as_a_trend_and_says_so() -> None:
 
 def test_the_fleet_s_failed_units_recalibrate_the_levels() -> None:
     """PITs bunched in the middle (intervals too wide) narrow the interval; a
-    fleet too small to tell changes nothing."""
-    assert calibrate([0.5] * (MIN_PITS - 1), 1) is None
-    c = calibrate(np.linspace(0.35, 0.65, 40), 2)
+    fleet too small to tell changes nothing: too few forecasts, or forecasts
+    along fewer than three peers (one life's shape, not a fleet's spread)."""
+    assert calibrate([0.5] * (MIN_PITS - 1), 3) is None
+    assert calibrate(np.linspace(0.35, 0.65, 40), MIN_PEERS - 1) is None
+    c = calibrate(np.linspace(0.35, 0.65, 40), MIN_PEERS)
     assert c is not None and 0.35 <= c.low < c.median < c.high <= 0.65
     x = np.arange(1.0, 61.0)
     y = -0.3 * x + 0.5 * np.sin(x / 3.0)
@@ -114,7 +116,7 @@ def test_the_fleet_s_failed_units_recalibrate_the_levels() -> None:
     narrow = forecast_path(x, y, np.zeros(60), 0.5, -30.0, calibration=c)
     assert plain.remaining is not None and narrow.remaining is not None
     assert narrow.remaining[2] - narrow.remaining[1] < plain.remaining[2] - plain.remaining[1]
-    assert any(n.startswith("recalibrated on 40 forecasts along 2 failed peer") for n in
+    assert any(n.startswith("recalibrated on 40 forecasts along 3 failed peer") for n in
                narrow.notes)
     assert "each recalibrated on the other three" in coverage_note("path", True)
     peer = 2.0 - 0.01 * x + 0.004 * np.sin(x)
@@ -143,3 +145,8 @@ def test_imported_peers_recalibrate_a_unit_s_forecast(tmp_path: Path) -> None:
         assert f.remaining is not None
         truth = (1.9 - 1.4) / 0.006 - 40
         assert f.remaining[1] <= truth <= f.remaining[2]
+    with open_store("sqlite://") as store:   # one failed peer: not recalibrated
+        for i in (0, 3):
+            import_table(store, tmp_path / f"c{i}.csv", DECL, unit=f"C{i}")
+        f = forecast_unit(store, "C3").parameters[0].forecast
+        assert not any("failed peer(s)" in n for n in f.notes), f.notes

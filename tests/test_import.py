@@ -312,3 +312,37 @@ def test_another_declaration_of_the_same_name_is_refused_for_a_unit(tmp_path: Pa
             import_table(store, full, copy, unit="C1")
         assert len(store.history("C1")) == 20
         assert import_table(store, full, DECL, unit="C1")[0].added == 10
+
+
+@pytest.mark.parametrize("decl, start, end, last", [
+    ('thickness = { unit = "mm", end_of_life = "< 3 mm" }', 12.0, 2.5, "no-go"),
+    ('thickness = { unit = "mm", rated = 12.0, end_of_life = "< 25 % rated" }', 12.0, 2.5,
+     "no-go"),
+    ('thickness = { unit = "mm", end_of_life = "-75 %" }', 12.0, 2.5, "no-go"),
+    ('velocity = { unit = "mm/s", end_of_life = "> 7.1 mm/s" }', 2.0, 8.0, "no-go"),
+    ('thickness = { unit = "mm", end_of_life = "< 3 mm" }', 12.0, 0.9, None),
+    ('thickness = { unit = "mm", end_of_life = "< 3 mm" }', 1200.0, 1150.0, None),
+])
+def test_a_unit_heading_for_its_end_of_life_is_believed_on_its_way(
+        tmp_path: Path, decl: str, start: float, end: float, last: str | None) -> None:
+    """A brake pad from 12 mm to its 3 mm limit, a bearing from 2 mm/s to its
+    7.1 mm/s trip: the end of life is more than three times from the healthy
+    value, and every reading on the way was refused as a unit error, so the unit
+    could never reach no-go. Readings are believed up to three times beyond the
+    span from the baseline to the end of life: a pad read at 0.9 mm (past a third
+    of its limit) is still refused, and so is a table in hundredths of a mm."""
+    name = decl.split(" ", 1)[0]
+    model = tmp_path / "m.toml"
+    model.write_text(f'name = "wear"\n[indicators]\n{decl}\n')
+    table = tmp_path / "t.csv"
+    values = np.linspace(start, end, 30)
+    table.write_text(f"cycle,{name}\n" + "".join(f"{k + 1},{v:.4f}\n"
+                                                  for k, v in enumerate(values)))
+    with open_store("sqlite://") as store:
+        if last is None:
+            with pytest.raises(DataError, match="likely a unit error|values in another unit"):
+                import_table(store, table, model, unit="P1")
+            assert store.imported_hashes("P1") == set()
+        else:
+            got = import_table(store, table, model, unit="P1")
+            assert (got[0].added, got[0].status) == (30, last)

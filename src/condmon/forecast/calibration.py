@@ -14,8 +14,8 @@ sharpness", 2007): its 90 % interval between the PITs' 5 % and 95 % points,
 its median at their median.
 
 Nothing is set by hand: the levels are the PITs' own quantiles, and a fleet
-too small to tell them (fewer than :data:`MIN_PITS` forecasts) changes
-nothing. On NASA's cells, each recalibrated on the other three (leave one
+too small to tell them (fewer than :data:`MIN_PITS` forecasts, or fewer than
+:data:`MIN_PEERS` failed units) changes nothing. On NASA's cells, each recalibrated on the other three (leave one
 out), the 90 % interval's coverage went from 97 % to 82 %, α-λ from 0.26 to
 0.36 and the median width from 3.4 to 1.6 times the true remaining life
 (``benchmarks/bench_prognostics_real.py``).
@@ -31,11 +31,18 @@ from numpy.typing import ArrayLike
 from condmon.errors import CondmonError
 from condmon.forecast.path import PATH_MIN_TESTS, fit_path, path_remaining
 
-__all__ = ["MIN_PITS", "PER_PEER", "Calibration", "path_pits", "calibrate"]
+__all__ = ["MIN_PITS", "MIN_PEERS", "PER_PEER", "Calibration", "path_pits", "calibrate"]
 
 #: Fewest peer forecasts whose PITs may recalibrate a unit's: the 5 % and
 #: 95 % points of fewer than 19 cannot be told from the extremes. [-]
 MIN_PITS = 19
+#: Fewest failed peers that may recalibrate a unit's forecast. The forecasts
+#: along one peer's series share its one future, so their PITs are one life's
+#: shape, not a fleet's spread: one peer of another wear shape (a linear pad
+#: for an accelerating one) narrowed an interval until it left the truth out.
+#: Three, the fewest units from which condmon measures a spread between units
+#: (:mod:`condmon.monitor.group`). [-]
+MIN_PEERS = 3
 #: Most forecasts scored along one peer's series (evenly spread). [-]
 PER_PEER = 20
 #: Draws of each peer forecast (a PIT to ±1 %). [-]
@@ -122,7 +129,7 @@ def path_pits(x: ArrayLike, y: ArrayLike, threshold: float, seed: int = 0) -> li
 
 def calibrate(pits: ArrayLike, peers: int) -> Calibration | None:
     """The levels to read a forecast's draws at, from its fleet's PITs (None:
-    fewer than :data:`MIN_PITS`).
+    fewer than :data:`MIN_PITS`, or from fewer than :data:`MIN_PEERS` peers).
 
     Example
     -------
@@ -132,7 +139,7 @@ def calibrate(pits: ArrayLike, peers: int) -> Calibration | None:
     """
     p = np.asarray(pits, dtype=np.float64)
     p = p[np.isfinite(p)]
-    if p.size < MIN_PITS:
+    if p.size < MIN_PITS or peers < MIN_PEERS:
         return None
     lo, med, hi = (float(v) for v in np.quantile(np.clip(p, 0.0, 1.0), [0.05, 0.5, 0.95]))
     return Calibration(med, lo, hi, int(p.size), int(peers))

@@ -381,7 +381,17 @@ def import_table(store: HistoryStore, path: str | Path | pd.DataFrame,
 #: The largest believable change of an imported value from its unit's
 #: baseline, times or divided by (a "likely unit or sign error" beyond, as
 #: ``[estimation.max_change]`` of a declaration whose parameters are estimated).
+#: The band is widened to take in the declared end of life: a unit heading for
+#: it is believable on its way and a little past it (a 12 mm pad worn to its
+#: 3 mm limit, a bearing from 2 mm/s towards its 7.1 mm/s trip).
 MAX_CHANGE = 3.0
+
+#: How far a new baseline's mean may lie from a declared absolute end-of-life
+#: level, times or divided by: two decades. A healthy unit and its end of life
+#: can be far apart (a crack from 0.1 mm to 10 mm; ISO 10816's vibration zones
+#: from 0.28 to 4.5 mm/s), a unit prefix (milli, kilo) is a thousand. Against a
+#: declared rated value the band is :data:`MAX_CHANGE`: a new unit is near it.
+LEVEL_SPAN = 100.0
 
 
 @dataclass(frozen=True)
@@ -471,25 +481,25 @@ def _near_its_declared_size(path: Path, unit: str, first: pd.DataFrame, ind: Any
     values in another unit (mAh for a declared Ah) would else be trended,
     judged against a level a thousand times off and forecast."""
     mean = float(first[ind.name].mean())
-    sizes = [("rated value", ind.rated)] if ind.rated else []
+    sizes = [("rated value", ind.rated, MAX_CHANGE)] if ind.rated else []
     if ind.end_of_life is not None and ind.end_of_life.kind == "level":
-        sizes.append(("end-of-life level", ind.end_of_life.value))
-    for what, size in sizes:
+        sizes.append(("end-of-life level", ind.end_of_life.value, LEVEL_SPAN))
+    for what, size, factor in sizes:
         ratio = mean / size if size else math.nan
-        if 1.0 / MAX_CHANGE <= ratio <= MAX_CHANGE:
+        if 1.0 / factor <= ratio <= factor:
             continue
         raise DataError(f"{path}: rows {int(first['row'].iloc[0])}-{int(first['row'].iloc[-1])} "
                         f"(the baseline of unit {unit!r}), column {ind.name!r}: their mean "
                         f"{mean:.4g} is {ratio:.3g} times the declared {what} "
                         f"({size:g} {ind.unit}); values in another unit than {ind.unit}? "
-                        f"(more than {MAX_CHANGE:g}x either way is refused); nothing was stored")
+                        f"(more than {factor:g}x either way is refused); nothing was stored")
 
 
 def _believable(path: Path, unit: str, rows: pd.DataFrame, ind: Any, base: Baseline) -> None:
-    """Refuse rows whose value cannot be the unit's: its sign flipped, or beyond
-    :data:`MAX_CHANGE` times (or a fraction) of the baseline mean (a unit or
-    sign error, a missing reading written as 0); and an end of life the
-    baseline is already past."""
+    """Refuse rows whose value cannot be the unit's: its sign flipped, or more
+    than :data:`MAX_CHANGE` times beyond the span from the baseline mean to the
+    end of life (a unit or sign error, a missing reading written as 0); and an
+    end of life the baseline is already past."""
     mean = float(base.mean[base.parameters.index(ind.name)])
     level = ind.end_of_life.level(mean, ind.rated)
     if ind.end_of_life.reached(mean, mean, ind.rated):
@@ -498,18 +508,24 @@ def _believable(path: Path, unit: str, rows: pd.DataFrame, ind: Any, base: Basel
                         f"{level:.4g} {ind.unit}): check the end of life's direction and "
                         "level; nothing was stored")
     v = rows[ind.name].to_numpy(dtype=np.float64)
+    # the band: MAX_CHANGE times beyond the span from the baseline to the end of life
+    # (a level of the baseline's sign; else the baseline alone)
+    ends = [mean, level] if level * mean > 0 else [mean]
+    lo, hi = min(map(abs, ends)) / MAX_CHANGE, max(map(abs, ends)) * MAX_CHANGE
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = v / mean
-    odd = np.flatnonzero((ratio <= 0) | (ratio > MAX_CHANGE) | (ratio < 1.0 / MAX_CHANGE))
+    odd = np.flatnonzero((ratio <= 0) | (np.abs(v) > hi) | (np.abs(v) < lo))
     if odd.size:
         i = int(odd[0])
         row = int(rows["row"].iloc[i])
+        span = (f"{MAX_CHANGE:g}x beyond its baseline ({mean:.4g} {ind.unit}) and its end of "
+                f"life ({level:.4g} {ind.unit})" if len(ends) == 2 else
+                f"{MAX_CHANGE:g}x its baseline ({mean:.4g} {ind.unit})")
         why = ("of the other sign than its baseline, or 0: a sign error or a missing "
-               "reading" if ratio[i] <= 0 else f"{ratio[i]:.3g} times its baseline mean "
-               f"({mean:.4g} {ind.unit}): likely a unit error")
+               "reading" if ratio[i] <= 0 else f"{ratio[i]:.3g} times its baseline mean, "
+               f"more than {span}: likely a unit error")
         raise DataError(f"{path}: row {row} (line {row + 1}), column {ind.name!r}: {v[i]:g} is "
-                        f"{why} (more than {MAX_CHANGE:g}x either way is refused); nothing was "
-                        "stored")
+                        f"{why}; nothing was stored")
 
 
 def _store_unit(store: HistoryStore, plan: _Plan, model: IndicatorModel,

@@ -180,6 +180,9 @@ def test_identifiability_keeps_the_preferred_unknowns_it_can_tell_apart() -> Non
     assert "collinear with Tc" in idf.reasons["Tl"]
     assert idf.reasons["J"] == "the equations the route uses do not contain it"
     assert len(idf.singular_values) == 3 and idf.singular_values[-1] < 1e-8
+    # Tc carries the held Tl: 10 % more Tl, 10 % less Tc; Dv does not lean on it
+    assert idf.dependence == {"Tc": {"Tl": pytest.approx(-1.0)}}
+    assert idf.to_dict()["dependence"] == idf.dependence
     weak = assess_identifiability(X[:, :2] * 1e-3, ("Tc", "Dv"))
     assert weak.identifiable == () and "not excited" in weak.reasons["Tc"]
 

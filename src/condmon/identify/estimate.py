@@ -21,9 +21,9 @@ from condmon._threads import one_blas_thread
 from condmon.errors import CondmonError, DataError, ModelError
 from condmon.identify.defaults import list_estimators
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD, FitCheck
-from condmon.identify.greybox import auto_reason, choose_route
+from condmon.identify.greybox import NOT_AT_REST, auto_reason, choose_route
 from condmon.identify.regime_estimate import (
-    ESTIMATOR_FUNCTIONS, STRUCTURE_MISMATCH, estimate_regime, has_balances, plan, unusable,
+    ESTIMATOR_FUNCTIONS, estimate_regime, has_balances, plan, unusable,
 )
 from condmon.identify.result import EstimateResult
 from condmon.io.columns import Columns, as_columns
@@ -527,8 +527,7 @@ def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-m
                                excitation=excitation, fit_threshold=fit_threshold,
                                consts=consts, hold=hold, fixed=dict(fixed or {}),
                                notes=notes, sliced=sliced, common=common)
-        if auto and chosen in ("linear", "oe") and (res.rejection or "").startswith(
-                STRUCTURE_MISMATCH):
+        if auto and chosen == "linear" and (res.rejection or "").startswith(NOT_AT_REST):
             res = _by_simulation(records, res, regime, machine, method=method,
                                  excitation=excitation, fit_threshold=fit_threshold,
                                  consts=consts, hold=hold, fixed=dict(fixed or {}),
@@ -543,14 +542,13 @@ def _by_simulation(records: Sequence[Record], refused: EstimateResult, regime: s
                    machine: Machine, *, notes: Sequence[str], metadata: Mapping[str, Any] | None,
                    window: tuple[float, float] | None, common: dict[str, Any],
                    **given: Any) -> EstimateResult:
-    """Route "auto" after the linear (or output-error) route refused a residual it
-    cannot follow: the simulation error, which estimates the initial states, with a
-    note saying why. Its own result stands, accepted or not."""
+    """Route "auto" after the linear route refused a record that does not start
+    at rest: the simulation error, which estimates the initial states, with a note
+    saying why. Its own result stands, accepted or not."""
     plans = [plan(r, machine, "simulation", metadata, window) for r in records]
-    first = str(refused.rejection).split(";")[0]
+    first = str(refused.rejection).split(" and the linear route")[0]
     why = (f"route auto took the simulation error, which estimates the initial states: the "
-           f"{common['route']} route refused the record ({first}: a record that does not "
-           "start at rest, or dynamics the model misses)")
+           f"linear route refused the record ({first})")
     sliced = machine.regimes.declared or window is not None
     return estimate_regime(plans, regime, machine, "simulation", notes=[*notes, why],
                            sliced=sliced, common={**common, "route": "simulation"}, **given)

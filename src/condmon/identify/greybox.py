@@ -26,6 +26,7 @@ References
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -45,7 +46,8 @@ from condmon.models.transfer import ContinuousTF
 # sympy and scipy are imported by the routes and fall-backs that use them: the
 # linear route of a cached declaration (condmon.models.derived_cache) needs neither.
 
-__all__ = ["LinearRouteResult", "RouteResult", "linear_route", "choose_route", "auto_reason"]
+__all__ = ["LinearRouteResult", "RouteResult", "linear_route", "choose_route", "auto_reason",
+           "NOT_AT_REST"]
 
 FloatArray = NDArray[np.float64]
 
@@ -134,6 +136,7 @@ def _fit_and_diagnostics(est: TFEstimate, u: FloatArray, y: FloatArray,
         return fit_check(est.model, u, y, threshold), {}
     r2: dict[str, float] = {}
     out: dict[str, float] = {}
+    free = _free_response_basis(est.model.den, e.shape[0])
     for j, name in enumerate(est.model.outputs):
         figures = residual_figures(y[:, j], e[:, j])
         # -inf: a constant output, matched exactly (1) or not
@@ -141,8 +144,65 @@ def _fit_and_diagnostics(est: TFEstimate, u: FloatArray, y: FloatArray,
             1.0 if np.var(e[:, j]) == 0 else float("-inf"))
         out[f"nrmse {name}"] = figures.nrmse
         out[f"whiteness {name}"] = figures.whiteness
+        out[f"initial response {name}"], out[f"initial response rms {name}"] = \
+            _initial_response(free, e[:, j])
     fit = 100.0 * sum(r2.values()) / len(r2)
     return FitCheck(r2, fit, float(threshold), bool(fit >= threshold)), out
+
+
+#: How a linear-route refusal of a record that does not start at rest begins.
+NOT_AT_REST = "not at rest"
+
+#: Share of the simulation error an initial state must explain for the record
+#: to count as not starting at rest. Coloured sensor noise puts well under 1 %
+#: on the model's few decaying free responses; a record that starts away from
+#: rest puts most of its error there.
+_INITIAL_SHARE = 0.25
+
+
+def _not_at_rest(diag: Mapping[str, float], machine: Machine) -> str | None:
+    """Why the linear route cannot take a record (None: it can): an initial
+    state explains at least :data:`_INITIAL_SHARE` of an output's simulation
+    error, and that part is more than twice the sensor's declared noise."""
+    noise = {s.name: s.noise for s in machine.plant.sensors}
+    for key, share in diag.items():
+        if not key.startswith("initial response ") or key.startswith("initial response rms"):
+            continue
+        name = key[len("initial response "):]
+        rms = diag.get(f"initial response rms {name}", 0.0)
+        if share >= _INITIAL_SHARE and rms > 2.0 * noise.get(name, 0.0):
+            return (f"{NOT_AT_REST}: the record does not start where the model rests; an "
+                    f"initial state explains {100 * share:.0f} % of the simulation error of "
+                    f"{name} ({rms:.3g} RMS, {rms / noise[name]:.3g} times the sensor's "
+                    "noise) and the linear route starts the model at rest: --route "
+                    "simulation estimates the initial state" if noise.get(name) else
+                    f"{NOT_AT_REST}: an initial state explains {100 * share:.0f} % of the "
+                    f"simulation error of {name}, and the linear route starts the model at "
+                    "rest: --route simulation estimates the initial state")
+    return None
+
+
+def _free_response_basis(den: FloatArray, n: int) -> FloatArray:
+    """The model's free responses (shape (n, order)): what an initial state
+    adds to its output, ``q^-k / A(q)`` impulses for k = 0 .. order − 1 (any
+    output's free response is a combination of these; a common denominator)."""
+    from scipy.signal import lfilter
+
+    order = den.size - 1
+    g = lfilter([1.0], den, np.r_[1.0, np.zeros(n - 1)])   # (each column shifts it)
+    cols = [np.r_[np.zeros(k), g[: n - k]] for k in range(order)]
+    return np.column_stack(cols) if cols else np.zeros((n, 0))
+
+
+def _initial_response(free: FloatArray, e: FloatArray) -> tuple[float, float]:
+    """The share of the simulation error's energy an initial state explains
+    (least squares on the free responses) [-], and that part's RMS [output unit]."""
+    if free.shape[1] == 0 or not float(e @ e) > 0.0:
+        return 0.0, 0.0
+    coef, *_ = np.linalg.lstsq(free, e, rcond=None)
+    part = free @ coef
+    energy = float(part @ part)
+    return energy / float(e @ e), math.sqrt(energy / e.size)
 
 
 def _solve_coefficients(lin: LinearStructure, target: FloatArray, start: FloatArray,
@@ -302,10 +362,13 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
                                 outputs=lin.outputs, input_name=lin.input)
     fit, diag = _fit_and_diagnostics(est, u, y, fit_threshold)
     consts = machine.constants(constants)
-    known = np.array([consts[k] for k in machine.plant.parameter_names
-                      if k not in spec.unknowns])
     nan = {k: float("nan") for k in spec.unknowns}
     nan_cov = np.full((len(spec.unknowns),) * 2, np.nan)
+    moving = _not_at_rest(diag, machine)
+    if moving:
+        return LinearRouteResult(nan, nan_cov, est, None, fit, moving, diag)
+    known = np.array([consts[k] for k in machine.plant.parameter_names
+                      if k not in spec.unknowns])
     try:
         cont, J_cont = tf_d2c_jacobian(est.model)
     except ModelError as err:

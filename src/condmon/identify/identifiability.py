@@ -79,6 +79,13 @@ class Identifiability:
         ``collinearity_identified``; a reason gives the index of the set the
         unknown would have made). [-]
     limits : IdentifiabilityLimits
+    dependence : dict of str to dict of str to float
+        How each estimated unknown leans on each held one that appears in the
+        route's equations: its relative change per relative change of the held
+        value (``{estimated: {held: d ln estimated / d ln held}}``, the
+        least-squares re-fit of the estimated set's sensitivities to the held
+        one's; 0.5: the estimate moves by 5 % when the held value is 10 % off).
+        Entries below 0.001 are left out. [-]
 
     Example
     -------
@@ -98,6 +105,7 @@ class Identifiability:
     relative_se: dict[str, float] = field(default_factory=dict)
     collinearity: float = 1.0
     limits: IdentifiabilityLimits = IdentifiabilityLimits()
+    dependence: dict[str, dict[str, float]] = field(default_factory=dict)
 
     @property
     def complete(self) -> bool:
@@ -118,7 +126,8 @@ class Identifiability:
                 "relative_se": {k: float(v) for k, v in self.relative_se.items()},
                 "collinearity_identified": float(self.collinearity),
                 "limits": {"max_collinearity": self.limits.max_collinearity,
-                           "max_relative_se": self.limits.max_relative_se}}
+                           "max_relative_se": self.limits.max_relative_se},
+                "dependence": {k: dict(v) for k, v in self.dependence.items()}}
 
 
 def all_identifiable(parameters: Sequence[str]) -> Identifiability:
@@ -247,4 +256,22 @@ def assess_identifiability(sensitivity: ArrayLike, parameters: Sequence[str], *,
     rse = dict(zip((names[k] for k in chosen), map(float, kept[0]))) if chosen else {}
     gamma_set = kept[1] if chosen else 1.0
     return Identifiability(names, tuple(names[k] for k in chosen), reasons, sv, dirs, rse,
-                           gamma_set, lim)
+                           gamma_set, lim, _dependence(S, names, chosen, present))
+
+
+def _dependence(S: FloatArray, names: tuple[str, ...], chosen: list[int], present: list[int]
+                ) -> dict[str, dict[str, float]]:
+    """``{estimated: {held: d ln estimated / d ln held}}``: a held value off by
+    a relative ``δ`` leaves the residuals the estimated set re-fits best by
+    ``−(SₖᵀSₖ)⁻¹ Sₖᵀ Sₕ δ`` (the columns are per relative change)."""
+    held = [h for h in present if h not in chosen]
+    if not chosen or not held:
+        return {}
+    lean, *_ = np.linalg.lstsq(S[:, chosen], S[:, held], rcond=None)
+    out: dict[str, dict[str, float]] = {}
+    for i, k in enumerate(chosen):
+        row = {names[h]: -float(lean[i, j]) for j, h in enumerate(held)
+               if abs(lean[i, j]) >= 1e-3}
+        if row:
+            out[names[k]] = row
+    return out

@@ -278,19 +278,7 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
         raise EstimationError(f"{source}: the estimate failed numerically "
                               f"({type(err).__name__}: {err})") from None
     white = {k.split(" ", 1)[1]: v for k, v in diagnostics.items() if k.startswith("whiteness ")}
-    if (chosen in ("linear", "oe") and white
-            and max(white.values()) > spec.max_residual_correlation):
-        # The inverse route's limit. These routes start the model at rest (or at its
-        # declared state), so a record that does not is a transient the model cannot
-        # follow: the residual is then almost wholly one slow swing.
-        worst = max(white, key=lambda k: white[k])
-        rejection = (f"{STRUCTURE_MISMATCH}: the residual of {worst} is strongly correlated "
-                     f"({white[worst]:.2f} > {spec.max_residual_correlation:g}); the record "
-                     f"may not start at rest (the {chosen} route takes the model's declared "
-                     "initial state; --route simulation estimates it), or the model misses "
-                     "part of the dynamics" + (f"; the fit is also refused as {rejection}"
-                                               if rejection else ""))
-    elif chosen in ("linear", "oe") and white and max(white.values()) > spec.residual_warning:
+    if chosen in ("linear", "oe") and white and max(white.values()) > spec.residual_warning:
         worst = max(white, key=lambda k: white[k])
         notes.append(f"possible structure mismatch: the residual of {worst} is correlated "
                      f"({white[worst]:.2f} > {spec.residual_warning:g}); the model may miss "
@@ -333,7 +321,8 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
             {k: v for k, v in zip(names, se) if k in trended})
     if held and idf is not None and idf.held:
         notes.append("held (not identified by this record): " + ", ".join(
-            f"{k} at its {origin.get(k, 'nominal')} value" for k in idf.held))
+            f"{k} at its {origin.get(k, 'nominal')} value" for k in idf.held)
+            + _leaning(idf, values, ucov, list(spec.unknowns)))
     listed: list[Window] = []
     for i, p in enumerate(plans):
         used_j = 0
@@ -354,3 +343,28 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
         notes=tuple(notes), diagnostics=diagnostics, regime=regime, windows=tuple(listed),
         identifiability=idf, held=held, trended=trended, initial_states=initial_states,
         **common)
+
+
+def _leaning(idf: Identifiability, values: Mapping[str, float], ucov: FloatArray,
+             unknowns: list[str]) -> str:
+    """The clause saying which estimates move, beyond their own standard error,
+    when a held value is 10 % off ('' when none does): they hold only at it."""
+    parts = []
+    for h in idf.held:
+        moved = []
+        for k, lean in idf.dependence.items():
+            if h not in lean or k not in values or k not in unknowns:
+                continue
+            i = unknowns.index(k)
+            rel = (math.sqrt(max(float(ucov[i, i]), 0.0)) / abs(values[k])
+                   if values[k] else math.inf)
+            if abs(0.1 * lean[h]) > rel:
+                moved.append(f"{k} by {10 * lean[h]:+.2g} % (its standard error "
+                             f"{100 * rel:.2g} %)")
+        if moved:
+            parts.append(f"10 % more {h} moves " + ", ".join(moved))
+    if not parts:
+        return ""
+    return ("; the estimates hold only at the held value" + ("s" if len(parts) > 1 else "")
+            + ": " + "; ".join(parts))
+

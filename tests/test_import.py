@@ -346,3 +346,21 @@ def test_a_unit_heading_for_its_end_of_life_is_believed_on_its_way(
         else:
             got = import_table(store, table, model, unit="P1")
             assert (got[0].added, got[0].status) == (30, last)
+
+
+def test_a_bad_cell_of_a_wide_table_names_the_file_s_column(tmp_path: Path) -> None:
+    """A column per unit (``--indicator``): a bad cell is named by its unit's
+    column, not by the indicator's name, which the file does not have; ``--unit``
+    beside it is refused, not ignored."""
+    wide = tmp_path / "w.csv"
+    wide.write_text("cycle,A1,A2\n" + "".join(f"{k},{1.9 - 0.001 * k},{1.8 - 0.001 * k}\n"
+                                               for k in range(1, 10)) + "10,1.89,bad\n")
+    with open_store("sqlite://") as store:
+        with pytest.raises(DataError, match=re.escape(
+                "row 10 (line 11), column 'A2': 'bad' is not a finite number")):
+            import_table(store, wide, DECL, indicator="capacity")
+        with pytest.raises(DataError, match=re.escape(
+                "--unit Z with --indicator capacity: a table of a column per unit names its "
+                "units by its columns ('A1', 'A2'); omit --unit")):
+            import_table(store, wide, DECL, indicator="capacity", unit="Z")
+        assert store.imported_hashes("A1") == set()

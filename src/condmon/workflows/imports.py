@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import hashlib
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -138,9 +138,11 @@ def _decimal_commas(path: Path, df: pd.DataFrame) -> pd.DataFrame:
     return df
 
 
-def _numbers(path: Path, df: pd.DataFrame, col: str, *, nonneg: bool = False) -> np.ndarray:
+def _numbers(path: Path, df: pd.DataFrame, col: str, *, nonneg: bool = False,
+             label: str | None = None) -> np.ndarray:
     """A column as float64, every cell a finite number of sane size (the first
-    bad one named by the table's row)."""
+    bad one named by the table's row, and by ``label``, the file's name of the
+    column, when it has another)."""
     raw = df[col]
     text = raw if pd.api.types.is_numeric_dtype(raw) else raw.astype(str).str.strip()
     vals = pd.to_numeric(text, errors="coerce").to_numpy(dtype=np.float64)
@@ -153,8 +155,8 @@ def _numbers(path: Path, df: pd.DataFrame, col: str, *, nonneg: bool = False) ->
             else "empty" if str(shown).strip() == "" else \
             f"beyond {_HUGE:.0e}" if np.isfinite(vals[i]) else "not a finite number"
         row = int(df["row"].iloc[i]) if "row" in df else i + 1
-        raise DataError(f"{path}: row {row} (line {row + 1}), column {col!r}: {shown!r} is "
-                        f"{what}; nothing was stored")
+        raise DataError(f"{path}: row {row} (line {row + 1}), column {(label or col)!r}: "
+                        f"{shown!r} is {what}; nothing was stored")
     return vals
 
 
@@ -198,6 +200,11 @@ def read_indicator_table(path: str | Path | pd.DataFrame, model: IndicatorModel,
                         f"has {', '.join(repr(c) for c in df.columns)}{hint}")
     if indicator is not None:
         model.indicator(indicator)
+        if unit is not None:
+            raise DataError(f"{p}: --unit {unit} with --indicator {indicator}: a table of a "
+                            "column per unit names its units by its columns "
+                            f"({', '.join(repr(c) for c in df.columns if c not in axes)}); "
+                            "omit --unit")
         clash = [c for c in df.columns if c in (*names, "unit")]
         if clash:
             raise DataError(f"{p}: column {clash[0]!r} in a table of a column per unit "
@@ -236,12 +243,13 @@ def read_indicator_table(path: str | Path | pd.DataFrame, model: IndicatorModel,
     for name, g in groups.items():
         if not name:
             raise DataError(f"{p}: row {int(g['row'].iloc[0])}: the unit is empty")
-        out[name] = _checked(p, g.reset_index(drop=True), axes, names)
+        out[name] = _checked(p, g.reset_index(drop=True), axes, names,
+                             {indicator: name} if indicator is not None else {})
     return out
 
 
-def _checked(path: Path, g: pd.DataFrame, axes: list[str], names: Sequence[str]
-             ) -> pd.DataFrame:
+def _checked(path: Path, g: pd.DataFrame, axes: list[str], names: Sequence[str],
+             labels: Mapping[str, str] | None = None) -> pd.DataFrame:
     rows = g["row"].to_numpy()
     out = pd.DataFrame({"row": rows})
 
@@ -272,7 +280,7 @@ def _checked(path: Path, g: pd.DataFrame, axes: list[str], names: Sequence[str]
                             "the table; nothing was stored")
     for n in names:
         if n in g.columns:
-            out[n] = _numbers(path, g, n)
+            out[n] = _numbers(path, g, n, label=(labels or {}).get(n))
             se = f"{n}_se"
             out[se] = _numbers(path, g, se, nonneg=True) if se in g.columns else np.nan
     return out

@@ -134,9 +134,17 @@ def route_signals(rec: Record, machine: Machine, cutoff: float) -> dict[str, Flo
     for state, of in inv.derivation.items():
         if state not in sig and of in sig:
             sig[state] = np.gradient(sig[of], rec.dt)
-    for name in plant.input_names:
-        if name in rec.columns:
-            sig[name] = _lowpass(rec[name], cutoff, fs)
+    for i in plant.inputs:
+        if i.name in rec.columns:
+            u = np.asarray(rec[i.name], dtype=np.float64)
+            if i.intersample == "zoh":
+                # Held over each sample, what acts around a sample's time is on
+                # average half a sample older than the sample: the mean of each
+                # sample and the one before puts it back on the samples' times.
+                # Read as it is, the half-sample lead biased a pendulum's damping
+                # by 3 % (its gravity torque's lead reads as damping).
+                u = np.r_[u[:1], 0.5 * (u[1:] + u[:-1])]
+            sig[i.name] = _lowpass(u, cutoff, fs)
     for state in list(sig):
         if state in plant.state_names:
             sig[f"d_{state}"] = np.gradient(sig[state], rec.dt)

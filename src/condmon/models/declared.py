@@ -70,13 +70,18 @@ class Parameter:
 @dataclass(frozen=True)
 class Input:
     """A known input signal; ``nominal`` is a parameter's name or a number [unit];
-    ``range`` the signal's plausible span [unit]."""
+    ``range`` the signal's plausible span [unit]; ``intersample`` how a record's
+    samples of it act between sample times: ``"zoh"`` held over each sample (a
+    controller's command through a DAC; condmon's simulations take every input
+    so), ``"bl"`` the values at the sample times of a smooth signal (a measured
+    force or current) — the names of MATLAB's ``InterSample``."""
 
     name: str
     nominal: str | float
     unit: str = ""
     description: str = ""
     range: tuple[float, float] = (-math.inf, math.inf)
+    intersample: str = "zoh"
 
 
 @dataclass(frozen=True)
@@ -411,6 +416,10 @@ def _table(doc: Mapping[str, Any], key: str, source: str) -> dict[str, Any]:
     return value
 
 
+#: How a record's samples of an input act between sample times (:class:`Input`).
+INTERSAMPLE = {"zoh": "held over each sample", "bl": "the values at the sample times"}
+
+
 def _fields(entry: Any, where: str, required: tuple[str, ...], optional: tuple[str, ...]
             ) -> dict[str, Any]:
     if not isinstance(entry, dict):
@@ -442,12 +451,16 @@ def _from_doc(doc: Mapping[str, Any], src: str) -> PlantModel:
                                 bool(f.get("fault", False)), rng))
     inputs = []
     for k, e in _table(doc, "inputs", src).items():
-        f = _fields(e, f"{src}[inputs.{k}]", ("nominal",), (*text, "range"))
+        f = _fields(e, f"{src}[inputs.{k}]", ("nominal",), (*text, "range", "intersample"))
         nominal = f["nominal"] if isinstance(f["nominal"], str) else \
             _number(f["nominal"], f"{src}[inputs.{k}].nominal")
+        hold = f.get("intersample", "zoh")
+        if hold not in INTERSAMPLE:
+            raise ConfigError(f"{src}[inputs.{k}].intersample: {hold!r}; allowed: "
+                              + ", ".join(f"{v!r} ({what})" for v, what in INTERSAMPLE.items()))
         inputs.append(Input(k, nominal, f.get("unit", ""), f.get("description", ""),
                             _range(f, f"{src}[inputs.{k}].range") if "range" in f
-                            else (-math.inf, math.inf)))
+                            else (-math.inf, math.inf), hold))
     variables = [Variable(k, str(_fields(e, f"{src}[variables.{k}]", ("equation",), text)["equation"]),
                           e.get("unit", ""), e.get("description", ""))
                  for k, e in _table(doc, "variables", src).items()]

@@ -336,17 +336,23 @@ def test_multiple_shooting_recovers_an_integrating_axis(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(("scale", "cutoff", "why"), [
-    (100.0, 0.2, "the whole record simulated from its optimum misses by"),
+    (100.0, 0.2, "simulated whole, the parameters move by"),
+    (200.0, 0.2, "simulated whole, the parameters move by"),
     (10.0, 0.1, "simulated whole, the parameters move by"),
+    (10.0, -1.0, "the whole record simulated from its optimum misses by"),
 ])
 def test_a_drifting_fit_keeps_its_segments_and_refines_them(tmp_path: Path, scale: float,
                                                             cutoff: float, why: str) -> None:
     """The same axis pushed by a force nobody recorded (a slow random
-    disturbance: std 7.9 N, or 0.8 N, against the recorded 20 N). Either the whole
-    record cannot be simulated, or simulating it whole bends the parameters to
-    carry the drift (f0 came out 7 standard errors off that way): the segments'
-    figures are kept, the segments are cut finer until the parameters stop moving
-    by more than a standard error, and the truth lies within the error bars."""
+    disturbance: std 7.9 N, 16 N or 0.8 N, against the recorded 20 N; or a step
+    of 10 N half way). Either the whole record cannot be simulated, or simulating
+    it whole bends the parameters to carry the drift (f0 came out 7 standard
+    errors off that way; judged against the segments' error bars, as the whole
+    record's own grow with the drift's error and let 16 N pass, f0 2.5 standard
+    errors off): the segments' figures are kept, the segments are cut finer
+    until the parameters stop moving by more than a standard error, and the
+    truth lies within the error bars (for the step, m and c: f0 then has two
+    values)."""
     from scipy.signal import butter, sosfiltfilt
 
     decl = tmp_path / "axis.toml"
@@ -355,18 +361,20 @@ def test_a_drifting_fit_keeps_its_segments_and_refines_them(tmp_path: Path, scal
     comp = m.plant.compile()
     t = np.arange(1000) / 100.0
     F = 20.0 * np.sin(2 * np.pi * 0.3 * t) + 8.0 * np.sign(np.sin(2 * np.pi * 1.1 * t))
-    d = scale * sosfiltfilt(butter(2, cutoff, fs=100, output="sos"),
-                            np.random.default_rng(7).standard_normal(len(t)))
+    d = (scale * sosfiltfilt(butter(2, cutoff, fs=100, output="sos"),
+                             np.random.default_rng(7).standard_normal(len(t)))
+         if cutoff > 0 else np.where(t > 5.0, scale, 0.0))
     truth = {"m": 10.0, "c": 25.0, "f0": 1.5}
-    sim = simulate_recorded(comp, (F + d - d.mean())[:, None], 0.01, np.zeros(2),
-                            comp.parameter_vector(truth), substeps=4)
+    sim = simulate_recorded(comp, (F + d - (d.mean() if cutoff > 0 else 0.0))[:, None], 0.01,
+                            np.zeros(2), comp.parameter_vector(truth), substeps=4)
     y = sim.outputs[:, 0] + 1e-5 * np.random.default_rng(1).standard_normal(len(t))
     res = estimate(pd.DataFrame({"t": t, "F": F, "qm": y}), m)
     said = " ".join(res.notes)
     assert why in said and "so the figures are the segments'" in said, res.notes
     assert "segments refined 10 -> 20 per record" in said and "the figures are those of 20" in said
     for k, v in truth.items():
-        assert abs(res.parameters[k] - v) < 3 * res.std_errors[k], (k, res.parameters)
+        if cutoff > 0 or k != "f0":
+            assert abs(res.parameters[k] - v) < 3 * res.std_errors[k], (k, res.parameters)
 
 
 def test_initial_state_settings_are_checked(tmp_path: Path) -> None:

@@ -213,9 +213,10 @@ def simulation_route(rec: Record | Sequence[Record], machine: Machine,
             zs2, cost2, n2 = _solve(single, zs, *fit_bounds(single), sigma, xscale, 50)
             evaluations += n2
             # the whole record may only polish what the segments found: parameters that
-            # move beyond their standard errors when the segments are joined were bent
-            # to carry a drift the model does not have
-            se = np.sqrt(np.maximum(np.diag(_covariance(single, zs2, sigma, xscale)[3])[:nf],
+            # move beyond the segments' standard errors when the segments are joined
+            # were bent to carry a drift the model does not have (the whole record's
+            # own error bars grow with the drift's error, so they would let it pass)
+            se = np.sqrt(np.maximum(np.diag(_covariance(prob, z, sigma, xscale)[3])[:nf],
                                     1e-300))
             shift = float(np.max(np.abs(zs2[:nf] - z[:nf]) / se)) if nf else 0.0
             if shift <= 1.0:

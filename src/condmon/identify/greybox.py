@@ -186,7 +186,7 @@ def _free_response_basis(den: FloatArray, n: int) -> FloatArray:
     """The model's free responses (shape (n, order)): what an initial state
     adds to its output, ``q^-k / A(q)`` impulses for k = 0 .. order − 1 (any
     output's free response is a combination of these; a common denominator)."""
-    from scipy.signal import lfilter
+    from condmon._filter import lfilter   # (scipy.signal: a second's import the linear route spares)
 
     order = den.size - 1
     g = lfilter([1.0], den, np.r_[1.0, np.zeros(n - 1)])   # (each column shifts it)

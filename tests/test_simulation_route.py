@@ -785,3 +785,46 @@ def test_a_route_asked_for_is_not_said_to_be_auto_s_choice(tanks: Path, tmp_path
     assert not any(n.startswith("route auto") for n in asked.notes)
     assert any(n.startswith("route auto took the simulation error")
                for n in estimate(rec, str(tanks)).notes)
+
+
+def test_a_scaling_the_record_cannot_see_names_every_unknown_in_it(tmp_path: Path) -> None:
+    """x' = (g u − x/R)/C seen through x: only g/C and R C show, so g, R and C
+    scale together (g and C up by k, R down by k). The refusal names all three
+    (the column-normalised direction named only some) and says how to fix one."""
+    model = tmp_path / "scale.toml"
+    model.write_text("""
+name = "scaled"
+[parameters]
+C = { value = 400.0, unit = "J/K" }
+R = { value = 0.5, unit = "K/W" }
+g = { value = 0.8, unit = "-" }
+[inputs]
+u = { nominal = 0.0, unit = "W" }
+[states]
+x = { derivative = "(g*u - x/R)/C", initial = 0.0, unit = "K" }
+[sensors]
+y = { measures = "x", noise = 0.05, unit = "K" }
+[test]
+duration = 2000.0
+sample_rate = 1.0
+[estimation]
+estimate = ["C", "R", "g"]
+route = "simulation"
+starts = 1
+min_duration = 100.0
+sample_interval = [0.05, 20.0]
+[estimation.plausible]
+C = { gt = 0.0 }
+R = { gt = 0.0 }
+g = { gt = 0.0 }
+""")
+    c = get_model(str(model)).plant.compile()
+    n = 2000
+    u = np.repeat(30.0 + 20.0 * np.sign(np.random.default_rng(1).standard_normal(n // 100 + 1)),
+                  100)[:n]
+    sim = simulate_recorded(c, u[:, None], 1.0, np.zeros(1),
+                            c.parameter_vector({"C": 500.0, "R": 0.4, "g": 1.0}), substeps=2)
+    y = sim.outputs[:, 0] + 0.05 * np.random.default_rng(2).standard_normal(n)
+    with pytest.raises(EstimationError, match=r"the direction it cannot see: C, R, g; give one "
+                                              r"of C, R, g a known value \(--constants g=VALUE\)"):
+        estimate(pd.DataFrame({"t": np.arange(n, dtype=float), "u": u, "y": y}), str(model))

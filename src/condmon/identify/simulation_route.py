@@ -335,10 +335,11 @@ def _refine(records: Sequence[Record], machine: Machine, start: Mapping[str, flo
                                   f"{per[-1]} segments{tail}")
 
 
-def _trading(prob: FitProblem, J: FloatArray) -> str:
+def _trading(prob: FitProblem, J: FloatArray, z: FloatArray, xscale: FloatArray) -> str:
     """Which unknowns make up the direction the record does not see: the
-    weakest singular vector of the column-normalised Jacobian, its entries
-    above a third of the largest."""
+    weakest singular vector of the column-normalised Jacobian, taken back to
+    the unknowns' own (scaled) units, its entries above a third of the largest;
+    and how to fix one of them."""
     with np.errstate(all="ignore"):
         norms = np.linalg.norm(J, axis=0)
         if not np.all(np.isfinite(J)):
@@ -349,14 +350,24 @@ def _trading(prob: FitProblem, J: FloatArray) -> str:
         except np.linalg.LinAlgError:
             return ""
     names = list(prob.free)
-    owners = state_owners(prob)
+    owners = sorted(state_owners(prob).items())
     states = prob.machine.plant.state_names
-    names += [f"{states[j]} at segment {seg + 1}" for _, (seg, j) in sorted(owners.items())]
+    names += [f"{states[j]} at segment {seg + 1}" for _, (seg, j) in owners]
     dead = [names[i] for i in np.flatnonzero(norms == 0)]
     if dead:
         return f"; the record does not move the outputs with {', '.join(dead)}"
-    big = np.flatnonzero(np.abs(v) >= np.max(np.abs(v)) / 3)
-    return f"; the direction it cannot see: {', '.join(names[i] for i in big)}"
+    # In relative units (a parameter's own size, a state's spread): the
+    # normalised matrix's null vector weighs each entry by its column's norm,
+    # and a scaling that moves five parameters alike was named by three.
+    nf = len(prob.free)
+    size = np.r_[np.abs(z[:nf]), [xscale[j] for _, (_, j) in owners]][: v.size]
+    own = np.abs(v / norms / np.where(size > 0, size, 1.0))   # (the move over the size)
+    big = np.flatnonzero(own >= np.max(own) / 3)
+    named = [names[i] for i in big]
+    fix = [n for n in named if n in prob.free]
+    hint = (f"; give one of {', '.join(fix)} a known value (--constants {fix[-1]}=VALUE), "
+            "or leave it out of [estimation] estimate" if len(fix) > 1 else "")
+    return f"; the direction it cannot see: {', '.join(named)}{hint}"
 
 
 def _on_bounds(prob: FitProblem, z: FloatArray) -> list[str]:
@@ -415,7 +426,7 @@ def _covariance(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: Floa
         raise EstimationError(f"simulation-error route: the sensitivities are singular "
                               f"(condition number {cond:.3g}); the record does not excite "
                               "every unknown, or an initial state and a parameter trade off"
-                              + _trading(prob, J)
+                              + _trading(prob, J, z, xscale)
                               + (f"; at the optimum {missed[0]}" if missed else ""))
     white = np.asarray(np.linalg.inv(info), dtype=np.float64)
     cov, widened, batches = batch_widened(prob, J, e / resid_sd, white)

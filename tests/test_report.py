@@ -264,6 +264,30 @@ def test_undated_history_is_numbered_by_test_id() -> None:
     high, _ = symptom_degree(30.0, 10.0, 20.0, 40.0)  # what the monitor computes
     assert d.implied.tolist() == pytest.approx([float(high)]) == [2 / 3]
 
+    # an imported unit's own usage, when every test counts it: its cycles, not its ids
+    d = trend_data(h.assign(cycle=[30.0, 35.0, 40.0]), "R",
+                   {1: Baseline(("R",), (1.0,), (0.05,), 5)}, 20.0, 40.0, 2.0)
+    assert d.test_ids == (4,) and d.x.tolist() == [30.0] and d.xlabel == "cycle"
+
+
+def test_an_imported_unit_s_page_draws_its_cycles_and_no_empty_fit_figure(
+        tmp_path: Path) -> None:
+    """A table of measured capacities: no model fit to draw (the fit figure was
+    an empty frame), and the trend runs along the cycles the table counts."""
+    from condmon.workflows.imports import import_table
+
+    table = tmp_path / "c.csv"
+    table.write_text("cycle,capacity\n" + "".join(f"{10 * k},{1.9 - 0.004 * k:.4f}\n"
+                                                    for k in range(1, 41)))
+    decl = Path(__file__).parents[1] / "examples" / "batteries" / "li-ion-18650.toml"
+    with open_store(f"sqlite:///{tmp_path / 'h.db'}") as store:
+        import_table(store, table, decl, unit="C1")
+        files = write_report(store, "C1", tmp_path / "out")
+    names = sorted(p.name for p in files.figures)
+    assert names == ["C1-symptoms.png", "C1-trends.png"], names
+    assert files.trends[0].xlabel == "cycle"
+    assert files.trends[0].x.tolist() == [10.0 * k for k in range(6, 41)]   # the checks
+
 
 def test_report_cli_all_units_one_unit_and_read_only(
         fleet: tuple[str, dict[str, int]], tmp_path: Path,

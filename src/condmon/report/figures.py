@@ -193,11 +193,12 @@ def _bands(ax: Any, r1: float, r2: float, top: float, steps: int = 6) -> None:
 
 
 def _grid(n: int, row_height: float, title_height: float = 0.9) -> tuple[Any, Any]:
-    """A figure of ``n`` panels in two columns sharing x; the unused one is
-    switched off and the panel above it shows the x tick labels."""
+    """A figure of ``n`` panels in two columns sharing x (one panel: the
+    whole width); the unused one is switched off and the panel above it shows
+    the x tick labels."""
     rows = (max(n, 1) + 1) // 2
     fig = new_figure(10, row_height * rows + title_height)
-    axes = fig.subplots(rows, 2, sharex=True, squeeze=False)
+    axes = fig.subplots(rows, 2 if n > 1 else 1, sharex=True, squeeze=False)
     for ax in axes.ravel()[n:]:
         ax.axis("off")
     if n % 2 and rows > 1:
@@ -254,7 +255,7 @@ def trend_figure(trends: Sequence[TrendData], bands: Sequence[ForecastBand] = ()
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
-    from condmon.report.trends import FORECAST_LABEL, error_bar
+    from condmon.report.trends import FORECAST_LABEL, USAGE_LABELS, error_bar
 
     n = len(trends)
     fig, axes = _grid(n, 2.4, 1.4)
@@ -290,8 +291,9 @@ def trend_figure(trends: Sequence[TrendData], bands: Sequence[ForecastBand] = ()
         ax.grid(alpha=0.3)
     k = trends[0].k if trends else float("nan")
     if trends:
-        _label_tests(axes.ravel()[:n], trends[0].x, trends[0].test_ids,
-                     [d.change for d in trends])
+        if trends[0].xlabel not in USAGE_LABELS:   # (on a usage axis, its own numbers)
+            _label_tests(axes.ravel()[:n], trends[0].x, trends[0].test_ids,
+                         [d.change for d in trends])
         for ax in _bottom_axes(axes, n):
             ax.set_xlabel(trends[0].xlabel)
         if _dated(trends[0].x):
@@ -342,6 +344,8 @@ def plot_trends(trends: Sequence[TrendData], path: Target,
 
 def fit_figure(data: FitData, threshold: float) -> Any:
     """The fit figure of :func:`plot_fits` (a matplotlib ``Figure``)."""
+    from condmon.report.trends import USAGE_LABELS
+
     fig = new_figure(10, 3.2)
     ax = fig.subplots()
     ax.axhline(threshold, color="#c0392b", ls="--", lw=1, label=f"threshold {threshold:g} %")
@@ -350,7 +354,8 @@ def fit_figure(data: FitData, threshold: float) -> Any:
         sel = status == st
         ax.plot(data.x[sel], data.fit[sel], "x" if st in ("rejected", "retest") else "o",
                 ms=5, color=STATUS_COLOURS.get(st, "k"), label=st)
-    _label_tests([ax], data.x, data.test_ids, [data.fit])
+    if data.xlabel not in USAGE_LABELS:
+        _label_tests([ax], data.x, data.test_ids, [data.fit])
     ax.set_xlabel(data.xlabel)
     if _dated(data.x):
         _slant_dates(fig)

@@ -148,7 +148,9 @@ def _tests_part(store: HistoryStore, unit: str, hist: Any, cfg: MonitorConfig, s
                    for p in params)
     fits = fit_data(hist)
     notes = unexplained(trends)
-    figs = [F.plot_fits(fits, fit_threshold, out / f"{name}-fits.png")]
+    # (an imported unit's checks have no model fit: no figure of nothing)
+    figs = ([F.plot_fits(fits, fit_threshold, out / f"{name}-fits.png")]
+            if any(v == v for v in fits.fit.tolist()) else [])   # (v == v: not NaN)
     body.append("<h2>Trends</h2>")
     if trends and trends[0].test_ids:
         bands = forecast_bands(try_forecast(store, unit)[0])

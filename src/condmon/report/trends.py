@@ -81,28 +81,53 @@ def _dated(frame: pd.DataFrame) -> bool:
     return "test_date" in frame and bool(frame["test_date"].notna().any())
 
 
+#: A unit's own usage axis, as imported tables count it, and its axis label.
+_USAGE = {"cycle": "cycle", "hours": "operating hours"}
+#: The x labels of a usage axis: its values are cycles or hours, not test ids.
+USAGE_LABELS = tuple(_USAGE.values())
+
+
+def _usage(frame: pd.DataFrame) -> str | None:
+    """The usage column every test of ``frame`` counts (``cycle`` or ``hours``:
+    an imported unit's axis), or None."""
+    for col in _USAGE:
+        if col in frame and len(frame) and bool(frame[col].notna().all()):
+            return col
+    return None
+
+
 def axis_label(frame: pd.DataFrame) -> str:
     """What the x axis of ``frame``'s figures shows.
 
     Test dates when any test has one (a test without one is placed at the
-    time it was stored, and the label says so), else test ids.
+    time it was stored, and the label says so); else the unit's usage when
+    every test counts it (an imported table's cycles or operating hours);
+    else test ids.
 
     Examples
     --------
     >>> axis_label(pd.DataFrame({"test_date": [pd.NaT]}))
     'test # (no test dates recorded)'
+    >>> axis_label(pd.DataFrame({"test_date": [pd.NaT], "cycle": [1.0]}))
+    'cycle'
     """
     if not _dated(frame):
-        return "test # (no test dates recorded)"
+        usage = _usage(frame)
+        return _USAGE[usage] if usage else "test # (no test dates recorded)"
     if bool(frame["test_date"].isna().any()):
         return "date (UTC): test date, else when stored"
     return "test date (UTC)"
 
 
-def _ordered(rows: pd.DataFrame, dated: bool) -> tuple[pd.DataFrame, np.ndarray[Any, Any]]:
-    """``rows`` in the order of the x axis, and their x values (dates or ids)."""
+def _ordered(rows: pd.DataFrame, dated: bool, usage: str | None = None
+             ) -> tuple[pd.DataFrame, np.ndarray[Any, Any]]:
+    """``rows`` in the order of the x axis, and their x values (dates, the
+    ``usage`` column every test of the unit counts, or ids)."""
     if not dated:
         rows = rows.sort_index()
+        if usage:
+            rows = rows.sort_values(usage, kind="stable")
+            return rows, rows[usage].to_numpy(dtype=np.float64)
         return rows, np.asarray(rows.index, dtype=np.float64)
     rows = rows.sort_index().sort_values("date", kind="stable")
     return rows, rows["date"].dt.tz_convert("UTC").dt.tz_localize(None).to_numpy()
@@ -235,7 +260,7 @@ def trend_data(history: pd.DataFrame, parameter: str, baselines: Mapping[int, Ba
     >>> d.test_ids, float(d.width[0]), d.spread, bool(d.reaches_r1[0])
     ((7,), 4.0, 4.0, False)
     """
-    rows, x = _ordered(_trended(history), _dated(history))
+    rows, x = _ordered(_trended(history), _dated(history), _usage(history))
 
     def stats(bid: Any) -> tuple[float, float]:
         b = baselines.get(int(bid)) if pd.notna(bid) else None
@@ -332,7 +357,7 @@ def fit_data(history: pd.DataFrame) -> FitData:
     (3,)
     """
     kept = history[~history["excluded"].astype(bool)] if len(history) else history
-    rows, x = _ordered(kept, _dated(history))
+    rows, x = _ordered(kept, _dated(history), _usage(history))
     return FitData(tuple(int(i) for i in rows.index), x, axis_label(history),
                    _column(rows, "fit_percent"), tuple(str(s) for s in rows["status"]))
 

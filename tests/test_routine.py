@@ -272,6 +272,7 @@ def test_constants_fix_an_unknown_for_the_run(noisy_record: pd.DataFrame) -> Non
     res = estimate(noisy_record, "dc-motor", constants={"D": 1.0e-4})
     assert res.parameters["D"] == 1.0e-4 and "D" not in res.identified
     assert res.held["D"] == "given" and any("D fixed at" in n for n in res.notes)
+    assert res.to_dict()["held"]["D"]["reason"] == "given a value for this estimate (--constants)"
     assert res.parameters["R"] == pytest.approx(1.0, rel=0.02)
     with pytest.raises(ModelError, match="unknown constant 'Q'.*not a parameter"):
         estimate(noisy_record, "dc-motor", constants={"Q": 1.0})

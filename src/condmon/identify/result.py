@@ -275,7 +275,9 @@ class EstimateResult:
             "identifiable": {k: k in self.identified for k in self.parameters},
             "held": {k: {"value": (float(self.parameters[k])
                                    if np.isfinite(self.parameters[k]) else None),
-                         "from": src, "reason": reasons.get(k, "depends on a held unknown")}
+                         "from": src, "reason": reasons.get(
+                             k, "given a value for this estimate (--constants)" if src == "given"
+                             else "depends on a held unknown")}
                      for k, src in self.held.items()},
             "fit_percent": fit if np.isfinite(fit) else None,
             "fits": _clean(self.fit.fits_percent),

@@ -364,3 +364,27 @@ def test_a_bad_cell_of_a_wide_table_names_the_file_s_column(tmp_path: Path) -> N
                 "units by its columns ('A1', 'A2'); omit --unit")):
             import_table(store, wide, DECL, indicator="capacity", unit="Z")
         assert store.imported_hashes("A1") == set()
+
+
+def test_a_row_edited_since_its_import_is_named_as_such(tmp_path: Path) -> None:
+    """The same table again with one capacity changed: the row is a stored
+    test's cycle with other values (it was refused as a cycle that does not
+    come after the last one stored); the same table under another declaration
+    is refused for the declaration, not for its cycles."""
+    cell = _cell(tmp_path / "c.csv", n=20)
+    edited = tmp_path / "e.csv"
+    lines = cell.read_text().splitlines()
+    cycle, value = lines[11].split(",")
+    lines[11] = f"{cycle},{float(value) + 0.05:.5f}"
+    edited.write_text("\n".join(lines) + "\n")
+    other = tmp_path / "other.toml"
+    other.write_text(DECL.read_text().replace('name = "li-ion-18650"', 'name = "li-ion-b"'))
+    with open_store("sqlite://") as store:
+        import_table(store, cell, DECL, unit="C1")
+        with pytest.raises(DataError, match=re.escape(
+                f"row 11 (line 12): cycle {float(cycle)} of unit 'C1' is stored already "
+                "(test #11) with other values: a row edited since it was imported?")):
+            import_table(store, edited, DECL, unit="C1")
+        with pytest.raises(DataError, match="is another declaration of 'li-ion-b'"):
+            import_table(store, cell, other, unit="C1")
+        assert len(store.history("C1")) == 20

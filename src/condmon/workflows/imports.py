@@ -314,6 +314,13 @@ def _after_stored(store: HistoryStore, unit: str, first: pd.Series, axes: Sequen
             continue
         stored = hist[col].dropna().max()
         new = pd.Timestamp(first[a]) if a == "date" else float(first[a])
+        same = hist[hist[col] == new]
+        if len(same):   # a row of a stored test whose values differ: an edited table
+            raise DataError(f"{path}: row {int(first['row'])} (line {int(first['row']) + 1}): "
+                            f"{a} {first[a]!s} of unit {unit!r} is stored already (test "
+                            f"#{int(same.index[0])}) with other values: a row edited since "
+                            "it was imported? Stored tests are not overwritten; nothing was "
+                            "stored")
         if new <= stored:
             raise DataError(f"{path}: row {int(first['row'])} (line {int(first['row']) + 1}), "
                             f"column {a!r}: {first[a]!s} is not after the last one stored for "
@@ -431,9 +438,9 @@ def _plan_unit(store: HistoryStore, unit: str, table: pd.DataFrame, model: Indic
                                          else "") for i in mine.indicators}
     if not fresh:
         return _Plan(unit, [], None, None, 0, len(table), "", ", ".join(axes), eol)
-    if seen:
-        _after_stored(store, unit, table.iloc[fresh[0]], axes, path)
+    if seen:   # (another declaration first: its rows hash apart, so all look new)
         _same_declaration(store, unit, model)
+        _after_stored(store, unit, table.iloc[fresh[0]], axes, path)
     try:
         base, _ = current_baseline(store, unit)
         latest = store.latest_baseline(unit)

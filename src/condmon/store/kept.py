@@ -99,9 +99,10 @@ def _kept_row(unit: str, mark: int, peers: int, fields: dict[str, Any], fleet: F
 #: (2: to the change at which a check turns no-go, the fleet's priors by
 #: direction; 3: mid-p intervals, the scale read from the residuals, the way
 #: of a steady move; 4: faults of two symptoms; 5: a trend needs the unit's
-#: own checks to move, not its peers' prior alone), so the forecasts and
+#: own checks to move, not its peers' prior alone; 6: a path forecast is
+#: recalibrated only on three failed peers or more), so the forecasts and
 #: wear kept by an older method are made again.
-FORECAST_METHOD = 5
+FORECAST_METHOD = 6
 
 _CURRENT: set[str] = set()   # histories whose kept forecasts are the current method's
 

@@ -15,10 +15,10 @@ its median at their median.
 
 Nothing is set by hand: the levels are the PITs' own quantiles, and a fleet
 too small to tell them (fewer than :data:`MIN_PITS` forecasts, or fewer than
-:data:`MIN_PEERS` failed units) changes nothing. On NASA's cells, each recalibrated on the other three (leave one
-out), the 90 % interval's coverage went from 97 % to 82 %, α-λ from 0.26 to
-0.36 and the median width from 3.4 to 1.6 times the true remaining life
-(``benchmarks/bench_prognostics_real.py``).
+:data:`MIN_PEERS` failed units) changes nothing. On NASA's cells, each
+recalibrated on the other three (leave one out), the 90 % interval's coverage
+went from 97 % to 82 %, α-λ from 0.26 to 0.36 and the median width from 3.4
+to 1.6 times the true remaining life (``benchmarks/bench_prognostics_real.py``).
 """
 
 from __future__ import annotations

@@ -242,8 +242,9 @@ def estimate(record: pd.DataFrame | Columns, model: str | Machine = "dc-motor", 
     def run(r: Record) -> EstimateResult:
         return with_features(estimate_record(
             r, machine, method=method, excitation=exc, fit_threshold=fit_threshold,
-            route=route or machine.spec.route, constants=consts, metadata=metadata, window=window, hold=hold,
-            fixed=fixed, notes=notes), r, machine, metadata, tuple(map(str, df.columns)))
+            route=route or machine.spec.route, constants=consts, metadata=metadata,
+            window=window, hold=hold, fixed=fixed, notes=notes), r, machine, metadata,
+            tuple(map(str, df.columns)))
 
     res = run(rec)
     accuracy = machine.record.merged(settings).accuracy

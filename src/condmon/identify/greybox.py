@@ -170,14 +170,12 @@ def _not_at_rest(diag: Mapping[str, float], machine: Machine) -> str | None:
             continue
         name = key[len("initial response "):]
         rms = diag.get(f"initial response rms {name}", 0.0)
-        if share >= _INITIAL_SHARE and rms > 2.0 * noise.get(name, 0.0):
+        sd = noise.get(name, 0.0)
+        if share >= _INITIAL_SHARE and rms > 2.0 * sd:
+            size = f", {rms / sd:.3g} times the sensor's noise" if sd > 0 else ""
             return (f"{NOT_AT_REST}: the record does not start where the model rests; an "
                     f"initial state explains {100 * share:.0f} % of the simulation error of "
-                    f"{name} ({rms:.3g} RMS, {rms / noise[name]:.3g} times the sensor's "
-                    "noise) and the linear route starts the model at rest: --route "
-                    "simulation estimates the initial state" if noise.get(name) else
-                    f"{NOT_AT_REST}: an initial state explains {100 * share:.0f} % of the "
-                    f"simulation error of {name}, and the linear route starts the model at "
+                    f"{name} ({rms:.3g} RMS{size}) and the linear route starts the model at "
                     "rest: --route simulation estimates the initial state")
     return None
 
@@ -186,7 +184,7 @@ def _free_response_basis(den: FloatArray, n: int) -> FloatArray:
     """The model's free responses (shape (n, order)): what an initial state
     adds to its output, ``q^-k / A(q)`` impulses for k = 0 .. order − 1 (any
     output's free response is a combination of these; a common denominator)."""
-    from condmon._filter import lfilter   # (scipy.signal: a second's import the linear route spares)
+    from condmon._filter import lfilter   # (not scipy's: the linear route imports no scipy)
 
     order = den.size - 1
     g = lfilter([1.0], den, np.r_[1.0, np.zeros(n - 1)])   # (each column shifts it)

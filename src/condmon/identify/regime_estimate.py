@@ -36,10 +36,10 @@ __all__ = ["Plan", "plan", "estimate_regime", "unusable", "has_balances", "ESTIM
            "STRUCTURE_MISMATCH"]
 
 FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.intp]
 
 #: How a rejection for a residual the model cannot follow begins.
 STRUCTURE_MISMATCH = "structure mismatch"
-IntArray = NDArray[np.intp]
 
 
 class Estimator(Protocol):
@@ -367,4 +367,3 @@ def _leaning(idf: Identifiability, values: Mapping[str, float], ucov: FloatArray
         return ""
     return ("; the estimates hold only at the held value" + ("s" if len(parts) > 1 else "")
             + ": " + "; ".join(parts))
-

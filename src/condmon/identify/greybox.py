@@ -26,6 +26,7 @@ References
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -37,7 +38,9 @@ from numpy.typing import NDArray
 from condmon.errors import ConversionError, ModelError
 from condmon.identify._common import TFEstimate, schur_stable, signals
 from condmon.identify.fit import FitCheck, fit_check, residual_figures
-from condmon.identify.identifiability import Identifiability, assess_identifiability
+from condmon.identify.identifiability import (
+    Identifiability, assess_identifiability, dependence_at,
+)
 from condmon.io.records import Record
 from condmon.models.conversion import tf_d2c_jacobian
 from condmon.models.machine import LinearStructure, Machine
@@ -382,17 +385,22 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
                                  f"order {order} differs from the model's {lin.order}")
     c_hat = np.r_[cont.den[1:], cont.nums[:, 1:].ravel()][list(lin.free)]
     start = np.array([machine.nominal()[k] for k in spec.unknowns])
+    # Delta method: theta = [den[1:], nums[:, 1:]] -> continuous coefficients ->
+    # parameters, by the exact Jacobians of both maps
+    Jt = J_cont[list(lin.free)]
+    cov_c = Jt @ est.covariance @ Jt.T
+    W = _whitened(cov_c, np.eye(c_hat.size))
+    # more coefficients than unknowns (a parameter given a value, say): weighted
+    # by the coefficients' covariance, as a re-fit around a held one is, so a
+    # value given and the same value held give one answer
+    over = c_hat.size > start.size
     try:
-        p = _solve_coefficients(lin, c_hat, start, known)
+        p = _solve_coefficients(lin, c_hat, start, known, weight=W if over else None)
     except ConversionError as err:
         return LinearRouteResult(nan, nan_cov, est, cont, fit,
                                  f"no physical parameters: {err}; is the sign of a column "
                                  "inverted or its unit wrong?")
-    # Delta method: theta = [den[1:], nums[:, 1:]] -> continuous coefficients ->
-    # parameters, by the exact Jacobians of both maps
-    Jt = J_cont[list(lin.free)]
     Jp = lin.jacobian(p, known)
-    cov_c = Jt @ est.covariance @ Jt.T
     held = {**machine.nominal(), **dict(hold or {})}
     scales = np.array([abs(held[k]) or abs(v) or 1.0 for k, v in zip(spec.unknowns, p)])
     idf = assess_identifiability(_whitened(cov_c, Jp * scales), spec.unknowns,
@@ -403,7 +411,6 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
         keep = [spec.unknowns.index(k) for k in idf.identifiable]
         fixed = np.array([held[k] for k in spec.unknowns])
         sub = _Subset(lin, keep, fixed)
-        W = _whitened(cov_c, np.eye(c_hat.size))
         try:
             p_sub = _solve_coefficients(sub, c_hat, start[keep], known,  # type: ignore[arg-type]
                                         weight=W)
@@ -412,9 +419,16 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
                                      f"no physical parameters: {err}", diag, identifiability=idf)
         p = fixed.copy()
         p[keep] = p_sub
-        Jw = W @ lin.jacobian(p, known)[:, keep]
+        Jf = lin.jacobian(p, known)
+        Jw = W @ Jf[:, keep]
         cov = np.zeros((len(spec.unknowns),) * 2)
         cov[np.ix_(keep, keep)] = np.linalg.pinv(Jw.T @ Jw)
+        # how the others lean on the held values, where they are held (the full
+        # solution the screening ran at may lie far off, and its lean with it)
+        idf = dataclasses.replace(idf, dependence=dependence_at(W @ (Jf * scales), idf))
+    elif over:
+        Jw = W @ Jp
+        cov = np.asarray(np.linalg.pinv(Jw.T @ Jw), dtype=np.float64)
     else:
         G = np.linalg.pinv(Jp)
         cov = G @ cov_c @ G.T

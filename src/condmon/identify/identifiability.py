@@ -44,7 +44,7 @@ from numpy.typing import ArrayLike, NDArray
 from condmon.models.plausibility import IdentifiabilityLimits
 
 __all__ = ["Identifiability", "IdentifiabilityLimits", "assess_identifiability",
-           "all_identifiable"]
+           "all_identifiable", "dependence_at"]
 
 FloatArray = NDArray[np.float64]
 
@@ -257,6 +257,25 @@ def assess_identifiability(sensitivity: ArrayLike, parameters: Sequence[str], *,
     gamma_set = kept[1] if chosen else 1.0
     return Identifiability(names, tuple(names[k] for k in chosen), reasons, sv, dirs, rse,
                            gamma_set, lim, _dependence(S, names, chosen, present))
+
+
+def dependence_at(sensitivity: ArrayLike, idf: Identifiability) -> dict[str, dict[str, float]]:
+    """:attr:`Identifiability.dependence` from the route's sensitivities at
+    another point: where the held values are held and the others re-fitted
+    (the screening's point may lie far from it, and the lean with it).
+
+    Example
+    -------
+    >>> S = np.array([[1.0, 1.0], [1.0, 1.0]]) * 100
+    >>> dependence_at(S, assess_identifiability(S, ("Tc", "Tl")))
+    {'Tc': {'Tl': -1.0}}
+    """
+    S = np.atleast_2d(np.asarray(sensitivity, dtype=np.float64))
+    S = np.where(np.isfinite(S), S, 0.0)
+    names = idf.parameters
+    present = [k for k in range(len(names)) if float(np.abs(S[:, k]).sum()) > 0.0]
+    chosen = [names.index(k) for k in idf.identifiable]
+    return _dependence(S, names, chosen, present)
 
 
 def _dependence(S: FloatArray, names: tuple[str, ...], chosen: list[int], present: list[int]

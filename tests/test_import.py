@@ -388,3 +388,22 @@ def test_a_row_edited_since_its_import_is_named_as_such(tmp_path: Path) -> None:
         with pytest.raises(DataError, match="is another declaration of 'li-ion-b'"):
             import_table(store, cell, other, unit="C1")
         assert len(store.history("C1")) == 20
+
+
+def test_a_refused_import_leaves_no_history_file_behind(tmp_path: Path,
+                                                         capsys: pytest.CaptureFixture[str]
+                                                         ) -> None:
+    """"Nothing was stored": not even an empty history file the command made."""
+    bad = tmp_path / "bad.csv"
+    bad.write_text("cycle,capacity\n1,1.9\n2,oops\n")
+    db = tmp_path / "h.db"
+    assert main(["import", str(bad), "--unit", "C1", "--model", str(DECL), "--db",
+                 str(db)]) == 2
+    assert "'oops' is not a finite number" in capsys.readouterr().err
+    assert not db.exists()
+    cell = _cell(tmp_path / "c.csv", n=20)
+    assert main(["import", str(cell), "--unit", "C1", "--model", str(DECL), "--db",
+                 str(db)]) == 0
+    assert main(["import", str(bad), "--unit", "C2", "--model", str(DECL), "--db",
+                 str(db)]) == 2
+    assert db.exists()   # (a history that was there stays)

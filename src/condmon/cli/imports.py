@@ -33,12 +33,21 @@ def register(app: typer.Typer) -> None:
         first rows when it has none) and forecast to its end of life like an estimated
         parameter (condmon forecast). Every cell is checked first: a bad one is refused
         with its row and column, and nothing is stored. Rows already stored are skipped."""
+        from pathlib import Path
+
+        from condmon.errors import CondmonError
         from condmon.store.db import open_store
         from condmon.workflows.imports import import_table
 
-        with open_store(db) as store:
-            done = import_table(store, table, model, unit=unit, indicator=indicator,
-                                no_go=no_go or (), baseline_rows=baseline)
+        made = "://" not in db and not Path(db).exists()
+        try:
+            with open_store(db) as store:
+                done = import_table(store, table, model, unit=unit, indicator=indicator,
+                                    no_go=no_go or (), baseline_rows=baseline)
+        except CondmonError:
+            if made:   # nothing was stored: no empty history left behind either
+                Path(db).unlink(missing_ok=True)
+            raise
         if as_json:
             write_json({"table": table, "units": [d.to_dict() for d in done]})
             return

@@ -121,6 +121,18 @@ def _dated(x: np.ndarray[Any, Any]) -> bool:
     return np.issubdtype(x.dtype, np.datetime64)
 
 
+def _ordinal(n: int) -> str:
+    """``2nd``, ``3rd``, ``11th``, ``21st``.
+
+    Example
+    -------
+    >>> [_ordinal(n) for n in (1, 2, 3, 4, 11, 12, 13, 21, 22)]
+    ['1st', '2nd', '3rd', '4th', '11th', '12th', '13th', '21st', '22nd']
+    """
+    tail = "th" if 10 <= n % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(n % 10, "th")
+    return f"{n}{tail}"
+
+
 def _label_tests(axes: Sequence[Any], x: np.ndarray[Any, Any], ids: Sequence[int],
                  y: Sequence[np.ndarray[Any, Any]] | None = None, prefix: str = "#") -> None:
     """Number the points by id: as tick labels on an id axis, next to each
@@ -416,7 +428,7 @@ def symptom_figure(trends: Sequence[TrendData]) -> Any:
     legend_below(fig, ([Patch(color="#ef6c00"), Patch(color="#1565c0")],
                        ["SymH (up): degree of HIGH", "SymL (down): degree of LOW"]), ncol=2)
     fig.suptitle("Fuzzy symptoms per check and parameter (one pair of bars a test, in "
-                 "order" + (")" if every == 1 else f"; every {every}th labelled)"), fontsize=10)
+                 "order" + (")" if every == 1 else f"; every {_ordinal(every)} labelled)"), fontsize=10)
     return fig
 
 

@@ -320,7 +320,7 @@ sample_interval = [1.0e-3, 0.05]
 """
 
 
-@pytest.mark.parametrize("hold", ["", ', intersample = "zoh"', ', intersample = "bl"'])
+@pytest.mark.parametrize("hold", ["", ', intersample = "bl"'])
 def test_an_input_held_over_each_sample_is_read_so_by_the_inverse_route(
         tmp_path: Path, hold: str) -> None:
     """A pendulum driven by a command held over each sample (as condmon's own

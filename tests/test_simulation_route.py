@@ -338,19 +338,18 @@ def test_multiple_shooting_recovers_an_integrating_axis(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(("scale", "cutoff", "why"), [
     (100.0, 0.2, "simulated whole, the parameters move by"),
-    (200.0, 0.2, "simulated whole, the parameters move by"),
     (10.0, 0.1, "simulated whole, the parameters move by"),
     (10.0, -1.0, "the whole record simulated from its optimum misses by"),
 ])
 def test_a_drifting_fit_keeps_its_segments_and_refines_them(tmp_path: Path, scale: float,
                                                             cutoff: float, why: str) -> None:
     """The same axis pushed by a force nobody recorded (a slow random
-    disturbance: std 7.9 N, 16 N or 0.8 N, against the recorded 20 N; or a step
-    of 10 N half way). Either the whole record cannot be simulated, or simulating
+    disturbance: std 7.9 N or 0.8 N, against the recorded 20 N; or a step of
+    10 N half way). Either the whole record cannot be simulated, or simulating
     it whole bends the parameters to carry the drift (f0 came out 7 standard
     errors off that way; judged against the segments' error bars, as the whole
-    record's own grow with the drift's error and let 16 N pass, f0 2.5 standard
-    errors off): the segments' figures are kept, the segments are cut finer
+    record's own grow with the drift's error and let 7.9 N pass on a knife's
+    edge): the segments' figures are kept, the segments are cut finer
     until the parameters stop moving by more than a standard error, and the
     truth lies within the error bars (for the step, m and c: f0 then has two
     values)."""
@@ -700,7 +699,7 @@ duration = 4000.0
 sample_rate = 1.0
 [estimation]
 estimate = ["C1", "C2", "R12", "R2a"]
-starts = 2
+starts = 1
 min_duration = 600.0
 sample_interval = [0.05, 20.0]
 [estimation.initial]

@@ -60,7 +60,9 @@ def choose_route(machine: Machine, route: str | None = None) -> str:
     "linear" when the model is linear, else "inverse" when every state the
     equations need is measured, else "simulation" (simulation error, which
     fits any declared model: :func:`auto_reason` says why it was taken); "oe"
-    (output error on a semi-linear model) is taken only when asked for.
+    (output error on a semi-linear model) is taken only when asked for. When
+    the linear route then refuses a record that does not start at rest, the
+    estimate takes the simulation error too (:func:`away_from_rest`).
 
     Raises
     ------

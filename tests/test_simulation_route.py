@@ -16,7 +16,6 @@ from hypothesis import strategies as st
 from condmon import estimate
 from condmon.cli.main import main
 from condmon.errors import ConfigError, DataError, EstimationError
-from condmon.io.records import Record
 from condmon.models.registry import get_model
 from condmon.simulate.recorded import Diverged, simulate_recorded
 from condmon.workflows.validation import validate_file
@@ -759,34 +758,6 @@ def test_a_linear_model_on_a_record_not_at_rest_is_estimated_by_simulation_error
     else:
         assert res.route == "linear"
         assert res.diagnostics["initial response T1m"] < 0.01
-
-def test_a_record_away_from_rest_is_taken_by_simulation_error_whatever_refused_it(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """A fit can be so far off (two outputs from a steady state at 30 W: the
-    linear route's C1 came out −13.8 J/K) that its error shows no initial
-    state. A record whose outputs start more than four noise sd from the
-    model's rest is then taken by simulation error all the same, and says so;
-    one at rest is not."""
-    import condmon.identify.greybox as greybox
-
-    model = tmp_path / "thermal.toml"
-    model.write_text(THERMAL)
-    m = get_model(str(model))
-    warm = _thermal_record(model, 2000, (15.0, 10.0))
-    assert greybox.away_from_rest(Record({c: warm[c].to_numpy() for c in warm}, 1.0, "w"),
-                                  m) == ("not at rest: T1m starts at 15.12 K, 302 times its "
-                                         "sensor's noise from the model's rest (0)")
-    rest = _thermal_record(model, 4000, (0.0, 0.0))
-    assert greybox.away_from_rest(Record({c: rest[c].to_numpy() for c in rest}, 1.0, "r"),
-                                  m) is None
-    # (the linear route refusing the record for another reason, as a fit too far off does)
-    monkeypatch.setattr(greybox, "_not_at_rest",
-                        lambda diag, machine: "not physically possible: C1 = -13.79 J/K")
-    res = estimate(warm, str(model))
-    assert res.route == "simulation" and res.accepted
-    assert any("the linear route refused the record (not at rest: T1m starts at 15.12 K"
-               in n for n in res.notes)
-
 
 def test_estimates_that_lean_on_a_held_value_say_how_far(tmp_path: Path) -> None:
     """2,000 s hold the thermal model's slow mode too briefly: R2a is held at its

@@ -21,7 +21,7 @@ from condmon._threads import one_blas_thread
 from condmon.errors import CondmonError, DataError, ModelError
 from condmon.identify.defaults import list_estimators
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD, FitCheck
-from condmon.identify.greybox import NOT_AT_REST, auto_reason, away_from_rest, choose_route
+from condmon.identify.greybox import NOT_AT_REST, auto_reason, choose_route
 from condmon.identify.regime_estimate import (
     ESTIMATOR_FUNCTIONS, estimate_regime, has_balances, plan, unusable,
 )
@@ -528,13 +528,8 @@ def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-m
                                excitation=excitation, fit_threshold=fit_threshold,
                                consts=consts, hold=hold, fixed=dict(fixed or {}),
                                notes=notes, sliced=sliced, common=common)
-        # (a refusal for another reason, on a record that starts away from rest:
-        # the fit may be too far off for its error to show an initial state)
-        moving = (None if not (auto and chosen == "linear" and res.rejection) else
-                  res.rejection if res.rejection.startswith(NOT_AT_REST) else
-                  away_from_rest(records[0], machine))
-        if moving:
-            res = _by_simulation(records, moving, regime, machine, method=method,
+        if auto and chosen == "linear" and (res.rejection or "").startswith(NOT_AT_REST):
+            res = _by_simulation(records, res, regime, machine, method=method,
                                  excitation=excitation, fit_threshold=fit_threshold,
                                  consts=consts, hold=hold, fixed=dict(fixed or {}),
                                  notes=notes, metadata=metadata, window=window,
@@ -544,16 +539,15 @@ def estimate_record(rec: Record | Sequence[Record], model: str | Machine = "dc-m
         dataclasses.replace(r, windows=()) for r in results[1:]))
 
 
-def _by_simulation(records: Sequence[Record], moving: str, regime: str,
+def _by_simulation(records: Sequence[Record], refused: EstimateResult, regime: str,
                    machine: Machine, *, notes: Sequence[str], metadata: Mapping[str, Any] | None,
                    window: tuple[float, float] | None, common: dict[str, Any],
                    **given: Any) -> EstimateResult:
     """Route "auto" after the linear route refused a record that does not start
-    at rest (``moving``: why it does not): the simulation error, which estimates
-    the initial states, with a note saying why. Its own result stands, accepted
-    or not."""
+    at rest: the simulation error, which estimates the initial states, with a note
+    saying why. Its own result stands, accepted or not."""
     plans = [plan(r, machine, "simulation", metadata, window) for r in records]
-    first = moving.split(" and the linear route")[0]
+    first = str(refused.rejection).split(" and the linear route")[0]
     why = (f"route auto took the simulation error, which estimates the initial states: the "
            f"linear route refused the record ({first})")
     sliced = machine.regimes.declared or window is not None

@@ -50,7 +50,7 @@ from condmon.models.transfer import ContinuousTF
 # linear route of a cached declaration (condmon.models.derived_cache) needs neither.
 
 __all__ = ["LinearRouteResult", "RouteResult", "linear_route", "choose_route", "auto_reason",
-           "NOT_AT_REST", "away_from_rest"]
+           "NOT_AT_REST"]
 
 FloatArray = NDArray[np.float64]
 
@@ -61,8 +61,9 @@ def choose_route(machine: Machine, route: str | None = None) -> str:
     equations need is measured, else "simulation" (simulation error, which
     fits any declared model: :func:`auto_reason` says why it was taken); "oe"
     (output error on a semi-linear model) is taken only when asked for. When
-    the linear route then refuses a record that does not start at rest, the
-    estimate takes the simulation error too (:func:`away_from_rest`).
+    the linear route then refuses a record that does not start at rest (an
+    initial state explains a quarter of its simulation error), the estimate
+    takes the simulation error too.
 
     Raises
     ------
@@ -182,20 +183,6 @@ def _not_at_rest(diag: Mapping[str, float], machine: Machine) -> str | None:
                     f"initial state explains {100 * share:.0f} % of the simulation error of "
                     f"{name} ({rms:.3g} RMS{size}) and the linear route starts the model at "
                     "rest: --route simulation estimates the initial state")
-    return None
-
-
-def away_from_rest(rec: Record, machine: Machine) -> str | None:
-    """Why ``rec`` does not start where a linear model rests (None: it may):
-    an output's first samples (their median, of 5) more than 4 times its
-    sensor's noise from 0, the output at rest of a model without offsets."""
-    noise = {s.name: (s.noise, s.unit) for s in machine.plant.sensors}
-    for out in machine.linear().outputs:
-        sd, unit = noise.get(out, (0.0, ""))
-        y0 = float(np.median(rec[out][:5]))
-        if sd > 0 and abs(y0) > 4.0 * sd:
-            return (f"{NOT_AT_REST}: {out} starts at {y0:.4g} {unit}".rstrip() +
-                    f", {abs(y0) / sd:.3g} times its sensor's noise from the model's rest (0)")
     return None
 
 

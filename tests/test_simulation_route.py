@@ -822,7 +822,7 @@ R = { gt = 0.0 }
 g = { gt = 0.0 }
 """)
     c = get_model(str(model)).plant.compile()
-    n = 2000
+    n = 800
     u = np.repeat(30.0 + 20.0 * np.sign(np.random.default_rng(1).standard_normal(n // 100 + 1)),
                   100)[:n]
     sim = simulate_recorded(c, u[:, None], 1.0, np.zeros(1),

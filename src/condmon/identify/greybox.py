@@ -171,10 +171,8 @@ def _not_at_rest(diag: Mapping[str, float], machine: Machine) -> str | None:
     state explains at least :data:`_INITIAL_SHARE` of an output's simulation
     error, and that part is more than twice the sensor's declared noise."""
     noise = {s.name: s.noise for s in machine.plant.sensors}
-    for key, share in diag.items():
-        if not key.startswith("initial response ") or key.startswith("initial response rms"):
-            continue
-        name = key[len("initial response "):]
+    for name in machine.linear().outputs:
+        share = diag.get(f"initial response {name}", 0.0)
         rms = diag.get(f"initial response rms {name}", 0.0)
         sd = noise.get(name, 0.0)
         if share >= _INITIAL_SHARE and rms > 2.0 * sd:

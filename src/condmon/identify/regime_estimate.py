@@ -32,8 +32,7 @@ from condmon.io.records import Record
 from condmon.models.machine import Machine
 from condmon.models.regimes import regime_key
 
-__all__ = ["Plan", "plan", "estimate_regime", "unusable", "has_balances", "ESTIMATOR_FUNCTIONS",
-           "STRUCTURE_MISMATCH"]
+__all__ = ["Plan", "plan", "estimate_regime", "unusable", "has_balances", "ESTIMATOR_FUNCTIONS"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]

@@ -3,7 +3,6 @@ functions), the inverse-model route (IDIM-LS), the registry and the structure ch
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
@@ -120,14 +119,14 @@ def test_emps_real_data_matches_the_published_parameters(tmp_path: Path) -> None
     d = sio.loadmat(EMPS_MAT)
     df = pd.DataFrame({k: d[k].ravel() for k in ("t", "qm", "vir", "qg")})
     df.attrs["constants"] = {"gtau": float(d["gtau"].item())}
-    t0 = time.perf_counter()
     res = estimate(df, EMPS_TOML, source="DATA_EMPS.mat")
-    seconds = time.perf_counter() - t0
     assert res.accepted, res.reason
     for k in ("M", "Fv", "Fc"):
         assert res.parameters[k] == pytest.approx(PUBLISHED[k], rel=0.01), k
     assert res.parameters["offset"] == pytest.approx(PUBLISHED["offset"], rel=0.03)
-    assert seconds < 2.0
+    # the filtered residuals are correlated: the standard errors are widened for it, and said
+    assert res.diagnostics["se_widening"] > 3.0
+    assert any("Newey-West" in n for n in res.notes), res.notes
     # the same declaration, unchanged, on another record of the axis (second half)
     half = df.iloc[len(df) // 2:].reset_index(drop=True)
     half["t"] -= half["t"].iloc[0]

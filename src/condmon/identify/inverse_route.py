@@ -65,14 +65,23 @@ class InverseRouteResult(RouteResult):
         Low-pass cut-off used. [Hz]
     samples : int
         Rows of the regression.
+    widening : float
+        Largest factor by which the residuals' correlation widened a standard
+        error over the white-noise bound (Newey–West). [-]
+    bandwidth : float
+        Bartlett bandwidth of that estimate. [rows]
     """
 
     cutoff: float
     samples: int
+    widening: float = 1.0
+    bandwidth: float = 0.0
 
     def diagnostics(self) -> dict[str, float]:
-        """The shared figures, with ``cutoff_hz`` and ``samples``."""
+        """The shared figures, with ``cutoff_hz``, ``samples``, ``se_widening``
+        and ``se_bandwidth_rows``."""
         return {"cutoff_hz": self.cutoff, "samples": float(self.samples),
+                "se_widening": self.widening, "se_bandwidth_rows": self.bandwidth,
                 **super().diagnostics()}
 
 
@@ -309,4 +318,5 @@ def inverse_route(rec: Record | Sequence[Record], machine: Machine, *,
     fit_pct = 100.0 * float(np.mean(list(r2.values())))
     fit = FitCheck(r2, fit_pct, float(fit_threshold), bool(fit_pct >= fit_threshold))
     return InverseRouteResult(fit_.values, fit_.covariance, fit, nrmse, white, float(cutoff),
-                              n_rows, identifiability=fit_.identifiability)
+                              n_rows, fit_.widening, fit_.bandwidth,
+                              identifiability=fit_.identifiability)

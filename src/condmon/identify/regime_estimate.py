@@ -261,6 +261,11 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
                 diagnostics = inv.diagnostics()
                 notes.append(f"inverse model (IDIM-LS): zero-phase low-pass at {inv.cutoff:g} Hz, "
                              f"central differences, {inv.samples} samples")
+                if inv.widening > 1.0:
+                    notes.append("standard errors: the larger of the white-noise bound and "
+                                 "the Newey-West estimate (bandwidth "
+                                 f"{inv.bandwidth:.0f} samples); the filtered residuals are "
+                                 f"correlated and widen them up to {inv.widening:.1f} times")
                 worst = max(inv.whiteness, key=lambda k: inv.whiteness[k])
                 limit = spec.max_residual_correlation
                 if inv.whiteness[worst] > limit:

@@ -190,3 +190,15 @@ def test_quick_suspects_run_without_a_pool_by_default(monkeypatch: pytest.Monkey
     tasks = [SuspectTask(None, p, 1.0, 0.0, None, None)  # type: ignore[arg-type]
              for p in ("a", "b", "c")]
     assert [o.failure for o in run_suspects(tasks)] == ["a", "b", "c"]
+
+
+def test_python_dash_m_runs_the_command_line(tmp_path: Path) -> None:
+    """``python -m condmon`` is ``condmon`` (a virtualenv whose scripts are not on
+    the PATH): help, and a bad option's one line with exit 2."""
+    env = {**os.environ, "CONDMON_CACHE_DIR": str(tmp_path)}
+    ok = subprocess.run([sys.executable, "-m", "condmon", "--help"], capture_output=True,
+                        text=True, env=env, check=False)
+    assert ok.returncode == 0 and "estimate" in ok.stdout, ok.stderr
+    bad = subprocess.run([sys.executable, "-m", "condmon", "estimate", "--no-such-option"],
+                         capture_output=True, text=True, env=env, check=False)
+    assert bad.returncode == 2

@@ -126,10 +126,10 @@ def test_a_check_evaluated_again_is_governed_as_a_new_one(tmp_path: Path) -> Non
         added = add_baseline_tests(store, "A", [rec(k) for k in range(10)], opts)
         res = check_test(store, "A", stroke(1.0, seed=50, friction={"Tc": 44.0}), opts,
                          monitor=narrow)
-        assert res.status == "go" and "within the healthy scatter" in res.diagnosis.summary
+        assert res.status == "go" and "not shown beyond the healthy scatter" in res.diagnosis.summary
         ids = [t.test_id for t in added.tests][:9]         # a new version: one test fewer
         version, _ = save_current_baseline(store, "A", ids, reason="one test fewer")
         changed = reevaluate(store, "A", version, monitor=narrow)
         assert changed and all(now == "go" for _, now in changed.values())
         hist = store.history("A")
-        assert "within the healthy scatter" in str(hist.loc[res.test_id, "summary"])
+        assert "not shown beyond the healthy scatter" in str(hist.loc[res.test_id, "summary"])

@@ -133,3 +133,20 @@ def test_a_check_evaluated_again_is_governed_as_a_new_one(tmp_path: Path) -> Non
         assert changed and all(now == "go" for _, now in changed.values())
         hist = store.history("A")
         assert "not shown beyond the healthy scatter" in str(hist.loc[res.test_id, "summary"])
+
+
+def test_breakpoints_nobody_declared_follow_the_scatter_the_check_is_judged_with() -> None:
+    """Generic breakpoints are made from the baseline's raw spread at
+    ``baseline add``; a check judged at its operating conditions (a warm-up
+    taken out) has a smaller scatter, and its breakpoints come down with it,
+    with no note of a "declared" breakpoint raised. Declared ones stay."""
+    from condmon.monitor.generic import generic_config
+
+    raw = Baseline(("b",), (2.0,), (0.091,), 15)        # 4.55 % with the warm-up in
+    judged = Baseline(("b",), (2.0,), (0.058,), 15)     # 2.9 % about the oil's prediction
+    cfg, raised = judged_config(generic_config(raw), judged)
+    assert cfg.r1["b"] == pytest.approx(4 * yardstick(judged)["b"])
+    assert cfg.r1["b"] < 0.7 * generic_config(raw).r1["b"]
+    assert raised == ()
+    declared, _ = judged_config(MonitorConfig({"b": 30.0}, {"b": 60.0}), judged)
+    assert declared.r1["b"] == 30.0

@@ -139,14 +139,18 @@ def spread_breakpoints(baseline: Baseline, settings: GenericSettings | None = No
     return r1, r2
 
 
+#: The source of the breakpoints :func:`generic_config` makes: nobody declared
+#: them, so a check's own yardstick replaces them (:func:`judged_config`).
+GENERIC_SOURCE = "generic monitoring (condmon/data/generic-monitor.toml)"
+
+
 def generic_config(baseline: Baseline, settings: GenericSettings | None = None
                    ) -> MonitorConfig:
     """The monitor configuration of a machine without ``[monitor]``, for checks
     against ``baseline``."""
     cfg = settings or load_generic_settings()
     r1, r2 = spread_breakpoints(baseline, cfg)
-    return MonitorConfig(r1, r2, cfg.k, "generic monitoring (condmon/data/generic-monitor.toml)",
-                         cfg.baseline, cfg.statistics)
+    return MonitorConfig(r1, r2, cfg.k, GENERIC_SOURCE, cfg.baseline, cfg.statistics)
 
 
 def machine_monitor(machine: Machine, baseline: Baseline | None = None) -> MonitorConfig:
@@ -278,7 +282,10 @@ def judged_config(config: MonitorConfig, baseline: Baseline,
     below that floor would call the unit's ordinary variation a fault, so the
     floor wins, and the note says so, unless the monitor file insists
     (``insist = true``). A parameter the file has no breakpoints for (a
-    signal feature) takes the floor.
+    signal feature) takes the floor, and so does every parameter when nobody
+    declared breakpoints (:data:`GENERIC_SOURCE`): a baseline judged at its
+    operating conditions has a smaller scatter than its raw spread, and its
+    breakpoints come down with it.
 
     Returns
     -------
@@ -305,7 +312,7 @@ def judged_config(config: MonitorConfig, baseline: Baseline,
         b = sys_.get(name, 0.0)
         b = 100.0 * b / abs(mean) if math.isfinite(b) and mean != 0 else 0.0
         floor1, floor2 = b + settings.r1_sigma * s[name], b + settings.r2_sigma * s[name]
-        if name not in known.r1:
+        if name not in known.r1 or config.source == GENERIC_SOURCE:
             r1[name], r2[name] = floor1, floor2
             continue
         d1, d2 = known.r1[name], known.r2[name]
@@ -403,10 +410,22 @@ def with_scatter(config: MonitorConfig, baseline: Baseline,
                                r2={**config.r2, **judged.r2})
 
 
-def describe_generic(settings: GenericSettings | None = None) -> str:
-    """One sentence saying how a machine without ``[monitor]`` is monitored."""
+def describe_generic(settings: GenericSettings | None = None, *, rules: bool = False,
+                     breakpoints: bool = False) -> str:
+    """One sentence saying how a machine is monitored whose ``[monitor]`` table
+    is missing or declares only ``rules`` or only ``breakpoints``.
+
+    Example
+    -------
+    >>> describe_generic(rules=True).split(":")[0]
+    '[monitor] declares rules but no breakpoints'
+    """
     cfg = settings or load_generic_settings()
-    return (f"no [monitor] table: generic monitoring, each parameter's symptom from "
-            f"{cfg.r1_sigma:g} to {cfg.r2_sigma:g} times the baseline's relative spread "
-            f"(at least {cfg.min_relative_spread:g} %), rules '<parameter> increase' and "
-            "'<parameter> decrease'")
+    points = (f"each parameter's symptom from {cfg.r1_sigma:g} to {cfg.r2_sigma:g} times the "
+              f"baseline's relative spread (at least {cfg.min_relative_spread:g} %)")
+    generic_rules = "rules '<parameter> increase' and '<parameter> decrease'"
+    if rules and not breakpoints:
+        return f"[monitor] declares rules but no breakpoints: {points}; the declared rules"
+    if breakpoints and not rules:
+        return f"[monitor] declares breakpoints but no rules: {generic_rules}"
+    return f"no [monitor] table: generic monitoring, {points}, {generic_rules}"

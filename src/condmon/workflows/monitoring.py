@@ -502,7 +502,9 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
         store.set_group(unit, group)
     ids, latest = baseline_members(store, unit)
     ids = sorted(set(ids) | set(new))
-    notes = (describe_generic(),) if machine.monitored_generically else ()
+    notes = (describe_generic(rules=machine.rules is not None,
+                              breakpoints=machine.breakpoints is not None),) \
+        if machine.monitored_generically else ()
     if len(ids) < MIN_BASELINE_TESTS:
         return BaselineAddResult(tuple(added), None, None, str(_too_few(unit, len(ids))),
                                  notes=notes)

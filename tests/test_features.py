@@ -219,3 +219,21 @@ def test_an_accuracy_of_zero_is_one_line_and_exit_2(
     assert main(["estimate", "nothing.csv", "--model", str(decl)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "columns.pA.accuracy must be > 0" in err, err
+
+
+def test_a_narrow_band_is_resolved_and_a_window_too_short_for_it_is_said() -> None:
+    """A 20 Hz gear-mesh band at 10 kHz: the Welch segment grows until four bins
+    fall in the band (with a fixed 256-sample segment, 39 Hz bins, the feature
+    was silently not computed). A tone of amplitude 2 in it has power 2."""
+    rng = np.random.default_rng(4)
+    fs, n = 10000.0, 60000
+    t = np.arange(n) / fs
+    x = 2.0 * np.sin(2 * np.pi * 590.0 * t) + 0.1 * rng.standard_normal(n)
+    spec = FeatureSpec("mesh", "acc", "band_power", band=(580.0, 600.0))
+    est = compute_features({"acc": x}, fs, [("", 0, n, True)], [spec])
+    value, se = est.values["mesh"]
+    assert value == pytest.approx(2.0, rel=0.05) and 0 < se < 0.1
+    short = compute_features({"acc": x[:500]}, fs, [("", 0, 500, True)], [spec])
+    assert "mesh" not in short.values
+    assert "needs windows of 2 x 2048 samples" in short.notes[0]
+    assert "the longest window has 500" in short.notes[0]

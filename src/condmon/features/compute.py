@@ -41,8 +41,25 @@ FloatArray = NDArray[np.float64]
 MIN_SAMPLES = 32
 #: Most blocks a window is cut into for the batch-means standard error.
 MAX_BLOCKS = 8
-#: Longest Welch segment. [samples]
+#: Shortest Welch segment (longer when a narrow band needs it). [samples]
 WELCH_SEGMENT = 256
+#: Frequency bins a band power's band holds at least: the Welch segment is
+#: lengthened (a power of 2) until the bin spacing is a quarter of the band.
+BAND_BINS = 4
+
+
+def welch_segment(sample_rate: float, band: tuple[float, float]) -> int:
+    """The Welch segment [samples] whose bins resolve ``band`` [Hz]: at least
+    :data:`WELCH_SEGMENT`, a power of 2, with :data:`BAND_BINS` bins in the band.
+
+    Example
+    -------
+    >>> welch_segment(10000.0, (40.0, 200.0)), welch_segment(10000.0, (580.0, 600.0))
+    (256, 2048)
+    """
+    width = max(band[1] - band[0], 1e-300)
+    need = BAND_BINS * sample_rate / width
+    return max(WELCH_SEGMENT, 1 << max(0, math.ceil(math.log2(min(need, 2.0 ** 40)))))
 
 
 @dataclass(frozen=True)
@@ -108,7 +125,7 @@ def feature_statistic(x: FloatArray, statistic: str, sample_rate: float,
         from scipy.signal import welch
 
         assert band is not None
-        f, pxx = welch(x, fs=sample_rate, nperseg=min(WELCH_SEGMENT, x.size))
+        f, pxx = welch(x, fs=sample_rate, nperseg=min(welch_segment(sample_rate, band), x.size))
         inside = (f >= band[0]) & (f <= band[1])
         if np.count_nonzero(inside) < 2:
             return math.nan
@@ -127,7 +144,9 @@ def feature_statistic(x: FloatArray, statistic: str, sample_rate: float,
 def _window(x: FloatArray, spec: FeatureSpec, fs: float) -> tuple[float, float]:
     """Value and batch-means standard error of ``spec`` over one window."""
     value = feature_statistic(x, spec.statistic, fs, spec.band)
-    blocks = max(2, min(MAX_BLOCKS, x.size // 32))
+    # a band power's block holds one whole Welch segment at least
+    shortest = welch_segment(fs, spec.band) if spec.band is not None else 32
+    blocks = max(2, min(MAX_BLOCKS, x.size // shortest))
     parts = np.array([feature_statistic(b, spec.statistic, fs, spec.band)
                       for b in np.array_split(x, blocks)])
     parts = parts[np.isfinite(parts)]
@@ -242,8 +261,7 @@ def compute_features(columns: Mapping[str, FloatArray], sample_rate: float,
             parts = [(v, n) for v, n in parts if math.isfinite(v[0]) and math.isfinite(v[1])]
             if not parts:
                 notes.append(f"{what} {spec.name} not computed in regime {label or '(all)'}: "
-                             f"no window of {MIN_SAMPLES} samples or more with a defined "
-                             f"{spec.statistic}")
+                             + _why_undefined(spec, sample_rate, spans))
                 continue
             w = np.array([n for _, n in parts], dtype=np.float64)
             w /= w.sum()
@@ -251,3 +269,16 @@ def compute_features(columns: Mapping[str, FloatArray], sample_rate: float,
             se = float(np.sqrt(np.dot(w ** 2, [p[1] ** 2 for p, _ in parts])))
             values[regime_key(spec.name, label)] = (v, se)
     return FeatureEstimate(values, {s.name: s.unit for s in specs}, tuple(notes))
+
+
+def _why_undefined(spec: FeatureSpec, fs: float, spans: Sequence[tuple[int, int]]) -> str:
+    """Why no window gave ``spec`` a value (and a standard error)."""
+    longest = max((b - a for a, b in spans), default=0)
+    if spec.band is not None:
+        seg = welch_segment(fs, spec.band)
+        return (f"its band {spec.band[0]:g}..{spec.band[1]:g} Hz "
+                f"({spec.band[1] - spec.band[0]:g} Hz wide) needs windows of 2 x {seg} samples "
+                f"({BAND_BINS} frequency bins in the band at {fs:g} Hz, in two blocks for its "
+                f"standard error); the longest window has {longest}")
+    return (f"no window of {MIN_SAMPLES} samples or more with a defined {spec.statistic} "
+            f"(the longest has {longest} samples)")

@@ -226,6 +226,39 @@ def test_a_fault_whose_symptom_has_no_value_is_not_judged_and_said() -> None:
     assert [u.fault for u in named.unseen] == ["friction increase"]
 
 
+_STATUS = """[status]
+go = [0.0, 0.0, 0.25, 0.5]
+advisory = [0.25, 0.5, 0.75]
+no_go = [0.5, 0.75, 1.0, 1.0]
+"""
+
+
+def test_a_rule_that_can_fire_on_a_judged_parameter_sees_its_fault(tmp_path: Path) -> None:
+    """``high(Tc) or high(b)`` with Tc held: b alone fires it, so the fault is
+    judged (it was reported "not judged" beside the same fault named at no-go).
+    ``high(Tc) and high(b)`` cannot fire without Tc: not judged."""
+    path = tmp_path / "rules.toml"
+    path.write_text(_STATUS + """
+[[fault]]
+name = "friction increase"
+if = "high(Tc) or high(b)"
+severity = "major"
+advice = "check the bearings"
+
+[[fault]]
+name = "seized"
+if = "high(Tc) and high(b)"
+severity = "major"
+advice = "stop"
+""")
+    rules = load_rules(path)
+    quiet = diagnose({"b": {"high": 0.0, "low": 0.0}}, rules, parameters=("Tc", "b"))
+    assert [u.fault for u in quiet.unseen] == ["seized"]
+    hot = diagnose({"b": {"high": 1.0, "low": 0.0}}, rules, parameters=("Tc", "b"))
+    assert hot.faults[0].name == "friction increase"
+    assert [u.fault for u in hot.unseen] == ["seized"]
+
+
 def test_breakpoints_of_a_parameter_the_model_does_not_have_are_refused(tmp_path: Path) -> None:
     """`d = {r1 = 30, r2 = 60}` for D was ignored, D judged by the scatter's
     default with nothing said; a rules file of unknown names was refused."""

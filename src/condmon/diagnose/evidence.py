@@ -54,11 +54,12 @@ The rule, precisely (``mu(s)`` is the degree of symptom ``s`` = ``high(P)`` or
 from __future__ import annotations
 
 import functools
+import itertools
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from condmon.diagnose.rules import Atom, Expr, RuleBase
+from condmon.diagnose.rules import Atom, Expr, RuleBase, evaluate
 
 __all__ = ["AMBIGUITY_TOLERANCE", "CandidateSet", "UnexplainedChange", "UnseenFault",
            "unseen_faults", "polarities",
@@ -209,9 +210,10 @@ class UnseenFault:
 
 
 def unseen_faults(rules: RuleBase, absent: Collection[str]) -> tuple[UnseenFault, ...]:
-    """The faults whose every rule needs a positive symptom of a parameter in
-    ``absent``: with no value of it, the test cannot show them, and a "go"
-    says nothing of them.
+    """The faults none of whose rules can fire without a symptom of a
+    parameter in ``absent``: with no value of it, the test cannot show them,
+    and a "go" says nothing of them. A rule that can fire on the parameters
+    the test has (``high(Tc) or high(b)`` with ``b`` judged) sees its fault.
 
     Example
     -------
@@ -221,12 +223,38 @@ def unseen_faults(rules: RuleBase, absent: Collection[str]) -> tuple[UnseenFault
     """
     if not absent:
         return ()
+    gone = frozenset(absent)
     out = []
     for name, positives in _positive_parameters(rules):
-        missing = [p & set(absent) for p in positives]
-        if all(missing):
+        conditions = [r.condition for r in rules.faults if r.name == name]
+        missing = [p & gone for p in positives]
+        if all(missing) and not any(_can_fire(c, gone) for c in conditions):
             out.append(UnseenFault(name, tuple(sorted(set().union(*missing)))))
     return tuple(out)
+
+
+#: Most symptoms of a rule whose every combination is tried (more: the rule is
+#: taken as needing each positive symptom it names, as a conjunction would).
+_CORNERS = 12
+
+
+def _can_fire(condition: Expr, absent: frozenset[str]) -> bool:
+    """Whether ``condition`` can reach a positive degree with the symptoms of
+    ``absent`` parameters at 0 (no value) and the others free: min/max/1-x is
+    extreme at the corners, so every 0/1 combination of the others is tried."""
+    atoms: dict[Atom, set[bool]] = {}
+    _walk(condition, False, atoms)
+    free = [a for a in atoms if a.parameter not in absent]
+    if len(free) > _CORNERS:
+        return False
+    fixed = {a: 0.0 for a in atoms if a.parameter in absent}
+    for bits in itertools.product((0.0, 1.0), repeat=len(free)):
+        value = {**fixed, **dict(zip(free, bits))}
+        high = {a.parameter: v for a, v in value.items() if a.kind == "high"}
+        low = {a.parameter: v for a, v in value.items() if a.kind == "low"}
+        if float(evaluate(condition, high, low)) > 0.0:
+            return True
+    return False
 
 
 @functools.lru_cache(maxsize=32)

@@ -295,3 +295,18 @@ def test_one_reason_for_several_parameters_is_said_once() -> None:
         "R, L: no spread between units is stated",
         "Tc@forward, vib1@forward: judged against oil",
         "Ke: the declared r1 20 % lies inside the healthy scatter"]
+
+
+def test_a_rules_file_without_status_takes_the_shipped_one_and_a_partial_one_is_named(
+        tmp_path: Path) -> None:
+    """A rules file names faults; without [status] it took 15 estimates to fail
+    with "[status] has no 'go'". Left out, the shipped membership functions serve;
+    a partial one is refused with the form it takes."""
+    fault = '[[fault]]\nname = "leak"\nif = "low(p)"\nseverity = "major"\nadvice = "look"\n'
+    path = tmp_path / "rules.toml"
+    path.write_text(fault)
+    assert load_rules(path).status == load_rules().status
+    path.write_text(fault + "[status]\ngo = [0.0, 0.0, 0.25, 0.5]\n")
+    with pytest.raises(ConfigError, match=r"rules.toml: \[status\] has no 'advisory'; it takes "
+                                          r"three membership functions"):
+        load_rules(path)

@@ -274,10 +274,15 @@ def load_rules(path: str | Path | None = None) -> RuleBase:
                               _single_atom(str(item["if_dominant"]), where),
                               tuple(_single_atom(str(c), where) for c in item["clear"]),
                               str(item.get("why", ""))))
-    st = raw.get("status", {})
+    # no [status]: the shipped membership functions of the output (a rules file
+    # names faults; how a degree reads as go / advisory / no-go is rarely its own)
+    st = raw["status"] if "status" in raw else load_default("rules.toml")["status"]
     for key in ("go", "advisory", "no_go"):
         if key not in st:
-            raise ConfigError(f"{src}: [status] has no {key!r}")
+            raise ConfigError(f"{src}: [status] has no {key!r}; it takes three membership "
+                              "functions on [0, 1], e.g. go = [0.0, 0.0, 0.25, 0.5], "
+                              "advisory = [0.25, 0.5, 0.75], no_go = [0.5, 0.75, 1.0, 1.0] "
+                              "(leave [status] out for these)")
     status = StatusSets(_set(st["go"], "go", src), _set(st["advisory"], "advisory", src),
                         _set(st["no_go"], "no_go", src))
     return RuleBase(tuple(faults), tuple(pre), status, src)

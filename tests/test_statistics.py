@@ -214,6 +214,14 @@ def test_a_baseline_narrower_than_the_checks_is_said() -> None:
     # to rebuild the baseline from it
     faulty = s.describe("advisory")
     assert "a diagnosed fault's own change" in faulty and "rebuild" not in faulty
+    # a fault growing under go (a feature no rule names): the alarm's change is
+    # the scatter, and rebuilding the baseline from it would bury it
+    ramp = wide + np.outer(np.arange(12.0) * 3.0, [1.0, 0.0])
+    grown = check_statistics(("R", "D"), ramp[-1], [1.0, 1.0], base - mean, np.ones((10, 2)),
+                             ramp)
+    assert grown.any_alarm and not grown.calibrated
+    text = grown.describe("go")
+    assert "do not rebuild the baseline" in text and "NOT at the stated rates" not in text
     same = rng.normal(0.0, 1.0, (12, 2)) - mean
     assert check_statistics(("R", "D"), same[-1], [1.0, 1.0], base - mean, np.ones((10, 2)),
                             same).calibrated

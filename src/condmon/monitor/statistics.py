@@ -221,8 +221,12 @@ class CheckStatistics:
             scatter = ("this unit's checks scatter "
                        + ", ".join(f"{self.scatter_ratio[k]:.2g}x" + f" ({k})" for k in wide)
                        + " the variance of its baseline's tests")
+            # a change under way (a fault, a drift alarm) scatters the checks too:
+            # rebuilding the baseline from them would bury it
             line += (f"; {scatter}: a diagnosed fault's own change may do that, the rates "
                      "are stated for a healthy unit" if status in ("advisory", "no-go") else
+                     f"; {scatter}: the change the alarm shows may do that; do not rebuild "
+                     "the baseline from these checks" if alarms else
                      f"; NOT at the stated rates: {scatter}: rebuild the baseline from tests "
                      "that span its operating conditions (sessions, temperatures)")
         return line

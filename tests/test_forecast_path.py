@@ -124,6 +124,23 @@ def test_the_fleet_s_failed_units_recalibrate_the_levels() -> None:
     assert path_pits(x, peer, 1.0) == []   # never reaches its end: no life to learn
 
 
+def test_the_chance_within_a_horizon_is_read_on_the_fleet_as_the_interval_is() -> None:
+    """Peers whose lives all ended early in their forecasts (PITs 0..0.2): the
+    recalibrated median comes early, and the chance of no-go by that median
+    is about a half (it was the draws' own share, about 0.1, beside it)."""
+    x = np.arange(1.0, 61.0)
+    y = -0.3 * x + 0.5 * np.sin(x / 3.0)
+    c = calibrate(np.linspace(0.0, 0.2, 41), MIN_PEERS)
+    assert c is not None
+    med = forecast_path(x, y, np.zeros(60), 0.5, -30.0, calibration=c).remaining
+    assert med is not None
+    at = forecast_path(x, y, np.zeros(60), 0.5, -30.0, horizon=med[0], calibration=c)
+    raw = forecast_path(x, y, np.zeros(60), 0.5, -30.0, horizon=med[0])
+    assert at.p_within is not None and raw.p_within is not None
+    assert 0.4 <= at.p_within <= 0.7 and raw.p_within < 0.25
+    assert "not on units like this one" in coverage_note("path")
+
+
 def test_imported_peers_recalibrate_a_unit_s_forecast(tmp_path: Path) -> None:
     """Three cells of the declaration run to their end of life, a fourth at
     cycle 40: its forecast is read at the levels where theirs fell."""

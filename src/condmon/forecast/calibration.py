@@ -61,6 +61,9 @@ class Calibration:
         Peer forecasts behind them.
     peers : int
         Failed peers they come from.
+    levels : tuple of float
+        Those forecasts' PITs, sorted: the map from a draw's level to the
+        fleet's (:meth:`probability`). [-]
     """
 
     median: float
@@ -68,6 +71,22 @@ class Calibration:
     high: float
     pits: int
     peers: int
+    levels: tuple[float, ...] = ()
+
+    def probability(self, raw: float) -> float:
+        """A probability the draws give (the share of them within a horizon)
+        read on the fleet: the share of its PITs at or below it.
+
+        Example
+        -------
+        >>> c = calibrate(np.linspace(0.0, 0.2, 41), peers=3)   # truths came early
+        >>> c.probability(0.1), c.probability(0.5)
+        (0.5121951219512195, 1.0)
+        """
+        if not self.levels:
+            return raw
+        return float(np.searchsorted(np.asarray(self.levels), raw, side="right")
+                     / len(self.levels))
 
     def describe(self) -> str:
         """One clause for a forecast's notes."""
@@ -141,5 +160,6 @@ def calibrate(pits: ArrayLike, peers: int) -> Calibration | None:
     p = p[np.isfinite(p)]
     if p.size < MIN_PITS or peers < MIN_PEERS:
         return None
-    lo, med, hi = (float(v) for v in np.quantile(np.clip(p, 0.0, 1.0), [0.05, 0.5, 0.95]))
-    return Calibration(med, lo, hi, int(p.size), int(peers))
+    p = np.sort(np.clip(p, 0.0, 1.0))
+    lo, med, hi = (float(v) for v in np.quantile(p, [0.05, 0.5, 0.95]))
+    return Calibration(med, lo, hi, int(p.size), int(peers), tuple(float(v) for v in p))

@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from condmon.errors import DataError
-from condmon.forecast.calibration import Calibration
+from condmon.forecast.calibration import MIN_PEERS, Calibration
 from condmon.forecast.path import PATH_MIN_TESTS, Z90, fit_path, path_remaining
 from condmon.forecast.series import (
     Forecast, Prior, checked_horizon, forecast_series, median_interval,
@@ -64,7 +64,12 @@ def coverage_note(method: str, recalibrated: bool = False) -> str:
              for v in found.values() if bool(v.get("recalibrated", False)) == recalibrated]
     if not parts:
         return ""
-    return "its 90 % interval held the true remaining life in " + "; ".join(parts)
+    # measured on one fleet: a unit of another kind may wear otherwise
+    caveat = ("" if recalibrated or method != "path" else
+              f"; measured there, not on units like this one: with {MIN_PEERS} failed units "
+              "of this model or more in the history, the forecast is read at the levels "
+              "their lives call for")
+    return "its 90 % interval held the true remaining life in " + "; ".join(parts) + caveat
 
 
 def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
@@ -154,6 +159,8 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
     if said:
         notes.append(said)
     p = float(np.mean(left <= horizon)) if horizon is not None else None
+    if p is not None and calibration is not None:   # read on the fleet, as the interval is
+        p = calibration.probability(p)
     return Forecast("path", threshold, slope, interval, (med, lo, hi), p, fit.n,
                     tuple(notes), coef, cov, last)
 

@@ -100,9 +100,10 @@ def _kept_row(unit: str, mark: int, peers: int, fields: dict[str, Any], fleet: F
 #: direction; 3: mid-p intervals, the scale read from the residuals, the way
 #: of a steady move; 4: faults of two symptoms; 5: a trend needs the unit's
 #: own checks to move, not its peers' prior alone; 6: a path forecast is
-#: recalibrated only on three failed peers or more), so the forecasts and
-#: wear kept by an older method are made again.
-FORECAST_METHOD = 6
+#: recalibrated only on three failed peers or more; 7: its chance within a
+#: horizon read on the fleet too), so the forecasts and wear kept by an
+#: older method are made again.
+FORECAST_METHOD = 7
 
 _CURRENT: set[str] = set()   # histories whose kept forecasts are the current method's
 

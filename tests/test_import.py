@@ -8,6 +8,7 @@ import sqlite3
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -346,6 +347,34 @@ def test_a_unit_heading_for_its_end_of_life_is_believed_on_its_way(
         else:
             got = import_table(store, table, model, unit="P1")
             assert (got[0].added, got[0].status) == (30, last)
+
+
+def test_units_of_different_lives_in_one_wide_table(tmp_path: Path) -> None:
+    """Run-to-failure cells end at different cycles: in a table of a column per
+    unit, an empty cell is no reading of that unit (the whole fleet's table was
+    refused at the first cycle after the shortest life); text is still refused."""
+    lines = ["cycle,C,D"]
+    for k in range(1, 21):
+        d = "" if k > 15 or k == 7 else f"{1.8 - 0.004 * k:.4f}"
+        lines.append(f"{k},{1.9 - 0.005 * k:.4f},{d}")
+    wide = tmp_path / "wide.csv"
+    wide.write_text("\n".join(lines) + "\n")
+    with open_store("sqlite://") as store:
+        got = import_table(store, wide, DECL, indicator="capacity")
+        assert [(u.unit, u.added) for u in got] == [("C", 20), ("D", 14)]
+    frame = pd.DataFrame({"cycle": np.arange(1.0, 11.0), "E": np.r_[np.linspace(1.9, 1.85, 8),
+                                                                    np.nan, np.nan]})
+    with open_store("sqlite://") as store:
+        assert import_table(store, frame, DECL, indicator="capacity")[0].added == 8
+    gap = pd.DataFrame({"cycle": [1.0, 2.0, 3.0], "capacity": [1.9, np.nan, 1.88]})
+    with open_store("sqlite://") as store, pytest.raises(DataError, match=re.escape(
+            "row 2 (line 3), column 'capacity': '' is empty")):   # not np.float64(nan)
+        import_table(store, gap, DECL, unit="X")
+    empty = tmp_path / "empty.csv"
+    empty.write_text("cycle,C,F\n1,1.9,\n2,1.89,\n")
+    with open_store("sqlite://") as store, pytest.raises(DataError, match=re.escape(
+            "column 'F' has no reading; nothing was stored")):
+        import_table(store, empty, DECL, indicator="capacity")
 
 
 def test_a_bad_cell_of_a_wide_table_names_the_file_s_column(tmp_path: Path) -> None:

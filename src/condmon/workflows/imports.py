@@ -151,6 +151,8 @@ def _numbers(path: Path, df: pd.DataFrame, col: str, *, nonneg: bool = False,
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         shown = raw.iloc[i]
+        if isinstance(shown, (float, np.floating)):   # not numpy's repr: np.float64(nan)
+            shown = "" if math.isnan(shown) else float(shown)
         what = "a negative standard error" if nonneg and np.isfinite(vals[i]) and vals[i] < 0 \
             else "empty" if str(shown).strip() == "" else \
             f"beyond {_HUGE:.0e}" if np.isfinite(vals[i]) else "not a finite number"
@@ -214,7 +216,15 @@ def read_indicator_table(path: str | Path | pd.DataFrame, model: IndicatorModel,
             raise DataError(f"{p}: no unit columns beside {', '.join(axes)}")
         long = df.melt(id_vars=axes, value_vars=units, var_name="unit", value_name=indicator)
         long["row"] = np.tile(np.arange(1, len(df) + 1), len(units))
+        # an empty cell is no reading of that unit there: units run to different
+        # lengths (a cell that failed early), and a cycle may go unmeasured
+        cell = long[indicator]
+        blank = cell.isna() | (cell.astype(str).str.strip() == "")
+        long = long[~blank.to_numpy()]
         groups = {u: long[long["unit"] == u].drop(columns="unit") for u in units}
+        for u, g in groups.items():
+            if not len(g):
+                raise DataError(f"{p}: column {u!r} has no reading; nothing was stored")
     else:
         if unit is not None and "unit" in df.columns:
             raise DataError(f"{p}: the table has a 'unit' column; omit --unit {unit} (each "

@@ -436,3 +436,22 @@ def test_a_refused_import_leaves_no_history_file_behind(tmp_path: Path,
     assert main(["import", str(bad), "--unit", "C2", "--model", str(DECL), "--db",
                  str(db)]) == 2
     assert db.exists()   # (a history that was there stays)
+
+
+def test_several_cycles_a_day_import_when_the_cycle_orders_them() -> None:
+    """A cycler runs ten cycles a day: with a cycle column, the date only dates
+    the rows (it was refused, "2024-03-01 is not after 2024-03-01"); a date
+    that goes back is still refused, and a date alone must increase."""
+    k = np.arange(1, 31)
+    days = [f"2024-03-{1 + (i - 1) // 10:02d}" for i in k]
+    table = pd.DataFrame({"cycle": k.astype(float), "date": days, "capacity": 1.9 - 0.003 * k})
+    with open_store("sqlite://") as store:
+        assert import_table(store, table, DECL, unit="X")[0].added == 30
+        back = table.assign(cycle=table["cycle"] + 30)
+        back.loc[5, "date"] = "2024-02-01"
+        with pytest.raises(DataError, match=re.escape(
+                "row 6 (line 7), column 'date': 2024-02-01 is before 2024-03-01")):
+            import_table(store, back, DECL, unit="X")
+    with open_store("sqlite://") as store, pytest.raises(DataError, match=re.escape(
+            "column 'date': 2024-03-01 is not after 2024-03-01")):
+        import_table(store, table.drop(columns="cycle"), DECL, unit="Y")

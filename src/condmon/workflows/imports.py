@@ -282,12 +282,17 @@ def _checked(path: Path, g: pd.DataFrame, axes: list[str], names: Sequence[str],
         else:
             out[a] = _numbers(path, g, a)
             step = np.diff(out[a].to_numpy())
-        back = np.flatnonzero(step <= 0)
+        # a date beside a cycle or hours column only dates the rows they order:
+        # a cycler runs several cycles a day
+        beside = a == "date" and len(axes) > 1
+        back = np.flatnonzero(step < 0 if beside else step <= 0)
         if back.size:
             i = int(back[0]) + 1
-            raise DataError(f"{path}: {at(i)}, column {a!r}: {g[a].iloc[i]!s} is not after "
-                            f"{g[a].iloc[i - 1]!s} ({at(i - 1)}); the {a} must increase down "
-                            "the table; nothing was stored")
+            raise DataError(f"{path}: {at(i)}, column {a!r}: {g[a].iloc[i]!s} is "
+                            f"{'before' if beside else 'not after'} {g[a].iloc[i - 1]!s} "
+                            f"({at(i - 1)}); the {a} must "
+                            f"{'not go back' if beside else 'increase'} down the table; "
+                            "nothing was stored")
     for n in names:
         if n in g.columns:
             out[n] = _numbers(path, g, n, label=(labels or {}).get(n))
@@ -321,6 +326,8 @@ def _after_stored(store: HistoryStore, unit: str, first: pd.Series, axes: Sequen
                             f"a {a}), and this table has no {a!r} column; nothing was stored")
     for a, col in (("cycle", "cycle"), ("hours", "hours"), ("date", "test_date")):
         if a not in axes or col not in hist or not hist[col].notna().any():
+            continue
+        if a == "date" and len(axes) > 1:   # dates the rows the other axis orders
             continue
         stored = hist[col].dropna().max()
         new = pd.Timestamp(first[a]) if a == "date" else float(first[a])

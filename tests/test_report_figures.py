@@ -299,3 +299,32 @@ def test_a_unit_at_no_go_has_no_forecast_in_its_legend() -> None:
         labels = [t.get_text() for leg in fig.legends for t in leg.get_texts()]
         plt.close(fig)
         assert "no-go change" in labels and (FORECAST_LABEL in labels) is shown
+
+
+def test_a_path_forecast_is_drawn_as_its_numbers_say() -> None:
+    """A path forecast recalibrated on its fleet (its lives came early): the
+    drawn median reaches the no-go line at the forecast's median, and the band's
+    edges at its interval's ends (the coefficients' band went the other way, up
+    from -16 % at 14 cycles left)."""
+    from condmon.forecast.calibration import MIN_PEERS, calibrate
+    from condmon.forecast.measured import forecast_path
+    from condmon.forecast.unit import ParameterForecast
+    from condmon.report.trends import forecast_band
+
+    x = np.arange(1.0, 61.0)
+    y = -0.3 * x + 0.5 * np.sin(x / 3.0)
+    c = calibrate(np.linspace(0.0, 0.2, 41), MIN_PEERS)
+    f = forecast_path(x, y, np.zeros(60), 0.5, -30.0, calibration=c)
+    assert f.remaining is not None
+    med, low, high = f.remaining
+    band = forecast_band(ParameterForecast("capacity", "Ah", "-30 %", f,
+                                           test_ids=tuple(range(1, 61))), "tests", points=401)
+    assert band is not None
+    def at(line: np.ndarray, r: float) -> float:
+        return float(line[int(np.argmin(np.abs(band.ahead - r)))])
+
+    step = float(band.ahead[1] - band.ahead[0])
+    assert at(band.median, med) == pytest.approx(-30.0, abs=step)
+    assert at(band.low, low) == pytest.approx(-30.0, abs=step)   # falling: the soonest lowest
+    assert at(band.median, 0.0) == pytest.approx(at(band.high, 0.0))
+    assert np.all(band.low <= band.median) and np.all(band.median <= band.high)

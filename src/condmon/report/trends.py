@@ -469,7 +469,10 @@ def forecast_band(forecast: ParameterForecast, by: str, points: int = 40) -> For
 
     From the last check to past the median crossing (to the 95 % point of
     the tests (days) left, at most twice the median), the fitted trend and
-    its 90 % band (:meth:`condmon.forecast.series.Forecast.band`). None
+    its 90 % band (:meth:`condmon.forecast.series.Forecast.band`); for a
+    path forecast, straight lines from the last check's level to the no-go
+    line at the median and at the ends of its 90 % interval (its life comes
+    from the drawn paths, and a fleet may have recalibrated it). None
     without a trend.
 
     Parameters
@@ -484,10 +487,18 @@ def forecast_band(forecast: ParameterForecast, by: str, points: int = 40) -> For
     f = forecast.forecast
     if f.remaining is None or not forecast.test_ids:
         return None
-    med, _, high = f.remaining
+    med, low, high = f.remaining
     end = min(high, 2.0 * med) if np.isfinite(med) else max(f.last, 1.0)
     ahead = np.linspace(0.0, max(float(end), 1e-9), points)
     mid, lo, hi = f.band(ahead)
+    if f.model == "path" and 0 < low <= med <= high and np.isfinite(high):
+        # a path forecast's life comes from its drawn paths (and a fleet may have
+        # read them at its own levels): lines from now to the no-go line at the
+        # median and the interval's ends, so the figure says what the numbers do
+        now = float(mid[0])
+        mid, soon, late = (now + (f.threshold - now) * np.minimum(ahead / r, 1.0)
+                           for r in (med, low, high))
+        lo, hi = np.minimum(soon, late), np.maximum(soon, late)
     if by in ("hours", "cycles"):   # drawn against the checks: their mean usage a check
         per_check = forecast.span / max(len(forecast.test_ids) - 1, 1)
         if not per_check > 0:

@@ -201,8 +201,9 @@ def register(app: typer.Typer) -> None:
         keyed = [c for c in hist.columns if f"{c}_se" in hist.columns]
         machine = get_model(model)
         imported = machine.indicators is not None   # its values' axis, not a fit
-        params = [p for p in (machine.spec.report if imported else machine.spec.unknowns)
-                  if any(split_key(c)[0] == p for c in keyed)]
+        listed = machine.spec.report if imported else \
+            (*machine.spec.unknowns, *(f.name for f in machine.features))   # features too
+        params = [p for p in listed if any(split_key(c)[0] == p for c in keyed)]
         axis = next((a for a in ("cycle", "hours") if imported and a in hist
                      and hist[a].notna().any()), "")
         regimes = bool(hist["regime"].notna().any())

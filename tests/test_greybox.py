@@ -354,3 +354,20 @@ def test_an_unknown_intersample_is_refused_with_the_allowed_values(tmp_path: Pat
                                           r"\(held over each sample\), 'bl' \(the values at "
                                           r"the sample times\)"):
         get_model(str(model))
+
+
+def test_an_inverse_fit_below_its_threshold_names_the_simulation_route() -> None:
+    """The inverse route differentiates a filtered record; where that fails
+    (a gearbox's J came out 70 standard errors off at fit -179 %), the
+    rejection names the route that does not differentiate."""
+    import dataclasses
+
+    from condmon.identify.fit import FitCheck
+
+    res = estimate(_emps_axis(duration=6.0), EMPS_TOML)
+    assert res.accepted and res.route == "inverse"
+    poor = dataclasses.replace(res, fit=FitCheck(res.fit.r2, -179.0, 90.0, False))
+    assert poor.reason is not None and "--route simulation fits the model" in poor.reason
+    linear = estimate(simulate_actuator(seed=1))
+    worse = dataclasses.replace(linear, fit=FitCheck(linear.fit.r2, 50.0, 90.0, False))
+    assert worse.reason == "fit 50.0 % below the threshold 90 %"

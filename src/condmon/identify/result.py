@@ -172,8 +172,13 @@ class EstimateResult:
         if self.rejection is not None:
             return self.rejection
         if not self.fit.accepted:
+            # the inverse route differentiates a filtered record: a cut-off that
+            # does not suit it fails where the simulation error would not
+            hint = ("; --route simulation fits the model by its simulation error "
+                    "instead (no filter, no derivatives; slower), or set [estimation] "
+                    "cutoff" if self.route == "inverse" else "")
             return (f"fit {self.fit.fit_percent:.1f} % below the threshold "
-                    f"{self.fit.threshold:g} %")
+                    f"{self.fit.threshold:g} %{hint}")
         return None
 
     @property

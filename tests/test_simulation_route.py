@@ -831,3 +831,49 @@ g = { gt = 0.0 }
     with pytest.raises(EstimationError, match=r"the direction it cannot see: C, R, g; give one "
                                               r"of C, R, g a known value \(--constants g=VALUE\)"):
         estimate(pd.DataFrame({"t": np.arange(n, dtype=float), "u": u, "y": y}), str(model))
+
+
+THERMAL = """
+name = "wall"
+[parameters]
+C = { value = 1.5e5, unit = "J/K" }
+R = { value = 3.0e-3, unit = "K/W" }
+[inputs]
+P = { nominal = 0.0, unit = "W" }
+[states]
+T = { derivative = "(P - T/R)/C", unit = "K" }
+[sensors]
+Tm = { measures = "T", noise = 0.02, unit = "K" }
+[test]
+duration = 20000.0
+sample_rate = 0.1
+[estimation]
+estimate = ["C", "R"]
+route = "simulation"
+starts = 1
+sample_interval = [1.0, 100.0]
+[estimation.initial]
+T = "first-sample"
+[estimation.plausible]
+C = { gt = 0.0, lt = 1.0e8 }
+R = { gt = 0.0, lt = 1.0 }
+"""
+
+
+def test_parameters_of_very_different_sizes_are_no_singularity(tmp_path: Path) -> None:
+    """A wall's heat capacity in J/K (2e5) beside its resistance in K/W (2e-3):
+    the sensitivities' condition is judged on the columns normalised (unscaled,
+    1e16: "the sensitivities are singular", though the record fixes both)."""
+    p = tmp_path / "wall.toml"
+    p.write_text(THERMAL)
+    c = get_model(str(p)).plant.compile()
+    n = 2000
+    P = np.repeat(np.random.default_rng(2).choice([0.0, 5000.0], n // 40 + 1), 40)[:n]
+    truth = {"C": 2.0e5, "R": 2.0e-3}
+    sim = simulate_recorded(c, P[:, None], 10.0, np.array([0.0]), c.parameter_vector(truth),
+                            substeps=4)
+    y = sim.outputs[:, 0] + 0.02 * np.random.default_rng(3).standard_normal(n)
+    res = estimate(pd.DataFrame({"t": 10.0 * np.arange(n), "P": P, "Tm": y}), str(p))
+    assert res.accepted, res.reason
+    for k, v in truth.items():
+        assert abs(res.parameters[k] - v) <= 4 * res.std_errors[k], (k, res.parameters)

@@ -234,7 +234,7 @@ def simulation_route(rec: Record | Sequence[Record], machine: Machine,
             notes.append(f"multiple shooting over {settings.segments} segments per record; "
                          f"{why}, so the figures are the segments'")
             prob, z, n_refine, said = _refine(records, machine, start, consts, held, prob, z,
-                                              sigma, xscale)
+                                              sigma, xscale, (single, z1))
             evaluations += n_refine
             notes.append(said)
     res = _result(prob, z, sigma, xscale, fit_threshold, runs, spread, evaluations, notes,
@@ -298,22 +298,35 @@ def simulation_route(rec: Record | Sequence[Record], machine: Machine,
 
 def _refine(records: Sequence[Record], machine: Machine, start: Mapping[str, float],
             consts: Mapping[str, float], held: Sequence[str], prob: FitProblem, z: FloatArray,
-            sigma: FloatArray, xscale: FloatArray) -> tuple[FitProblem, FloatArray, int, str]:
+            sigma: FloatArray, xscale: FloatArray, first: tuple[FitProblem, FloatArray]
+            ) -> tuple[FitProblem, FloatArray, int, str]:
     """Where the model drifts, the segment length is a choice the figures must not
-    hang on: the segments are doubled, from the optimum, while the parameters
-    move by more than one standard error, at most :data:`_REFINE` times."""
+    hang on: the segments are doubled while the parameters move by more than one
+    standard error, at most :data:`_REFINE` times. Each finer fit runs from the
+    coarser optimum and from the route's start (``first``: the single-shooting
+    problem and its start), and keeps the lower error: longer segments hold
+    optima of their own that a finer cut, started from them, does not leave (on
+    EMPS, 50 segments held M at 93.0 kg through every doubling; cut in 100 from
+    the start, 95.1 kg, at a lower error)."""
     nf = len(prob.free)
     per = [len(prob.seg) // len(records)]
     moves: list[float] = []
     evaluations = 0
+    fresh_won = 0
     for _ in range(_REFINE):
         finer = fit_layout(records, machine, start, consts, 2 * per[-1], held)
         if len(finer.seg) <= len(prob.seg):
             break   # segments of 20 samples: as fine as a segment goes
         finer.substeps = prob.substeps
-        z2, cost, n = _solve(finer, restart_vector(finer, prob, z), *fit_bounds(finer), sigma,
-                             xscale, _POLISH)
-        evaluations += n
+        bounds = fit_bounds(finer)
+        z2, cost, n = _solve(finer, restart_vector(finer, prob, z), *bounds, sigma, xscale,
+                             _POLISH)
+        z3, cost3, n3 = _solve(finer, start_vector(finer, *first), *bounds, sigma, xscale,
+                               _POLISH)
+        evaluations += n + n3
+        if cost3 < cost * (1.0 - _SAME_COST / 10.0):
+            z2, cost = z3, cost3
+            fresh_won += 1
         if not math.isfinite(cost):
             break
         cov = _covariance(finer, z2, sigma, xscale)[3]
@@ -330,9 +343,12 @@ def _refine(records: Sequence[Record], machine: Machine, start: Mapping[str, flo
     tail = ("" if moves[-1] <= 1.0 else
             "; they still move by more than one standard error: the estimates hang on how "
             "the record is cut (an unmodelled drift), beyond what their standard errors say")
+    fresh = (f" ({fresh_won} of the finer fits reached a lower error from the start than "
+             "from the coarser optimum: a local optimum of the longer segments, left)"
+             if fresh_won else "")
     return prob, z, evaluations, (f"segments refined {path} per record, the parameters moving "
                                   f"by {moved} standard errors; the figures are those of "
-                                  f"{per[-1]} segments{tail}")
+                                  f"{per[-1]} segments{fresh}{tail}")
 
 
 def _trading(prob: FitProblem, J: FloatArray, z: FloatArray, xscale: FloatArray) -> str:
@@ -419,8 +435,15 @@ def _covariance(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: Floa
     lo, hi = fit_bounds(prob)
     J = jacobian(prob, z, resid_sd, xscale, lo, hi)
     info = J.T @ J
+    # the condition of the column-normalised information: a parameter in henry
+    # beside one in N m/rad is no ill-conditioning (1.3e14 unscaled on a two-mass
+    # drive whose every unknown the record fixed)
+    norms = np.sqrt(np.clip(np.diag(info), 0.0, None)) if np.all(np.isfinite(info)) \
+        else np.zeros(info.shape[0])
     with np.errstate(all="ignore"):
-        cond = float(np.linalg.cond(info)) if np.all(np.isfinite(info)) else np.inf
+        scaled = info / np.outer(norms, norms)
+        cond = float(np.linalg.cond(scaled)) if np.all(norms > 0) and \
+            np.all(np.isfinite(scaled)) else np.inf
     if not (np.isfinite(cond) and cond < 1e14):
         missed = beyond_noise(prob.machine.plant, e)
         raise EstimationError(f"simulation-error route: the sensitivities are singular "
@@ -428,7 +451,7 @@ def _covariance(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: Floa
                               "every unknown, or an initial state and a parameter trade off"
                               + _trading(prob, J, z, xscale)
                               + (f"; at the optimum {missed[0]}" if missed else ""))
-    white = np.asarray(np.linalg.inv(info), dtype=np.float64)
+    white = np.asarray(np.linalg.inv(scaled) / np.outer(norms, norms), dtype=np.float64)
     cov, widened, batches = batch_widened(prob, J, e / resid_sd, white)
     return cost, e, J, cov, white, widened, batches
 

@@ -313,6 +313,7 @@ def _refine(records: Sequence[Record], machine: Machine, start: Mapping[str, flo
     moves: list[float] = []
     evaluations = 0
     fresh_won = 0
+    other = ""   # the other optimum a finer cut reached, where it was another
     for _ in range(_REFINE):
         finer = fit_layout(records, machine, start, consts, 2 * per[-1], held)
         if len(finer.seg) <= len(prob.seg):
@@ -325,13 +326,19 @@ def _refine(records: Sequence[Record], machine: Machine, start: Mapping[str, flo
                                _POLISH)
         evaluations += n + n3
         if cost3 < cost * (1.0 - _SAME_COST / 10.0):
-            z2, cost = z3, cost3
+            z2, z3, cost, cost3 = z3, z2, cost3, cost
             fresh_won += 1
         if not math.isfinite(cost):
             break
         cov = _covariance(finer, z2, sigma, xscale)[3]
         se = np.sqrt(np.maximum(np.diag(cov)[:nf], 1e-300))
         moves.append(float(np.max(np.abs(z2[:nf] - z[:nf]) / se)) if nf else 0.0)
+        apart = np.abs(z3[:nf] - z2[:nf]) / se
+        if nf and math.isfinite(cost3) and float(np.max(apart)) > 1.0:
+            k = int(np.argmax(apart))
+            other = (f"{finer.free[k]} {z3[k]:.4g} against {z2[k]:.4g}, "
+                     f"{float(apart[k]):.2g} standard errors away, at an error "
+                     f"{100.0 * (cost3 / cost - 1.0):.0f} % higher")
         prob, z = finer, z2
         per.append(len(finer.seg) // len(records))
         if moves[-1] <= 1.0:
@@ -346,6 +353,10 @@ def _refine(records: Sequence[Record], machine: Machine, start: Mapping[str, flo
     fresh = (f" ({fresh_won} of the finer fits reached a lower error from the start than "
              "from the coarser optimum: a local optimum of the longer segments, left)"
              if fresh_won else "")
+    if other:
+        fresh += (f"; the finer cut, run from the {'coarser optimum' if fresh_won else 'start'}"
+                  f" too, reached another optimum ({other}): the error has several minima, "
+                  "and the figures are the lowest found")
     return prob, z, evaluations, (f"segments refined {path} per record, the parameters moving "
                                   f"by {moved} standard errors; the figures are those of "
                                   f"{per[-1]} segments{fresh}{tail}")

@@ -127,6 +127,13 @@ class LinearRouteResult:
     rejection: str | None
     diagnostics: dict[str, float] = field(default_factory=dict)
     identifiability: Identifiability | None = None
+    notes: tuple[str, ...] = ()
+
+
+#: The level at which a held value the record contradicts is not held: the
+#: likelihood-ratio test of the coefficients' fit, held against free, at 1 %
+#: (as the simulation route's Wald and likelihood-ratio tests).
+HOLD_LEVEL = 0.01
 
 
 def _fit_and_diagnostics(est: TFEstimate, u: FloatArray, y: FloatArray,
@@ -418,15 +425,35 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
         except ConversionError as err:
             return LinearRouteResult(nan, nan_cov, est, cont, fit,
                                      f"no physical parameters: {err}", diag, identifiability=idf)
-        p = fixed.copy()
-        p[keep] = p_sub
-        Jf = lin.jacobian(p, known)
-        Jw = W @ Jf[:, keep]
-        cov = np.zeros((len(spec.unknowns),) * 2)
-        cov[np.ix_(keep, keep)] = np.linalg.pinv(Jw.T @ Jw)
-        # how the others lean on the held values, where they are held (the full
-        # solution the screening ran at may lie far off, and its lean with it)
-        idf = dataclasses.replace(idf, dependence=dependence_at(W @ (Jf * scales), idf))
+        p_held = fixed.copy()
+        p_held[keep] = p_sub
+        contradicted = _contradicted(lin, known, W, c_hat, p, p_held, spec.unknowns,
+                                     [k for k in spec.unknowns if k not in idf.identifiable])
+        if contradicted is None:
+            p = p_held
+            Jf = lin.jacobian(p, known)
+            Jw = W @ Jf[:, keep]
+            cov = np.zeros((len(spec.unknowns),) * 2)
+            cov[np.ix_(keep, keep)] = np.linalg.pinv(Jw.T @ Jw)
+            # how the others lean on the held values, where they are held (the full
+            # solution the screening ran at may lie far off, and its lean with it)
+            idf = dataclasses.replace(idf, dependence=dependence_at(W @ (Jf * scales), idf))
+        else:
+            # the record contradicts the held value: every unknown estimated, the
+            # collinearity in their standard errors
+            weak = [k for k in spec.unknowns if k not in idf.identifiable]
+            said = (f"{', '.join(weak)}: {'; '.join(idf.reasons[k] for k in weak)}; but held "
+                    f"at {', '.join(f'{held[k]:.4g}' for k in weak)} the estimated "
+                    f"coefficients would not be reproduced ({contradicted}): the record "
+                    "determines it, and the standard errors carry the collinearity")
+            idf = dataclasses.replace(idf, identifiable=tuple(spec.unknowns),
+                                      reasons={k: v for k, v in idf.reasons.items()
+                                               if k not in weak})
+            Jw = W @ Jp
+            cov = np.asarray(np.linalg.pinv(Jw.T @ Jw), dtype=np.float64) if over else \
+                np.linalg.pinv(Jp) @ cov_c @ np.linalg.pinv(Jp).T
+            return LinearRouteResult(dict(zip(spec.unknowns, map(float, p))), cov, est, cont,
+                                     fit, None, diag, identifiability=idf, notes=(said,))
     elif over:
         Jw = W @ Jp
         cov = np.asarray(np.linalg.pinv(Jw.T @ Jw), dtype=np.float64)
@@ -456,6 +483,30 @@ class _Subset:
 
     def jacobian(self, p: FloatArray, known: FloatArray) -> FloatArray:
         return self.lin.jacobian(self._full(p), known)[:, self.keep]
+
+
+def _contradicted(lin: LinearStructure, known: FloatArray, W: FloatArray, c_hat: FloatArray,
+                  p_free: FloatArray, p_held: FloatArray, names: Sequence[str],
+                  weak: Sequence[str]) -> str | None:
+    """Why the held values contradict the record (None: they do not). The
+    coefficients' whitened misfit ``χ²`` with the ``weak`` unknowns held
+    against free: their difference is the likelihood ratio, ``χ²`` with one
+    degree of freedom a held unknown, under the hypothesis that the held
+    values are right. A collinear unknown the record still fixes (a shaft's
+    stiffness beside two inertias) is held only where the data allow it."""
+    from scipy.stats import chi2
+
+    with np.errstate(all="ignore"):
+        r_held = W @ (lin.values(p_held, known) - c_hat)
+        r_free = W @ (lin.values(p_free, known) - c_hat)
+    if not (np.all(np.isfinite(r_held)) and np.all(np.isfinite(r_free))):
+        return None
+    lr = float(r_held @ r_held) - float(r_free @ r_free)
+    limit = float(chi2.isf(HOLD_LEVEL, len(weak)))
+    if lr <= limit:
+        return None
+    return (f"likelihood ratio {lr:.3g} > {limit:.3g}, {100 * HOLD_LEVEL:g} %; free, "
+            + ", ".join(f"{k} = {p_free[list(names).index(k)]:.4g}" for k in weak))
 
 
 def _whitened(cov: FloatArray, J: FloatArray) -> FloatArray:

@@ -201,7 +201,7 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
                 values, ucov, fit = lin.values, lin.covariance, lin.fit
                 discrete, cont, rejection = lin.discrete, lin.continuous, lin.rejection
                 diagnostics = dict(lin.diagnostics)
-                notes += list(lin.discrete.notes)
+                notes += [*lin.discrete.notes, *lin.notes]
                 idf = lin.identifiability
             elif chosen == "oe":
                 from condmon.identify.oe_route import oe_route  # sympy, scipy: only this route

@@ -37,7 +37,8 @@ from numpy.typing import NDArray
 
 from condmon.identify._products import gram, product
 
-__all__ = ["long_run_covariance", "long_run_covariance_of", "andrews_bandwidth", "MAX_RHO"]
+__all__ = ["long_run_covariance", "long_run_covariance_of", "andrews_bandwidth", "MAX_RHO",
+           "widened"]
 
 FloatArray = NDArray[np.float64]
 
@@ -163,3 +164,35 @@ def _from_rows(rows: Callable[[int, int], FloatArray], T: int, block: int
             gamma = product(g[first:], g[first - lag: g.shape[0] - lag])
             S += (1.0 - lag / b) * (gamma + gamma.T)
     return S, b
+
+
+def widened(cov: FloatArray, scores: FloatArray) -> tuple[FloatArray, float, float]:
+    """A least-squares covariance ``cov`` (the white-noise bound ``A⁻¹``) with
+    each variance widened to the Newey–West sandwich ``A⁻¹ S A⁻¹`` where that
+    is larger, the correlations kept: the standard errors hold when the
+    residuals are correlated in time, and stay the bound when they are white.
+
+    Parameters
+    ----------
+    cov : ndarray, shape (p, p)
+        ``A⁻¹``, ``A`` the information of the normalised residuals.
+    scores : ndarray, shape (T, p)
+        Each sample's score (the normalised residual times its row of the
+        normalised Jacobian, summed over the outputs), in time order.
+
+    Returns
+    -------
+    cov : ndarray
+    widening : float
+        The largest factor on a standard error (1: none). [-]
+    bandwidth : float
+        The Bartlett bandwidth (0: too few samples to estimate one). [samples]
+    """
+    if scores.shape[0] < 10:
+        return cov, 1.0, 0.0
+    S, bandwidth = long_run_covariance(scores)
+    robust = cov @ S @ cov
+    with np.errstate(all="ignore"):
+        ratio = np.sqrt(np.clip(np.diag(robust), 0.0, None) / np.diag(cov))
+    s = np.where(np.isfinite(ratio), np.maximum(ratio, 1.0), 1.0)
+    return cov * s[:, None] * s[None, :], float(np.max(s)), float(bandwidth)

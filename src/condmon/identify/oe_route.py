@@ -29,6 +29,7 @@ from condmon._filter import lfilter
 from condmon.errors import EstimationError
 from condmon.identify.fit import FitCheck, residual_figures
 from condmon.identify.greybox import RouteResult
+from condmon.identify.long_run import widened
 from condmon.io.records import Record
 from condmon.models.machine import Machine
 from condmon.models.semilinear import SemiLinearStructure, semilinear_structure
@@ -47,9 +48,21 @@ class OERouteResult(RouteResult):
     ----------
     evaluations : int
         Simulations run by the optimiser.
+    widening : float
+        Largest factor by which the residuals' correlation widened a standard
+        error over the white-noise bound (Newey–West). [-]
+    bandwidth : float
+        Bartlett bandwidth of that estimate. [samples]
     """
 
     evaluations: int
+    widening: float = 1.0
+    bandwidth: float = 0.0
+
+    def diagnostics(self) -> dict[str, float]:
+        """The shared figures, with ``se_widening`` and ``se_bandwidth_samples``."""
+        return {"se_widening": self.widening, "se_bandwidth_samples": self.bandwidth,
+                **super().diagnostics()}
 
 
 class _Simulator:
@@ -160,16 +173,29 @@ def oe_route(rec: Record | Sequence[Record], machine: Machine, start: Mapping[st
         sigma = np.maximum(np.std(e, axis=0), 1e-300)
     jac = np.asarray(sol.jac, dtype=np.float64)
     info = jac.T @ jac
+    # judged on the normalised columns: parameters in units of very different
+    # sizes are no singularity
+    norms = np.sqrt(np.clip(np.diag(info), 0.0, None)) if np.all(np.isfinite(info)) \
+        else np.zeros(p.size)
     with np.errstate(all="ignore"):
-        cond = float(np.linalg.cond(info)) if np.all(np.isfinite(info)) else np.inf
+        scaled = info / np.outer(norms, norms)
+        cond = float(np.linalg.cond(scaled)) if np.all(norms > 0) and \
+            np.all(np.isfinite(scaled)) else np.inf
     if not (np.isfinite(cond) and cond < 1e14):
         raise EstimationError(f"output-error route: the sensitivities are singular (condition "
                               f"number {cond:.3g}); the record does not excite every parameter")
-    cov = np.asarray(np.linalg.solve(info, np.eye(p.size)), dtype=np.float64)
+    white_cov = np.asarray(np.linalg.inv(scaled) / np.outer(norms, norms), dtype=np.float64)
+    # coloured noise (or a model that misses a slow effect) correlates the residuals:
+    # the standard errors are widened to the Newey-West sandwich where it is larger
+    r = np.asarray(sol.fun, dtype=np.float64)
+    m = y.shape[1]
+    scores = (jac * r[:, None]).reshape(-1, m, p.size).sum(axis=1)
+    cov, widening, bandwidth = widened(white_cov, scores)
     r2, nrmse, white = {}, {}, {}
     for j, name in enumerate(s.sensors):
         figures = residual_figures(y[:, j], e[:, j])
         r2[name], nrmse[name], white[name] = figures.r2, figures.nrmse, figures.whiteness
     fit_pct = 100.0 * float(np.mean(list(r2.values())))
     fit = FitCheck(r2, fit_pct, float(fit_threshold), bool(fit_pct >= fit_threshold))
-    return OERouteResult(dict(zip(spec.unknowns, map(float, p))), cov, fit, nrmse, white, nfev)
+    return OERouteResult(dict(zip(spec.unknowns, map(float, p))), cov, fit, nrmse, white, nfev,
+                         widening, bandwidth)

@@ -215,6 +215,9 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
                 notes.append(f"output error: the declared model simulated with its "
                              f"linear part exact (ZOH), started from {how}, "
                              f"{oe_res.evaluations} optimiser evaluations")
+                if oe_res.widening > 1.1:
+                    notes.append(_widening_note(oe_res.bandwidth, oe_res.widening,
+                                                "residuals"))
             elif chosen == "simulation":
                 from condmon.identify.simulation_route import simulation_route
 
@@ -261,11 +264,9 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
                 diagnostics = inv.diagnostics()
                 notes.append(f"inverse model (IDIM-LS): zero-phase low-pass at {inv.cutoff:g} Hz, "
                              f"central differences, {inv.samples} samples")
-                if inv.widening > 1.0:
-                    notes.append("standard errors: the larger of the white-noise bound and "
-                                 "the Newey-West estimate (bandwidth "
-                                 f"{inv.bandwidth:.0f} samples); the filtered residuals are "
-                                 f"correlated and widen them up to {inv.widening:.1f} times")
+                if inv.widening > 1.1:
+                    notes.append(_widening_note(inv.bandwidth, inv.widening,
+                                                "filtered residuals"))
                 worst = max(inv.whiteness, key=lambda k: inv.whiteness[k])
                 limit = spec.max_residual_correlation
                 if inv.whiteness[worst] > limit:
@@ -371,3 +372,10 @@ def _leaning(idf: Identifiability, values: Mapping[str, float], ucov: FloatArray
         return ""
     return ("; the estimates hold only at the held value" + ("s" if len(parts) > 1 else "")
             + ": " + "; ".join(parts))
+
+
+def _widening_note(bandwidth: float, widening: float, what: str) -> str:
+    """The note of standard errors widened for correlated residuals."""
+    return ("standard errors: the larger of the white-noise bound and the Newey-West "
+            f"estimate (bandwidth {bandwidth:.0f} samples); the {what} are correlated and "
+            f"widen them up to {widening:.1f} times")

@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 
 from condmon.errors import EstimationError
 from condmon.identify.identifiability import Identifiability, assess_identifiability
-from condmon.identify.long_run import long_run_covariance
+from condmon.identify.long_run import widened
 from condmon.models.plausibility import IdentifiabilityLimits
 
 __all__ = ["IdentifiedFit", "identified_lstsq"]
@@ -193,22 +193,14 @@ def identified_lstsq(blocks: Sequence[FloatArray], rhs: Sequence[FloatArray],
 def _widened(cov: FloatArray, chosen: Sequence[int], blocks: Sequence[FloatArray],
              resid: Sequence[FloatArray], w: Sequence[FloatArray]
              ) -> tuple[FloatArray, float, float]:
-    """The covariance with each variance widened to the Newey–West sandwich
-    where that is larger, correlations kept; the largest factor and the
-    bandwidth [rows]. Blocks of one length are equations over the same rows
-    (their scores add per row); otherwise the blocks' rows follow each other."""
+    """:func:`~condmon.identify.long_run.widened` on the estimated unknowns.
+    Blocks of one length are equations over the same rows (their scores add
+    per row); otherwise the blocks' rows follow each other."""
     scores = [(b[:, chosen] * wi[:, None]) * (wi * e)[:, None]
               for b, e, wi in zip(blocks, resid, w)]
     same = len({g.shape[0] for g in scores}) == 1
     g = sum(scores[1:], scores[0]) if same else np.vstack(scores)
-    if g.shape[0] < 10:
-        return cov, 1.0, 0.0
-    S, bandwidth = long_run_covariance(g)
-    C = cov[np.ix_(chosen, chosen)]
-    robust = C @ S @ C
-    with np.errstate(all="ignore"):
-        ratio = np.sqrt(np.clip(np.diag(robust), 0.0, None) / np.diag(C))
-    s = np.where(np.isfinite(ratio), np.maximum(ratio, 1.0), 1.0)
+    C, factor, bandwidth = widened(cov[np.ix_(chosen, chosen)], g)
     out = cov.copy()
-    out[np.ix_(chosen, chosen)] = C * s[:, None] * s[None, :]
-    return out, float(np.max(s)), float(bandwidth)
+    out[np.ix_(chosen, chosen)] = C
+    return out, factor, bandwidth

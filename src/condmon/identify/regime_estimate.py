@@ -288,7 +288,9 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
         notes.append(f"possible structure mismatch: the residual of {worst} is correlated "
                      f"({white[worst]:.2f} > {spec.residual_warning:g}); the model may miss "
                      "part of the dynamics" + (f" ({spec.structure_hint})"
-                                               if spec.structure_hint else ""))
+                                               if spec.structure_hint else "")
+                     + ", or the sensor's noise is coloured (filtered, drifting): the "
+                       "standard errors hold either way")
     names = spec.report
     identified = set(idf.identifiable) if idf is not None else set(spec.unknowns)
     if idf is not None and not idf.identifiable and rejection is None:

@@ -291,7 +291,8 @@ def unexplained(trends: Sequence[TrendData]) -> dict[int, str]:
     * an alarm (advisory, no-go) with no parameter's bar beyond ``r1``;
     * ``go`` although a parameter's symptom is full (beyond ``r2``): the rule
       base makes no fault of it (or preprocessing cleared it);
-    * a stored symptom that disagrees with the drawn bar (evaluated with other
+    * a stored symptom that disagrees with the drawn bar (judged against its
+      prediction at its operating conditions, ``[conditions]``, or with other
       breakpoints or another ``k`` than the figure's).
 
     Returns
@@ -317,7 +318,9 @@ def unexplained(trends: Sequence[TrendData]) -> dict[int, str]:
                   and abs(t.implied[i] - t.symptom[i]) > 1e-6]
         if differ:
             notes.append(f"stored symptom of {', '.join(differ)} disagrees with the drawn "
-                         "bar (evaluated with other breakpoints or k)")
+                         "bar (the bar is against the baseline's whole spread; the check "
+                         "was judged against its prediction at its operating conditions, "
+                         "or with other breakpoints or k)")
         if notes:
             out[tid] = notes
     return {tid: "; ".join(notes) for tid, notes in out.items()}

@@ -759,6 +759,22 @@ def test_a_linear_model_on_a_record_not_at_rest_is_estimated_by_simulation_error
         assert res.route == "linear"
         assert res.diagnostics["initial response T1m"] < 0.01
 
+def test_the_output_error_route_refuses_a_record_not_at_rest(tmp_path: Path) -> None:
+    """The output-error route starts the model at rest too: on a two-mass drive
+    that did not, it accepted Jl 42 standard errors off and blamed the model's
+    structure. An initial state now explains most of its error (88 % there), and
+    it refuses the record as the linear route does; at rest it is kept."""
+    model = tmp_path / "thermal.toml"
+    model.write_text(THERMAL)
+    warm = estimate(_thermal_record(model, 4000, (15.0, 10.0)), str(model), route="oe")
+    assert not warm.accepted and warm.rejection is not None
+    assert warm.rejection.startswith("not at rest") and "the output-error route starts the " \
+        "model at rest: --route simulation estimates the initial state" in warm.rejection
+    rest = estimate(_thermal_record(model, 4000, (0.0, 0.0)), str(model), route="oe")
+    assert rest.accepted, rest.reason
+    assert rest.diagnostics["initial response T1m"] < 0.01
+
+
 def test_estimates_that_lean_on_a_held_value_say_how_far(tmp_path: Path) -> None:
     """2,000 s hold the thermal model's slow mode briefly: R2a is collinear with
     the others. Declared at 1.2 K/W (truth 1.0) it was held there, and C2 came

@@ -50,7 +50,7 @@ from condmon.models.transfer import ContinuousTF
 # linear route of a cached declaration (condmon.models.derived_cache) needs neither.
 
 __all__ = ["LinearRouteResult", "RouteResult", "linear_route", "choose_route", "auto_reason",
-           "NOT_AT_REST"]
+           "NOT_AT_REST", "not_at_rest", "initial_response"]
 
 FloatArray = NDArray[np.float64]
 
@@ -158,7 +158,7 @@ def _fit_and_diagnostics(est: TFEstimate, u: FloatArray, y: FloatArray,
         out[f"nrmse {name}"] = figures.nrmse
         out[f"whiteness {name}"] = figures.whiteness
         out[f"initial response {name}"], out[f"initial response rms {name}"] = \
-            _initial_response(free, e[:, j])
+            initial_response(free, e[:, j])
     fit = 100.0 * sum(r2.values()) / len(r2)
     return FitCheck(r2, fit, float(threshold), bool(fit >= threshold)), out
 
@@ -173,12 +173,14 @@ NOT_AT_REST = "not at rest"
 _INITIAL_SHARE = 0.25
 
 
-def _not_at_rest(diag: Mapping[str, float], machine: Machine) -> str | None:
-    """Why the linear route cannot take a record (None: it can): an initial
-    state explains at least :data:`_INITIAL_SHARE` of an output's simulation
-    error, and that part is more than twice the sensor's declared noise."""
+def not_at_rest(diag: Mapping[str, float], machine: Machine,
+                outputs: Sequence[str] | None = None, route: str = "linear") -> str | None:
+    """Why a route that starts the model at rest cannot take a record (None:
+    it can): an initial state explains at least :data:`_INITIAL_SHARE` of an
+    output's simulation error (``diag``'s ``initial response NAME``), and that
+    part is more than twice the sensor's declared noise."""
     noise = {s.name: s.noise for s in machine.plant.sensors}
-    for name in machine.linear().outputs:
+    for name in (machine.linear().outputs if outputs is None else outputs):
         share = diag.get(f"initial response {name}", 0.0)
         rms = diag.get(f"initial response rms {name}", 0.0)
         sd = noise.get(name, 0.0)
@@ -186,8 +188,8 @@ def _not_at_rest(diag: Mapping[str, float], machine: Machine) -> str | None:
             size = f", {rms / sd:.3g} times the sensor's noise" if sd > 0 else ""
             return (f"{NOT_AT_REST}: the record does not start where the model rests; an "
                     f"initial state explains {100 * share:.0f} % of the simulation error of "
-                    f"{name} ({rms:.3g} RMS{size}) and the linear route starts the model at "
-                    "rest: --route simulation estimates the initial state")
+                    f"{name} ({rms:.3g} RMS{size}) and the {route} route starts the model "
+                    "at rest: --route simulation estimates the initial state")
     return None
 
 
@@ -203,7 +205,7 @@ def _free_response_basis(den: FloatArray, n: int) -> FloatArray:
     return np.column_stack(cols) if cols else np.zeros((n, 0))
 
 
-def _initial_response(free: FloatArray, e: FloatArray) -> tuple[float, float]:
+def initial_response(free: FloatArray, e: FloatArray) -> tuple[float, float]:
     """The share of the simulation error's energy an initial state explains
     (least squares on the free responses) [-], and that part's RMS [output unit]."""
     if free.shape[1] == 0 or not float(e @ e) > 0.0:
@@ -373,7 +375,7 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
     consts = machine.constants(constants)
     nan = {k: float("nan") for k in spec.unknowns}
     nan_cov = np.full((len(spec.unknowns),) * 2, np.nan)
-    moving = _not_at_rest(diag, machine)
+    moving = not_at_rest(diag, machine)
     if moving:
         return LinearRouteResult(nan, nan_cov, est, None, fit, moving, diag)
     known = np.array([consts[k] for k in machine.plant.parameter_names

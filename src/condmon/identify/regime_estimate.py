@@ -21,7 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 from condmon.errors import CondmonError, EstimationError, ModelError
 from condmon.identify._common import TFEstimate
 from condmon.identify.defaults import ESTIMATORS
-from condmon.identify.greybox import linear_route
+from condmon.identify.greybox import linear_route, not_at_rest
 from condmon.identify.identifiability import Identifiability
 from condmon.identify.ls import arx, iv
 from condmon.identify.oe import oe
@@ -218,6 +218,8 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
                 if oe_res.widening > 1.1:
                     notes.append(_widening_note(oe_res.bandwidth, oe_res.widening,
                                                 "residuals"))
+                rejection = not_at_rest(diagnostics, machine,
+                                        [s.name for s in machine.plant.sensors], "output-error")
             elif chosen == "simulation":
                 from condmon.identify.simulation_route import simulation_route
 

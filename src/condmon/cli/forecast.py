@@ -101,7 +101,8 @@ def register(app: typer.Typer) -> None:
         if scale != 1.0:
             out.print(f"the checks span {days * 24:.2g} h: slopes and times left are per hour "
                       "of clock time (--json counts days)", markup=False, highlight=False)
-        out.print(f"slope: the trend at the last check, {per} of the baseline mean; "
+        out.print(f"slope: the trend at the last check (a path's: the series' mean rate, "
+                  f"the rate now drawn about it), {per} of the baseline mean; "
                   f"{left}: median and 90 % interval (exp.: an exponential trend; path: a "
                   "measured degradation path, its interval's measured coverage in --json "
                   "notes); no trend: "

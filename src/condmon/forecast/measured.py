@@ -121,8 +121,9 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
     slope = fit.coef[1]
     sd = math.sqrt(max(fit.cov[1][1], 0.0))
     interval = (slope - Z90 * sd, slope + Z90 * sd)
-    notes = [f"degradation path: rate {slope:.3g} %/{per} now (90 % interval "
-             f"[{interval[0]:.3g}, {interval[1]:.3g}]), recoveries fading at φ = "
+    notes = [f"degradation path: mean rate {slope:.3g} %/{per} over the series (90 % "
+             f"interval [{interval[0]:.3g}, {interval[1]:.3g}]; the rate now is drawn about "
+             f"it), recoveries fading at φ = "
              f"{fit.phi:.2f} a check, " + (
                  f"the rate wandering {100 * math.sqrt(fit.walk):.2g} % per √{per}"
                  if fit.walk > 0 else "the quarters' rates within their own error (their "

@@ -65,6 +65,11 @@ def test_import_then_forecast_to_an_absolute_end_of_life(tmp_path: Path,
     r = p["remaining"]
     assert r["low"] <= truth <= r["high"] and abs(r["median"] - truth) < 0.3 * truth
     assert any("held the true remaining life" in n for n in p["notes"])
+    # the table says what its interval means too, not only the JSON
+    assert main(["forecast", "--unit", "C1", "--db", str(db)]) == 0
+    said = capsys.readouterr().out
+    assert "interval: capacity: its 90 % interval held the true remaining life" in said
+    assert "not on units like this one" in " ".join(said.split())
     assert main(["history", "--unit", "C1", "--db", str(db)]) == 0
     header = [ln for ln in capsys.readouterr().out.splitlines() if "status" in ln][0]
     assert "cycle" in header and "capacity" in header and "fit %" not in header

@@ -104,8 +104,7 @@ def register(app: typer.Typer) -> None:
         out.print(f"slope: the trend at the last check (a path's: the series' mean rate, "
                   f"the rate now drawn about it), {per} of the baseline mean; "
                   f"{left}: median and 90 % interval (exp.: an exponential trend; path: a "
-                  "measured degradation path, its interval's measured coverage in --json "
-                  "notes); no trend: "
+                  "measured degradation path, its interval's meaning below); no trend: "
                   "the slope's 90 % interval holds 0, or no-go cannot come the way it moves "
                   "(see --json)", markup=False,
                   highlight=False, soft_wrap=True)
@@ -123,3 +122,11 @@ def register(app: typer.Typer) -> None:
                          if note.startswith("fleet prior") or note.endswith("vague prior")})
         for line in priors:
             out.print(f"prior: {line}", markup=False, highlight=False, soft_wrap=True)
+        # a path forecast's interval: read at its fleet's levels, or where its
+        # coverage was measured (not on this unit's kind)
+        fleet = sorted({f"{p.parameter}: {note}" for p in res.parameters
+                        if p.forecast.model == "path" and not p.forecast.at_nogo
+                        for note in p.forecast.notes
+                        if note.startswith(("recalibrated on", "its 90 % interval held"))})
+        for line in fleet:
+            out.print(f"interval: {line}", markup=False, highlight=False, soft_wrap=True)

@@ -451,9 +451,9 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
             idf = dataclasses.replace(idf, identifiable=tuple(spec.unknowns),
                                       reasons={k: v for k, v in idf.reasons.items()
                                                if k not in weak})
-            Jw = W @ Jp
+            Jw, G = W @ Jp, np.linalg.pinv(Jp)
             cov = np.asarray(np.linalg.pinv(Jw.T @ Jw), dtype=np.float64) if over else \
-                np.linalg.pinv(Jp) @ cov_c @ np.linalg.pinv(Jp).T
+                G @ cov_c @ G.T
             return LinearRouteResult(dict(zip(spec.unknowns, map(float, p))), cov, est, cont,
                                      fit, None, diag, identifiability=idf, notes=(said,))
     elif over:
@@ -492,9 +492,8 @@ def _contradicted(lin: LinearStructure, known: FloatArray, W: FloatArray, c_hat:
                   weak: Sequence[str]) -> str | None:
     """Why the held values contradict the record (None: they do not). The
     coefficients' whitened misfit ``χ²`` with the ``weak`` unknowns held
-    against free: their difference is the likelihood ratio, ``χ²`` with one
-    degree of freedom a held unknown, under the hypothesis that the held
-    values are right. A collinear unknown the record still fixes (a shaft's
+    against free: their difference is the likelihood ratio, ``χ²`` with as
+    many degrees of freedom as unknowns held when the held values are right. A collinear unknown the record still fixes (a shaft's
     stiffness beside two inertias) is held only where the data allow it."""
     from scipy.stats import chi2
 

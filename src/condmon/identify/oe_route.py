@@ -29,7 +29,7 @@ from condmon._filter import lfilter
 from condmon.errors import EstimationError
 from condmon.identify.fit import FitCheck, residual_figures
 from condmon.identify.greybox import RouteResult
-from condmon.identify.long_run import widened
+from condmon.identify.long_run import normalised_inverse, widened
 from condmon.io.records import Record
 from condmon.models.machine import Machine
 from condmon.models.semilinear import SemiLinearStructure, semilinear_structure
@@ -93,7 +93,6 @@ class _Simulator:
                     # x(k+1) = Ad x(k) + Bd w(k): one sample of delay, as ss2tf gives
                     y[:, j] += lfilter(num[j], den, self.w[:, i])
         return y
-
 
     def free_responses(self, p: FloatArray) -> FloatArray:
         """What each initial state adds to the outputs, shape (N, outputs,
@@ -218,18 +217,10 @@ def oe_route(rec: Record | Sequence[Record], machine: Machine, start: Mapping[st
         sigma = np.maximum(np.std(e, axis=0), 1e-300)
     jac = np.asarray(sol.jac, dtype=np.float64)
     info = jac.T @ jac
-    # judged on the normalised columns: parameters in units of very different
-    # sizes are no singularity
-    norms = np.sqrt(np.clip(np.diag(info), 0.0, None)) if np.all(np.isfinite(info)) \
-        else np.zeros(p.size)
-    with np.errstate(all="ignore"):
-        scaled = info / np.outer(norms, norms)
-        cond = float(np.linalg.cond(scaled)) if np.all(norms > 0) and \
-            np.all(np.isfinite(scaled)) else np.inf
-    if not (np.isfinite(cond) and cond < 1e14):
+    white_cov, cond = normalised_inverse(info)
+    if white_cov is None or not cond < 1e14:
         raise EstimationError(f"output-error route: the sensitivities are singular (condition "
                               f"number {cond:.3g}); the record does not excite every parameter")
-    white_cov = np.asarray(np.linalg.inv(scaled) / np.outer(norms, norms), dtype=np.float64)
     # coloured noise (or a model that misses a slow effect) correlates the residuals:
     # the standard errors are widened to the Newey-West sandwich where it is larger
     r = np.asarray(sol.fun, dtype=np.float64)

@@ -371,3 +371,24 @@ def test_an_inverse_fit_below_its_threshold_names_the_simulation_route() -> None
     linear = estimate(simulate_actuator(seed=1))
     worse = dataclasses.replace(linear, fit=FitCheck(linear.fit.r2, 50.0, 90.0, False))
     assert worse.reason == "fit 50.0 % below the threshold 90 %"
+
+
+def test_a_mode_faster_than_the_inverse_route_s_cut_off_is_refused() -> None:
+    """The Coulomb DC motor's own built-in test by the inverse route: its
+    electrical mode (L/R about one sample, 116 Hz) lies above the route's 50 Hz
+    low-pass, and L was read 6 % high (18 standard errors), accepted. Now
+    refused, naming the routes that simulate it; the model's own route (oe)
+    estimates L within its errors."""
+    from condmon.models.registry import get_model
+    from condmon.simulate.plant import simulate_plant
+
+    machine = get_model("dc-motor-coulomb")
+    rec = simulate_plant(machine.plant, seed=1)
+    res = estimate(rec, model="dc-motor-coulomb", route="inverse")
+    assert not res.accepted and res.reason is not None
+    assert "fastest mode" in res.reason and "above the route's low-pass cut-off 50 Hz" in \
+        res.reason and "--route oe or --route simulation" in res.reason
+    oe = estimate(rec, model="dc-motor-coulomb")
+    assert oe.accepted and oe.route == "oe"
+    L = machine.nominal()["L"]
+    assert abs(oe.parameters["L"] - L) < 3 * oe.std_errors["L"]

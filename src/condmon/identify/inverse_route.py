@@ -44,7 +44,7 @@ from condmon.models.machine import Machine
 if TYPE_CHECKING:
     import sympy as sp
 
-__all__ = ["InverseRouteResult", "inverse_route", "route_signals", "evaluate",
+__all__ = ["InverseRouteResult", "inverse_route", "route_signals", "evaluate", "fastest_mode",
            "route_cutoff", "filter_edge", "absent_unknowns"]
 
 FloatArray = NDArray[np.float64]
@@ -110,6 +110,40 @@ def route_cutoff(machine: Machine, fs: float, source: str) -> float:
 def filter_edge(fs: float, cutoff: float) -> int:
     """Samples left out at both ends of a record after zero-phase filtering."""
     return int(math.ceil(3.0 * fs / cutoff))
+
+
+def fastest_mode(machine: Machine, values: Mapping[str, float], consts: Mapping[str, float],
+                 sig: Mapping[str, FloatArray]) -> float:
+    """The fastest mode of the estimated model [Hz]: the largest eigenvalue
+    magnitude of its state equations' Jacobian (central differences), over
+    2π, at the signals' RMS (a typical operating point, away from the zero of
+    a friction's sign). NaN where it cannot be evaluated.
+
+    A mode faster than the route's low-pass cut-off acts in the band the
+    filter takes away: a DC motor whose L/R is one sample (133 Hz, cut-off
+    100 Hz) had its inductance read 6 % high, 18 standard errors, accepted.
+    """
+    c = machine.plant.compile()
+    states, inputs = c.model.state_names, c.model.input_names
+
+    def rms(name: str) -> float:
+        v = sig.get(name)
+        return float(np.sqrt(np.mean(np.square(v)))) if v is not None and len(v) else 0.0
+
+    x0 = np.array([rms(n) for n in states])
+    u0 = np.array([rms(n) for n in inputs])
+    p = c.parameter_vector({**consts, **values})
+    J = np.zeros((x0.size, x0.size))
+    with np.errstate(all="ignore"):
+        for i in range(x0.size):
+            h = 1e-6 * max(abs(float(x0[i])), 1e-3)
+            up, down = x0.copy(), x0.copy()
+            up[i] += h
+            down[i] -= h
+            J[:, i] = (np.asarray(c.rhs(up, u0, p)) - np.asarray(c.rhs(down, u0, p))) / (2 * h)
+    if not np.all(np.isfinite(J)):
+        return math.nan
+    return float(np.max(np.abs(np.linalg.eigvals(J)))) / (2.0 * math.pi) if J.size else 0.0
 
 
 def route_signals(rec: Record, machine: Machine, cutoff: float) -> dict[str, FloatArray]:

@@ -255,7 +255,7 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
                     notes.append(f"steady balances over {st.windows} window(s), {st.samples} "
                                  f"samples{f' in regime {regime!r}' if regime else ''}")
             else:
-                from condmon.identify.inverse_route import inverse_route
+                from condmon.identify.inverse_route import fastest_mode, inverse_route
 
                 rows = [np.concatenate(p.rows(regime)) if p.rows(regime) else
                         np.zeros(0, dtype=np.intp) for p in plans]
@@ -269,9 +269,16 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
                 if inv.widening > 1.1:
                     notes.append(_widening_note(inv.bandwidth, inv.widening,
                                                 "filtered residuals"))
+                fast = fastest_mode(machine, values, consts, plans[0].signals)
                 worst = max(inv.whiteness, key=lambda k: inv.whiteness[k])
                 limit = spec.max_residual_correlation
-                if inv.whiteness[worst] > limit:
+                if fast > inv.cutoff:
+                    rejection = (f"the estimated model's fastest mode, {fast:.3g} Hz (time "
+                                 f"constant {1e3 / (2 * math.pi * fast):.3g} ms), lies above "
+                                 f"the route's low-pass cut-off {inv.cutoff:g} Hz: the filtered "
+                                 "derivatives cannot show it; --route oe or --route simulation "
+                                 "simulate it")
+                elif inv.whiteness[worst] > limit:
                     rejection = (f"{STRUCTURE_MISMATCH}: the residual of {worst} is strongly "
                                  f"correlated ({inv.whiteness[worst]:.2f} > {limit:g}); the "
                                  "model misses part of the dynamics (friction, offset, "

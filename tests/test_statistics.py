@@ -276,6 +276,10 @@ def test_one_parameter_moved_among_many_is_found() -> None:
     s = check_statistics(names, change, np.full(9, 0.1), base, np.full((15, 9), 0.1),
                          change[None, :])
     assert s.alarm and s.method == "max-t" and s.p_value < 0.002, s
+    # the line names the parameter, not only the statistic: a quiet parameter's
+    # small change in % may be the one
+    assert s.largest == "x0" and "change max |t| 6.1 (x0)" in s.describe("go")
+    assert s.to_dict()["largest_t"] == "x0"
     # and a healthy check of the same baseline does not alarm
     quiet = check_statistics(names, 0.5 * base[3], np.full(9, 0.1), base,
                              np.full((15, 9), 0.1), base[3][None, :] * 0.5)

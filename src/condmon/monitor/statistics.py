@@ -178,6 +178,9 @@ class CheckStatistics:
         False when that ratio is too large to be chance (1 % over all the
         parameters): the baseline's tests do not span this unit's healthy
         scatter, so the alarms are not at the stated rates.
+    largest : str
+        ``max-t``: the parameter of the largest |t| (its change over its own
+        scatter, not the largest change in %). "" for ``hotelling``.
     """
 
     statistic: float
@@ -196,6 +199,7 @@ class CheckStatistics:
     checks: int
     scatter_ratio: dict[str, float] = field(default_factory=dict)
     calibrated: bool = True
+    largest: str = ""
 
     @property
     def any_alarm(self) -> bool:
@@ -206,7 +210,9 @@ class CheckStatistics:
         """One line for a person: both tests, and what an alarm under ``go`` means."""
         level = (f"change T² {self.statistic:.3g}, p {self.p_value:.2g}"
                  if self.method == "hotelling" else
-                 f"change max |t| {self.statistic:.3g}, p {self.p_value:.2g}")
+                 f"change max |t| {self.statistic:.3g}"
+                 + (f" ({self.largest})" if self.largest else "")
+                 + f", p {self.p_value:.2g}")
         drift = ("drift: fewer than 3 checks since the baseline" if self.drift_p_value is None
                  else f"drift p {self.drift_p_value:.2g}")
         alarms = [n for n, a in (("change", self.alarm), ("drift", self.drift_alarm)) if a]
@@ -239,7 +245,8 @@ class CheckStatistics:
                 "drift_statistic": self.drift_statistic, "drift_p_value": self.drift_p_value,
                 "drift_alpha": self.drift_alpha, "drift_alarm": self.drift_alarm,
                 "drift_slope_percent_per_check": self.drift_slope, "checks": self.checks,
-                "scatter_ratio": self.scatter_ratio, "calibrated": self.calibrated}
+                "scatter_ratio": self.scatter_ratio, "calibrated": self.calibrated,
+                "largest_t": self.largest or None}
 
 
 def _distinct(S: FloatArray) -> int:
@@ -345,6 +352,10 @@ def check_statistics(parameters: tuple[str, ...], change: ArrayLike, se: ArrayLi
     # a test estimated worse than every baseline test: its excess noise is no change
     extra = np.diag(np.clip(e ** 2 - np.max(Bse ** 2, axis=0), 0.0, None))
     stat, pv, method, r = _test(d, S, 1.0 + 1.0 / n, extra, n - 1, distinct, both=True)
+    # which parameter the largest |t| is: a small change of a quiet parameter may
+    # be it, not the largest change in %
+    t = d / np.sqrt(np.clip(np.diag(S) * (1.0 + 1.0 / n) + np.diag(extra), 1e-300, None))
+    largest = parameters[int(np.argmax(np.abs(t)))] if method == "max-t" else ""
     m = Y.shape[0]
     dstat = dp = None
     slope = np.full(p, np.nan)
@@ -367,7 +378,8 @@ def check_statistics(parameters: tuple[str, ...], change: ArrayLike, se: ArrayLi
                            None if dp is None else dp < config.drift_alpha,
                            {k: float(v) for k, v in zip(parameters, slope)
                             if math.isfinite(v)}, m,
-                           {k: float(v) for k, v in zip(parameters, ratio)}, calibrated)
+                           {k: float(v) for k, v in zip(parameters, ratio)}, calibrated,
+                           largest)
 
 
 def _serial(resid: FloatArray) -> float:

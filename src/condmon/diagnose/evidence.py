@@ -238,10 +238,12 @@ def unseen_faults(rules: RuleBase, absent: Collection[str]) -> tuple[UnseenFault
 _CORNERS = 12
 
 
+@functools.lru_cache(maxsize=256)
 def _can_fire(condition: Expr, absent: frozenset[str]) -> bool:
     """Whether ``condition`` can reach a positive degree with the symptoms of
     ``absent`` parameters at 0 (no value) and the others free: min/max/1-x is
-    extreme at the corners, so every 0/1 combination of the others is tried."""
+    extreme at the corners, so every 0/1 combination of the others is tried
+    (once per rule and set of absent parameters: a fleet's checks share them)."""
     atoms: dict[Atom, set[bool]] = {}
     _walk(condition, False, atoms)
     free = [a for a in atoms if a.parameter not in absent]

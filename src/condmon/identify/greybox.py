@@ -39,7 +39,7 @@ from condmon.errors import ConversionError, ModelError
 from condmon.identify._common import TFEstimate, schur_stable, signals
 from condmon.identify.fit import FitCheck, fit_check, residual_figures
 from condmon.identify.identifiability import (
-    Identifiability, assess_identifiability, dependence_at,
+    HOLD_LEVEL, Identifiability, assess_identifiability, dependence_at, hold_limit,
 )
 from condmon.io.records import Record
 from condmon.models.conversion import tf_d2c_jacobian
@@ -129,11 +129,6 @@ class LinearRouteResult:
     identifiability: Identifiability | None = None
     notes: tuple[str, ...] = ()
 
-
-#: The level at which a held value the record contradicts is not held: the
-#: likelihood-ratio test of the coefficients' fit, held against free, at 1 %
-#: (as the simulation route's Wald and likelihood-ratio tests).
-HOLD_LEVEL = 0.01
 
 
 def _fit_and_diagnostics(est: TFEstimate, u: FloatArray, y: FloatArray,
@@ -495,15 +490,13 @@ def _contradicted(lin: LinearStructure, known: FloatArray, W: FloatArray, c_hat:
     against free: their difference is the likelihood ratio, ``χ²`` with as
     many degrees of freedom as unknowns held when the held values are right. A collinear unknown the record still fixes (a shaft's
     stiffness beside two inertias) is held only where the data allow it."""
-    from scipy.stats import chi2
-
     with np.errstate(all="ignore"):
         r_held = W @ (lin.values(p_held, known) - c_hat)
         r_free = W @ (lin.values(p_free, known) - c_hat)
     if not (np.all(np.isfinite(r_held)) and np.all(np.isfinite(r_free))):
         return None
     lr = float(r_held @ r_held) - float(r_free @ r_free)
-    limit = float(chi2.isf(HOLD_LEVEL, len(weak)))
+    limit = hold_limit(len(weak))
     if lr <= limit:
         return None
     return (f"likelihood ratio {lr:.3g} > {limit:.3g}, {100 * HOLD_LEVEL:g} %; free, "

@@ -44,9 +44,28 @@ from numpy.typing import ArrayLike, NDArray
 from condmon.models.plausibility import IdentifiabilityLimits
 
 __all__ = ["Identifiability", "IdentifiabilityLimits", "assess_identifiability",
-           "all_identifiable", "dependence_at"]
+           "all_identifiable", "dependence_at", "HOLD_LEVEL", "hold_limit"]
 
 FloatArray = NDArray[np.float64]
+
+#: The level at which a held value the record contradicts is not held: a Wald
+#: or likelihood-ratio statistic of the held unknowns beyond the chi-square
+#: quantile (every route that holds an unknown tests it so).
+HOLD_LEVEL = 0.01
+
+
+def hold_limit(held: int, level: float = HOLD_LEVEL) -> float:
+    """The chi-square quantile a held set's statistic is compared with:
+    ``held`` degrees of freedom, ``level`` above it.
+
+    Example
+    -------
+    >>> round(hold_limit(1), 3), round(hold_limit(2), 3)
+    (6.635, 9.21)
+    """
+    from scipy.special import chdtri   # (scipy.special: half scipy.stats' import time)
+
+    return float(chdtri(held, level))
 
 
 @dataclass(frozen=True)

@@ -83,35 +83,35 @@ class _Simulator:
         Ad, Bd = E[:n, :n], E[:n, n:]
         if not (np.all(np.isfinite(Ad)) and np.all(np.abs(np.linalg.eigvals(Ad)) < 1.0)):
             return np.full((self.w.shape[0], C.shape[0]), np.inf)
-        y = np.zeros((self.w.shape[0], C.shape[0]))
-        from scipy.signal import ss2tf  # only this route needs it (~1 s of imports)
-
-        with np.errstate(all="ignore"):
-            for i in range(r):
-                num, den = ss2tf(Ad, Bd[:, i:i + 1], C, np.zeros((C.shape[0], 1)))
-                for j in range(C.shape[0]):
-                    # x(k+1) = Ad x(k) + Bd w(k): one sample of delay, as ss2tf gives
-                    y[:, j] += lfilter(num[j], den, self.w[:, i])
-        return y
+        return np.asarray(_through(Ad, Bd, C, self.w).sum(axis=2), dtype=np.float64)
 
     def free_responses(self, p: FloatArray) -> FloatArray:
         """What each initial state adds to the outputs, shape (N, outputs,
         states): ``C Ad^k e_i`` (the model starts at rest; a record that does
-        not is told by these)."""
-        from scipy.signal import ss2tf
-
+        not is told by these): the impulse through each state's column, its
+        one sample of delay dropped."""
         A, _, C = self.s.matrices(p, self.known)
         n, N = A.shape[0], self.w.shape[0]
         with np.errstate(all="ignore"):
             Ad = expm(A * self.dt)
-        out = np.zeros((N, C.shape[0], n))
-        impulse = np.r_[1.0, np.zeros(N)]
-        with np.errstate(all="ignore"):
-            for i in range(n):
-                num, den = ss2tf(Ad, np.eye(n)[:, i:i + 1], C, np.zeros((C.shape[0], 1)))
-                for j in range(C.shape[0]):   # (its one sample of delay dropped)
-                    out[:, j, i] = lfilter(num[j], den, impulse)[1:]
-        return out
+        impulse = np.zeros((N + 1, n))
+        impulse[0] = 1.0
+        return _through(Ad, np.eye(n), C, impulse)[1:]
+
+
+def _through(Ad: FloatArray, B: FloatArray, C: FloatArray, w: FloatArray) -> FloatArray:
+    """Each column of ``w`` (N, r) through ``x(k+1) = Ad x(k) + B w(k)``,
+    ``y = C x`` from rest, shape (N, outputs, r): one sample of delay, as
+    ``ss2tf`` gives."""
+    from scipy.signal import ss2tf  # only this route needs it (~1 s of imports)
+
+    out = np.zeros((w.shape[0], C.shape[0], B.shape[1]))
+    with np.errstate(all="ignore"):
+        for i in range(B.shape[1]):
+            num, den = ss2tf(Ad, B[:, i:i + 1], C, np.zeros((C.shape[0], 1)))
+            for j in range(C.shape[0]):
+                out[:, j, i] = lfilter(num[j], den, w[:, i])
+    return out
 
 
 def _initial_figures(sims: Sequence[_Simulator], p: FloatArray, e: FloatArray,

@@ -49,7 +49,7 @@ from numpy.typing import NDArray
 from condmon.errors import EstimationError
 from condmon.identify.fit import FitCheck, residual_figures
 from condmon.identify.greybox import RouteResult
-from condmon.identify.identifiability import assess_identifiability
+from condmon.identify.identifiability import assess_identifiability, hold_limit
 from condmon.identify.long_run import normalised_inverse
 from condmon.identify.multistart import Evaluate, Jacobian, solve, solve_starts
 from condmon.identify.shooting_fit import (
@@ -250,8 +250,6 @@ def simulation_route(rec: Record | Sequence[Record], machine: Machine,
     # order), at 1 %, and then the likelihood ratio itself on the refit. The
     # white-noise figures are the strict ones: a correlated residual only makes
     # holding look cheaper, and a held value that is wrong biases every other.
-    from scipy.stats import chi2
-
     unknowns = machine.spec.unknowns
     pos = [unknowns.index(k) for k in weak]
     d = np.array([res.values[k] - float(start[k]) for k in weak])
@@ -260,7 +258,7 @@ def simulation_route(rec: Record | Sequence[Record], machine: Machine,
         wald = float(d @ np.linalg.solve(cov_w[np.ix_(pos, pos)], d))
     except np.linalg.LinAlgError:
         wald = math.inf
-    limit = float(chi2.ppf(0.99, len(weak)))
+    limit = hold_limit(len(weak))
     again = None
     if wald <= limit:
         moved = {**start, **{k: v for k, v in res.values.items() if k not in weak and k in start}}

@@ -263,7 +263,7 @@ def _distinct(S: FloatArray) -> int:
 
 
 def _test(z: FloatArray, scatter: FloatArray, factor: float, extra: FloatArray, dof: float,
-          distinct: int, *, both: bool = False) -> tuple[float, float, str, int]:
+          distinct: int, *, both: bool = False) -> tuple[float, float, str, int, int]:
     """Statistic, p, method and rank of ``z`` against ``scatter`` (estimated on
     ``dof`` degrees of freedom) times ``factor``, plus ``extra``.
 
@@ -272,14 +272,15 @@ def _test(z: FloatArray, scatter: FloatArray, factor: float, extra: FloatArray, 
     themselves says nothing of the structure); else the largest |t| with
     Šidák's correction over the ``distinct`` parameters. ``both``: with two
     directions or more, both tests, their p combined by Simes, the method and
-    statistic those of the smaller p.
+    statistic those of the smaller p. Last, the index of the largest |t|.
     """
     scale = np.sqrt(np.clip(np.diag(scatter), 1e-300, None))
     w, V = np.linalg.eigh(scatter / np.outer(scale, scale))
     keep = w > _RANK_TOL * max(float(w[-1]), 1e-300)
     r = int(np.count_nonzero(keep))
     t = z / np.sqrt(np.clip(np.diag(scatter) * factor + np.diag(extra), 1e-300, None))
-    big = float(np.max(np.abs(t)))
+    top = int(np.argmax(np.abs(t)))
+    big = float(abs(t[top]))
     p1 = min(2.0 * t_cdf(dof, -big), 1.0 - 1e-16)
     p_max = float(min(1.0, -math.expm1(distinct * math.log1p(-p1))))
     if 1 <= r < dof:
@@ -288,10 +289,10 @@ def _test(z: FloatArray, scatter: FloatArray, factor: float, extra: FloatArray, 
         t2 = float(zw @ np.linalg.solve(W.T @ (scatter * factor + extra) @ W, zw))
         p_t2 = float(f_sf(r, dof - r + 1, t2 * (dof - r + 1) / (r * dof)))
         if not both or r < 2:
-            return t2, p_t2, "hotelling", r
+            return t2, p_t2, "hotelling", r, top
         p = min(1.0, 2.0 * min(p_t2, p_max), max(p_t2, p_max))
-        return (t2, p, "hotelling", r) if p_t2 <= p_max else (big, p, "max-t", r)
-    return big, p_max, "max-t", distinct
+        return (t2, p, "hotelling", r, top) if p_t2 <= p_max else (big, p, "max-t", r, top)
+    return big, p_max, "max-t", distinct, top
 
 
 def check_statistics(parameters: tuple[str, ...], change: ArrayLike, se: ArrayLike,
@@ -351,11 +352,10 @@ def check_statistics(parameters: tuple[str, ...], change: ArrayLike, se: ArrayLi
     distinct = _distinct(S)
     # a test estimated worse than every baseline test: its excess noise is no change
     extra = np.diag(np.clip(e ** 2 - np.max(Bse ** 2, axis=0), 0.0, None))
-    stat, pv, method, r = _test(d, S, 1.0 + 1.0 / n, extra, n - 1, distinct, both=True)
+    stat, pv, method, r, top = _test(d, S, 1.0 + 1.0 / n, extra, n - 1, distinct, both=True)
     # which parameter the largest |t| is: a small change of a quiet parameter may
     # be it, not the largest change in %
-    t = d / np.sqrt(np.clip(np.diag(S) * (1.0 + 1.0 / n) + np.diag(extra), 1e-300, None))
-    largest = parameters[int(np.argmax(np.abs(t)))] if method == "max-t" else ""
+    largest = parameters[top] if method == "max-t" else ""
     m = Y.shape[0]
     dstat = dp = None
     slope = np.full(p, np.nan)
@@ -370,7 +370,7 @@ def check_statistics(parameters: tuple[str, ...], change: ArrayLike, se: ArrayLi
         rho = _serial(resid)
         # a serially correlated series (a warm-up within each session) holds
         # fewer independent checks: the slope's variance grows by (1+ρ)/(1-ρ)
-        dstat, dp, _, _ = _test(slope * math.sqrt(sxx), pooled, (1.0 + rho) / (1.0 - rho),
+        dstat, dp, _, _, _ = _test(slope * math.sqrt(sxx), pooled, (1.0 + rho) / (1.0 - rho),
                                 np.zeros((p, p)), nu, distinct)
     ratio, calibrated = _scatter_check(Y[:-1], S, n, distinct)
     return CheckStatistics(stat, pv, config.alpha, pv < config.alpha, method, tuple(parameters),

@@ -101,6 +101,38 @@ def test_a_unit_s_own_end_of_life_and_a_healthy_cell_raises_no_alarm(tmp_path: P
         assert set(statuses[store.history("C2")["role"] == "check"]) == {"go"}
 
 
+def test_a_changed_end_of_life_is_said_kept_and_dates_are_not_invented(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Importing the same table again with --no-go stores no row twice but keeps
+    the unit's new end of life and says what changed (from the declaration's
+    < 1.4 Ah to 0.88 Ah: the forecast moves later by (1.4-0.88)/0.006 = 87
+    cycles); `units` shows no date for a table counted in cycles (its import
+    time is not when the capacity was measured)."""
+    db = tmp_path / "h.db"
+    cell = _cell(tmp_path / "C1.csv")
+    args = ["import", str(cell), "--unit", "C1", "--model", str(DECL), "--db", str(db)]
+    assert main(args) == 0
+    assert "changed" not in capsys.readouterr().out
+    assert main(["forecast", "--unit", "C1", "--db", str(db), "--json"]) == 0
+    before = json.loads(capsys.readouterr().out)["parameters"][0]["remaining"]["median"]
+    assert main([*args, "--no-go", "capacity<0.88"]) == 0
+    said = " ".join(capsys.readouterr().out.split())
+    assert "0 rows stored" in said and "60 already stored" in said
+    assert "capacity: end of life changed from < 1.4 Ah to <0.88 Ah" in said
+    with open_store(f"sqlite:///{db}") as store:
+        assert store.end_of_life("C1") == {"capacity": "<0.88"}
+    assert main(["forecast", "--unit", "C1", "--db", str(db), "--json"]) == 0
+    after = json.loads(capsys.readouterr().out)["parameters"][0]["remaining"]["median"]
+    assert 60 < after - before < 115
+    # the same end of life again: nothing changed, nothing said
+    assert main([*args, "--no-go", "capacity<0.88", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["units"][0]["end_of_life_changed"] == []
+    assert main(["units", "--db", str(db), "--json"]) == 0
+    units = json.loads(capsys.readouterr().out)
+    row = units["units"][0] if isinstance(units, dict) else units[0]
+    assert row["latest_date"] is None
+
+
 def test_a_grown_table_imports_only_its_new_rows(tmp_path: Path) -> None:
     db = tmp_path / "h.db"
     full = _cell(tmp_path / "full.csv", n=40)

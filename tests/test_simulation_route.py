@@ -678,6 +678,26 @@ def test_a_run_that_diverges_at_any_step_says_so_at_once() -> None:
                                          substeps=good).states).all()
 
 
+def test_a_divergence_says_whether_the_values_or_the_step_are_why() -> None:
+    """R = -1 makes the motor unstable: its fastest mode is in the step's reach,
+    so the values are named. L = 1e-8 H makes its electrical mode L/R = 10 ns,
+    far below any step a 1 ms record allows: the time constant is named, not
+    "resample the record" (a recorded file cannot be)."""
+    from condmon.models.registry import load_plant_model
+    from condmon.simulate.recorded import Diverged, simulate_recorded
+
+    c = load_plant_model("dc-motor").compile()
+    u = np.full((1200, 1), 12.0)
+    with pytest.raises(Diverged) as unstable:
+        simulate_recorded(c, u, 1e-3, np.zeros(2), c.parameter_vector({"R": -1.0}), substeps=2)
+    assert "the model is unstable with these values" in str(unstable.value)
+    with pytest.raises(Diverged) as stiff:
+        simulate_recorded(c, u, 1e-3, np.zeros(2), c.parameter_vector({"L": 1e-8}), substeps=2)
+    said = str(stiff.value)
+    assert "time constant of 1e-08 s" in said and "check the values" in said
+    assert "resample" not in said
+
+
 
 THERMAL = """
 name = "two-masses"

@@ -58,3 +58,5 @@ def register(app: typer.Typer) -> None:
             eol = ", ".join(f"{k} {v}" for k, v in d.end_of_life.items())
             out.print(f"{d.unit}: {d.added} rows stored by {d.axis}{base}{skipped}{status} "
                       f"(end of life: {eol})", markup=False, highlight=False, soft_wrap=True)
+            for line in d.changed:
+                out.print(f"{d.unit}: {line}", markup=False, highlight=False, soft_wrap=True)

@@ -40,6 +40,7 @@ from condmon.io.records import Record
 from condmon.models.declared import substituted_equations, symbols_of
 from condmon.models.inverse import InverseStructure
 from condmon.models.machine import Machine
+from condmon.simulate.recorded import fastest_rate
 
 if TYPE_CHECKING:
     import sympy as sp
@@ -132,18 +133,7 @@ def fastest_mode(machine: Machine, values: Mapping[str, float], consts: Mapping[
 
     x0 = np.array([rms(n) for n in states])
     u0 = np.array([rms(n) for n in inputs])
-    p = c.parameter_vector({**consts, **values})
-    J = np.zeros((x0.size, x0.size))
-    with np.errstate(all="ignore"):
-        for i in range(x0.size):
-            h = 1e-6 * max(abs(float(x0[i])), 1e-3)
-            up, down = x0.copy(), x0.copy()
-            up[i] += h
-            down[i] -= h
-            J[:, i] = (np.asarray(c.rhs(up, u0, p)) - np.asarray(c.rhs(down, u0, p))) / (2 * h)
-    if not np.all(np.isfinite(J)):
-        return math.nan
-    return float(np.max(np.abs(np.linalg.eigvals(J)))) / (2.0 * math.pi) if J.size else 0.0
+    return fastest_rate(c, x0, u0, c.parameter_vector({**consts, **values})) / (2.0 * math.pi)
 
 
 def route_signals(rec: Record, machine: Machine, cutoff: float) -> dict[str, FloatArray]:

@@ -26,8 +26,8 @@ from numpy.typing import NDArray
 from condmon.errors import EstimationError
 from condmon.models.declared import CompiledModel
 
-__all__ = ["Diverged", "RecordedSimulation", "choose_substeps", "simulate_copies",
-           "simulate_recorded"]
+__all__ = ["Diverged", "RecordedSimulation", "choose_substeps", "fastest_rate",
+           "simulate_copies", "simulate_recorded"]
 
 FloatArray = NDArray[np.float64]
 _MAX_SUBSTEPS = 64
@@ -164,6 +164,57 @@ def choose_substeps(compiled: CompiledModel, u: FloatArray, dt: float, x0: Float
     return sub
 
 
+#: The classical fourth-order Runge-Kutta is stable on a decaying mode of rate λ
+#: [1/s] while its step h keeps h·λ inside its stability region: 2.785 on the
+#: negative real axis (Butcher, Numerical Methods for ODEs, 2016, sec. 238).
+_RK4_REAL_LIMIT = 2.785
+
+
+def fastest_rate(compiled: CompiledModel, x: FloatArray, u: FloatArray, p: FloatArray
+                 ) -> float:
+    """The model's fastest rate at one operating point [1/s]: the largest
+    eigenvalue magnitude of its state equations' Jacobian (central
+    differences). NaN where it cannot be evaluated.
+
+    Example
+    -------
+    >>> from condmon.models.registry import load_plant_model
+    >>> c = load_plant_model("dc-motor").compile()
+    >>> p = c.parameter_vector()
+    >>> rate = fastest_rate(c, np.zeros(2), np.array([12.0]), p)
+    >>> bool(rate > 100.0)          # the electrical mode, about R/L
+    True
+    """
+    n = len(x)
+    J = np.zeros((n, n))
+    with np.errstate(all="ignore"):
+        for i in range(n):
+            h = 1e-6 * max(abs(float(x[i])), 1e-3)
+            up, down = x.copy(), x.copy()
+            up[i] += h
+            down[i] -= h
+            J[:, i] = (np.asarray(compiled.rhs(up, u, p)) - np.asarray(compiled.rhs(down, u, p))
+                       ) / (2 * h)
+    if not np.all(np.isfinite(J)):
+        return float("nan")
+    return float(np.max(np.abs(np.linalg.eigvals(J)))) if J.size else 0.0
+
+
+def _too_fast(compiled: CompiledModel, x: FloatArray, u: FloatArray, p: FloatArray,
+              dt: float, substeps: int) -> str:
+    """Why a fixed step diverged where the model's fastest mode outruns it: the
+    mode, the step it allows and the step taken ("" when the step is not why)."""
+    rate = fastest_rate(compiled, x, u, p)
+    step = dt / substeps
+    if not np.isfinite(rate) or rate * step <= _RK4_REAL_LIMIT:
+        return ""
+    return (f"; with these values the model's fastest mode has a time constant of "
+            f"{1.0 / rate:.3g} s, and a Runge-Kutta step of {step:.3g} s follows it only "
+            f"below {_RK4_REAL_LIMIT / rate:.3g} s, {rate * step / _RK4_REAL_LIMIT:.3g} times "
+            "smaller: check the values (a unit or decimal error makes a mode this fast); a "
+            "model really this fast needs a record sampled that much faster")
+
+
 def simulate_recorded(compiled: CompiledModel, u: FloatArray, dt: float,
                       initial: FloatArray, params: FloatArray, *, substeps: int,
                       source: str = "") -> RecordedSimulation:
@@ -215,8 +266,9 @@ def simulate_recorded(compiled: CompiledModel, u: FloatArray, dt: float,
                        f"t = {k * dt:g} s: state{'s' if len(names) > 1 else ''} "
                        f"{', '.join(repr(n) for n in names)} left the finite numbers"
                        + (f" (last finite at t = {(k - 1) * dt:g} s: {last})" if last else "")
-                       + f"; {substeps} Runge-Kutta step(s) per sample: where the model is "
-                       "stable with these values, the step is too large for it (a stiff "
-                       "model; resample the record faster)",
+                       + (_too_fast(compiled, initial, u[0], params, dt, substeps) or
+                          f"; {substeps} Runge-Kutta step(s) per sample, and its fastest "
+                          "mode at the start is within their reach: the model is unstable "
+                          "with these values (check them, and the initial states)"),
                        k * dt, names[0])
     return RecordedSimulation(np.arange(len(u), dtype=np.float64) * dt, xs, ys, substeps)

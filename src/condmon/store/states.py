@@ -85,8 +85,12 @@ def _state_rows(conn: sa.Connection, uids: list[int] | None) -> list[dict[str, A
                                                             else_=1)).label("all"))
                  .where(t.c.excluded.is_(False), t.c.role == "check"), t.c.unit_id
                  ).group_by(t.c.unit_id).subquery()
+    # shown as the latest date: an imported row's own date only (its storing time
+    # is when the table was read, not when the value was measured: none, for a
+    # table counted in cycles or hours)
+    shown = sa.case((t.c.method == "import", t.c.test_date), else_=t_when)
     ranked = only(sa.select(t.c.unit_id, t.c.id, t.c.source, t.c.role, t.c.accepted,
-                            t.c.excluded, t_when.label("at"), t.c.reason, t.c.regime,
+                            t.c.excluded, shown.label("at"), t.c.reason, t.c.regime,
                             sa.func.row_number().over(
                                 partition_by=t.c.unit_id,
                                 order_by=((t.c.role == "check").desc(),

@@ -68,6 +68,9 @@ class ImportedUnit:
         The table's axis columns, as stored.
     end_of_life : dict of str to str
         Each indicator's end of life for this unit.
+    changed : tuple of str
+        What ``--no-go`` changed of the unit's end of life, one line each
+        (from what, to what, and what the rows stored before keep).
     """
 
     unit: str
@@ -77,11 +80,13 @@ class ImportedUnit:
     status: str
     axis: str
     end_of_life: dict[str, str]
+    changed: tuple[str, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         return {"unit": self.unit, "added": self.added, "skipped": self.skipped,
                 "baseline_rows": self.baseline, "status": self.status or None,
-                "axis": self.axis, "end_of_life": self.end_of_life}
+                "axis": self.axis, "end_of_life": self.end_of_life,
+                "end_of_life_changed": list(self.changed)}
 
 
 #: The largest magnitude a value may have (as records'). [-]
@@ -439,22 +444,34 @@ class _Plan:
     status: str
     axis: str
     eol: dict[str, str]
+    own: dict[str, str]           # the unit's own end of life to keep, as written
+    changed: tuple[str, ...]      # what --no-go changed of it
 
 
 def _plan_unit(store: HistoryStore, unit: str, table: pd.DataFrame, model: IndicatorModel,
                own: dict[str, Any], path: Path, baseline_rows: int) -> _Plan:
-    mine = with_end_of_life(with_own_end_of_life(model, store.end_of_life(unit),
-                                                 f"unit {unit!r}"), own)
+    stored = store.end_of_life(unit)
+    mine = with_end_of_life(with_own_end_of_life(model, stored, f"unit {unit!r}"), own)
+    # --no-go adds to the unit's own end of life, indicator by indicator; a change
+    # is said, with what the rows stored before keep (their status was judged then)
+    keep = {**stored, **{k: v.text for k, v in own.items()}}
+    before = with_own_end_of_life(model, stored, f"unit {unit!r}") if unit in store.units() \
+        else None
+    changed = tuple(
+        f"{k}: end of life changed from {_eol_text(before.indicator(k))} to "
+        f"{_eol_text(mine.indicator(k))}; the checks stored before keep the status they "
+        "were judged with, the forecast uses the new one"
+        for k in own if before is not None
+        and before.indicator(k).end_of_life.text != own[k].text)
     names = [n for n in model.names if n in table.columns]
     seen = store.imported_hashes(unit)
     hashes = [_hash(unit, model.name, r, names) for _, r in table.iterrows()]
     fresh = [i for i, h in enumerate(hashes) if h not in seen]
     axes = [a for a in AXES if a in table.columns]
-    eol = {i.name: i.end_of_life.text + (f" {i.unit}" if i.end_of_life.kind == "level"
-                                         and not i.end_of_life.text.rstrip().endswith(i.unit)
-                                         else "") for i in mine.indicators}
+    eol = {i.name: _eol_text(i) for i in mine.indicators}
     if not fresh:
-        return _Plan(unit, [], None, None, 0, len(table), "", ", ".join(axes), eol)
+        return _Plan(unit, [], None, None, 0, len(table), "", ", ".join(axes), eol, keep,
+                     changed)
     if seen:   # (another declaration first: its rows hash apart, so all look new)
         _same_declaration(store, unit, model)
         _after_stored(store, unit, table.iloc[fresh[0]], axes, path)
@@ -504,7 +521,14 @@ def _plan_unit(store: HistoryStore, unit: str, table: pd.DataFrame, model: Indic
             float(r["hours"]) if "hours" in r.index else None,
             pd.Timestamp(r["date"]).to_pydatetime() if "date" in r.index else None, judged))
     return _Plan(unit, tests, new_base, baseline_id, n_base, len(table) - len(fresh), last,
-                 ", ".join(axes), eol)
+                 ", ".join(axes), eol, keep, changed)
+
+
+def _eol_text(ind: Any) -> str:
+    """An indicator's end of life as a user reads it, with its unit (``< 1.4 Ah``)."""
+    text = str(ind.end_of_life.text)
+    return text + (f" {ind.unit}" if ind.end_of_life.kind == "level"
+                   and not text.rstrip().endswith(ind.unit) else "")
 
 
 def _near_its_declared_size(path: Path, unit: str, first: pd.DataFrame, ind: Any) -> None:
@@ -562,9 +586,8 @@ def _believable(path: Path, unit: str, rows: pd.DataFrame, ind: Any, base: Basel
 
 def _store_unit(store: HistoryStore, plan: _Plan, model: IndicatorModel,
                 own: dict[str, Any], source: str) -> ImportedUnit:
-    if plan.tests:
+    if plan.tests or plan.changed:   # (no new rows: the unit's end of life still kept)
         store.add_imported(plan.unit, model.name, source, plan.tests, baseline=plan.base,
-                           baseline_id=plan.baseline_id,
-                           end_of_life={k: v.text for k, v in own.items()} or None)
+                           baseline_id=plan.baseline_id, end_of_life=plan.own or None)
     return ImportedUnit(plan.unit, len(plan.tests), plan.skipped, plan.n_base, plan.status,
-                        plan.axis, plan.eol)
+                        plan.axis, plan.eol, plan.changed)

@@ -412,6 +412,7 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
                                  limits=spec.identifiability)
     if not idf.identifiable:
         return LinearRouteResult(nan, nan_cov, est, cont, fit, None, diag, identifiability=idf)
+    notes: tuple[str, ...] = ()
     if not idf.complete:  # the identifiable ones again, the others held
         keep = [spec.unknowns.index(k) for k in idf.identifiable]
         fixed = np.array([held[k] for k in spec.unknowns])
@@ -435,6 +436,17 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
             # how the others lean on the held values, where they are held (the full
             # solution the screening ran at may lie far off, and its lean with it)
             idf = dataclasses.replace(idf, dependence=dependence_at(W @ (Jf * scales), idf))
+            carried = _held_uncertainty(W @ (Jf * scales), scales, keep, spec.unknowns)
+            if carried is not None:
+                cov[np.ix_(keep, keep)], own = carried
+                idf = dataclasses.replace(idf, held_uncertainty=own)
+                notes = ("the standard errors carry the held "
+                         f"{'values’' if len(own) > 1 else 'value’s'} own uncertainty in the "
+                         "record ("
+                         + ", ".join(f"{k} ±{100 * v:.3g} %" for k, v in own.items())
+                         + ", one standard error): the estimates lean on "
+                         f"{'it' if len(own) == 1 else 'them'}, and the record knows "
+                         f"{'it' if len(own) == 1 else 'them'} no better",)
         else:
             # the record contradicts the held value: every unknown estimated, the
             # collinearity in their standard errors
@@ -458,7 +470,7 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
         G = np.linalg.pinv(Jp)
         cov = G @ cov_c @ G.T
     return LinearRouteResult(dict(zip(spec.unknowns, map(float, p))), cov, est, cont, fit, None,
-                             diag, identifiability=idf)
+                             diag, identifiability=idf, notes=notes)
 
 
 @dataclass(frozen=True)
@@ -480,6 +492,28 @@ class _Subset:
 
     def jacobian(self, p: FloatArray, known: FloatArray) -> FloatArray:
         return self.lin.jacobian(self._full(p), known)[:, self.keep]
+
+
+def _held_uncertainty(S: FloatArray, scales: FloatArray, keep: list[int],
+                      names: Sequence[str]) -> tuple[FloatArray, dict[str, float]] | None:
+    """The estimated unknowns' covariance with the held ones' own uncertainty in
+    the record carried, and each held one's relative standard error there
+    (None: the record does not bound a held one, so only its given value fixes
+    the others).
+
+    A held unknown is one the user asked to estimate: its given value is a
+    start, known only as well as the record knows it. The others lean on it, so
+    their covariance is the whole set's (``S`` the whitened sensitivities per
+    relative change of ``scales``): by the Schur complement, the held-fixed
+    covariance plus the lean times the held ones' covariance. Holding still
+    sets their values; this sets their error bars."""
+    sv = np.linalg.svd(S, compute_uv=False)
+    if not (sv.size and np.all(np.isfinite(sv)) and sv[-1] > 1e-9 * sv[0]):
+        return None
+    rel = np.linalg.inv(S.T @ S)
+    held = [i for i in range(len(names)) if i not in keep]
+    cov = rel[np.ix_(keep, keep)] * np.outer(scales[keep], scales[keep])
+    return cov, {names[h]: math.sqrt(max(float(rel[h, h]), 0.0)) for h in held}
 
 
 def _contradicted(lin: LinearStructure, known: FloatArray, W: FloatArray, c_hat: FloatArray,

@@ -105,6 +105,11 @@ class Identifiability:
         least-squares re-fit of the estimated set's sensitivities to the held
         one's; 0.5: the estimate moves by 5 % when the held value is 10 % off).
         Entries below 0.001 are left out. [-]
+    held_uncertainty : dict of str to float
+        Each held unknown's relative standard error in the record (the whole
+        set's), where the route carried it into the estimated ones' standard
+        errors (JSON ``held_relative_se``); a held one absent here fixes the
+        others at its given value. [-]
 
     Example
     -------
@@ -125,6 +130,7 @@ class Identifiability:
     collinearity: float = 1.0
     limits: IdentifiabilityLimits = IdentifiabilityLimits()
     dependence: dict[str, dict[str, float]] = field(default_factory=dict)
+    held_uncertainty: dict[str, float] = field(default_factory=dict)
 
     @property
     def complete(self) -> bool:
@@ -146,7 +152,8 @@ class Identifiability:
                 "collinearity_identified": float(self.collinearity),
                 "limits": {"max_collinearity": self.limits.max_collinearity,
                            "max_relative_se": self.limits.max_relative_se},
-                "dependence": {k: dict(v) for k, v in self.dependence.items()}}
+                "dependence": {k: dict(v) for k, v in self.dependence.items()},
+                "held_relative_se": {k: float(v) for k, v in self.held_uncertainty.items()}}
 
 
 def all_identifiable(parameters: Sequence[str]) -> Identifiability:

@@ -367,6 +367,8 @@ def _leaning(idf: Identifiability, values: Mapping[str, float], ucov: FloatArray
     when a held value is 10 % off ('' when none does): they hold only at it."""
     parts = []
     for h in idf.held:
+        if h in idf.held_uncertainty:   # its uncertainty is in the standard errors
+            continue
         moved = []
         for k, lean in idf.dependence.items():
             if h not in lean or k not in values or k not in unknowns:

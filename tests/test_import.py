@@ -133,6 +133,26 @@ def test_a_changed_end_of_life_is_said_kept_and_dates_are_not_invented(
     assert row["latest_date"] is None
 
 
+def test_a_table_with_dates_and_cycles_forecasts_a_date(tmp_path: Path) -> None:
+    """Three cycles a day from 2026-01-01, counted in cycles: the no-go date
+    follows the cycles left at the unit's own pace (59 cycles in 19 days), so
+    the median's date is its cycles left times 19/59 days after the last (to the day)."""
+    rng = np.random.default_rng(0)
+    k = np.arange(1, 61)
+    cap = 1.9 - 0.006 * k + 0.004 * rng.standard_normal(60)
+    dates = pd.Timestamp("2026-01-01") + pd.to_timedelta((k - 1) // 3, unit="D")
+    table = tmp_path / "D1.csv"
+    pd.DataFrame({"date": dates.strftime("%Y-%m-%d"), "cycle": k, "capacity": cap}
+                 ).to_csv(table, index=False)
+    with open_store(f"sqlite:///{tmp_path / 'h.db'}") as store:
+        import_table(store, table, DECL, unit="D1")
+        from condmon.workflows.forecasting import forecast_unit
+        p = forecast_unit(store, "D1").parameters[0]
+    assert p.forecast.remaining is not None and p.date is not None
+    expected = pd.Timestamp("2026-01-20") + pd.Timedelta(days=p.forecast.remaining[0] * 19 / 59)
+    assert abs((pd.Timestamp(p.date).tz_localize(None) - expected).total_seconds()) <= 86400
+
+
 def test_a_grown_table_imports_only_its_new_rows(tmp_path: Path) -> None:
     db = tmp_path / "h.db"
     full = _cell(tmp_path / "full.csv", n=40)

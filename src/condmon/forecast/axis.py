@@ -72,18 +72,25 @@ class Axis:
         return _increasing(self.dates)
 
     def date_after(self, row: Any, ahead: float) -> str | None:
-        """The date ``ahead`` tests (days, hours) after check ``row``: for
-        hours, at the unit's usage over its dated checks [h per day]; None
-        when not dated (tests), or beyond a century."""
-        if not self.dated or self.by in ("tests", "cycles") or not ahead >= 0:
+        """The date ``ahead`` days (hours, cycles) after check ``row``: for
+        hours and cycles, at the unit's usage over its dated checks [h or
+        cycles per day, several a day allowed]; None when not dated (tests),
+        or beyond a century."""
+        if self.by == "tests" or not ahead >= 0:
             return None
         days = ahead
-        if self.by == "hours":
-            span_h = float(self.hours.iloc[-1] - self.hours.iloc[0])
-            span_d = (self.dates.iloc[-1] - self.dates.iloc[0]).total_seconds() / 86400.0
-            if not (span_h > 0 and span_d > 0):
+        if self.by in ("hours", "cycles"):
+            count = self.hours if self.by == "hours" else self.cycles
+            if count is None or not (bool(self.dates.notna().all())
+                                     and bool(self.dates.is_monotonic_increasing)):
                 return None
-            days = ahead * span_d / span_h
+            span_n = float(count.iloc[-1] - count.iloc[0])
+            span_d = (self.dates.iloc[-1] - self.dates.iloc[0]).total_seconds() / 86400.0
+            if not (span_n > 0 and span_d > 0):
+                return None
+            days = ahead * span_d / span_n
+        elif not self.dated:
+            return None
         if days >= _MAX_DAYS:   # a crossing beyond a century is no date (nor a timestamp)
             return None
         return str((self.dates[row] + pd.Timedelta(days=days)).round("s").isoformat())

@@ -131,6 +131,10 @@ def test_a_changed_end_of_life_is_said_kept_and_dates_are_not_invented(
     units = json.loads(capsys.readouterr().out)
     row = units["units"][0] if isinstance(units, dict) else units[0]
     assert row["latest_date"] is None
+    # the listing's forecast is of the new end of life too (the change is audited)
+    assert row["forecast"]["median"] == pytest.approx(after, abs=1.0)
+    assert main(["audit", "--db", str(db)]) == 0
+    assert "end of life changed" in capsys.readouterr().out
 
 
 def test_a_table_with_dates_and_cycles_forecasts_a_date(tmp_path: Path) -> None:

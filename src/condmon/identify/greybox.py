@@ -403,12 +403,20 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
         p = _solve_coefficients(lin, c_hat, start, known, weight=W if over else None)
     except ConversionError as err:
         return LinearRouteResult(nan, nan_cov, est, cont, fit,
-                                 f"no physical parameters: {err}; is the sign of a column "
-                                 "inverted or its unit wrong?")
+                                 f"no physical parameters: {err}; either the record does "
+                                 "not determine every unknown (a short or weakly exciting "
+                                 "record: give one a value with --constants NAME=VALUE, or "
+                                 "record longer), or a column's sign or unit is wrong")
     Jp = lin.jacobian(p, known)
     held = {**machine.nominal(), **dict(hold or {})}
     scales = np.array([abs(held[k]) or abs(v) or 1.0 for k, v in zip(spec.unknowns, p)])
-    idf = assess_identifiability(_whitened(cov_c, Jp * scales), spec.unknowns,
+    # the screen's relative standard errors are over the smaller of the given
+    # value and the record's own (free) estimate: over the given value alone, a
+    # value given high made a badly determined estimate look precise (R2a
+    # 6.7 ± 4.3, given 85: 5 %), and a value given low a good one look poor
+    screen = np.array([min(abs(held[k]), abs(v)) if held[k] and v and math.isfinite(v)
+                       else sc for k, v, sc in zip(spec.unknowns, p, scales)])
+    idf = assess_identifiability(_whitened(cov_c, Jp * screen), spec.unknowns,
                                  limits=spec.identifiability)
     if not idf.identifiable:
         return LinearRouteResult(nan, nan_cov, est, cont, fit, None, diag, identifiability=idf)
@@ -443,7 +451,9 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
                 notes = ("the standard errors carry the held "
                          f"{'values’' if len(own) > 1 else 'value’s'} own uncertainty in the "
                          "record ("
-                         + ", ".join(f"{k} ±{100 * v:.3g} %" for k, v in own.items())
+                         + ", ".join(f"{k} ±{100 * v:.3g} %" if v <= 0.5 else
+                                     f"{k} only to a factor of {1 + v:.3g}"
+                                     for k, v in own.items())
                          + ", one standard error): the estimates lean on "
                          f"{'it' if len(own) == 1 else 'them'}, and the record knows "
                          f"{'it' if len(own) == 1 else 'them'} no better",)
@@ -502,18 +512,28 @@ def _held_uncertainty(S: FloatArray, scales: FloatArray, keep: list[int],
     the others).
 
     A held unknown is one the user asked to estimate: its given value is a
-    start, known only as well as the record knows it. The others lean on it, so
-    their covariance is the whole set's (``S`` the whitened sensitivities per
-    relative change of ``scales``): by the Schur complement, the held-fixed
-    covariance plus the lean times the held ones' covariance. Holding still
-    sets their values; this sets their error bars."""
+    start, known only as well as the record knows it. The others lean on it
+    (``L``, relative change per relative change), so their covariance is the
+    held-fixed one plus ``L Σ Lᵀ``, ``Σ`` the held ones' covariance in the
+    whole set (``S`` the whitened sensitivities per relative change of
+    ``scales``; for small errors, the whole set's covariance, by the Schur
+    complement). A lean is a derivative of logarithms, so a large relative
+    error ``s`` is carried as the log-error ``ln(1 + s)``: a value known only
+    to a factor of ten moves an estimate leaning on it by 0.003 by 0.7 %, not
+    by 0.003 times 900 %."""
     sv = np.linalg.svd(S, compute_uv=False)
     if not (sv.size and np.all(np.isfinite(sv)) and sv[-1] > 1e-9 * sv[0]):
         return None
-    rel = np.linalg.inv(S.T @ S)
     held = [i for i in range(len(names)) if i not in keep]
-    cov = rel[np.ix_(keep, keep)] * np.outer(scales[keep], scales[keep])
-    return cov, {names[h]: math.sqrt(max(float(rel[h, h]), 0.0)) for h in held}
+    rel = np.linalg.inv(S.T @ S)
+    Sk, Sh = S[:, keep], S[:, held]
+    fixed = np.linalg.inv(Sk.T @ Sk)
+    lean = -fixed @ (Sk.T @ Sh)
+    sd = np.sqrt(np.maximum(np.diag(rel)[held], 0.0))
+    shrink = np.where(sd > 0, np.log1p(sd) / np.where(sd > 0, sd, 1.0), 1.0)
+    sigma = rel[np.ix_(held, held)] * np.outer(shrink, shrink)
+    cov = (fixed + lean @ sigma @ lean.T) * np.outer(scales[keep], scales[keep])
+    return cov, {names[h]: float(v) for h, v in zip(held, sd)}
 
 
 def _contradicted(lin: LinearStructure, known: FloatArray, W: FloatArray, c_hat: FloatArray,

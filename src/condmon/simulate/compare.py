@@ -32,7 +32,8 @@ from condmon.io.records import Record
 from condmon.models.declared import PlantModel
 from condmon.models.machine import Machine
 from condmon.models.shooting import state_readers
-from condmon.simulate.recorded import choose_substeps, simulate_recorded
+from condmon.simulate.recorded import (Diverged, choose_substeps, fastest_rate, growth_rate,
+                                       simulate_recorded)
 
 __all__ = ["Comparison", "beyond_noise", "compare_model", "initial_states", "INITIAL_RULES"]
 
@@ -207,22 +208,61 @@ def compare_model(record: Record, machine: Machine, params: Mapping[str, float],
     spread = np.std(y, axis=0) if y is not None else np.zeros(len(plant.sensors))
     noise = np.array([s.noise for s in plant.sensors])
     tol = 0.1 * np.maximum(noise, np.where(spread > 0, 1e-3 * spread, 1e-9))
-    sub = choose_substeps(compiled, u, record.dt, x0[:, None], p[:, None], tol)
+    t = np.arange(len(record), dtype=np.float64) * record.dt
+    growth = _growth(compiled, x0, u, p, t)
+    if growth:   # unstable: the step its fastest mode needs, no search (every step diverges)
+        rate = fastest_rate(compiled, x0, u[0] if len(u) else np.zeros(0), p)
+        sub = int(min(64, max(1, math.ceil(2.0 * rate * record.dt / 2.785))))
+    else:
+        sub = choose_substeps(compiled, u, record.dt, x0[:, None], p[:, None], tol)
     sim = simulate_recorded(compiled, u, record.dt, x0, p, substeps=sub, source=record.source)
     rmse, fit = {}, {}
     for j, name in enumerate(plant.sensor_names if y is not None else ()):
         assert y is not None
         e = y[:, j] - sim.outputs[:, j]
-        rmse[name] = float(np.sqrt(np.mean(e ** 2)))
-        dev = float(np.linalg.norm(y[:, j] - np.mean(y[:, j])))
-        fit[name] = float(100.0 * (1.0 - np.linalg.norm(e) / dev)) if dev > 0 else \
-            (100.0 if rmse[name] == 0 else -math.inf)
+        with np.errstate(over="ignore", invalid="ignore"):   # (an overflow: refused below)
+            rmse[name] = float(np.sqrt(np.mean(e ** 2)))
+            dev = float(np.linalg.norm(y[:, j] - np.mean(y[:, j])))
+            fit[name] = float(100.0 * (1.0 - np.linalg.norm(e) / dev)) if dev > 0 else \
+                (100.0 if rmse[name] == 0 else -math.inf)
     values = dict(zip(plant.parameter_names, map(float, p)))
+    bad = [n for n in rmse if not math.isfinite(rmse[n])]
+    if bad:   # outputs so large their squares overflow: no figure to give
+        raise Diverged(f"{record.source}: the simulation diverged: the simulated "
+                       f"{', '.join(bad)} grew past what a float can square (states finite "
+                       f"to the end){growth}; check the values",
+                       float(sim.t[-1]), plant.sensor_names[0])
+    if growth and y is not None:
+        reach = np.max(np.abs(sim.outputs), axis=0)
+        seen = np.maximum(np.max(np.abs(y), axis=0), noise)
+        grown = [n for n, a, b in zip(plant.sensor_names, reach, seen) if a > 1e6 * b]
+        if grown:   # it did grow: a million times what the record measured is no model of it
+            k = int(np.argmax(np.any(np.abs(sim.outputs) > 1e6 * seen, axis=1)))
+            raise Diverged(f"{record.source}: the simulation diverged: the simulated "
+                           f"{', '.join(grown)} passed a million times the record's largest "
+                           f"reading at t = {sim.t[k]:g} s{growth}; check the values, or the "
+                           "initial states", float(sim.t[k]), grown[0])
+    if growth:
+        notes = (*notes, growth[2:] + ": the figures measure that growth, not the model's "
+                 "fit (check the values, or the initial states)")
     if y is not None:
         notes = (*notes, *beyond_noise(plant, y - sim.outputs))
     return Comparison(record.source, machine.name, sim.t, plant.sensor_names, y, sim.outputs,
                       {s.name: s.unit for s in plant.sensors}, rmse, fit, dict(initial), values,
                       sub, notes, sim.states)
+
+
+def _growth(compiled: Any, x0: FloatArray, u: FloatArray, p: FloatArray, t: FloatArray) -> str:
+    """``"; ..."`` saying the model is unstable with these values where a mode
+    grows more than a millionfold over the record ("" otherwise): a growth the
+    record's own length shows, not a slow drift (e^13.8 = 10^6)."""
+    rate = growth_rate(compiled, x0, u[0] if len(u) else np.zeros(0), p)
+    span = float(t[-1] - t[0]) if len(t) > 1 else 0.0
+    if not (math.isfinite(rate) and rate * span > math.log(1e6)):
+        return ""
+    return (f"; with these values the model is unstable: a mode grows e-fold every "
+            f"{1.0 / rate:.3g} s, about 10^{rate * span / math.log(10):.0f}-fold over "
+            f"the record's {span:.3g} s")
 
 
 # A model that describes the record leaves the sensor's noise: an RMS error twice the

@@ -18,6 +18,7 @@ step count is chosen by halving the step until the outputs stop moving
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,8 +27,8 @@ from numpy.typing import NDArray
 from condmon.errors import EstimationError
 from condmon.models.declared import CompiledModel
 
-__all__ = ["Diverged", "RecordedSimulation", "choose_substeps", "fastest_rate",
-           "simulate_copies", "simulate_recorded"]
+__all__ = ["Diverged", "RecordedSimulation", "choose_substeps", "fastest_rate", "growth_rate",
+           "simulate_copies", "simulate_recorded", "state_jacobian"]
 
 FloatArray = NDArray[np.float64]
 _MAX_SUBSTEPS = 64
@@ -170,6 +171,23 @@ def choose_substeps(compiled: CompiledModel, u: FloatArray, dt: float, x0: Float
 _RK4_REAL_LIMIT = 2.785
 
 
+def state_jacobian(compiled: CompiledModel, x: FloatArray, u: FloatArray, p: FloatArray
+                   ) -> FloatArray | None:
+    """The state equations' Jacobian at one operating point, by central
+    differences [1/s] (None where it is not finite)."""
+    n = len(x)
+    J = np.zeros((n, n))
+    with np.errstate(all="ignore"):
+        for i in range(n):
+            h = 1e-6 * max(abs(float(x[i])), 1e-3)
+            up, down = x.copy(), x.copy()
+            up[i] += h
+            down[i] -= h
+            J[:, i] = (np.asarray(compiled.rhs(up, u, p)) - np.asarray(compiled.rhs(down, u, p))
+                       ) / (2 * h)
+    return J if np.all(np.isfinite(J)) else None
+
+
 def fastest_rate(compiled: CompiledModel, x: FloatArray, u: FloatArray, p: FloatArray
                  ) -> float:
     """The model's fastest rate at one operating point [1/s]: the largest
@@ -185,19 +203,28 @@ def fastest_rate(compiled: CompiledModel, x: FloatArray, u: FloatArray, p: Float
     >>> bool(rate > 100.0)          # the electrical mode, about R/L
     True
     """
-    n = len(x)
-    J = np.zeros((n, n))
-    with np.errstate(all="ignore"):
-        for i in range(n):
-            h = 1e-6 * max(abs(float(x[i])), 1e-3)
-            up, down = x.copy(), x.copy()
-            up[i] += h
-            down[i] -= h
-            J[:, i] = (np.asarray(compiled.rhs(up, u, p)) - np.asarray(compiled.rhs(down, u, p))
-                       ) / (2 * h)
-    if not np.all(np.isfinite(J)):
+    J = state_jacobian(compiled, x, u, p)
+    if J is None:
         return float("nan")
     return float(np.max(np.abs(np.linalg.eigvals(J)))) if J.size else 0.0
+
+
+def growth_rate(compiled: CompiledModel, x: FloatArray, u: FloatArray, p: FloatArray) -> float:
+    """The fastest growth of the model at one operating point [1/s]: the
+    largest real part of its Jacobian's eigenvalues (> 0: an unstable mode;
+    NaN where it cannot be evaluated).
+
+    Example
+    -------
+    >>> from condmon.models.registry import load_plant_model
+    >>> c = load_plant_model("dc-motor").compile()
+    >>> growth_rate(c, np.zeros(2), np.array([12.0]), c.parameter_vector()) < 0
+    True
+    """
+    J = state_jacobian(compiled, x, u, p)
+    if J is None:
+        return float("nan")
+    return float(np.max(np.linalg.eigvals(J).real)) if J.size else -math.inf
 
 
 def _too_fast(compiled: CompiledModel, x: FloatArray, u: FloatArray, p: FloatArray,
@@ -206,8 +233,16 @@ def _too_fast(compiled: CompiledModel, x: FloatArray, u: FloatArray, p: FloatArr
     mode, the step it allows and the step taken ("" when the step is not why)."""
     rate = fastest_rate(compiled, x, u, p)
     step = dt / substeps
-    if not np.isfinite(rate) or rate * step <= _RK4_REAL_LIMIT:
+    if not np.isfinite(rate):
+        return ("; the state equations are not finite at the start with these values (a "
+                "division by zero, a root or logarithm of a negative number?): check the values")
+    if rate * step <= _RK4_REAL_LIMIT:
         return ""
+    grows = growth_rate(compiled, x, u, p)
+    if grows > 0:   # a growing mode: no step makes it stay
+        return (f"; with these values the model is unstable: a mode grows e-fold every "
+                f"{1.0 / grows:.3g} s: check the values (a sign, unit or decimal error), and "
+                "the initial states")
     return (f"; with these values the model's fastest mode has a time constant of "
             f"{1.0 / rate:.3g} s, and a Runge-Kutta step of {step:.3g} s follows it only "
             f"below {_RK4_REAL_LIMIT / rate:.3g} s, {rate * step / _RK4_REAL_LIMIT:.3g} times "

@@ -108,9 +108,13 @@ class ImportsMixin(StoreBase):
                                   "import its values with its own declaration")
             uid = self.unit_id(unit, create=True, model=model, conn=conn,
                                model_source=model_source)
-            if end_of_life:
+            before = {} if row is None or not row.end_of_life else json.loads(row.end_of_life)
+            if end_of_life and dict(end_of_life) != before:
                 conn.execute(sa.update(S.units).where(S.units.c.id == uid).values(
                     end_of_life=json.dumps(dict(end_of_life))))
+                # (an audit row: the unit's kept forecast and listing are of the old one)
+                self._log(conn, "end of life changed", unit_id=uid,
+                          detail={"from": before, "to": dict(end_of_life)})
             ids = []
             for t in tests:
                 tid = int(conn.execute(sa.insert(S.tests).values(

@@ -39,7 +39,8 @@ from condmon.errors import ConversionError, ModelError
 from condmon.identify._common import TFEstimate, schur_stable, signals
 from condmon.identify.fit import FitCheck, fit_check, residual_figures
 from condmon.identify.identifiability import (
-    HOLD_LEVEL, Identifiability, assess_identifiability, dependence_at, hold_limit,
+    HOLD_LEVEL, Identifiability, assess_identifiability, dependence_at, held_covariance,
+    hold_limit,
 )
 from condmon.io.records import Record
 from condmon.models.conversion import tf_d2c_jacobian
@@ -444,7 +445,7 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
             # how the others lean on the held values, where they are held (the full
             # solution the screening ran at may lie far off, and its lean with it)
             idf = dataclasses.replace(idf, dependence=dependence_at(W @ (Jf * scales), idf))
-            carried = _held_uncertainty(W @ (Jf * scales), scales, keep, spec.unknowns)
+            carried = held_covariance(W @ (Jf * scales), scales, keep, spec.unknowns)
             if carried is not None:
                 cov[np.ix_(keep, keep)], own = carried
                 idf = dataclasses.replace(idf, held_uncertainty=own)
@@ -502,38 +503,6 @@ class _Subset:
 
     def jacobian(self, p: FloatArray, known: FloatArray) -> FloatArray:
         return self.lin.jacobian(self._full(p), known)[:, self.keep]
-
-
-def _held_uncertainty(S: FloatArray, scales: FloatArray, keep: list[int],
-                      names: Sequence[str]) -> tuple[FloatArray, dict[str, float]] | None:
-    """The estimated unknowns' covariance with the held ones' own uncertainty in
-    the record carried, and each held one's relative standard error there
-    (None: the record does not bound a held one, so only its given value fixes
-    the others).
-
-    A held unknown is one the user asked to estimate: its given value is a
-    start, known only as well as the record knows it. The others lean on it
-    (``L``, relative change per relative change), so their covariance is the
-    held-fixed one plus ``L Σ Lᵀ``, ``Σ`` the held ones' covariance in the
-    whole set (``S`` the whitened sensitivities per relative change of
-    ``scales``; for small errors, the whole set's covariance, by the Schur
-    complement). A lean is a derivative of logarithms, so a large relative
-    error ``s`` is carried as the log-error ``ln(1 + s)``: a value known only
-    to a factor of ten moves an estimate leaning on it by 0.003 by 0.7 %, not
-    by 0.003 times 900 %."""
-    sv = np.linalg.svd(S, compute_uv=False)
-    if not (sv.size and np.all(np.isfinite(sv)) and sv[-1] > 1e-9 * sv[0]):
-        return None
-    held = [i for i in range(len(names)) if i not in keep]
-    rel = np.linalg.inv(S.T @ S)
-    Sk, Sh = S[:, keep], S[:, held]
-    fixed = np.linalg.inv(Sk.T @ Sk)
-    lean = -fixed @ (Sk.T @ Sh)
-    sd = np.sqrt(np.maximum(np.diag(rel)[held], 0.0))
-    shrink = np.where(sd > 0, np.log1p(sd) / np.where(sd > 0, sd, 1.0), 1.0)
-    sigma = rel[np.ix_(held, held)] * np.outer(shrink, shrink)
-    cov = (fixed + lean @ sigma @ lean.T) * np.outer(scales[keep], scales[keep])
-    return cov, {names[h]: float(v) for h, v in zip(held, sd)}
 
 
 def _contradicted(lin: LinearStructure, known: FloatArray, W: FloatArray, c_hat: FloatArray,

@@ -348,13 +348,15 @@ def held_covariance(S: FloatArray, scales: FloatArray, keep: list[int],
     >>> round(own["b"], 3), bool(cov[0, 0] > 0.5)   # b to ±94 %, a's error bar widened
     (0.943, True)
     """
-    sv = np.linalg.svd(S, compute_uv=False)
-    if not (sv.size and np.all(np.isfinite(sv)) and sv[-1] > 1e-9 * sv[0]):
+    if not np.all(np.isfinite(S)):
+        return None
+    _, sv, vt = np.linalg.svd(S, full_matrices=False)
+    if not (sv.size and sv[-1] > 1e-9 * sv[0]):
         return None
     held = [i for i in range(len(names)) if i not in keep]
-    rel = np.linalg.inv(S.T @ S)
+    rel = (vt.T / sv ** 2) @ vt   # (SᵀS)⁻¹ from the decomposition: no squared condition
     Sk, Sh = S[:, keep], S[:, held]
-    fixed = np.linalg.inv(Sk.T @ Sk)
+    fixed = np.linalg.pinv(Sk.T @ Sk)
     lean = -fixed @ (Sk.T @ Sh)
     sd = np.sqrt(np.maximum(np.diag(rel)[held], 0.0))
     shrink = np.where(sd > 0, np.log1p(sd) / np.where(sd > 0, sd, 1.0), 1.0)

@@ -32,8 +32,8 @@ from condmon.io.records import Record
 from condmon.models.declared import PlantModel
 from condmon.models.machine import Machine
 from condmon.models.shooting import state_readers
-from condmon.simulate.recorded import (Diverged, choose_substeps, fastest_rate, growth_rate,
-                                       simulate_recorded)
+from condmon.simulate.recorded import (Diverged, choose_substeps, growth_rate, simulate_recorded,
+                                       stable_substeps)
 
 __all__ = ["Comparison", "beyond_noise", "compare_model", "initial_states", "INITIAL_RULES"]
 
@@ -211,8 +211,7 @@ def compare_model(record: Record, machine: Machine, params: Mapping[str, float],
     t = np.arange(len(record), dtype=np.float64) * record.dt
     growth = _growth(compiled, x0, u, p, t)
     if growth:   # unstable: the step its fastest mode needs, no search (every step diverges)
-        rate = fastest_rate(compiled, x0, u[0] if len(u) else np.zeros(0), p)
-        sub = int(min(64, max(1, math.ceil(2.0 * rate * record.dt / 2.785))))
+        sub = stable_substeps(compiled, x0, u[0] if len(u) else np.zeros(0), p, record.dt)
     else:
         sub = choose_substeps(compiled, u, record.dt, x0[:, None], p[:, None], tol)
     sim = simulate_recorded(compiled, u, record.dt, x0, p, substeps=sub, source=record.source)

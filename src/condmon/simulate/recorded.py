@@ -28,7 +28,7 @@ from condmon.errors import EstimationError
 from condmon.models.declared import CompiledModel
 
 __all__ = ["Diverged", "RecordedSimulation", "choose_substeps", "fastest_rate", "growth_rate",
-           "simulate_copies", "simulate_recorded", "state_jacobian"]
+           "simulate_copies", "simulate_recorded", "stable_substeps", "state_jacobian"]
 
 FloatArray = NDArray[np.float64]
 _MAX_SUBSTEPS = 64
@@ -174,7 +174,16 @@ _RK4_REAL_LIMIT = 2.785
 def state_jacobian(compiled: CompiledModel, x: FloatArray, u: FloatArray, p: FloatArray
                    ) -> FloatArray | None:
     """The state equations' Jacobian at one operating point, by central
-    differences [1/s] (None where it is not finite)."""
+    differences [1/s] (None where it is not finite).
+
+    Example
+    -------
+    >>> from condmon.models.registry import load_plant_model
+    >>> c = load_plant_model("dc-motor").compile()
+    >>> J = state_jacobian(c, np.zeros(2), np.array([12.0]), c.parameter_vector())
+    >>> round(float(J[0, 0]))        # dI/dI = -R/L [1/s]
+    -833
+    """
     n = len(x)
     J = np.zeros((n, n))
     with np.errstate(all="ignore"):
@@ -225,6 +234,26 @@ def growth_rate(compiled: CompiledModel, x: FloatArray, u: FloatArray, p: FloatA
     if J is None:
         return float("nan")
     return float(np.max(np.linalg.eigvals(J).real)) if J.size else -math.inf
+
+
+def stable_substeps(compiled: CompiledModel, x: FloatArray, u: FloatArray, p: FloatArray,
+                    dt: float) -> int:
+    """Runge-Kutta steps per sample that keep the model's fastest mode at one
+    operating point within half the method's stability limit (at most
+    :data:`_MAX_SUBSTEPS`; 1 where the mode cannot be evaluated): the step
+    count where searching is no use, a model that grows at every step.
+
+    Example
+    -------
+    >>> from condmon.models.registry import load_plant_model
+    >>> c = load_plant_model("dc-motor").compile()
+    >>> stable_substeps(c, np.zeros(2), np.array([12.0]), c.parameter_vector(), 1e-3)
+    1
+    """
+    rate = fastest_rate(compiled, x, u, p)
+    if not math.isfinite(rate):
+        return 1
+    return int(min(_MAX_SUBSTEPS, max(1, math.ceil(2.0 * rate * dt / _RK4_REAL_LIMIT))))
 
 
 def _too_fast(compiled: CompiledModel, x: FloatArray, u: FloatArray, p: FloatArray,

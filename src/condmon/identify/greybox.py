@@ -411,12 +411,16 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
     Jp = lin.jacobian(p, known)
     held = {**machine.nominal(), **dict(hold or {})}
     scales = np.array([abs(held[k]) or abs(v) or 1.0 for k, v in zip(spec.unknowns, p)])
-    # the screen's relative standard errors are over the smaller of the given
-    # value and the record's own (free) estimate: over the given value alone, a
+    # the screen's relative standard errors are over the given value, unless the
+    # record contradicts it (the free estimate beyond it at the held values' 1 %
+    # level): then over the smaller of the two. Over the given value alone, a
     # value given high made a badly determined estimate look precise (R2a
-    # 6.7 ± 4.3, given 85: 5 %), and a value given low a good one look poor
-    screen = np.array([min(abs(held[k]), abs(v)) if held[k] and v and math.isfinite(v)
-                       else sc for k, v, sc in zip(spec.unknowns, p, scales)])
+    # 6.7 ± 4.3, given 85: 5 %, not 65 %)
+    Jw = _whitened(cov_c, Jp)
+    se = np.sqrt(np.maximum(np.diag(np.linalg.pinv(Jw.T @ Jw)), 0.0))
+    screen = np.array([min(abs(held[k]), abs(v))
+                       if held[k] and v and (v - held[k]) ** 2 > hold_limit(1) * e ** 2
+                       else sc for k, v, e, sc in zip(spec.unknowns, p, se, scales)])
     idf = assess_identifiability(_whitened(cov_c, Jp * screen), spec.unknowns,
                                  limits=spec.identifiability)
     if not idf.identifiable:

@@ -118,7 +118,7 @@ def test_a_changed_end_of_life_is_said_kept_and_dates_are_not_invented(
     assert main([*args, "--no-go", "capacity<0.88"]) == 0
     said = " ".join(capsys.readouterr().out.split())
     assert "0 rows stored" in said and "60 already stored" in said
-    assert "capacity: end of life changed from < 1.4 Ah to <0.88 Ah" in said
+    assert "capacity: end of life changed from < 1.4 Ah to < 0.88 Ah" in said
     with open_store(f"sqlite:///{db}") as store:
         assert store.end_of_life("C1") == {"capacity": "<0.88"}
     assert main(["forecast", "--unit", "C1", "--db", str(db), "--json"]) == 0
@@ -315,6 +315,9 @@ def test_a_parquet_table_goes_in_through_the_notebook_api(tmp_path: Path) -> Non
     ("date,capacity\n" + "".join(f"{k:02d}/01/2024,{1.85 - 0.001 * k}\n"
                                    for k in range(1, 11)), "is not an ISO 8601 date"),
     ("Cycle,capacity\n1,1.9\n", "names are case-sensitive: 'Cycle'"),
+    ("date,capacity\n" + "".join(f"2026-01-{k:02d},{1.85 - 0.001 * k}\n" for k in range(1, 11))
+     + "2199-01-01,1.8\n", "row 11 (line 12), column 'date': '2199-01-01' is more than a day "
+                           "in the future"),
     ("cycle,capacity\n" + "".join(f"{k},{1850 - k}\n" for k in range(1, 11)),
      "rows 1-5 (the baseline of unit 'C1'), column 'capacity': their mean 1847 is 924 times "
      "the declared rated value (2 Ah); values in another unit than Ah?"),

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -69,8 +70,7 @@ class ImportedUnit:
     end_of_life : dict of str to str
         Each indicator's end of life for this unit.
     changed : tuple of str
-        What ``--no-go`` changed of the unit's end of life, one line each
-        (from what, to what, and what the rows stored before keep).
+        What ``--no-go`` changed of the unit's end of life (from, to), a line each.
     """
 
     unit: str
@@ -282,6 +282,12 @@ def _checked(path: Path, g: pd.DataFrame, axes: list[str], names: Sequence[str],
                 raise DataError(f"{path}: {at(int(bad[0]))}, column 'date': "
                                 f"{raw.iloc[int(bad[0])]!r} is not an ISO 8601 date "
                                 "(2024-01-12, or 2024-01-12T08:30); nothing was stored")
+            ahead = np.flatnonzero((vals > pd.Timestamp.now(tz="UTC") + pd.Timedelta(days=1))
+                                   .to_numpy())   # (as `check --date` refuses)
+            if ahead.size:
+                raise DataError(f"{path}: {at(int(ahead[0]))}, column 'date': "
+                                f"{raw.iloc[int(ahead[0])]!r} is more than a day in the future; "
+                                "give the date the value was measured; nothing was stored")
             out[a] = vals.to_numpy()
             step = np.diff((vals - vals.iloc[0]).dt.total_seconds().to_numpy())
         else:
@@ -526,7 +532,7 @@ def _plan_unit(store: HistoryStore, unit: str, table: pd.DataFrame, model: Indic
 
 def _eol_text(ind: Any) -> str:
     """An indicator's end of life as a user reads it, with its unit (``< 1.4 Ah``)."""
-    text = str(ind.end_of_life.text)
+    text = re.sub(r"^\s*([<>]=?)\s*", r"\1 ", str(ind.end_of_life.text))   # "<5" as "< 5"
     return text + (f" {ind.unit}" if ind.end_of_life.kind == "level"
                    and not text.rstrip().endswith(ind.unit) else "")
 

@@ -129,6 +129,17 @@ def test_a_feature_may_not_take_a_parameters_name() -> None:
                        reserved=("Tc",))
 
 
+def test_a_ratio_feature_without_a_unit_is_dimensionless() -> None:
+    """Kurtosis and crest factor are ratios: with no unit given they are "-",
+    as the report prints them; a level keeps the unit given, or none."""
+    got = {f.name: f.unit for f in parse_features({
+        "k": {"channel": "acc", "statistic": "kurtosis"},
+        "c": {"channel": "acc", "statistic": "crest"},
+        "r": {"channel": "acc", "statistic": "rms"},
+        "g": {"channel": "acc", "statistic": "rms", "unit": "g"}}, "rig.toml")}
+    assert got == {"k": "-", "c": "-", "r": "", "g": "g"}
+
+
 def _declaration(tmp_path: Path, features: str) -> Path:
     src = Path(__file__).resolve().parents[1] / "examples" / "hydraulic-actuator"
     for f in src.glob("*.toml"):

@@ -222,9 +222,11 @@ def parse_features(table: Mapping[str, Any] | None, source: str, *,
         required = entry.get("required", True)
         if not isinstance(required, bool):
             raise ConfigError(f"{at}.required must be true or false, not {required!r}")
-        spec = FeatureSpec(name, channel.strip(), str(stat), tuple(names), band,
-                           str(entry.get("unit", "")), str(entry.get("description", "")),
-                           required)
+        # a ratio's unit is "-" whatever the channel's (none given: kurtosis, crest)
+        unit = str(entry.get("unit", "") or ("-" if STATISTICS[str(stat)].endswith("[-]")
+                                             else ""))
+        spec = FeatureSpec(name, channel.strip(), str(stat), tuple(names), band, unit,
+                           str(entry.get("description", "")), required)
         if sample_rate is not None:
             check_band(spec, sample_rate, source)
         out.append(spec)

@@ -164,8 +164,8 @@ def baseline_section(stored: Any, cfg: MonitorConfig,
         rows.append(f"<tr><td class='l'>{esc(p)}</td><td>{m:.5g} ± {s:.3g}</td>"
                     f"<td class='l'>{esc(unit)}</td>"
                     f"<td>{rel:.2f}</td><td>±{cfg.k * rel:.2f}</td>"
-                    f"<td>{'—' if r1 is None else f'{r1:g}'}</td>"
-                    f"<td>{'—' if r2 is None else f'{r2:g}'}</td></tr>")
+                    f"<td>{'—' if r1 is None else f'{r1:.3g}'}</td>"
+                    f"<td>{'—' if r2 is None else f'{r2:.3g}'}</td></tr>")
     reason = f" — {esc(stored.reason)}" if stored.reason else ""
     return (f"<h2 id='baseline'>Baseline in use: {esc(stored.name)} v{stored.version}</h2>"
             f"<p class='sub'>{esc(stored.describe(history))}{reason}; tests "

@@ -157,6 +157,27 @@ def test_a_table_with_dates_and_cycles_forecasts_a_date(tmp_path: Path) -> None:
     assert abs((pd.Timestamp(p.date).tz_localize(None) - expected).total_seconds()) <= 86400
 
 
+def test_a_changed_pace_is_said_beside_the_no_go_date(tmp_path: Path) -> None:
+    """One cycle every 3 days for 40 cycles, then 5 a day: the no-go date at the
+    history's mean pace (about half a cycle a day) lies weeks after the date at
+    the latest checks' pace, and the forecast says both."""
+    rng = np.random.default_rng(0)
+    k = np.arange(1, 61)
+    cap = 1.9 - 0.006 * k + 0.004 * rng.standard_normal(60)
+    days = np.concatenate([np.arange(40) * 3, 120 + np.arange(20) // 5])
+    dates = pd.Timestamp("2026-01-01") + pd.to_timedelta(days, unit="D")
+    table = tmp_path / "P.csv"
+    pd.DataFrame({"date": dates.strftime("%Y-%m-%d"), "cycle": k, "capacity": cap}
+                 ).to_csv(table, index=False)
+    with open_store(f"sqlite:///{tmp_path / 'h.db'}") as store:
+        import_table(store, table, DECL, unit="P")
+        from condmon.workflows.forecasting import forecast_unit
+        p = forecast_unit(store, "P").parameters[0]
+    said = [n for n in p.forecast.notes if n.startswith("the date is at the history's mean pace")]
+    assert len(said) == 1 and "cycles a day) it is 2026-05" in said[0], p.forecast.notes
+    assert p.date is not None and p.date > "2026-06"
+
+
 def test_a_grown_table_imports_only_its_new_rows(tmp_path: Path) -> None:
     db = tmp_path / "h.db"
     full = _cell(tmp_path / "full.csv", n=40)

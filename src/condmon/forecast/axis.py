@@ -9,6 +9,7 @@ change series on that axis from a unit's history.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -70,6 +71,31 @@ class Axis:
     def dated(self) -> bool:
         """Every check carries a date, in order, none twice."""
         return _increasing(self.dates)
+
+    def pace_note(self, row: Any, ahead: float) -> str:
+        """For hours and cycles: the date at the pace of the latest quarter of
+        the dated checks, where it differs from the whole history's by more
+        than a quarter of the time ahead ("" otherwise): a unit whose use
+        changed is due sooner or later than its history's mean pace says."""
+        whole = self.date_after(row, ahead)
+        count = self.hours if self.by == "hours" else self.cycles
+        if whole is None or count is None or self.by not in ("hours", "cycles"):
+            return ""
+        n = len(self.dates)
+        k = max(n - max(n // 4, 2), 0)
+        span_n = float(count.iloc[-1] - count.iloc[k])
+        span_d = (self.dates.iloc[-1] - self.dates.iloc[k]).total_seconds() / 86400.0
+        if not (span_n > 0 and span_d > 0):
+            return ""
+        recent = ahead * span_d / span_n
+        days = (pd.Timestamp(whole) - self.dates[row]).total_seconds() / 86400.0
+        if abs(recent - days) <= 0.25 * max(days, recent) or recent >= _MAX_DAYS:
+            return ""
+        per = "h" if self.by == "hours" else "cycles"
+        mean = ahead / days if days > 0 else math.nan
+        date = (self.dates[row] + pd.Timedelta(days=recent)).date()
+        return (f"the date is at the history's mean pace ({mean:.3g} {per} a day); at its "
+                f"latest {n - k} checks' pace ({span_n / span_d:.3g} {per} a day) it is {date}")
 
     def date_after(self, row: Any, ahead: float) -> str | None:
         """The date ``ahead`` days (hours, cycles) after check ``row``: for

@@ -349,6 +349,10 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
                 *f.notes[:-1], f"the last check measured past the no-go change, yet its "
                 f"status is {said}: due now"))
         when = None if f.remaining is None else axis.date_after(rows[-1], f.remaining[0])
+        pace = "" if when is None or f.remaining is None else \
+            axis.pace_note(rows[-1], f.remaining[0])
+        if pace:
+            f = dataclasses.replace(f, notes=(*f.notes, pace))
         at = (float(axis.hours[rows[-1]] + f.remaining[0])
               if axis.by == "hours" and f.remaining is not None
               and math.isfinite(f.remaining[0]) else None)

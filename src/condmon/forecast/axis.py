@@ -76,7 +76,17 @@ class Axis:
         """For hours and cycles: the date at the pace of the latest quarter of
         the dated checks, where it differs from the whole history's by more
         than a quarter of the time ahead ("" otherwise): a unit whose use
-        changed is due sooner or later than its history's mean pace says."""
+        changed is due sooner or later than its history's mean pace says.
+        ``ahead`` in the axis' unit [h or cycles].
+
+        Example
+        -------
+        >>> d = pd.Series(pd.to_datetime(["2026-01-01", "2026-01-31", "2026-03-02",
+        ...                               "2026-03-03", "2026-03-04"]))
+        >>> c = pd.Series([1.0, 2.0, 3.0, 13.0, 23.0])   # one a month, then ten a day
+        >>> Axis("cycles", d, pd.Series([np.nan] * 5), None, c).pace_note(4, 20.0)[-34:]
+        '(10 cycles a day) it is 2026-03-06'
+        """
         whole = self.date_after(row, ahead)
         count = self.hours if self.by == "hours" else self.cycles
         if whole is None or count is None or self.by not in ("hours", "cycles"):

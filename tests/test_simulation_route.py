@@ -1041,3 +1041,54 @@ def test_a_weak_unknown_given_high_is_held_and_its_uncertainty_carried_in_log(
     for k, v in HOUSING_TRUTH.items():
         if k not in res.identifiability.held:
             assert abs(res.parameters[k] - v) < 2.0 * res.std_errors[k], k
+
+
+LADDER = """
+name = "ladder"
+[parameters]
+R1 = { value = 1000.0, unit = "ohm" }
+R2 = { value = 3200.0, unit = "ohm" }
+C1 = { value = 1.0e-4, unit = "F" }
+C2 = { value = 4.7e-5, unit = "F" }
+[inputs]
+u = { nominal = 0.0, unit = "V" }
+[states]
+v1 = { derivative = "((u - v1)/R1 - (v1 - v2)/R2)/C1", unit = "V" }
+v2 = { derivative = "((v1 - v2)/R2)/C2", unit = "V" }
+[sensors]
+y = { measures = "v2", noise = 0.01, unit = "V" }
+[test]
+duration = 20.0
+sample_rate = 200.0
+excitation = [{ input = "u", signal = "prbs", amplitude = 5.0, hold = 0.2, seed = 7 }]
+[estimation]
+estimate = ["R2", "C2"]
+route = "auto"
+min_duration = 2.0
+sample_interval = [1.0e-4, 1.0e-1]
+[estimation.plausible]
+R2 = { gt = 0.0 }
+C2 = { gt = 0.0 }
+"""
+
+
+@pytest.mark.parametrize("seed", [1, 3])
+def test_unknowns_of_very_different_sizes_keep_their_error_bars(tmp_path: Path,
+                                                                seed: int) -> None:
+    """An RC ladder: R2 in ohms (2,000) beside C2 in farads (3.3e-5), 10⁸ apart.
+    The linear route's pseudo-inverse cut the small direction off and reported
+    R2 ± 7e-17 ohm, 10¹⁶ standard errors from the truth, and C2 5-17 standard
+    errors off, accepted; over columns scaled to the unknowns' sizes both lie
+    within 3 standard errors, as the screen's 0.2 % said."""
+    truth = tmp_path / "truth.toml"
+    truth.write_text(LADDER.replace("R2 = { value = 3200.0", "R2 = { value = 2000.0")
+                     .replace("C2 = { value = 4.7e-5", "C2 = { value = 3.3e-5"))
+    given = tmp_path / "given.toml"
+    given.write_text(LADDER)
+    rec = tmp_path / "r.csv"
+    assert main(["simulate", "plant", str(truth), "--seed", str(seed), "--out", str(rec)]) == 0
+    res = estimate(pd.read_csv(rec), str(given))
+    assert res.accepted and res.route == "linear", res.reason
+    for k, v in {"R2": 2000.0, "C2": 3.3e-5}.items():
+        assert 1e-4 < res.std_errors[k] / v < 1e-2, (k, res.std_errors[k])
+        assert abs(res.parameters[k] - v) < 3.0 * res.std_errors[k], k

@@ -422,7 +422,7 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
     # value given high made a badly determined estimate look precise (R2a
     # 6.7 ± 4.3, given 85: 5 %, not 65 %)
     Jw = _whitened(cov_c, Jp)
-    se = np.sqrt(np.maximum(np.diag(np.linalg.pinv(Jw.T @ Jw)), 0.0))
+    se = np.sqrt(np.maximum(np.diag(_gauss_newton_cov(Jw, scales)), 0.0))
     screen = np.array([min(abs(held[k]), abs(v))
                        if held[k] and v and (v - held[k]) ** 2 > _CONTRADICTS * e ** 2
                        else sc for k, v, e, sc in zip(spec.unknowns, p, se, scales)])
@@ -450,7 +450,7 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
             Jf = lin.jacobian(p, known)
             Jw = W @ Jf[:, keep]
             cov = np.zeros((len(spec.unknowns),) * 2)
-            cov[np.ix_(keep, keep)] = np.linalg.pinv(Jw.T @ Jw)
+            cov[np.ix_(keep, keep)] = _gauss_newton_cov(Jw, scales[keep])
             # how the others lean on the held values, where they are held (the full
             # solution the screening ran at may lie far off, and its lean with it)
             idf = dataclasses.replace(idf, dependence=dependence_at(W @ (Jf * scales), idf))
@@ -478,16 +478,16 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
             idf = dataclasses.replace(idf, identifiable=tuple(spec.unknowns),
                                       reasons={k: v for k, v in idf.reasons.items()
                                                if k not in weak})
-            Jw, G = W @ Jp, np.linalg.pinv(Jp)
-            cov = np.asarray(np.linalg.pinv(Jw.T @ Jw), dtype=np.float64) if over else \
+            Jw, G = W @ Jp, _scaled_pinv(Jp, scales)
+            cov = _gauss_newton_cov(Jw, scales) if over else \
                 G @ cov_c @ G.T
             return LinearRouteResult(dict(zip(spec.unknowns, map(float, p))), cov, est, cont,
                                      fit, None, diag, identifiability=idf, notes=(said,))
     elif over:
         Jw = W @ Jp
-        cov = np.asarray(np.linalg.pinv(Jw.T @ Jw), dtype=np.float64)
+        cov = _gauss_newton_cov(Jw, scales)
     else:
-        G = np.linalg.pinv(Jp)
+        G = _scaled_pinv(Jp, scales)
         cov = G @ cov_c @ G.T
     return LinearRouteResult(dict(zip(spec.unknowns, map(float, p))), cov, est, cont, fit, None,
                              diag, identifiability=idf, notes=notes)
@@ -533,6 +533,21 @@ def _contradicted(lin: LinearStructure, known: FloatArray, W: FloatArray, c_hat:
         return None
     return (f"likelihood ratio {lr:.3g} > {limit:.3g}, {100 * HOLD_LEVEL:g} %; free, "
             + ", ".join(f"{k} = {p_free[list(names).index(k)]:.4g}" for k in weak))
+
+
+def _scaled_pinv(J: FloatArray, scales: FloatArray) -> FloatArray:
+    """``J⁺`` taken over columns scaled to the unknowns' sizes: unscaled, a
+    resistance in ohms beside a capacitance in farads puts 10⁸ between the
+    columns, and the pseudo-inverse's cut-off drops the small one (R2 came out
+    ± 7e-17 ohm)."""
+    return np.asarray(np.linalg.pinv(J * scales) * scales[:, None], dtype=np.float64)
+
+
+def _gauss_newton_cov(Jw: FloatArray, scales: FloatArray) -> FloatArray:
+    """``(JwᵀJw)⁺`` of whitened sensitivities ``Jw``, over columns scaled as in
+    :func:`_scaled_pinv`."""
+    S = Jw * scales
+    return np.asarray(np.linalg.pinv(S.T @ S) * np.outer(scales, scales), dtype=np.float64)
 
 
 def _whitened(cov: FloatArray, J: FloatArray) -> FloatArray:

@@ -6,6 +6,7 @@ import json
 import re
 import sqlite3
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -137,21 +138,26 @@ def test_a_changed_end_of_life_is_said_kept_and_dates_are_not_invented(
     assert "end of life changed" in capsys.readouterr().out
 
 
-def test_a_table_with_dates_and_cycles_forecasts_a_date(tmp_path: Path) -> None:
-    """Three cycles a day from 2026-01-01, counted in cycles: the no-go date
-    follows the cycles left at the unit's own pace (59 cycles in 19 days), so
-    the median's date is its cycles left times 19/59 days after the last (to the day)."""
-    rng = np.random.default_rng(0)
+def _dated_forecast(tmp_path: Path, days: np.ndarray) -> Any:
+    """The capacity forecast of 60 cycles fading 0.006 Ah a cycle from 1.9 Ah,
+    cycle k dated ``days[k - 1]`` days after 2026-01-01."""
     k = np.arange(1, 61)
-    cap = 1.9 - 0.006 * k + 0.004 * rng.standard_normal(60)
-    dates = pd.Timestamp("2026-01-01") + pd.to_timedelta((k - 1) // 3, unit="D")
+    cap = 1.9 - 0.006 * k + 0.004 * np.random.default_rng(0).standard_normal(60)
+    dates = pd.Timestamp("2026-01-01") + pd.to_timedelta(days, unit="D")
     table = tmp_path / "D1.csv"
     pd.DataFrame({"date": dates.strftime("%Y-%m-%d"), "cycle": k, "capacity": cap}
                  ).to_csv(table, index=False)
     with open_store(f"sqlite:///{tmp_path / 'h.db'}") as store:
         import_table(store, table, DECL, unit="D1")
         from condmon.workflows.forecasting import forecast_unit
-        p = forecast_unit(store, "D1").parameters[0]
+        return forecast_unit(store, "D1").parameters[0]
+
+
+def test_a_table_with_dates_and_cycles_forecasts_a_date(tmp_path: Path) -> None:
+    """Three cycles a day from 2026-01-01, counted in cycles: the no-go date
+    follows the cycles left at the unit's own pace (59 cycles in 19 days), so
+    the median's date is its cycles left times 19/59 days after the last (to the day)."""
+    p = _dated_forecast(tmp_path, np.arange(60) // 3)
     assert p.forecast.remaining is not None and p.date is not None
     expected = pd.Timestamp("2026-01-20") + pd.Timedelta(days=p.forecast.remaining[0] * 19 / 59)
     assert abs((pd.Timestamp(p.date).tz_localize(None) - expected).total_seconds()) <= 86400
@@ -161,18 +167,7 @@ def test_a_changed_pace_is_said_beside_the_no_go_date(tmp_path: Path) -> None:
     """One cycle every 3 days for 40 cycles, then 5 a day: the no-go date at the
     history's mean pace (about half a cycle a day) lies weeks after the date at
     the latest checks' pace, and the forecast says both."""
-    rng = np.random.default_rng(0)
-    k = np.arange(1, 61)
-    cap = 1.9 - 0.006 * k + 0.004 * rng.standard_normal(60)
-    days = np.concatenate([np.arange(40) * 3, 120 + np.arange(20) // 5])
-    dates = pd.Timestamp("2026-01-01") + pd.to_timedelta(days, unit="D")
-    table = tmp_path / "P.csv"
-    pd.DataFrame({"date": dates.strftime("%Y-%m-%d"), "cycle": k, "capacity": cap}
-                 ).to_csv(table, index=False)
-    with open_store(f"sqlite:///{tmp_path / 'h.db'}") as store:
-        import_table(store, table, DECL, unit="P")
-        from condmon.workflows.forecasting import forecast_unit
-        p = forecast_unit(store, "P").parameters[0]
+    p = _dated_forecast(tmp_path, np.concatenate([np.arange(40) * 3, 120 + np.arange(20) // 5]))
     said = [n for n in p.forecast.notes if n.startswith("the date is at the history's mean pace")]
     assert len(said) == 1 and "cycles a day) it is 2026-05" in said[0], p.forecast.notes
     assert p.date is not None and p.date > "2026-06"

@@ -163,14 +163,17 @@ def test_a_table_with_dates_and_cycles_forecasts_a_date(tmp_path: Path) -> None:
     assert abs((pd.Timestamp(p.date).tz_localize(None) - expected).total_seconds()) <= 86400
 
 
-def test_a_changed_pace_is_said_beside_the_no_go_date(tmp_path: Path) -> None:
+def test_a_changed_pace_is_said_beside_the_no_go_date(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """One cycle every 3 days for 40 cycles, then 5 a day: the no-go date at the
     history's mean pace (about half a cycle a day) lies weeks after the date at
-    the latest checks' pace, and the forecast says both."""
+    the latest checks' pace, and the forecast says both, in its table too."""
     p = _dated_forecast(tmp_path, np.concatenate([np.arange(40) * 3, 120 + np.arange(20) // 5]))
     said = [n for n in p.forecast.notes if n.startswith("the date is at the history's mean pace")]
     assert len(said) == 1 and "cycles a day) it is 2026-05" in said[0], p.forecast.notes
     assert p.date is not None and p.date > "2026-06"
+    assert main(["forecast", "--unit", "D1", "--db", str(tmp_path / "h.db")]) == 0
+    assert f"pace: capacity: {said[0]}" in " ".join(capsys.readouterr().out.split())
 
 
 def test_a_grown_table_imports_only_its_new_rows(tmp_path: Path) -> None:

@@ -130,3 +130,9 @@ def register(app: typer.Typer) -> None:
                         if note.startswith(("recalibrated on", "its 90 % interval held"))})
         for line in fleet:
             out.print(f"interval: {line}", markup=False, highlight=False, soft_wrap=True)
+        # a date read at the history's mean pace, where the unit's use changed
+        for p in res.parameters:
+            for note in p.forecast.notes:
+                if note.startswith("the date is at the history's mean pace"):
+                    out.print(f"pace: {p.parameter}: {note}", markup=False, highlight=False,
+                              soft_wrap=True)

@@ -30,7 +30,6 @@ import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from statistics import NormalDist
 from typing import Any
 
 import numpy as np
@@ -55,10 +54,6 @@ __all__ = ["LinearRouteResult", "RouteResult", "linear_route", "choose_route", "
            "NOT_AT_REST", "not_at_rest", "initial_response"]
 
 FloatArray = NDArray[np.float64]
-#: One unknown's free estimate contradicts its given value beyond this many squared
-#: standard errors: the held values' level (chi-square, 1 degree of freedom, from the
-#: normal quantile in the standard library; scipy stays off the route's fast path).
-_CONTRADICTS = NormalDist().inv_cdf(1.0 - HOLD_LEVEL / 2.0) ** 2
 
 
 def choose_route(machine: Machine, route: str | None = None) -> str:
@@ -421,12 +416,12 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
     # level): then over the smaller of the two. Over the given value alone, a
     # value given high made a badly determined estimate look precise (R2a
     # 6.7 ± 4.3, given 85: 5 %, not 65 %)
-    Jw = _whitened(cov_c, Jp)
+    Jw = W @ Jp
     se = np.sqrt(np.maximum(np.diag(_gauss_newton_cov(Jw, scales)), 0.0))
     screen = np.array([min(abs(held[k]), abs(v))
-                       if held[k] and v and (v - held[k]) ** 2 > _CONTRADICTS * e ** 2
+                       if held[k] and v and (v - held[k]) ** 2 > hold_limit(1) * e ** 2
                        else sc for k, v, e, sc in zip(spec.unknowns, p, se, scales)])
-    idf = assess_identifiability(_whitened(cov_c, Jp * screen), spec.unknowns,
+    idf = assess_identifiability(W @ (Jp * screen), spec.unknowns,
                                  limits=spec.identifiability)
     if not idf.identifiable:
         return LinearRouteResult(nan, nan_cov, est, cont, fit, None, diag, identifiability=idf)

@@ -457,18 +457,17 @@ class _Plan:
 def _plan_unit(store: HistoryStore, unit: str, table: pd.DataFrame, model: IndicatorModel,
                own: dict[str, Any], path: Path, baseline_rows: int) -> _Plan:
     stored = store.end_of_life(unit)
-    mine = with_end_of_life(with_own_end_of_life(model, stored, f"unit {unit!r}"), own)
+    before = with_own_end_of_life(model, stored, f"unit {unit!r}")
+    mine = with_end_of_life(before, own)
     # --no-go adds to the unit's own end of life, indicator by indicator; a change
-    # is said, with what the rows stored before keep (their status was judged then)
+    # of a stored unit's is said, with what the rows stored before keep
     keep = {**stored, **{k: v.text for k, v in own.items()}}
-    before = with_own_end_of_life(model, stored, f"unit {unit!r}") if unit in store.units() \
-        else None
     changed = tuple(
         f"{k}: end of life changed from {_eol_text(before.indicator(k))} to "
         f"{_eol_text(mine.indicator(k))}; the checks stored before keep the status they "
         "were judged with, the forecast uses the new one"
-        for k in own if before is not None
-        and before.indicator(k).end_of_life.text != own[k].text)
+        for k in own if before.indicator(k).end_of_life.text != own[k].text) \
+        if unit in store.units() else ()
     names = [n for n in model.names if n in table.columns]
     seen = store.imported_hashes(unit)
     hashes = [_hash(unit, model.name, r, names) for _, r in table.iterrows()]

@@ -53,8 +53,8 @@ from condmon.identify.identifiability import assess_identifiability, hold_limit
 from condmon.identify.long_run import normalised_inverse
 from condmon.identify.multistart import Evaluate, Jacobian, solve, solve_starts
 from condmon.identify.shooting_fit import (
-    batch_widened, fit_bounds, first_initials, jacobian, fit_layout, FitProblem, residuals,
-    restart_vector, start_vector, state_owners,
+    batch_widened, fit_bounds, first_initials, jacobian, fit_layout, FitProblem, on_bounds,
+    residuals, restart_vector, start_vector, state_owners, step_shift,
 )
 from condmon.io.records import Record
 from condmon.models.machine import Machine
@@ -411,23 +411,6 @@ def _trading(prob: FitProblem, J: FloatArray, z: FloatArray, xscale: FloatArray)
     return f"; the direction it cannot see: {', '.join(named)}{hint}"
 
 
-def _on_bounds(prob: FitProblem, z: FloatArray) -> list[str]:
-    """A note per parameter the optimiser left on an ``[estimation.plausible]``
-    bound (within a millionth of its size, the nudge of a strict bound): there
-    the fit stopped because it could go no further, and the standard error, a
-    curvature at the optimum, does not say how far beyond the data would go."""
-    lo, hi = fit_bounds(prob)
-    out = []
-    for i, k in enumerate(prob.free):
-        for b, side in ((lo[i], "lower"), (hi[i], "upper")):
-            if math.isfinite(b) and abs(z[i] - b) <= 2e-6 * max(abs(b), 1e-12):
-                out.append(f"{k} = {z[i]:.6g} sits on its {side} bound in "
-                           "[estimation.plausible]: the optimiser stopped there; the data "
-                           "may want a value beyond it, so the bound or the model is "
-                           "worth a look")
-    return out
-
-
 def _evaluator(prob: FitProblem, sigma: FloatArray, xscale: FloatArray) -> Evaluate:
     """The residual columns of ``prob``'s unknowns' columns."""
     return lambda zc: residuals(prob, zc, sigma, xscale)[0]
@@ -479,6 +462,19 @@ def _result(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: FloatArr
     plant = machine.plant
     cost, e, J, cov_z, white_z, widened, batches = _covariance(prob, z, sigma, xscale)
     n_out = sum(y.size for y in prob.y)
+    # the integrator's step biases the unknowns: its shift is part of their error
+    shift, step_rms = step_shift(prob, z, np.maximum(np.std(e, axis=0), 1e-300), xscale, J,
+                                 white_z)
+    with np.errstate(all="ignore"):
+        past = np.abs(shift) / np.sqrt(np.diag(cov_z))
+    cov_z = cov_z + np.outer(shift, shift)
+    big = [(k, float(past[i])) for i, k in enumerate(prob.free) if past[i] > 1.0]
+    if big:
+        notes.append(f"the integrator's step ({prob.substeps} per sample) moves "
+                     + ", ".join(f"{k} by {r:.2g}" for k, r in big) + " of the statistical "
+                     "standard errors (simulated at half the step, the bias it leaves): "
+                     "the standard errors include it, as the root of variance plus bias "
+                     "squared")
     y = np.vstack(prob.y)
     if widened > 1.0:
         # the batch-means estimate scatters about the bound by about 1/sqrt(batches) on
@@ -519,9 +515,10 @@ def _result(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: FloatArr
         r2[name], nrmse[name], white[name] = figures.r2, figures.nrmse, figures.whiteness
     fit_pct = 100.0 * float(np.mean(list(r2.values())))
     notes.extend(f"{n}; the estimates are the best this model does, and their standard "
-                 "errors hold only as far as the model does" for n in beyond_noise(plant, e))
+                 "errors hold only as far as the model does"
+                 for n in beyond_noise(plant, e, step_rms))
     fit = FitCheck(r2, fit_pct, float(fit_threshold), bool(fit_pct >= fit_threshold))
-    notes.extend(_on_bounds(prob, z))
+    notes.extend(on_bounds(prob, z))
     costs = tuple(float(c) for _, c, _ in runs)
     best = min(costs)
     reached = sum(c <= best * (1 + _SAME_COST) for c in costs)

@@ -343,7 +343,10 @@ def _refine(records: Sequence[Record], machine: Machine, start: Mapping[str, flo
         decided, rival, other = rival is not None, None, ""
         if nf and math.isfinite(cost3) and float(np.max(apart)) > 1.0:
             k = int(np.argmax(apart))
-            other = (f"{finer.free[k]} {z3[k]:.4g} against {z2[k]:.4g}, "
+            # as many digits as tell the two apart (1.501 against 1.501 said nothing)
+            d = 4 + max(0, int(-math.log10(max(abs(z3[k] - z2[k]) / max(abs(z2[k]), 1e-300),
+                                               1e-12))) - 2)
+            other = (f"{finer.free[k]} {z3[k]:.{d}g} (the other) against {z2[k]:.{d}g}, "
                      f"{float(apart[k]):.2g} standard errors away, at an error "
                      f"{100.0 * (cost3 / cost - 1.0):.0f} % higher")
             if not decided:
@@ -355,7 +358,8 @@ def _refine(records: Sequence[Record], machine: Machine, start: Mapping[str, flo
     if not moves:
         return prob, z, evaluations, "the segments could not be cut finer"
     path = " -> ".join(str(k) for k in per)
-    moved = ", then ".join(f"{m:.2g}" for m in moves)
+    moved = ", then ".join(f"{m:.2g}" for m in moves) + (
+        " (from the optimum the figures continue)" if turned else "")
     tail = ("" if moves[-1] <= 1.0 else "; they still move by more than one standard error: "
             "the estimates hang on how the record is cut (an unmodelled drift), beyond what "
             "their standard errors say")

@@ -9,6 +9,7 @@ shift the integrator's step puts in the unknowns.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -19,11 +20,12 @@ from condmon.errors import EstimationError
 from condmon.io.records import Record
 from condmon.models.machine import Machine
 from condmon.models.shooting import state_readers
-from condmon.simulate.recorded import simulate_copies
+from condmon.io.config import load_default
+from condmon.simulate.recorded import resolvable_smoothing, simulate_copies
 
 __all__ = ["DEFECT_WEIGHT", "FitProblem", "batch_widened", "bounds_of", "first_initials",
            "fit_bounds", "fit_layout", "jacobian", "on_bounds", "residuals", "restart_vector",
-           "row_blocks", "start_vector", "state_owners", "step_shift"]
+           "row_blocks", "smoothed_for_step", "start_vector", "state_owners", "step_shift"]
 
 FloatArray = NDArray[np.float64]
 DEFECT_WEIGHT = 30.0   # a segment's jump counts as this many noise levels per state scale
@@ -378,3 +380,19 @@ def on_bounds(prob: FitProblem, z: FloatArray) -> list[str]:
                            "may want a value beyond it, so the bound or the model is "
                            "worth a look")
     return out
+
+
+def smoothed_for_step(prob: FitProblem, states: FloatArray, p: FloatArray
+                      ) -> tuple[FitProblem, str]:
+    """``prob`` on its machine with the smoothing of ``sign()``, ``abs()``,
+    ``min()`` and ``max()`` widened to what its step resolves along ``states``
+    (N, n_x) of its first record, at parameters ``p``
+    (:func:`~condmon.simulate.recorded.resolvable_smoothing`), and the note;
+    ``prob`` itself and "" where the step is stable there."""
+    machine = prob.machine
+    default = float(load_default("isolation.toml")["simulation"]["smoothing_eps"])
+    plant, said = resolvable_smoothing(machine.plant, states, prob.u[: len(states), :, 0], p,
+                                       prob.dt / prob.substeps, default)
+    if not said:
+        return prob, ""
+    return dataclasses.replace(prob, machine=dataclasses.replace(machine, plant=plant)), said

@@ -25,11 +25,10 @@ record's inputs alone (:mod:`condmon.simulate.recorded`), as MATLAB's
   them (log-normal, deterministic seed), each a short run; the best is
   polished. The cost each start reached, and the spread of the unknowns among
   the starts that reached the best cost, are reported.
-- **Standard errors** from the Jacobian at the optimum, ``(JᵀJ)⁻¹`` of the
-  residuals divided by each output's residual standard deviation; the
-  initial states are unknowns of the same fit, so their uncertainty is in
-  the parameters'. The identifiability check (:mod:`condmon.identify.identifiability`)
-  runs on the same Jacobian.
+- **Standard errors** from the Jacobian at the optimum (residuals over each
+  output's residual sd; initial states are unknowns of the same fit), with
+  the integrator step's bias in them; identifiability checked on it.
+- **Smoothing** of ``sign()``, ``max()``... widened to what the step resolves.
 
 Why by hand: no maintained Python package fits a declared grey-box model with
 unmeasured states by simulation error (``nlgreyest`` is the reference); the
@@ -54,7 +53,7 @@ from condmon.identify.long_run import normalised_inverse
 from condmon.identify.multistart import Evaluate, Jacobian, solve, solve_starts
 from condmon.identify.shooting_fit import (
     batch_widened, fit_bounds, first_initials, jacobian, fit_layout, FitProblem, on_bounds,
-    residuals, restart_vector, start_vector, state_owners, step_shift,
+    residuals, restart_vector, smoothed_for_step, start_vector, state_owners, step_shift,
 )
 from condmon.io.records import Record
 from condmon.models.machine import Machine
@@ -173,7 +172,8 @@ def simulation_route(rec: Record | Sequence[Record], machine: Machine,
     xscale = np.nanstd(xs_start[:, :, 0, 0], axis=0) if np.isfinite(xs_start).all() else \
         np.ones(single.n_x)
     xscale = np.where(np.isfinite(xscale) & (xscale > 0), xscale, 1.0)
-    notes: list[str] = []
+    single, said = smoothed_for_step(single, xs_start[:, :, 0, 0], p1[:, 0])
+    machine, notes = single.machine, [said] if said else []
     prob = single
     if settings.segments > 1:
         prob = fit_layout(records, machine, start, consts, settings.segments, held)

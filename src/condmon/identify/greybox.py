@@ -288,7 +288,8 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
     # values: a structure that fixes a relation among the coefficients, so no
     # values reproduce estimated ones exactly and a line of values nearly does;
     # the screen below then holds what the coefficients do not determine)
-    over = c_hat.size > start.size or rank_short(lin.jacobian(start, known) * start)
+    over = c_hat.size > start.size or rank_short(
+        lin.jacobian(start, known) * np.where(start != 0, np.abs(start), 1.0))
     try:
         p = solve_coefficients(lin, c_hat, start, known, weight=W if over else None,
                                 exact=not over)
@@ -322,7 +323,7 @@ def linear_route(rec: Record, machine: Machine, estimator: object, *,
         sub = _Subset(lin, keep, fixed)
         try:
             p_sub = solve_coefficients(sub, c_hat, start[keep], known,  # type: ignore[arg-type]
-                                        weight=W)
+                                       weight=W)
         except ConversionError as err:
             return LinearRouteResult(nan, nan_cov, est, cont, fit,
                                      f"no physical parameters: {err}", diag, identifiability=idf)

@@ -17,10 +17,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from condmon.errors import EstimationError
+from condmon.io.config import load_default
 from condmon.io.records import Record
 from condmon.models.machine import Machine
 from condmon.models.shooting import state_readers
-from condmon.io.config import load_default
 from condmon.simulate.recorded import resolvable_smoothing, simulate_copies
 
 __all__ = ["DEFECT_WEIGHT", "FitProblem", "batch_widened", "bounds_of", "first_initials",

@@ -306,8 +306,8 @@ def _refine(records: Sequence[Record], machine: Machine, start: Mapping[str, flo
     problem and its start) and keeps the lower error. Where the two end in two
     optima (a longer segment's error has more minima), the segments are doubled
     once more, from both, and the lower there is kept: the shorter horizon is
-    less bent by the drift. On EMPS, 100 segments put M 93.0 kg below 95.1 kg
-    by 12 %, 200 put 95.1 kg below by 17 %: the figures are 200's."""
+    less bent by the drift. On EMPS, 100 segments put M 91.7 kg below 95.0 kg
+    by 49 %, 200 put 95.0 kg below by 21 %: the figures are 200's."""
     nf = len(prob.free)
     per = [len(prob.seg) // len(records)]
     moves: list[float] = []

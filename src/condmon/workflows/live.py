@@ -149,6 +149,14 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
             return
         state["connections"] += 1
         c.subscribe(SUBSCRIPTION, qos=1)
+
+    def on_subscribe(c: Any, userdata: Any, mid: Any, reasons: Any, props: Any) -> None:
+        # said once the broker has granted it: a test sent from then on reaches this
+        # watcher (said at the request, a sender started at that line could lose its
+        # first messages to a subscription the broker had not made yet)
+        if any(getattr(r, "is_failure", False) for r in reasons):
+            log(f"broker {host}:{port} refused the subscription to {SUBSCRIPTION}: {reasons}")
+            return
         log(f"connected to {host}:{port}" + (" again" if state["connections"] > 1 else "")
             + f"; subscribed to {SUBSCRIPTION}")
 
@@ -174,6 +182,7 @@ def watch_mqtt(store: HistoryStore, broker: str, *, model: str | None = None,
         inbox.put(_Message(state["connections"], msg.mid, msg.qos, msg.topic, msg.payload))
 
     client.on_connect = on_connect
+    client.on_subscribe = on_subscribe
     client.on_disconnect = on_disconnect
     client.on_message = on_message
 

@@ -419,6 +419,12 @@ def test_a_smoothing_the_step_cannot_resolve_is_widened(tmp_path: Path) -> None:
         assert 0 < res.std_errors[k] and abs(res.parameters[k] - v) <= 3 * res.std_errors[k], (
             k, res.parameters, res.std_errors)
     assert any("smoothed over" in n and "chattered" in n for n in res.notes), res.notes
+    # validate simulates the model the estimate was fitted with
+    assert res.smoothing is not None and res.to_dict()["smoothing"] == res.smoothing
+    rec = tmp_path / "r.csv"
+    pd.DataFrame({"t": t, "F": F, "qm": y}).to_csv(rec, index=False)
+    cmp_, _ = validate_file(rec, str(decl), params=res.to_dict())
+    assert any(f"the estimate's smoothing, {res.smoothing:.2g}" in n for n in cmp_.notes)
 
 
 def test_multiple_shooting_recovers_an_integrating_axis(tmp_path: Path) -> None:
@@ -535,6 +541,10 @@ def test_a_parameter_file_must_be_an_estimate(tanks: Path, tmp_path: Path) -> No
         validate_file(rec, str(tanks), params=bad)
     bad.write_text("{not json")
     with pytest.raises(DataError, match="bad.json: not a parameter file"):
+        validate_file(rec, str(tanks), params=bad)
+    bad.write_text(json.dumps({"model": "two-tanks", "parameters": {"k": 0.04},
+                               "smoothing": -1.0}))
+    with pytest.raises(DataError, match="bad.json: smoothing is -1.0, not a width >= 0"):
         validate_file(rec, str(tanks), params=bad)
 
 

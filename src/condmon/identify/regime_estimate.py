@@ -192,6 +192,7 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
     idf: Identifiability | None = None
     unsteady: dict[tuple[int, int], str] = {}
     initial_states: dict[str, tuple[float, float, str]] = {}
+    smoothing: float | None = None
     try:
         with np.errstate(over="raise", invalid="raise", divide="raise"):
             if chosen == "linear":
@@ -233,6 +234,7 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
                 values, ucov, fit, idf = sim.values, sim.covariance, sim.fit, sim.identifiability
                 diagnostics = sim.diagnostics()
                 initial_states = sim.initial
+                smoothing = sim.smoothing if sim.smoothing != machine.plant.smoothing else None
                 notes += sim.notes
             elif chosen == "steady":
                 from condmon.identify.steady_route import steady_output_error, steady_route
@@ -358,7 +360,7 @@ def estimate_regime(plans: Sequence[Plan], regime: str, machine: Machine, chosen
         covariance=pcov, fit=fit, discrete=discrete, continuous=cont, rejection=rejection,
         notes=tuple(notes), diagnostics=diagnostics, regime=regime, windows=tuple(listed),
         identifiability=idf, held=held, trended=trended, initial_states=initial_states,
-        **common)
+        smoothing=smoothing, **common)
 
 
 def _leaning(idf: Identifiability, values: Mapping[str, float], ucov: FloatArray,

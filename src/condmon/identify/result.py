@@ -144,6 +144,7 @@ class EstimateResult:
     systematic: dict[str, float] = field(default_factory=dict)
     conditions: dict[str, tuple[float, float]] = field(default_factory=dict)
     initial_states: dict[str, tuple[float, float, str]] = field(default_factory=dict)
+    smoothing: float | None = None
 
     @property
     def model_key(self) -> str:
@@ -307,6 +308,8 @@ class EstimateResult:
             doc["other_regimes"] = [o.to_dict() for o in self.others]
         if self.systematic:
             doc["systematic"] = _clean(self.systematic)
+        if self.smoothing is not None:   # widened by the simulation route: validate's too
+            doc["smoothing"] = self.smoothing
         if self.initial_states:
             doc["initial_states"] = {k: {"value": _clean({"v": v})["v"],
                                          "std_error": _clean({"s": se})["s"], "from": how}

@@ -16,15 +16,12 @@ record's inputs alone (:mod:`condmon.simulate.recorded`), as MATLAB's
   segments' (else the whole record bends them to carry a drift); else the
   segments are doubled while the parameters move by more than a standard
   error, or while a finer cut from the start finds another optimum.
-- **Sensitivities** by forward differences of a batch of simulations run at
-  once (every unknown's perturbation, every segment, one pass): exact
-  forward sensitivities would need a second, larger system per declaration;
-  the differences cost the same pass and are said in the notes.
+- **Sensitivities** by forward differences of a batch of simulations in one
+  pass (exact forward sensitivities would need a second, larger system).
 - **Bounds** from ``[estimation.plausible]`` and ``[estimation.initial]``.
-- **Several starts** (``starts``): the declared values, then draws around
-  them (log-normal, deterministic seed), each a short run; the best is
-  polished. The cost each start reached, and the spread of the unknowns among
-  the starts that reached the best cost, are reported.
+- **Several starts** (``starts``): the declared values, then log-normal draws
+  around them (a fixed seed), each a short run; the best is polished. Each
+  start's cost, and the unknowns' spread among the best ones, are reported.
 - **Standard errors** from the Jacobian at the optimum (residuals over each
   output's residual sd; initial states are unknowns of the same fit), with
   the integrator step's bias in them; identifiability checked on it.
@@ -104,6 +101,8 @@ class SimulationRouteResult(RouteResult):
     covariance_white : ndarray, optional
         The unknowns' covariance as if the residuals were white (before the
         batch-means widening). [SI²]
+    smoothing : float, optional
+        The smoothing width simulated with (None: the default). [switch units]
     """
 
     initial: dict[str, tuple[float, float, str]]
@@ -116,6 +115,7 @@ class SimulationRouteResult(RouteResult):
     cost: float = math.nan
     dof: int = 0
     covariance_white: FloatArray | None = None
+    smoothing: float | None = None
 
 
 def simulation_route(rec: Record | Sequence[Record], machine: Machine,
@@ -539,7 +539,7 @@ def _result(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: FloatArr
     return SimulationRouteResult(values, cov, fit, nrmse, white, initial, costs, spread,
                                  prob.substeps, max(1, len(prob.seg) // len(prob.x_first)),
                                  evaluations, tuple(notes), cost, n_out - z.size,
-                                 cov_white, identifiability=idf)
+                                 cov_white, identifiability=idf, smoothing=plant.smoothing)
 
 
 

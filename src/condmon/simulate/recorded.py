@@ -305,8 +305,9 @@ def resolvable_smoothing(plant: PlantModel, states: FloatArray, u: FloatArray, p
         if not (math.isfinite(rate) and rate < rate0 / 2):
             return plant, ""   # the fast rate is the model's own, not the smoothing's
         if rate * step <= _RK4_REAL_LIMIT:
+            said = "declared" if plant.smoothing is not None else "default"
             return widened, (f"sign(), abs(), min() and max() smoothed over {eps:.2g} (the "
-                             f"declared {eps0:.2g} gives the equations a rate of {rate0:.2g} "
+                             f"{said} {eps0:.2g} gives the equations a rate of {rate0:.2g} "
                              f"/s at a switch, where the {step:.3g} s step is stable to "
                              f"{_RK4_REAL_LIMIT / step:.2g} /s: the simulation chattered there)")
     return plant, ""

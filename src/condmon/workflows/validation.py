@@ -8,6 +8,7 @@ as ``estimate`` reads it (columns, sample rate, scale, offset).
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from collections.abc import Mapping
@@ -45,12 +46,16 @@ class ParameterFile:
         The initial states it estimated (simulation-error route). [state units]
     notes : tuple of str
         Whether it was accepted, what it held.
+    smoothing : float, optional
+        The smoothing width the estimate simulated with, where the simulation
+        route widened it to what its step resolves. [switch units]
     """
 
     path: str
     parameters: dict[str, float]
     initial: dict[str, float]
     notes: tuple[str, ...]
+    smoothing: float | None = None
 
 
 def read_parameter_file(path: str | Path, machine: Machine) -> ParameterFile:
@@ -126,7 +131,12 @@ def parameter_document(doc: Any, src: str, machine: Machine) -> ParameterFile:
     held = dict(doc.get("held") or {})
     if held:
         notes.append(f"{src}: held (not estimated): {', '.join(sorted(held))}")
-    return ParameterFile(src, values, initial, tuple(notes))
+    eps = doc.get("smoothing")
+    if eps is not None and (isinstance(eps, bool) or not isinstance(eps, (int, float))
+                            or not math.isfinite(eps) or eps < 0):
+        raise DataError(f"{src}: smoothing is {eps!r}, not a width >= 0")
+    return ParameterFile(src, values, initial, tuple(notes),
+                         None if eps is None else float(eps))
 
 
 def parse_assignments(given: str | Mapping[str, Any] | None, allowed: tuple[str, ...],
@@ -180,10 +190,17 @@ def _setup(record: RecordLike, model: str | Path,
         pf: ParameterFile | None = parameter_document(dict(params), "the estimate", machine)
     else:
         pf = read_parameter_file(params, machine) if params is not None else None
+    if pf is not None and pf.smoothing is not None:   # the model the estimate simulated
+        machine = dataclasses.replace(machine, plant=dataclasses.replace(
+            plant, smoothing=pf.smoothing))
+        plant = machine.plant
     values = dict(pf.parameters) if pf else {}
     given_values = parse_assignments(set_values, plant.parameter_names, "parameter", "--set")
     values.update(given_values)
     notes = list(pf.notes) if pf else []
+    if pf is not None and pf.smoothing is not None:
+        notes.append(f"simulated with the estimate's smoothing, {pf.smoothing:.2g} (widened "
+                     "by its route to what its step resolved)")
     notes += _parameter_notes(machine, values, given_values, pf)
     if isinstance(record, (str, Path)):
         frame = opts.read(record)

@@ -358,7 +358,7 @@ def _refine(records: Sequence[Record], machine: Machine, start: Mapping[str, flo
     if not moves:
         return prob, z, evaluations, "the segments could not be cut finer"
     path = " -> ".join(str(k) for k in per)
-    moved = ", then ".join(f"{m:.2g}" for m in moves) + (
+    moved = ", then ".join(f"{m:.2g}" if m >= 0.01 else "under 0.01" for m in moves) + (
         " (from the optimum the figures continue)" if turned else "")
     tail = ("" if moves[-1] <= 1.0 else "; they still move by more than one standard error: "
             "the estimates hang on how the record is cut (an unmodelled drift), beyond what "
@@ -475,7 +475,7 @@ def _result(prob: FitProblem, z: FloatArray, sigma: FloatArray, xscale: FloatArr
     big = [(k, float(past[i])) for i, k in enumerate(prob.free) if past[i] > 1.0]
     if big:
         notes.append(f"the integrator's step ({prob.substeps} per sample) moves "
-                     + ", ".join(f"{k} by {r:.2g}" for k, r in big) + " of the statistical "
+                     + ", ".join(f"{k} by {r:.3g}" for k, r in big) + " of the statistical "
                      "standard errors (simulated at half the step, the bias it leaves): "
                      "the standard errors include it, as the root of variance plus bias "
                      "squared")

@@ -513,3 +513,12 @@ def test_a_warning_shown_on_stderr_is_also_in_the_json(tmp_path: Path,
     assert "the drive saturates" in captured.err
     assert len(doc["warnings"]) == 1 and "the drive saturates" in doc["warnings"][0]
     assert "warnings" not in clean
+
+
+def test_version_is_printed(capsys: pytest.CaptureFixture[str]) -> None:
+    """`condmon --version` says the installed version and exits 0 (it had been
+    an unknown option)."""
+    import condmon
+
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out.strip() == f"condmon {condmon.__version__}"

@@ -74,6 +74,21 @@ register_import_command(app)
 register_validate_commands(app, simulate_app)
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        from condmon import __version__
+
+        out.print(f"condmon {__version__}", markup=False, highlight=False)
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(version: Annotated[bool, typer.Option(
+        "--version", help="Print condmon's version and exit.", callback=_print_version,
+        is_eager=True)] = False) -> None:
+    pass
+
+
 
 
 

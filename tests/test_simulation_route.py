@@ -1217,6 +1217,34 @@ C2 = { gt = 0.0 }
 """
 
 
+def test_unknowns_the_coefficients_cannot_all_determine_are_held_not_refused(
+        tmp_path: Path) -> None:
+    """The ladder with R1, C1 and R2 unknown: its DC gain is 1 by structure, so
+    of three coefficients two are free. No values reproduce estimated
+    coefficients exactly and a line of values nearly does; the linear route
+    refused with "no parameter values reproduce the estimated coefficients".
+    Now the map's rank is seen, one unknown is held at its declared (here
+    true) value, and the others come out within their standard errors."""
+    decl = tmp_path / "ladder.toml"
+    decl.write_text(LADDER.replace('estimate = ["R2", "C2"]\nroute = "auto"',
+                                   'estimate = ["R1", "C1", "R2"]\nroute = "linear"')
+                     .replace("C2 = { gt = 0.0 }", "R1 = { gt = 0.0 }"))
+    m = get_model(str(decl))
+    comp = m.plant.compile()
+    rng = np.random.default_rng(3)
+    u = np.repeat(5.0 * np.sign(rng.standard_normal(200)), 20)
+    truth = {"R1": 1200.0, "C1": 8.0e-5, "R2": 3200.0, "C2": 4.7e-5}
+    sim = simulate_recorded(comp, u[:, None], 0.005, np.zeros(2), comp.parameter_vector(truth),
+                            substeps=4)
+    y = sim.outputs[:, 0] + 0.01 * rng.standard_normal(u.size)
+    res = estimate(pd.DataFrame({"t": np.arange(u.size) * 0.005, "u": u, "y": y}), m)
+    assert res.accepted, res.reason
+    assert res.identifiability is not None and len(res.identifiability.held) == 1
+    for k in ("R1", "C1", "R2"):
+        assert abs(res.parameters[k] - truth[k]) <= 3 * res.std_errors[k] + 1e-9 * truth[k], (
+            k, res.parameters, res.std_errors)
+
+
 @pytest.mark.parametrize("seed", [1, 3])
 def test_unknowns_of_very_different_sizes_keep_their_error_bars(tmp_path: Path,
                                                                 seed: int) -> None:

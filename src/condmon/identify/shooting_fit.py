@@ -17,7 +17,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from condmon.errors import EstimationError
-from condmon.io.config import load_default
 from condmon.io.records import Record
 from condmon.models.machine import Machine
 from condmon.models.shooting import state_readers
@@ -390,9 +389,8 @@ def smoothed_for_step(prob: FitProblem, states: FloatArray, p: FloatArray
     (:func:`~condmon.simulate.recorded.resolvable_smoothing`), and the note;
     ``prob`` itself and "" where the step is stable there."""
     machine = prob.machine
-    default = float(load_default("isolation.toml")["simulation"]["smoothing_eps"])
     plant, said = resolvable_smoothing(machine.plant, states, prob.u[: len(states), :, 0], p,
-                                       prob.dt / prob.substeps, default)
+                                       prob.dt / prob.substeps)
     if not said:
         return prob, ""
     return dataclasses.replace(prob, machine=dataclasses.replace(machine, plant=plant)), said

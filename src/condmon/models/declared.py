@@ -46,7 +46,7 @@ if TYPE_CHECKING:
 # cache (condmon.models.derived_cache) is used without it.
 
 __all__ = ["Parameter", "Input", "Variable", "State", "Sensor", "InputStep", "BuiltInTest",
-           "PlantModel", "CompiledModel", "plant_from_doc",
+           "PlantModel", "CompiledModel", "plant_from_doc", "smoothing_width",
            "equations_of", "substituted_equations", "symbols_of"]
 
 FloatArray = NDArray[np.float64]
@@ -341,10 +341,23 @@ def substituted_equations(model: PlantModel) -> tuple[dict[str, sp.Expr], dict[s
             {k: e.xreplace(resolved) for k, e in readings.items()})
 
 
+def smoothing_width(model: PlantModel) -> float:
+    """The width ``model`` smooths ``sign``, ``abs``, ``min`` and ``max`` over:
+    its ``[smoothing] eps``, else the ``[simulation]`` default. [argument units]
+
+    Example
+    -------
+    >>> from condmon.models.registry import load_plant_model
+    >>> smoothing_width(load_plant_model("dc-motor"))
+    1e-06
+    """
+    return model.smoothing if model.smoothing is not None else \
+        float(load_default("isolation.toml")["simulation"]["smoothing_eps"])
+
+
 @functools.lru_cache(maxsize=32)
 def _compile(model: PlantModel) -> CompiledModel:
-    eps = model.smoothing if model.smoothing is not None else \
-        float(load_default("isolation.toml")["simulation"]["smoothing_eps"])
+    eps = smoothing_width(model)
     rhs, outputs, variables = derived_cache.cached(
         derived_cache.plant_key(model), f"compiled:{eps!r}",
         lambda: _lambdified(model, eps), lambda fns: _dump_compiled(model, fns),

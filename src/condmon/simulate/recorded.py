@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from condmon.errors import EstimationError
-from condmon.models.declared import CompiledModel, PlantModel
+from condmon.models.declared import CompiledModel, PlantModel, smoothing_width
 
 __all__ = ["Diverged", "RecordedSimulation", "choose_substeps", "fastest_rate", "growth_rate",
            "resolvable_smoothing", "simulate_copies", "simulate_recorded", "stable_substeps",
@@ -259,12 +259,11 @@ def stable_substeps(compiled: CompiledModel, x: FloatArray, u: FloatArray, p: Fl
 
 
 def resolvable_smoothing(plant: PlantModel, states: FloatArray, u: FloatArray, p: FloatArray,
-                         step: float, default: float) -> tuple[PlantModel, str]:
+                         step: float) -> tuple[PlantModel, str]:
     """``plant`` with its smoothing widened to what a Runge-Kutta ``step`` [s]
     resolves, and a note saying so; ``plant`` itself and "" where the step is
     stable on the model's fastest rate along ``states`` (N, n_x) with inputs
     ``u`` (N, n_u), or where that rate does not come from the smoothing.
-    ``default``: the width when the declaration states none.
 
     A ``sign()`` smoothed over ``eps`` has the slope ``1/eps`` at its switch:
     on an axis with 8 N of Coulomb friction over 12 kg, at the default 1e-6
@@ -281,10 +280,10 @@ def resolvable_smoothing(plant: PlantModel, states: FloatArray, u: FloatArray, p
     >>> plant = load_plant_model("dc-motor")
     >>> c = plant.compile()
     >>> x, u = np.zeros((5, 2)), np.full((5, 1), 12.0)
-    >>> resolvable_smoothing(plant, x, u, c.parameter_vector(), 1e-4, 1e-6)[1]
+    >>> resolvable_smoothing(plant, x, u, c.parameter_vector(), 1e-4)[1]
     ''
     """
-    eps0 = plant.smoothing if plant.smoothing is not None else default
+    eps0 = smoothing_width(plant)
     if not eps0 > 0 or len(states) == 0:
         return plant, ""
     pick = np.unique(np.linspace(0, len(states) - 1, min(len(states), 400)).astype(int))

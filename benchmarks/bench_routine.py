@@ -87,6 +87,18 @@ def _halves(files: list[str]) -> tuple[list[str], list[str]]:
             [f for k, f in enumerate(files) if k % 4 in (2, 3)])
 
 
+def _tests(files: list[str]) -> tuple[list[list[str]], int]:
+    """The tests ``files`` make (in order) under the declaration's ``[estimation]
+    cycle``, as ``baseline add`` makes them (one record each without a cycle),
+    and how many records no cycle took."""
+    from condmon.workflows.cycles import cycles_of
+    from condmon.workflows.records import Cycle, EstimateOptions
+
+    tests, left = cycles_of(EstimateOptions(model=MODEL), files)
+    return [[str(r) for r in t.records] if isinstance(t, Cycle) else [str(t)]
+            for t in tests], len(left)
+
+
 def _share(counts: Counter[str], total: int) -> str:
     return ", ".join(f"{s} {counts[s]} ({100 * counts[s] / total:.0f} %)"
                      for s in STATUSES if counts[s]) or "-"
@@ -114,8 +126,9 @@ def own(data: Path, unit: str, work: Path) -> tuple[list[dict[str, object]], dic
     rest, warned = _baseline(data, unit, db)
     counts: Counter[str] = Counter()
     reasons: Counter[str] = Counter()
-    for f in rest:
-        code, text, err = _cli("check", f, "--unit", unit, "--db", db, "--json")
+    tests, left = _tests(rest)
+    for f in tests:
+        code, text, err = _cli("check", *f, "--unit", unit, "--db", db, "--json")
         doc = json.loads(text) if code == 0 else {"status": "error", "summary": err.strip()}
         counts[doc["status"]] += 1
         if doc["status"] != "go":
@@ -128,11 +141,13 @@ def own(data: Path, unit: str, work: Path) -> tuple[list[dict[str, object]], dic
         {"figure": f"{unit} against its own baseline (README's, {len(_halves(_files(data, unit))[0])} "
                    "records)", "value": _share(counts, n),
          "target": "no-go <= 2 %, advisory <= 10 %"},
+        {"figure": f"{unit}: records to check that no cycle took", "value": left,
+         "target": "-"},
         {"figure": f"{unit}: warnings at baseline add", "value": len(warned), "target": "-"},
         {"figure": f"{unit}: forecast, parameters with a trend", "value": trends or "none",
          "target": "none"},
     ]
-    return rows, {"unit": unit, "counts": dict(counts), "warnings": warned,
+    return rows, {"unit": unit, "counts": dict(counts), "left_out": left, "warnings": warned,
                   "reasons": dict(reasons.most_common(5)), "trending": trends}
 
 
@@ -142,8 +157,9 @@ def against(data: Path, unit: str, ref: str, work: Path, keyword: str | None
     _baseline(data, ref, db)
     counts: Counter[str] = Counter()
     first_right = seal_alone = 0
-    for f in _files(data, unit):
-        code, text, err = _cli("check", f, "--unit", unit, "--db", db, "--against", ref,
+    tests, left = _tests(_files(data, unit))
+    for f in tests:
+        code, text, err = _cli("check", *f, "--unit", unit, "--db", db, "--against", ref,
                                "--model", MODEL, "--dry-run", "--json")
         doc = json.loads(text) if code == 0 else {"status": "error", "candidates": []}
         counts[doc["status"]] += 1
@@ -154,11 +170,12 @@ def against(data: Path, unit: str, ref: str, work: Path, keyword: str | None
             seal_alone += 1
     n = sum(counts.values())
     flagged = counts["advisory"] + counts["no-go"]
+    rows = [{"figure": f"{unit}: records no cycle took", "value": left, "target": "-"}]
     if keyword is None:
-        rows = [{"figure": f"{unit} (healthy) against {ref}", "value": _share(counts, n),
-                 "target": "no-go <= 2 %, advisory <= 10 %"}]
+        rows += [{"figure": f"{unit} (healthy) against {ref}", "value": _share(counts, n),
+                  "target": "no-go <= 2 %, advisory <= 10 %"}]
     else:
-        rows = [
+        rows += [
             {"figure": f"{unit} ({keyword}) against {ref}: flagged",
              "value": f"{flagged}/{n} ({100 * flagged / n:.0f} %); {_share(counts, n)}",
              "target": ">= 90 %"},
@@ -169,6 +186,7 @@ def against(data: Path, unit: str, ref: str, work: Path, keyword: str | None
              "target": "0 (gear)"},
         ]
     return rows, {"unit": unit, "against": ref, "truth": keyword, "counts": dict(counts),
+                  "left_out": left,
                   "first_right": first_right, "seal_alone": seal_alone}
 
 
@@ -264,8 +282,8 @@ def main_bench() -> None:
     totals: Counter[str] = Counter()
     for k in range(args.fleets):
         totals.update(fleet(k + 1, args.units))
-    own_n, grp_n = totals["own_checks"], totals["group_checks"]
-    rows += [
+    own_n, grp_n = max(totals["own_checks"], 1), max(totals["group_checks"], 1)
+    rows += [] if not args.fleets else [
         {"figure": f"fleet ({args.fleets} x {args.units} DC-motor units, ±5 % spread, 2 % "
                    "scatter): healthy checks flagged, own baseline",
          "value": f"{totals['own_flagged']}/{own_n} ({100 * totals['own_flagged'] / own_n:.1f} %)",
@@ -277,6 +295,8 @@ def main_bench() -> None:
          "value": totals["trust_warnings"], "target": 0},
         {"figure": "fleet: new unit with R +20 % against the group flagged",
          "value": f"{totals['r20_flagged']}/{totals['r20_checks']}", "target": ">= 95 %"},
+    ]
+    rows += [
         {"figure": "time: actuators / fleet [s]",
          "value": f"{t1 - t0:.0f} / {time.perf_counter() - t1:.0f}", "target": "-"},
     ]

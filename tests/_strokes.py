@@ -13,6 +13,29 @@ import pandas as pd
 ROOT = Path(__file__).resolve().parents[1]
 DECLARATION = ROOT / "examples" / "hydraulic-actuator" / "rotary-actuator.toml"
 
+
+def _one_stroke_copy() -> Path:
+    """The example's files with a test of one stroke (its ``cycle`` line left
+    out), in a folder of this process's own, removed at exit."""
+    import atexit
+    import shutil
+    import tempfile
+
+    folder = Path(tempfile.mkdtemp(prefix="condmon-stroke-"))
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
+    for f in DECLARATION.parent.glob("*.toml"):
+        text = f.read_text()
+        if f.name == DECLARATION.name:
+            assert 'cycle = ["forward", "reverse"]\n' in text
+            text = text.replace('cycle = ["forward", "reverse"]\n', "")
+        (folder / f.name).write_text(text)
+    return folder / DECLARATION.name
+
+
+#: The example declaration with a test of one stroke, not a cycle: each record
+#: is a test, its regimes (``Tc@forward``) with baselines of their own.
+STROKE_DECLARATION = _one_stroke_copy()
+
 #: The declaration's scales: rad and Pa per count, and the displacement [m^3/rad].
 ANGLE_SCALE = 2 * math.pi / 16384
 PRESSURE_SCALE = 1262.54

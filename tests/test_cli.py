@@ -360,7 +360,7 @@ def test_usage_error_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
     (["check", "r.csv", "--unit", "U", "--alpha", "abc"],
      "error: Invalid value for '--alpha': Input should be a valid number"),
     (["forecast", "--unit", "U", "--horizon", "abc"], "error: Invalid value for '--horizon'"),
-    (["check"], "error: Missing argument 'record'. (`condmon check --help` lists the options)"),
+    (["check"], "error: Missing argument 'records'. (`condmon check --help` lists the options)"),
     (["nosuch"], "error: No such command 'nosuch'."),
 ])
 def test_a_usage_error_is_one_line(args: list[str], message: str,

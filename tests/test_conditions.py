@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from _strokes import DECLARATION, write_stroke
+from _strokes import STROKE_DECLARATION as DECLARATION, write_stroke
 from condmon.cli.main import main
 from condmon.errors import ConfigError
 from condmon.models.features import parse_conditions

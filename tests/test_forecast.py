@@ -207,8 +207,9 @@ def test_a_unit_with_regimes_is_forecast_per_regime(tmp_path: Path,
 
     from condmon.errors import DataWarning
 
-    model = str(Path(__file__).resolve().parents[1] / "examples" / "hydraulic-actuator"
-                / "rotary-actuator.toml")
+    from _strokes import STROKE_DECLARATION
+
+    model = str(STROKE_DECLARATION)   # each record a test: its regimes apart
     files = []
     for s in range(6):
         f = tmp_path / f"r{s}.csv"
@@ -224,9 +225,13 @@ def test_a_unit_with_regimes_is_forecast_per_regime(tmp_path: Path,
     capsys.readouterr()
     assert main(["forecast", "--unit", "RA", "--db", db, "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert {p["parameter"] for p in doc["parameters"]} == {"Tc@forward", "Tc@reverse"}
+    # two speeds each way tell the viscous part too (its truth 0, within its error)
+    assert {p["parameter"] for p in doc["parameters"]} == {"Tc@forward", "Tc@reverse",
+                                                          "Dv@forward", "Dv@reverse"}
     assert all(p["tests"] == 3 for p in doc["parameters"])
-    assert all(p["unit"] == "N m" for p in doc["parameters"])   # a regime's has its parameter's
+    units = {p["parameter"]: p["unit"] for p in doc["parameters"]}   # a regime's has its parameter's
+    assert units["Tc@forward"] == units["Tc@reverse"] == "N m"
+    assert units["Dv@forward"] == "N m s/rad"
 
 
 def test_units_carry_the_earliest_forecast(wearing: tuple[Path, float],

@@ -30,8 +30,8 @@ def _files(actuator: str) -> list[str]:
     return [str(p) for p in files]
 
 
-def _check(db: str, record: str, capsys: pytest.CaptureFixture[str], *args: str) -> dict:  # type: ignore[type-arg]
-    assert main(["check", record, "--db", db, "--dry-run", "--json", *args]) == 0
+def _check(db: str, records: list[str], capsys: pytest.CaptureFixture[str], *args: str) -> dict:  # type: ignore[type-arg]
+    assert main(["check", *records, "--db", db, "--dry-run", "--json", *args]) == 0
     doc: dict = json.loads(capsys.readouterr().out)  # type: ignore[type-arg]
     return doc
 
@@ -42,20 +42,36 @@ def _halves(files: list[str]) -> tuple[list[str], list[str]]:
             [f for k, f in enumerate(files) if k % 4 in (2, 3)])
 
 
+def _cycles(files: list[str]) -> list[list[str]]:
+    """The tests ``files`` make as ``baseline add`` makes them: a stroke each way."""
+    from condmon.workflows.cycles import cycles_of
+    from condmon.workflows.records import Cycle, EstimateOptions
+
+    tests, _ = cycles_of(EstimateOptions(model=MODEL), files)
+    assert all(isinstance(t, Cycle) for t in tests)
+    return [[str(r) for r in t.records] for t in tests]  # type: ignore[union-attr]
+
+
 def _flow(tmp_path: Path, capsys: pytest.CaptureFixture[str], step: int
           ) -> tuple[Counter[str], Counter[str], list[dict]]:  # type: ignore[type-arg]
     """As the example's README: Act_1's baseline across its session; its other
-    records against it; Act_4's records against Act_1 (a peer under the same load)."""
+    cycles against it; Act_4's cycles against Act_1 (a peer under the same load)."""
     a1, a4 = _files("Act_1"), _files("Act_4")
     base, rest = _halves(a1)
     db = str(tmp_path / "h.db")
     assert main(["baseline", "add", *base, "--unit", "Act_1", "--db", db,
                  "--model", MODEL]) == 0
-    out = capsys.readouterr().out
-    assert "from 52 accepted healthy tests" in out and "regimes: forward" in out
-    healthy = Counter(_check(db, f, capsys, "--unit", "Act_1")["status"] for f in rest[::step])
-    docs = [_check(db, f, capsys, "--unit", "Act_4", "--against", "Act_1", "--model", MODEL)
-            for f in a4[::step]]
+    captured = capsys.readouterr()
+    cycles = _cycles(base)
+    # each cycle is one test; a record whose partner the stand did not keep is said
+    assert f"from {len(cycles)} accepted healthy tests" in captured.out
+    assert "regimes: forward + reverse" in captured.out
+    left = len(base) - sum(len(c) for c in cycles)
+    assert left > 0 and captured.err.count("left out (") == left
+    healthy = Counter(_check(db, c, capsys, "--unit", "Act_1")["status"]
+                      for c in _cycles(rest)[::step])
+    docs = [_check(db, c, capsys, "--unit", "Act_4", "--against", "Act_1", "--model", MODEL)
+            for c in _cycles(a4)[::step]]
     return healthy, Counter(d["status"] for d in docs), docs
 
 
@@ -74,21 +90,19 @@ def _judged(healthy: Counter[str], docs: list[dict]) -> None:  # type: ignore[ty
     """Known truth: Act_1 is healthy, Act_4 leaks past its seals."""
     n = sum(healthy.values())
     assert healthy["no-go"] <= 0.02 * n and healthy["advisory"] <= 0.1 * n, healthy
-    forward = [d for d in docs if d["regime"] == "forward"]
-    reverse = [d for d in docs if d["regime"] == "reverse"]
-    # forward strokes drag 43-56 % less: about the gauges' accuracy (15 % of Act_1's
-    # friction) plus four times the stated spread between units (10 %): most flagged
-    flagged = [d for d in forward if d["status"] in ("advisory", "no-go")]
-    assert len(flagged) > 0.5 * len(forward), [d["percent_change"] for d in forward]
+    assert all(d["regime"] == "forward + reverse" for d in docs)
+    # a cycle drags about 40 % less than Act_1's: beyond two healthy units' stated
+    # spread (10 %) at the stated false-alarm probability, once the gauges' offsets
+    # cancel between the two strokes
+    flagged = [d for d in docs if d["status"] in ("advisory", "no-go")]
+    assert len(flagged) >= 0.9 * len(docs), [d["percent_change"] for d in docs]
+    first = 0
     for d in flagged:
-        if not any(k.startswith("Tc") and v < -40 for k, v in d["percent_change"].items()):
-            continue   # flagged for vibration alone (Act_4 vibrates more than Act_1)
         named = [f for c in d["candidates"] for f in c["faults"]]
         assert any("seal" in f for f in named), d["summary"]
         assert not all("seal" in f for f in named), d["summary"]    # never the seal alone
-    # reverse strokes drag 26 % less: inside what the gauges and two healthy units
-    # may differ by, so against one peer they are not called a fault with confidence
-    assert not any(d["status"] == "no-go" for d in reverse), [d["summary"] for d in reverse]
+        first += "seal" in named[0]
+    assert first >= 0.75 * len(flagged), first
 
 
 def test_healthy_records_go_and_the_seal_defect_is_found(

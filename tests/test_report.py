@@ -325,7 +325,7 @@ def test_the_baseline_in_use_its_version_and_what_it_holds(tmp_path: Path) -> No
     """After an exclusion and a rebuild, the report's and the fleet page's unit
     pages say which baseline version is in use, when it was built, from which
     tests, and how many it holds per regime."""
-    from _strokes import DECLARATION, write_stroke
+    from _strokes import STROKE_DECLARATION as DECLARATION, write_stroke
 
     from condmon.report.web import create_app
     from condmon.workflows.manage import rebuild_baseline

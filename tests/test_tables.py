@@ -19,7 +19,7 @@ from typing import Any
 
 import pytest
 
-from _strokes import DECLARATION, write_stroke
+from _strokes import STROKE_DECLARATION as DECLARATION, write_stroke
 from _tables import flat, row
 from condmon.cli._console import fmt, id_runs
 from condmon.cli.main import main

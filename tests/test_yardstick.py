@@ -105,7 +105,7 @@ def test_a_check_evaluated_again_is_governed_as_a_new_one(tmp_path: Path) -> Non
     monitor call a healthy check no-go; the change test, which finds nothing
     beyond the scatter, keeps it go, whether it is checked or evaluated again
     against a new baseline version."""
-    from _strokes import DECLARATION, stroke
+    from _strokes import STROKE_DECLARATION as DECLARATION, stroke
     from condmon.store import open_store
     from condmon.workflows.checks import check_test
     from condmon.workflows.monitoring import (
@@ -150,3 +150,26 @@ def test_breakpoints_nobody_declared_follow_the_scatter_the_check_is_judged_with
     assert raised == ()
     declared, _ = judged_config(MonitorConfig({"b": 30.0}, {"b": 60.0}), judged)
     assert declared.r1["b"] == 30.0
+
+
+def test_a_spread_stated_of_the_logarithm_reaches_the_same_rise(tmp_path: Path) -> None:
+    """vib = { log = 25 }: healthy units differ by ratios. At the peers' breakpoint z
+    (3.09 for α 1 % over two values), z log-spreads is a rise of exp(0.25 z) - 1 =
+    117 %; the spread in percent that reaches it at z is 117 % / z = 37.7 %."""
+    from condmon.monitor.fuzzy import load_monitor_config
+    from condmon.monitor.generic import peer_sigmas, peer_spread
+
+    f = tmp_path / "m.toml"
+    f.write_text("[breakpoints]\nTc = { r1 = 10.0, r2 = 20.0 }\n"
+                 "[between_units]\nTc = 10.0\nvib = { log = 25.0 }\n")
+    cfg = load_monitor_config(f)
+    assert cfg.between_log == frozenset({"vib"}) and cfg.between_units["vib"] == 25.0
+    ref = Baseline(("Tc@forward", "vib@forward"), (40.0, 10.0), (0.4, 1e-9), 30)
+    widened, _ = peer_spread(ref, cfg)
+    z = peer_sigmas(0.01, 2)[0]
+    assert z * widened.std[1] / 10.0 * 100.0 == pytest.approx(100.0 * math.expm1(0.25 * z))
+    assert widened.std[0] == pytest.approx(math.hypot(math.sqrt(2.0) * 0.4, 4.0))
+    f.write_text("[breakpoints]\nTc = { r1 = 10.0, r2 = 20.0 }\n"
+                 "[between_units]\nvib = { ln = 25.0 }\n")
+    with pytest.raises(ConfigError, match=r"\[between_units\] vib must be a spread"):
+        load_monitor_config(f)

@@ -43,7 +43,7 @@ def register(app: typer.Typer) -> None:
 
     @app.command("check")
     def check_cmd(
-        record: Annotated[Path, typer.Argument(help="Test record (CSV, Parquet, .mat, TDMS).")],
+        records: Annotated[list[Path], typer.Argument(help="Test record (CSV, Parquet, .mat, TDMS); several: the records of one test, estimated together (a cycle written as several files, e.g. a stroke each way).")],
         unit: UnitOpt,
         db: DbOpt = "condmon.db",
         method: MethodOpt = "sriv",
@@ -83,8 +83,11 @@ def register(app: typer.Typer) -> None:
         from condmon.workflows.checks import check_test
         from condmon.store.db import open_store
 
+        from condmon.workflows.records import Cycle
+
         opts = options(method, gamma, excitation, columns, fit_threshold, model, route, constants,
                         sample_rate, scale, offset, ignore, meta, window)
+        record = records[0] if len(records) == 1 else Cycle(tuple(records))
         cfg = load_monitor_config(monitor) if monitor is not None else None
         rb = load_rules(rules) if rules is not None else None
         with open_store(db, create=False) as store:
@@ -97,11 +100,11 @@ def register(app: typer.Typer) -> None:
         if dry_run:
             err.print("dry run: nothing was stored", highlight=False)
         if res.warning:
-            err.print(f"warning: {record}: {res.warning}", highlight=False, markup=False,
+            err.print(f"warning: {res.estimate.source}: {res.warning}", highlight=False, markup=False,
                       soft_wrap=True)
         print_flags(res.baseline_flags, unit)
         fit = res.estimate.fit_percent
-        out.print(f"{escape(unit)} — {escape(str(record))}: {status_text(res.status)}  "
+        out.print(f"{escape(unit)} — {escape(res.estimate.source)}: {status_text(res.status)}  "
                   + (f"(fit {fit:.1f} %" if math.isfinite(fit) else "(no fit")
                   + (f", regime {escape(res.estimate.regime_label)}"
                      if res.estimate.regime_label else "")

@@ -180,8 +180,10 @@ def spans_for(spec: FeatureSpec, windows: Sequence[tuple[str, int, int, bool]]
     """
     out: dict[str, list[tuple[int, int]]] = {}
     for label, first, stop, used in windows:
-        base = label.split(",")[0].strip()
-        if (base in spec.regimes) if spec.regimes else used:
+        # a pooled label (``forward + reverse``: records estimated together) counts
+        # when each regime in it does
+        bases = [part.split(",")[0].strip() for part in label.split(" + ")]
+        if all(b in spec.regimes for b in bases) if spec.regimes else used:
             out.setdefault(label, []).append((first, stop))
     return out
 

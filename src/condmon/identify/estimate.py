@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from condmon._threads import one_blas_thread
 from condmon.errors import CondmonError, DataError, ModelError
 from condmon.identify.defaults import list_estimators
+from condmon.identify.extras import systematic_part, with_features
 from condmon.identify.fit import DEFAULT_FIT_THRESHOLD, FitCheck
 from condmon.identify.greybox import NOT_AT_REST, auto_reason, choose_route
 from condmon.identify.regime_estimate import (
@@ -36,7 +37,7 @@ if TYPE_CHECKING:  # pandas only where a DataFrame is made or read: not on impor
     import pandas as pd
 
 __all__ = ["EstimateResult", "estimate", "estimate_record", "estimate_joint", "list_estimators",
-           "systematic_part", "DEFAULT_EXCITATION"]
+           "systematic_part", "used_regimes", "DEFAULT_EXCITATION"]
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
@@ -225,10 +226,7 @@ def estimate(record: pd.DataFrame | Columns, model: str | Machine = "dc-motor", 
                               input_name=machine.linear().input if chosen == "linear" else None,
                               inputs=machine.plant.input_names,
                               min_samples=10 * (len(machine.spec.unknowns) + 1), source=source,
-                              optional=(*_condition_columns(machine),
-                                        *(f.channel for f in machine.features),
-                                        *(c.feature.channel for c in machine.conditions
-                                          if c.feature is not None)))
+                              optional=_optional_columns(machine))
     consts = dict(df.attrs.get("constants", {}) or {})
     _check_constants(machine, given, strict=tuple(given))
     consts.update(given)
@@ -250,98 +248,16 @@ def estimate(record: pd.DataFrame | Columns, model: str | Machine = "dc-motor", 
     accuracy = machine.record.merged(settings).accuracy
     if not accuracy or not res.usable:
         return res
-    return dataclasses.replace(res, systematic=systematic_part(res, rec, accuracy, run))
+    return dataclasses.replace(res, systematic=systematic_part(
+        res, [rec], accuracy, lambda rs: run(rs[0])))
 
 
-def systematic_part(res: EstimateResult, rec: Record, accuracy: Mapping[str, float],
-                    run: Callable[[Record], EstimateResult]) -> dict[str, float]:
-    """The systematic part of each of ``res``'s stored values from its sensors'
-    stated accuracy (see :attr:`EstimateResult.systematic`).
-
-    Each column with a stated accuracy ``a`` is offset by ``+a`` and the record
-    estimated again with ``run``; the value's change is how far that sensor
-    moves it at its bound. The systematic part is the root-sum-square of the
-    changes over the sensors (independent sensors seldom reach their bounds
-    together, in the directions that add).
-    Written here, not taken from a library: the uncertainties package
-    propagates through functions of numbers, not through an estimator run on a
-    record. A value the offset record does not give (its estimate refused)
-    gets NaN: its systematic part is not known.
-
-    Example
-    -------
-    A balance ``F = c (pA - pB)`` read from two gauges of ±0.25 % of 200 bar:
-    each gauge's 0.5 bar moves ``F`` by ``c`` × 0.5 bar, so the systematic part
-    is ``c × 0.5 bar × √2`` whatever the noise.
-    """
-    base = res.stored_values()
-    total = dict.fromkeys(base, 0.0)
-    for column, a in accuracy.items():
-        if column not in rec.columns or column == "t":
-            continue
-        shifted = Record({**rec.columns, column: rec.columns[column] + a}, rec.dt, rec.source)
-        try:
-            moved = run(shifted).stored_values()
-        except CondmonError:
-            moved = {}
-        for key, (value, _) in base.items():
-            other = moved.get(key, (math.nan, math.nan))[0]
-            total[key] += (float(other) - float(value)) ** 2
-    # a value no stated accuracy moves (a feature of another channel) has none: its
-    # sensors' accuracy is not stated, not zero
-    return {k: math.sqrt(v) for k, v in total.items() if v != 0.0}
-
-
-def with_features(res: EstimateResult, rec: Record, machine: Machine,
-                  metadata: Mapping[str, Any] | None = None,
-                  available: Sequence[str] | None = None) -> EstimateResult:
-    """``res`` with the signal features and the operating conditions
-    ``machine`` declares, computed over ``rec``'s windows
-    (:func:`condmon.features.compute_features`) and from ``metadata``;
-    ``res`` itself when it declares none. ``available``: the record file's
-    columns, named when a channel is missing.
-
-    Raises
-    ------
-    DataError
-        A condition's metadata field that is not a number.
-    """
-    if not machine.features and not machine.conditions:
-        return res
-    from condmon.features import compute_features
-
-    spans = [(w.regime, w.first, w.stop, w.used) for w in res.windows] \
-        or [("", 0, len(rec), True)]
-    est = compute_features(rec.columns, 1.0 / rec.dt, spans, machine.features, rec.source,
-                           machine.plant.source, available=available)
-    channels = [c.feature for c in machine.conditions if c.feature is not None]
-    conds = compute_features(rec.columns, 1.0 / rec.dt, spans, channels, rec.source,
-                             machine.plant.source, what="condition", available=available)
-    conditions = dict(conds.values)
-    notes = [*res.notes, *est.notes, *conds.notes]
-    for c in machine.conditions:
-        if c.metadata is None:
-            continue
-        value = (metadata or {}).get(c.metadata)
-        if value is None:
-            notes.append(f"condition {c.name} not known: the record has no metadata field "
-                         f"{c.metadata!r}")
-            continue
-        try:
-            number = float(value)
-        except (TypeError, ValueError):
-            number = math.nan
-        if isinstance(value, bool) or not math.isfinite(number):
-            raise DataError(f"{rec.source}: condition {c.name!r} reads metadata field "
-                            f"{c.metadata!r} = {value!r}, which is not a finite number")
-        conditions[c.name] = (number, 0.0)
-    return dataclasses.replace(res, features=est.values, feature_units=est.units,
-                               conditions=conditions, notes=tuple(notes))
-
-
-def _condition_columns(machine: Machine) -> tuple[str, ...]:
-    """Record columns the regimes' conditions may name (kept when present)."""
-    return tuple(sorted({n for r in machine.regimes.regimes for n in r.condition.names}))
+def _optional_columns(machine: Machine) -> tuple[str, ...]:
+    """Record columns kept when present: those the regimes' conditions name,
+    the features' and the operating conditions' channels."""
+    return (*sorted({n for r in machine.regimes.regimes for n in r.condition.names}),
+            *(f.channel for f in machine.features),
+            *(c.feature.channel for c in machine.conditions if c.feature is not None))
 
 
 @one_blas_thread
@@ -352,7 +268,8 @@ def estimate_joint(records: Sequence[pd.DataFrame | Columns], model: str | Machi
                    constants: Mapping[str, float] | None = None,
                    settings: RecordSettings | None = None,
                    metadata: Mapping[str, Any] | None = None,
-                   hold: Mapping[str, float] | None = None) -> EstimateResult:
+                   hold: Mapping[str, float] | None = None,
+                   window: tuple[float, float] | None = None) -> EstimateResult:
     """Estimate one set of physical parameters from several records at once.
 
     The records (one sample interval) enter one criterion: the output error
@@ -366,8 +283,8 @@ def estimate_joint(records: Sequence[pd.DataFrame | Columns], model: str | Machi
     ----------
     records : sequence of pandas.DataFrame or Columns
         As for :func:`estimate`.
-    model, fit_threshold, columns, route, constants, settings, metadata, hold
-        As for :func:`estimate`.
+    model, fit_threshold, columns, route, constants, settings, metadata, hold, window
+        As for :func:`estimate` (``window`` only with one record).
     sources : sequence of str, optional
         Names of the records in messages and results.
 
@@ -385,6 +302,9 @@ def estimate_joint(records: Sequence[pd.DataFrame | Columns], model: str | Machi
     """
     machine = model if isinstance(model, Machine) else get_model(model)
     machine.require_estimation()
+    if window is not None and len(records) != 1:
+        raise DataError("--window applies to one record; several are estimated over their "
+                        "windows")
     given, fixed = _split_constants(machine, dict(constants or {}))
     machine = machine.with_fixed(fixed)
     chosen = choose_route(machine, route)
@@ -400,13 +320,57 @@ def estimate_joint(records: Sequence[pd.DataFrame | Columns], model: str | Machi
             recs.append(validate_record(frame, _required_columns(machine, chosen),
                                         inputs=machine.plant.input_names,
                                         min_samples=10 * (len(machine.spec.unknowns) + 1),
-                                        source=name, optional=_condition_columns(machine)))
+                                        source=name, optional=_optional_columns(machine)))
         consts.update(dict(frame.attrs.get("constants", {}) or {}))
     consts.update(given)
     consts.update(fixed)
-    return estimate_record(recs, machine, fit_threshold=fit_threshold, route=chosen,
-                           constants=consts, metadata=metadata, hold=hold, fixed=fixed,
-                           pool=True)
+
+    def run(rs: list[Record]) -> EstimateResult:
+        return with_features(estimate_record(
+            rs, machine, fit_threshold=fit_threshold, route=chosen, constants=consts,
+            metadata=metadata, hold=hold, fixed=fixed, pool=True, window=window), rs, machine,
+            metadata)
+
+    res = run(recs)
+    accuracy = machine.record.merged(settings).accuracy
+    if not accuracy or not res.usable:
+        return res
+    return dataclasses.replace(res, systematic=systematic_part(res, recs, accuracy, run))
+
+
+def used_regimes(record: pd.DataFrame | Columns, model: str | Machine, *,
+                 source: str = "record", route: str | None = None,
+                 metadata: Mapping[str, Any] | None = None,
+                 window: tuple[float, float] | None = None,
+                 constants: Mapping[str, Any] | None = None) -> tuple[str, ...]:
+    """The declared regimes of a record's usable windows, in time order (the
+    regime names, without the metadata that split them): what
+    ``[estimation] cycle`` groups records by. The record, ``window`` and
+    ``constants`` are checked as :func:`estimate` checks them, and refused as
+    it would refuse them.
+
+    Example
+    -------
+    >>> from condmon.simulate import simulate_actuator
+    >>> used_regimes(simulate_actuator(seed=1), "dc-motor")   # no regimes declared
+    ('',)
+    """
+    machine = model if isinstance(model, Machine) else get_model(model)
+    given, _ = _split_constants(machine, dict(constants or {}))
+    _check_constants(machine, given, strict=tuple(given))
+    chosen = choose_route(machine, route)
+    with recognised_records(machine):
+        df = as_columns(_record_frame(record, machine, None, None, source))
+        rec = validate_record(df, _required_columns(machine, chosen),
+                              inputs=machine.plant.input_names,
+                              min_samples=10 * (len(machine.spec.unknowns) + 1), source=source,
+                              optional=_optional_columns(machine))
+    try:
+        windows = plan(rec, machine, chosen, metadata, window).windows
+    except CondmonError as err:
+        text = str(err)
+        raise type(err)(text if text.startswith(source) else f"{source}: {text}") from None
+    return tuple(dict.fromkeys(w.regime.split(",")[0].strip() for w in windows if w.used))
 
 
 def _metadata_notes(machine: Machine, metadata: Mapping[str, Any] | None) -> list[str]:

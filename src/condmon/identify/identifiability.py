@@ -174,7 +174,16 @@ def _index(sv: FloatArray, columns: int) -> float:
     return float("inf") if smallest <= 1e-12 else 1.0 / smallest
 
 
-def _whole_set(S: FloatArray, norms: FloatArray, lim: IdentifiabilityLimits
+def _design_index(design: FloatArray) -> float:
+    """The collinearity index of ``design``'s columns (inf for a zero column)."""
+    norms = np.sqrt(np.sum(design ** 2, axis=0))
+    if design.shape[1] == 0 or not np.all(norms > 0.0):
+        return float("inf") if design.shape[1] else 1.0
+    return _index(np.linalg.svd(design / norms, compute_uv=False), design.shape[1])
+
+
+def _whole_set(S: FloatArray, norms: FloatArray, lim: IdentifiabilityLimits,
+               design: FloatArray | None = None
                ) -> tuple[FloatArray, float, FloatArray, FloatArray] | None:
     """The figures of the whole set of unknowns when together they pass
     every test, else None.
@@ -190,7 +199,7 @@ def _whole_set(S: FloatArray, norms: FloatArray, lim: IdentifiabilityLimits
         return None
     Sn = S / norms
     _, sv, vt = np.linalg.svd(Sn, full_matrices=False)
-    gamma = _index(sv, S.shape[1])
+    gamma = _index(sv, S.shape[1]) if design is None else _design_index(design)
     if not gamma <= lim.max_collinearity:
         return None
     joint = np.sqrt(np.sum((vt / sv[:, None]) ** 2, axis=0)) / norms
@@ -201,7 +210,8 @@ def _whole_set(S: FloatArray, norms: FloatArray, lim: IdentifiabilityLimits
 
 def assess_identifiability(sensitivity: ArrayLike, parameters: Sequence[str], *,
                            limits: IdentifiabilityLimits | None = None,
-                           absent: Mapping[str, str] | None = None) -> Identifiability:
+                           absent: Mapping[str, str] | None = None,
+                           design: ArrayLike | None = None) -> Identifiability:
     """Choose the unknowns a route can estimate from its sensitivity matrix.
 
     Parameters
@@ -216,6 +226,15 @@ def assess_identifiability(sensitivity: ArrayLike, parameters: Sequence[str], *,
     absent : mapping of str to str, optional
         Unknowns known not to enter the route's equations, with the reason
         (they are held whatever their column holds).
+    design : array_like, shape (m, p), optional
+        The same sensitivities with every row of an equation given one weight
+        (the steady route's window means): the collinearity index is taken on
+        it, the relative standard errors on ``sensitivity``. Whether the
+        windows visited can tell two unknowns apart is a question of where
+        they lie, not of their noise: one noisy window among two would
+        otherwise make a Coulomb friction and a load torque "collinear"
+        although a stroke each way separates them exactly; the noise is
+        weighed by the relative standard error. None: both on ``sensitivity``.
 
     Returns
     -------
@@ -232,7 +251,9 @@ def assess_identifiability(sensitivity: ArrayLike, parameters: Sequence[str], *,
     chosen: list[int] = []
     kept: tuple[FloatArray, float, FloatArray, FloatArray] = (np.zeros(0), 1.0, np.zeros(0),
                                                              np.zeros((0, 0)))
-    whole = _whole_set(S, norms, lim) if not absent else None
+    D = None if design is None else np.where(np.isfinite(d := np.atleast_2d(
+        np.asarray(design, dtype=np.float64))), d, 0.0)
+    whole = _whole_set(S, norms, lim, D) if not absent else None
     if whole is not None:   # every unknown passes together: so each prefix passes
         chosen, kept = list(range(len(names))), whole
     for k, name in enumerate(names if whole is None else ()):
@@ -252,7 +273,7 @@ def assess_identifiability(sensitivity: ArrayLike, parameters: Sequence[str], *,
         # one SVD gives both the collinearity index (1 / the smallest singular
         # value) and the relative standard errors (diag((SnᵀSn)⁻¹)^½ / norms)
         _, sv_t, vt = np.linalg.svd(Sn, full_matrices=False)
-        gamma = _index(sv_t, len(trial))
+        gamma = _index(sv_t, len(trial)) if D is None else _design_index(D[:, trial])
         if gamma > lim.max_collinearity:
             weak = np.abs(vt[-1])
             partners = [names[trial[i]] for i in np.argsort(-weak) if trial[i] != k

@@ -149,6 +149,10 @@ def identified_lstsq(blocks: Sequence[FloatArray], rhs: Sequence[FloatArray],
     w = [np.asarray(x, dtype=np.float64) for x in weights] if weights is not None else \
         [np.ones(len(r)) for r in rhs]
     theta = held_at.copy()
+    # given weights (per window): the collinearity is judged on the windows with
+    # one weight per equation (see assess_identifiability's ``design``)
+    design = _stack(blocks, rhs, [np.full(len(x), float(np.mean(x))) for x in w])[0] * scale \
+        if given and all(len(x) for x in w) else None
     idf = assess_identifiability(np.zeros((1, p)), names, limits=lim, absent=absent)
     # Given weights: one pass. Otherwise two, each re-weighting every block by
     # the inverse standard deviation of its residual (the covariance takes the
@@ -159,7 +163,8 @@ def identified_lstsq(blocks: Sequence[FloatArray], rhs: Sequence[FloatArray],
         # without an estimate of the noise yet, only the collinearity decides
         first = (not given and k == 0)
         pass_limits = IdentifiabilityLimits(lim.max_collinearity, np.inf) if first else lim
-        idf = assess_identifiability(X * scale, names, limits=pass_limits, absent=absent)
+        idf = assess_identifiability(X * scale, names, limits=pass_limits, absent=absent,
+                                     design=design)
         chosen = [names.index(n) for n in idf.identifiable]
         theta = held_at.copy()
         if chosen:

@@ -225,11 +225,16 @@ def steady_route(signals: Sequence[Mapping[str, FloatArray]],
         return blocks, rhs, weights
 
     absent = absent_unknowns(machine, steady=True)
+    # an unknown declared 0 (a load torque, an offset) has no typical magnitude: a
+    # baseline's mean near 0 is none either, and scaled by it a precise estimate
+    # would read as a huge relative error; it takes the balance's own scale
+    nominal = machine.nominal()
+    scales = {n: (held[n] if nominal.get(n, 0.0) != 0.0 else 0.0) for n in names}
     theta: FloatArray | None = None
     fit_ = None
     for _ in range(2):  # weights from the balance alone, then from its residual
         blocks, rhs, weights = rows_of(theta)
-        fit_ = identified_lstsq(blocks, rhs, names, held, held, source=source,
+        fit_ = identified_lstsq(blocks, rhs, names, scales, held, source=source,
                                 limits=spec.identifiability, absent=absent, weights=weights)
         theta = np.array([fit_.values[n] for n in names])
     assert fit_ is not None and theta is not None

@@ -98,6 +98,11 @@ class EstimationSpec:
     simulation : SimulationSettings
         Simulation-error route: initial states, shooting segments, starts
         (:mod:`condmon.models.shooting`).
+    cycle : tuple of str
+        The regimes one test holds (``[estimation] cycle``): records are taken
+        together, in time order, until they hold a used window of each, and
+        estimated as one test (a stroke each way tells a friction from a load
+        torque and from the gauges' offsets). Empty: a test is one record.
     deadband : float
         Inverse route: rows where the argument of a ``sign``/``abs`` is within
         this fraction of its RMS are left out (static friction at standstill
@@ -125,6 +130,7 @@ class EstimationSpec:
     identifiability: IdentifiabilityLimits = IdentifiabilityLimits()
     steady_tolerance: float = 0.1
     simulation: SimulationSettings = SimulationSettings()
+    cycle: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)

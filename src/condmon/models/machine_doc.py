@@ -86,7 +86,7 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any],
     allowed = {"estimate", "report", "derived", "route", "order", "excitation", "cutoff",
                "decimate", "plausible", "max_change", "min_duration", "sample_interval",
                "max_residual_correlation", "deadband", "residual_warning", "structure_hint",
-               "identifiability", "steady_tolerance", "initial", "segments", "starts"}
+               "identifiability", "steady_tolerance", "initial", "segments", "starts", "cycle"}
     unknown = set(est) - allowed
     if unknown:
         raise ConfigError(f"{src}[estimation]: unknown key {sorted(unknown)[0]!r}; "
@@ -132,6 +132,15 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any],
     if isinstance(corr, bool) or not isinstance(corr, (int, float)) or not 0 < corr <= 1:
         raise ConfigError(f"{src}[estimation].max_residual_correlation must be in (0, 1], "
                           f"got {corr!r}")
+    cycle = _names(est.get("cycle", []), f"{src}[estimation].cycle")
+    declared = [r.name for r in files["regimes"].regimes]
+    if cycle and (len(cycle) < 2 or len(set(cycle)) != len(cycle)):
+        raise ConfigError(f"{src}[estimation].cycle must name two regimes or more, each "
+                          f"once, got {list(cycle)!r}")
+    for k in cycle:
+        if k not in declared:
+            raise ConfigError(f"{src}[estimation].cycle: {k!r} is not a declared regime; "
+                              f"allowed: {', '.join(declared) or 'none ([regimes] is empty)'}")
     spec = EstimationSpec(
         unknowns, report, derived, str(route), order,
         _names(est.get("excitation", []), f"{src}[estimation].excitation"),
@@ -143,7 +152,7 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any],
         parse_identifiability_limits(est.get("identifiability"), src),
         _fraction(est.get("steady_tolerance", 0.1), f"{src}[estimation].steady_tolerance"),
         parse_simulation_settings(est, plant.state_names, lambda: set(state_readers(plant)),
-                                  src))
+                                  src), cycle)
     machine = Machine(plant, spec, **files)
     derived_numeric(machine)  # every derived equation parses
     return machine

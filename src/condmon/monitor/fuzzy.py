@@ -72,6 +72,15 @@ class MonitorConfig:
         (one standard deviation, in % of the mean; the ``[between_units]``
         table): a comparison with fewer than three peers adds it to the
         peer's scatter (:func:`condmon.monitor.generic.peer_spread`). [%]
+    between_log : frozenset of str
+        The names whose stated spread is of the logarithm (``{ log = 25.0 }``:
+        one standard deviation of ``ln x``, in %): a spread by ratios, as
+        vibration levels spread. [-]
+    sigmas : (float, float) or None
+        The multiples of the yardstick the floors of ``r1`` and ``r2`` lie at
+        (:func:`condmon.monitor.generic.judged_config`); None: the generic
+        settings' 4 and 8. A check against peers sets them from its false-alarm
+        probability (:func:`condmon.monitor.generic.peer_monitor`). [-]
     """
 
     r1: dict[str, float]
@@ -82,6 +91,8 @@ class MonitorConfig:
     statistics: StatisticsConfig = StatisticsConfig()
     insist: frozenset[str] = frozenset()
     between_units: dict[str, float] = dataclasses.field(default_factory=dict)
+    sigmas: tuple[float, float] | None = None
+    between_log: frozenset[str] = frozenset()
 
     def check_parameters(self, available: Sequence[str], model: str = "") -> None:
         """Refuse breakpoints or a between-unit spread of a name the model
@@ -158,7 +169,14 @@ def load_monitor_config(path: str | Path | None = None, k: float | None = None) 
             raise KeyError(f"unknown [baseline] key(s) {unknown}; allowed: outlier_z, "
                            "outlier_se, spread_ratio, trend_alpha, outlier_alpha")
         checks = BaselineChecks(**{key: float(v) for key, v in table.items()})
-        between = {str(p): float(v) for p, v in dict(raw.get("between_units", {})).items()}
+        stated = dict(raw.get("between_units", {}))
+        logs = frozenset(str(p) for p, v in stated.items() if isinstance(v, dict))
+        for p in logs:
+            if set(stated[p]) != {"log"}:
+                raise ConfigError(f"{src}: [between_units] {p} must be a spread [% of the "
+                                  f"mean] or {{ log = spread [% of ln] }}, got {stated[p]!r}")
+        between = {str(p): float(v["log"] if isinstance(v, dict) else v)
+                   for p, v in stated.items()}
     except (KeyError, TypeError, ValueError) as err:
         raise ConfigError(f"{src}: expected [breakpoints] P = {{ r1 = .., r2 = .. }}, "
                           f"k = number and an optional [baseline] table ({err})") from None
@@ -176,7 +194,7 @@ def load_monitor_config(path: str | Path | None = None, k: float | None = None) 
     if bad:
         raise ConfigError(f"{src}: [between_units] {bad[0]} must be a spread > 0 [% of the "
                           f"mean], got {between[bad[0]]!r}")
-    return MonitorConfig(r1, r2, kk, src, checks, stats, insist, between)
+    return MonitorConfig(r1, r2, kk, src, checks, stats, insist, between, between_log=logs)
 
 
 def load_statistics(table: Any, source: str) -> StatisticsConfig:

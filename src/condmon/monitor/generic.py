@@ -35,7 +35,8 @@ from condmon.monitor.statistics import StatisticsConfig
 
 __all__ = ["GenericSettings", "load_generic_settings", "spread_breakpoints", "generic_config",
            "indicator_r2", "describe_generic", "StatusPoints", "machine_monitor", "peer_monitor",
-           "yardstick", "judged_config", "with_scatter", "typical_systematic", "peer_spread"]
+           "yardstick", "judged_config", "with_scatter", "typical_systematic", "peer_spread",
+           "peer_sigmas"]
 
 #: Membership functions of the status (go, advisory, no-go) on [0, 1]: 3 or 4 points each.
 StatusPoints = tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]
@@ -212,33 +213,62 @@ def indicator_r2(indicators: Any, baseline: Baseline, r1: Mapping[str, float]
     return out
 
 
+def peer_sigmas(alpha: float, parameters: int) -> tuple[float, float]:
+    """The breakpoints of a check against peers, in the peers' spreads: ``z``
+    and ``2 z``, ``z`` the two-sided normal quantile a healthy unit's
+    difference from its peers exceeds in one of ``parameters`` parameters
+    with probability ``alpha`` (Šidák: each at ``1 - (1 - alpha)^(1/m)``).
+
+    Against its own baseline a unit is judged by the calibrated change test
+    at ``alpha`` beside breakpoints at 4 and 8 scatters; against peers no
+    test of the unit's own history exists, so the stated false-alarm
+    probability sets the breakpoints themselves: with the symptom's blur
+    (``k = 2`` spreads) a check turns advisory about ``z`` spreads out, and a
+    healthy unit is flagged on about ``alpha`` of its checks. [-]
+
+    Example
+    -------
+    >>> [round(x, 2) for x in peer_sigmas(0.01, 5)]
+    [3.09, 6.18]
+    """
+    from statistics import NormalDist
+
+    m = max(int(parameters), 1)
+    z = NormalDist().inv_cdf(1.0 - (1.0 - (1.0 - alpha) ** (1.0 / m)) / 2.0)
+    return z, 2.0 * z
+
+
 def peer_monitor(machine: Machine, reference: Baseline) -> MonitorConfig:
     """Breakpoints of a check against a group's (or another unit's) baseline:
-    the spread-based ones (:func:`spread_breakpoints`), capped at the
-    machine's own when it declares them. Against peers, a deviation beyond
-    what the peers show is a symptom even below the change the machine's
-    breakpoints call a fault over a unit's own life; a change those call a
-    fault is one against peers too.
+    the spread-based ones at the peers' false-alarm probability
+    (:func:`peer_sigmas`, the monitor file's ``[statistics] alpha``), capped
+    at the machine's own when it declares them. Against peers, a deviation
+    beyond what the peers show is a symptom even below the change the
+    machine's breakpoints call a fault over a unit's own life; a change those
+    call a fault is one against peers too.
 
     Example
     -------
     >>> from condmon.models.registry import get_model
     >>> ref = Baseline(("R", "D"), (1.0, 1e-4), (0.03, 1e-5), 20)
     >>> cfg = peer_monitor(get_model("dc-motor"), ref)
-    >>> round(cfg.r1["R"], 1), round(cfg.r1["D"], 1)     # 4 x 3 % x 1.07; 4 x 10 % x 1.07 (20 units)
-    (12.8, 42.7)
+    >>> round(cfg.r1["R"], 1), round(cfg.r1["D"], 1)     # 2.81 x 3 % x 1.07; 2.81 x 10 % x 1.07
+    (9.0, 30.0)
     """
     settings = load_generic_settings()
-    r1, r2 = spread_breakpoints(reference, settings)
     own = machine_monitor(machine, reference)
+    sigmas = peer_sigmas(own.statistics.alpha, len(reference.parameters))
+    r1, r2 = spread_breakpoints(reference, dataclasses.replace(
+        settings, r1_sigma=sigmas[0], r2_sigma=sigmas[1]))
     if machine.breakpoints is not None:
         mine = with_scatter(own, reference).arrays(reference.parameters)
         for i, key in enumerate(reference.parameters):
             r1[key] = min(r1[key], float(mine[0][i]))
             r2[key] = max(min(r2[key], float(mine[1][i])), r1[key] * (1 + 1e-9) + 1e-12)
     return MonitorConfig(r1, r2, own.k, f"peer comparison ({own.source}, capped at "
-                         f"{settings.r1_sigma:g}/{settings.r2_sigma:g} spreads)", own.baseline,
-                         own.statistics)
+                         f"{sigmas[0]:.3g}/{sigmas[1]:.3g} spreads: α {own.statistics.alpha:g} "
+                         f"over {len(reference.parameters)} parameters)", own.baseline,
+                         own.statistics, sigmas=sigmas)
 
 
 def yardstick(baseline: Baseline) -> dict[str, float]:
@@ -307,11 +337,12 @@ def judged_config(config: MonitorConfig, baseline: Baseline,
     s = yardstick(baseline)
     known = config.keyed(baseline.parameters)
     sys_ = systematic or {}
+    r1_sigma, r2_sigma = config.sigmas or (settings.r1_sigma, settings.r2_sigma)
     r1, r2, raised = {}, {}, []
     for name, mean in zip(baseline.parameters, baseline.mean):
         b = sys_.get(name, 0.0)
         b = 100.0 * b / abs(mean) if math.isfinite(b) and mean != 0 else 0.0
-        floor1, floor2 = b + settings.r1_sigma * s[name], b + settings.r2_sigma * s[name]
+        floor1, floor2 = b + r1_sigma * s[name], b + r2_sigma * s[name]
         if name not in known.r1 or config.source == GENERIC_SOURCE:
             r1[name], r2[name] = floor1, floor2
             continue
@@ -325,7 +356,7 @@ def judged_config(config: MonitorConfig, baseline: Baseline,
         accuracy = f" plus the sensors' accuracy {b:.3g} %" if b else ""
         within = " and the sensors' accuracy" if b else ""
         raised.append(f"{name}: the declared r1 {d1:.3g} % lies inside the healthy scatter"
-                      f"{within} ({settings.r1_sigma:g} × {s[name]:.3g} %{accuracy} = "
+                      f"{within} ({r1_sigma:g} × {s[name]:.3g} %{accuracy} = "
                       f"{floor1:.3g} %): that is used (insist = true in [breakpoints] keeps "
                       "the declared)")
     return dataclasses.replace(config, r1=r1, r2=r2), tuple(raised)
@@ -339,9 +370,16 @@ def peer_spread(reference: Baseline, config: MonitorConfig
     units of the model differ (their sensors, their assembly, their load's
     own friction). Its standard deviation is widened by the spread between
     units the monitor file states (``[between_units]``, one standard
-    deviation in % of the mean): ``sqrt(σ² + (τ·|θ̄|)²)``, so the answer is as
-    wide as two units may honestly differ. A parameter with none stated is
-    judged on the peer's scatter alone, and the note says so.
+    deviation in % of the mean), and by the checked unit's own
+    record-to-record scatter (one test of it is compared with the peer's
+    mean; unknown, it is taken as the peer's): ``sqrt(2σ² + (τ·|θ̄|)²)``, so
+    the answer is as wide as two units may honestly differ. A parameter with
+    none stated is judged on the two units' scatter alone, and the note says
+    so. A spread stated of the logarithm (``{ log = τ }``: healthy units
+    differ by ratios) enters as the spread in % whose ``z`` multiples reach
+    the rise ``z`` such spreads of the logarithm reach,
+    ``(exp(z τ) - 1) / z``, ``z`` the peers' breakpoint (:func:`peer_sigmas`):
+    changes are judged in percent, and a rise is what a level's rules read.
 
     Returns
     -------
@@ -352,19 +390,23 @@ def peer_spread(reference: Baseline, config: MonitorConfig
     -------
     >>> ref = Baseline(("Tc@forward", "vib1@forward"), (40.0, 5.0), (0.4, 0.5), 50)
     >>> b, notes = peer_spread(ref, MonitorConfig({}, {}, between_units={"Tc": 10.0}))
-    >>> round(b.std[0], 3), b.std[1], notes[0][:40]
-    (4.02, 0.5, 'vib1@forward: no spread between units is')
+    >>> round(b.std[0], 3), round(b.std[1], 3), notes[0][:40]
+    (4.04, 0.707, 'vib1@forward: no spread between units is')
     """
     stds, notes = [], []
+    z = peer_sigmas(config.statistics.alpha, len(reference.parameters))[0]
     for name, mean, std in zip(reference.parameters, reference.mean, reference.std):
         tau = config.between_units.get(name, config.between_units.get(split_key(name)[0]))
+        if tau is not None and (name in config.between_log
+                                or split_key(name)[0] in config.between_log):
+            tau = 100.0 * math.expm1(z * tau / 100.0) / z
         if tau is None:
-            stds.append(std)
+            stds.append(math.sqrt(2.0) * std)
             notes.append(f"{name}: no spread between units is stated ([between_units] of "
                          f"{config.source}): a difference between two healthy units is read "
                          "as a change")
             continue
-        stds.append(math.hypot(std, tau / 100.0 * abs(mean)))
+        stds.append(math.hypot(math.sqrt(2.0) * std, tau / 100.0 * abs(mean)))
     return dataclasses.replace(reference, std=tuple(stds)), tuple(notes)
 
 

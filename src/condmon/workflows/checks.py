@@ -45,7 +45,7 @@ from condmon.workflows.monitoring import (
     estimate_judged, evaluate, filed_elsewhere, governed, monitoring_of, no_baseline_yet,
     restricted, save_current_baseline,
 )
-from condmon.workflows.records import EstimateOptions, RecordLike
+from condmon.workflows.records import Cycle, EstimateOptions, RecordLike
 from condmon.workflows.unit_model import session_timed, unit_options
 
 __all__ = ["CheckResult", "check_test", "unit_statistics", "Reference", "reference_for", "resolve_against",
@@ -313,7 +313,7 @@ def _forecast(store: HistoryStore, unit: str, dry_run: bool) -> dict[str, Any]:
     return {} if dry_run else keep_forecast(store, unit)
 
 
-def check_test(store: HistoryStore, unit: str, record: RecordLike,
+def check_test(store: HistoryStore, unit: str, record: RecordLike | Cycle,
                options: EstimateOptions | None = None, monitor: MonitorConfig | None = None,
                rules: RuleBase | None = None, dry_run: bool = False,
                test_date: str | datetime | None = None, against: str | None = None,
@@ -380,6 +380,13 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike,
         return CheckResult(unit, tid, res, "retest", baseline, baseline_flags=flags,
                            test_date=key.test_date, warning=filed_elsewhere(store, unit, key),
                            against=against_label, forecast=_forecast(store, unit, dry_run))
+    held = {part.split(",")[0].strip() for part in res.regime.split(" + ")}
+    if machine.spec.cycle and not held >= set(machine.spec.cycle) and not any(
+            k in baseline.parameters for k in res.stored_values()):
+        raise DataError(f"{res.source}: holds {res.regime or 'no regime'} only; a test of "
+                        f"{machine.name} is one cycle ({', '.join(machine.spec.cycle)}: "
+                        "[estimation] cycle): give the records of one cycle together; "
+                        "nothing was stored")
     cond = conditioning(store, ids, baseline, res.conditions, machine,
                         peer=None if ref is None else ref.label,
                         group=ref is not None and ref.group is not None)

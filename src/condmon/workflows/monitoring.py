@@ -45,7 +45,8 @@ from condmon.store.baselines import (  # read from the store only; kept here for
 )
 from condmon.store.db import DuplicateTestError, HistoryStore
 from condmon.workflows.baseline_results import AddedTest, BaselineAddResult, say_what_was_stored
-from condmon.workflows.records import EstimateOptions, RecordKey, RecordLike, record_key
+from condmon.workflows.cycles import cycles_of
+from condmon.workflows.records import Cycle, EstimateOptions, RecordKey, RecordLike, record_key
 from condmon.workflows.unit_model import session_timed, unit_options
 
 __all__ = ["EstimateOptions", "AddedTest", "BaselineAddResult", "RecordKey",
@@ -369,7 +370,7 @@ def _unit_error(res: EstimateResult, baseline: Baseline) -> str | None:
     return None
 
 
-def estimate_judged(opts: EstimateOptions, record: RecordLike,
+def estimate_judged(opts: EstimateOptions, record: RecordLike | Cycle,
                     test_date: str | datetime | None, baseline: Baseline | None
                     ) -> tuple[EstimateResult, RecordKey, str | None]:
     """Estimate a record for a unit with ``baseline`` (None: none yet): the
@@ -382,6 +383,10 @@ def estimate_judged(opts: EstimateOptions, record: RecordLike,
     commonly writes instead (:mod:`condmon.identify.unit_errors`).
     """
     held = opts.with_hold(_held(baseline))
+    if isinstance(record, Cycle):   # a test of several records: no column-unit hint
+        res, key = held.run_cycle(record, test_date)
+        return res, key, _unit_error(res, baseline) if baseline is not None and res.usable \
+            else None
     df, key, source = held.parse(record, test_date)
 
     def believable(r: EstimateResult) -> bool:
@@ -468,16 +473,20 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
     for rec in records:
         if isinstance(rec, (str, Path)):
             check_record_path(rec)
-    added: list[AddedTest] = []
-    for i, rec in enumerate(records):
-        name = str(rec) if not isinstance(rec, pd.DataFrame) else rec.attrs.get("source", f"record {i}")
+    # a cycle written as several files is one test; a record that cannot join
+    # one is said, never stored alone
+    tests, left = cycles_of(opts, records)
+    added = [AddedTest(name, -1, False, False, why, refused=True) for name, why in left]
+    for i, test in enumerate(tests):
+        name = test.source if isinstance(test, Cycle) else str(test) if not isinstance(
+            test, pd.DataFrame) else test.attrs.get("source", f"record {i}")
         if progress is not None:
-            progress(i, len(records), str(name))
+            progress(i, len(tests), str(name))
         prior = _existing_baseline(store, unit)
         try:
-            res, key, why = estimate_judged(opts, rec, test_date, prior)
+            res, key, why = estimate_judged(opts, test, test_date, prior)
         except CondmonError as err:
-            say_what_was_stored(err, i, len(records), added, unit)
+            say_what_was_stored(err, i, len(tests), added, unit)
             raise
         if why is not None:
             added.append(AddedTest(res.source, -1, False, False, why, refused=True))
@@ -494,7 +503,7 @@ def add_baseline_tests(store: HistoryStore, unit: str, records: Sequence[RecordL
             added.append(AddedTest(res.source, dup.test_id, res.usable, True,
                                    "already in the history"))
     if progress is not None:
-        progress(len(records), len(records), "")
+        progress(len(tests), len(tests), "")
     new = [t.test_id for t in added if t.accepted and not (t.duplicate or t.refused)]
     if store.unit_model(unit) is None:  # nothing stored: every record refused
         return BaselineAddResult(tuple(added), None, None, str(_too_few(unit, 0)))

@@ -25,7 +25,7 @@ from condmon.io.rig import RecordSettings, apply_record_settings
 if TYPE_CHECKING:  # pandas only where a DataFrame is made or read: not on import
     import pandas as pd
 
-__all__ = ["EstimateOptions", "RecordKey", "RecordLike", "record_key"]
+__all__ = ["EstimateOptions", "RecordKey", "RecordLike", "Cycle", "record_key"]
 
 #: A record file, or a record already read.
 RecordLike = Union[str, Path, "pd.DataFrame", Columns]
@@ -102,6 +102,41 @@ def usage_hours(value: Any, source: str) -> float | None:
         raise DataError(f"{source}: metadata 'hours' must be a finite number >= 0 [h], "
                         f"not {hours:g}")
     return hours
+
+
+@dataclass(frozen=True)
+class Cycle:
+    """The records of one test, estimated together
+    (:func:`~condmon.identify.estimate.estimate_joint`): a machine's cycle
+    written as several files (a stroke each way), ``[estimation] cycle``.
+
+    Example
+    -------
+    >>> Cycle(("Base_000_4.txt", "Base_000_5.txt")).source
+    'Base_000_4.txt + Base_000_5.txt'
+    """
+
+    records: tuple[RecordLike, ...]
+
+    @property
+    def source(self) -> str:
+        """The records' names joined with " + " (as the estimate names them)."""
+        return " + ".join(str(r) if isinstance(r, (str, Path))
+                          else str(r.attrs.get("source", f"record {i + 1}"))
+                          for i, r in enumerate(self.records))
+
+
+def cycle_key(keys: Sequence[RecordKey]) -> RecordKey:
+    """How a test of several records is known: its records' hashes in order,
+    hashed again; the first record's date and hours (no fingerprint: a
+    rounded copy is told by each record's own, not by the test's)."""
+    import hashlib
+
+    def joined(parts: Sequence[str | None]) -> str:
+        return hashlib.sha256("+".join(p or "" for p in parts).encode()).hexdigest()
+
+    return RecordKey(joined([k.content for k in keys]), joined([k.file for k in keys]),
+                     keys[0].test_date, None, keys[0].hours)
 
 
 @dataclass(frozen=True)
@@ -218,6 +253,23 @@ class EstimateOptions:
                         excitation=self.excitation, fit_threshold=self.fit_threshold,
                         source=source, route=self.route, constants=self.constants,
                         metadata=self.metadata, window=self.window, hold=self.hold)
+
+    def run_cycle(self, cycle: Cycle, test_date: str | datetime | None = None
+                  ) -> tuple[EstimateResult, RecordKey]:
+        """Read (where paths) and estimate a test's records together; the
+        result and how the test is known (:func:`cycle_key`)."""
+        from condmon.identify.estimate import estimate_joint
+
+        if self.window is not None and len(cycle.records) > 1:
+            raise DataError(f"{cycle.source}: --window applies to one record; a test of "
+                            "several records is estimated over their windows")
+        parsed = [self.parse(r, test_date) for r in cycle.records]
+        res = estimate_joint([df for df, _, _ in parsed], self.model or "dc-motor",
+                             fit_threshold=self.fit_threshold,
+                             sources=[src for _, _, src in parsed], route=self.route,
+                             constants=self.constants, metadata=self.metadata, hold=self.hold,
+                             window=self.window)
+        return res, cycle_key([key for _, key, _ in parsed])
 
     def with_hold(self, hold: Mapping[str, float] | None) -> EstimateOptions:
         """These options holding unidentified unknowns at ``hold`` (a baseline's means)."""

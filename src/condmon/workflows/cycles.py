@@ -1,0 +1,87 @@
+"""A machine's cycle written as several files: which records make one test.
+
+A declaration's ``[estimation] cycle`` names the regimes one test holds (the
+hydraulic actuator's ``forward`` and ``reverse``: its stand writes one stroke
+per file, the direction alternating). :func:`cycles_of` takes records in the
+order given (their time order) and joins them until they hold a used window
+of each; a record that repeats a regime the open test already holds (a record
+the rig did not keep between them) starts a new test, and the unfinished one
+is left out and said so, never joined across the gap.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+from condmon.identify.estimate import used_regimes
+from condmon.models.registry import get_model
+from condmon.workflows.records import Cycle, EstimateOptions, RecordLike
+
+__all__ = ["cycles_of"]
+
+
+def _name(rec: RecordLike, i: int) -> str:
+    if isinstance(rec, (str, Path)):
+        return str(rec)
+    return str(rec.attrs.get("source", f"record {i + 1}"))
+
+
+def cycles_of(opts: EstimateOptions, records: Sequence[RecordLike]
+              ) -> tuple[list[RecordLike | Cycle], list[tuple[str, str]]]:
+    """The tests ``records`` make under ``opts.model``'s ``[estimation] cycle``,
+    and the records left out, each with why.
+
+    A model without a cycle: each record is a test. A record that holds none
+    of the cycle's regimes (only a hold) is a test of its own (it is
+    estimated, and refused as such).
+
+    Raises
+    ------
+    CondmonError
+        A record that cannot be read or validated (naming the file).
+
+    Example
+    -------
+    >>> from condmon.simulate import simulate_actuator
+    >>> tests, left = cycles_of(EstimateOptions(), [simulate_actuator(seed=1)])
+    >>> len(tests), left
+    (1, [])
+    """
+    machine = get_model(opts.model or "dc-motor")
+    want = machine.spec.cycle
+    if not want:
+        return list(records), []
+    tests: list[RecordLike | Cycle] = []
+    left: list[tuple[str, str]] = []
+    group: list[tuple[RecordLike, str, tuple[str, ...]]] = []
+    covered: set[str] = set()
+    what = f"a test of {machine.name} is one cycle ({', '.join(want)}: [estimation] cycle)"
+
+    def leave(why: str) -> None:
+        for _, name, held in group:
+            left.append((name, f"left out ({', '.join(held)} only): {why}; {what}"))
+
+    for i, rec in enumerate(records):
+        name = _name(rec, i)
+        df = opts.read(rec) if isinstance(rec, (str, Path)) else opts.prepared(rec)
+        held = tuple(r for r in used_regimes(df, machine, source=name, route=opts.route,
+                                             metadata=opts.metadata, window=opts.window,
+                                             constants=opts.constants)
+                     if r in want)
+        if not held:
+            tests.append(rec)
+            continue
+        if covered & set(held):
+            leave(f"the next record ({name}) holds {', '.join(held)} again before the "
+                  f"cycle's {', '.join(r for r in want if r not in covered)}")
+            group, covered = [], set()
+        group.append((rec, name, held))
+        covered |= set(held)
+        if covered >= set(want):
+            tests.append(Cycle(tuple(r for r, _, _ in group)))
+            group, covered = [], set()
+    if group:
+        leave(f"no record after it holds the cycle's "
+              f"{', '.join(r for r in want if r not in covered)}")
+    return tests, left

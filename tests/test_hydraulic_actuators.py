@@ -140,3 +140,13 @@ def test_a_record_cut_to_its_hold_is_not_identifiable(tmp_path: Path,
         values, _ = store.estimates_of([doc["test_id"]])
         assert values.empty or values.isna().all().all()  # nothing trended
         assert doc["test_id"] not in store.usable_tests("Act_1")
+
+
+def test_cycles_are_joined_in_time_order_whatever_order_the_files_come_in() -> None:
+    """A shell's glob sorts Base_000_100 before Base_000_11: the file names' times
+    put the strokes back in order, so a cycle is two strokes 12 s apart."""
+    files = _files("Act_1")[8:16]
+    shuffled = sorted(files, reverse=True)
+    assert _cycles(shuffled) == _cycles(files)
+    assert all(len(c) == 2 and files.index(c[1]) == files.index(c[0]) + 1
+               for c in _cycles(shuffled))

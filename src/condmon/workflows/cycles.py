@@ -2,8 +2,9 @@
 
 A declaration's ``[estimation] cycle`` names the regimes one test holds (the
 hydraulic actuator's ``forward`` and ``reverse``: its stand writes one stroke
-per file, the direction alternating). :func:`cycles_of` takes records in the
-order given (their time order) and joins them until they hold a used window
+per file, the direction alternating). :func:`cycles_of` takes records in time
+order (their dates, when every record has one: a file name's time, a time
+column; else the order given) and joins them until they hold a used window
 of each; a record that repeats a regime the open test already holds (a record
 the rig did not keep between them) starts a new test, and the unfinished one
 is left out and said so, never joined across the gap.
@@ -16,6 +17,7 @@ from pathlib import Path
 
 from condmon.identify.estimate import used_regimes
 from condmon.models.registry import get_model
+from condmon.io.dates import parse_date
 from condmon.workflows.records import Cycle, EstimateOptions, RecordLike
 
 __all__ = ["cycles_of"]
@@ -62,6 +64,7 @@ def cycles_of(opts: EstimateOptions, records: Sequence[RecordLike]
         for _, name, held in group:
             left.append((name, f"left out ({', '.join(held)} only): {why}; {what}"))
 
+    seen = []
     for i, rec in enumerate(records):
         name = _name(rec, i)
         df = opts.read(rec) if isinstance(rec, (str, Path)) else opts.prepared(rec)
@@ -69,6 +72,12 @@ def cycles_of(opts: EstimateOptions, records: Sequence[RecordLike]
                                              metadata=opts.metadata, window=opts.window,
                                              constants=opts.constants)
                      if r in want)
+        start = df.attrs.get("start_time")
+        seen.append((rec, name, held, parse_date(str(start), name) if start else None))
+    dates = [when for *_, when in seen if when is not None]
+    if len(dates) == len(seen):   # in time order: a shell's glob is not
+        seen = [seen[k] for k in sorted(range(len(seen)), key=dates.__getitem__)]   # stable
+    for rec, name, held, _ in seen:
         if not held:
             tests.append(rec)
             continue

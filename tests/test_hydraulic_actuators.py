@@ -52,11 +52,13 @@ def _cycles(files: list[str]) -> list[list[str]]:
     return [[str(r) for r in t.records] for t in tests]  # type: ignore[union-attr]
 
 
-def _flow(tmp_path: Path, capsys: pytest.CaptureFixture[str], step: int
+def _flow(tmp_path: Path, capsys: pytest.CaptureFixture[str], step: int, part: int = 1
           ) -> tuple[Counter[str], Counter[str], list[dict]]:  # type: ignore[type-arg]
-    """As the example's README: Act_1's baseline across its session; its other
-    cycles against it; Act_4's cycles against Act_1 (a peer under the same load)."""
+    """As the example's README: Act_1's baseline across its session (its first
+    ``1/part`` of it); its other cycles against it; Act_4's cycles against Act_1
+    (a peer under the same load), every ``step``-th."""
     a1, a4 = _files("Act_1"), _files("Act_4")
+    a1 = a1[:len(a1) // part]
     base, rest = _halves(a1)
     db = str(tmp_path / "h.db")
     assert main(["baseline", "add", *base, "--unit", "Act_1", "--db", db,
@@ -107,7 +109,7 @@ def _judged(healthy: Counter[str], docs: list[dict]) -> None:  # type: ignore[ty
 
 def test_healthy_records_go_and_the_seal_defect_is_found(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    healthy, _, docs = _flow(tmp_path, capsys, step=5)
+    healthy, _, docs = _flow(tmp_path, capsys, step=6, part=2)
     _judged(healthy, docs)
 
 

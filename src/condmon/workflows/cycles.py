@@ -14,11 +14,16 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from condmon.identify.estimate import used_regimes
 from condmon.models.registry import get_model
+from condmon.io.columns import Columns
 from condmon.io.dates import parse_date
 from condmon.workflows.records import Cycle, EstimateOptions, RecordLike
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = ["cycles_of"]
 
@@ -56,12 +61,12 @@ def cycles_of(opts: EstimateOptions, records: Sequence[RecordLike]
         return list(records), []
     tests: list[RecordLike | Cycle] = []
     left: list[tuple[str, str]] = []
-    group: list[tuple[RecordLike, str, tuple[str, ...]]] = []
+    group: list[tuple[RecordLike, pd.DataFrame | Columns, str, tuple[str, ...]]] = []
     covered: set[str] = set()
     what = f"a test of {machine.name} is one cycle ({', '.join(want)}: [estimation] cycle)"
 
     def leave(why: str) -> None:
-        for _, name, held in group:
+        for _, _, name, held in group:
             left.append((name, f"left out ({', '.join(held)} only): {why}; {what}"))
 
     seen = []
@@ -73,11 +78,11 @@ def cycles_of(opts: EstimateOptions, records: Sequence[RecordLike]
                                              constants=opts.constants)
                      if r in want)
         start = df.attrs.get("start_time")
-        seen.append((rec, name, held, parse_date(str(start), name) if start else None))
+        seen.append((rec, df, name, held, parse_date(str(start), name) if start else None))
     dates = [when for *_, when in seen if when is not None]
     if len(dates) == len(seen):   # in time order: a shell's glob is not
         seen = [seen[k] for k in sorted(range(len(seen)), key=dates.__getitem__)]   # stable
-    for rec, name, held, _ in seen:
+    for rec, df, name, held, _ in seen:
         if not held:
             tests.append(rec)
             continue
@@ -85,10 +90,10 @@ def cycles_of(opts: EstimateOptions, records: Sequence[RecordLike]
             leave(f"the next record ({name}) holds {', '.join(held)} again before the "
                   f"cycle's {', '.join(r for r in want if r not in covered)}")
             group, covered = [], set()
-        group.append((rec, name, held))
+        group.append((rec, df, name, held))
         covered |= set(held)
         if covered >= set(want):
-            tests.append(Cycle(tuple(r for r, _, _ in group)))
+            tests.append(Cycle(tuple(r for r, *_ in group), tuple(d for _, d, *_ in group)))
             group, covered = [], set()
     if group:
         leave(f"no record after it holds the cycle's "

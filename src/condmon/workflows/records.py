@@ -117,6 +117,10 @@ class Cycle:
     """
 
     records: tuple[RecordLike, ...]
+    #: The records already read (with their record settings), when the grouping
+    #: read them: not read twice. Not part of the test's identity.
+    frames: tuple[pd.DataFrame | Columns, ...] = dataclasses.field(
+        default=(), compare=False, repr=False)
 
     @property
     def source(self) -> str:
@@ -263,7 +267,14 @@ class EstimateOptions:
         if self.window is not None and len(cycle.records) > 1:
             raise DataError(f"{cycle.source}: --window applies to one record; a test of "
                             "several records is estimated over their windows")
-        parsed = [self.parse(r, test_date) for r in cycle.records]
+        if len(cycle.frames) == len(cycle.records):   # read by the grouping: keyed as files
+            parsed = [(df, record_key(df, r if isinstance(r, (str, Path)) else None, test_date,
+                                      self.metadata),
+                       str(r) if isinstance(r, (str, Path)) else str(df.attrs.get("source",
+                                                                                  "record")))
+                      for r, df in zip(cycle.records, cycle.frames)]
+        else:
+            parsed = [self.parse(r, test_date) for r in cycle.records]
         res = estimate_joint([df for df, _, _ in parsed], self.model or "dc-motor",
                              fit_threshold=self.fit_threshold,
                              sources=[src for _, _, src in parsed], route=self.route,

@@ -142,19 +142,29 @@ def test_a_cycle_is_stored_and_checked_as_one_test(tmp_path: Path,
     check = json.loads(capsys.readouterr().out)
     assert check["status"] == "go" and check["regime"] == "forward + reverse"
     assert check["source"] == " + ".join(pair)
-    # two strokes the same way are no cycle: one line, nothing stored
-    assert main(["check", files[0], files[2], "--unit", "A", "--db", db]) == 2
-    err = capsys.readouterr().err.strip()
-    assert "holds forward only; a test of hydraulic-rotary-actuator is one cycle" in err
-    assert len(err.splitlines()) == 1 and "nothing was stored" in err
+    # two strokes the same way are no cycle, three records more than one, a
+    # stroke alone is no cycle: one line each, nothing stored
+    for records, said in (([files[0], files[2]], "these records make no cycle and leave"),
+                          (files[4:7], "these records make one test of 2 of them and leave"),
+                          ([files[8]], "holds forward only; a test of hydraulic-rotary-"
+                                       "actuator is one cycle")):
+        assert main(["check", *records, "--unit", "A", "--db", db]) == 2
+        err = capsys.readouterr().err.strip()
+        assert said in err and len(err.splitlines()) == 1 and "nothing was stored" in err
+    # the same cycle given the other way round is the same test
+    assert main(["check", files[3], files[2], "--unit", "A", "--db", db]) == 2
+    assert "already in the history of 'A'" in capsys.readouterr().err
     # a lone stroke is left out, and said
     assert main(["baseline", "add", files[8], "--unit", "A", "--db", db]) == 1   # none added
     assert "left out (forward only)" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("cycle, message", [
-    ('["forward", "sideways"]', r"cycle: 'sideways' is not a declared regime; allowed: "
-                                r"forward, reverse, holding"),
+    ('["forward", "sideways"]', r"cycle: 'sideways' is not a declared regime the "
+                                r"estimation uses; allowed: forward, reverse$"),
+    ('["forward", "holding"]', r"'holding' is not a declared regime the estimation uses "
+                               r"\(use = false"),
+    ('[]', r"cycle must name two regimes or more"),
     ('["forward"]', r"cycle must name two regimes or more"),
     ('["forward", "forward"]', r"cycle must name two regimes or more"),
     ('"forward"', r"cycle must be a list of names"),
@@ -178,3 +188,39 @@ def test_peer_breakpoints_sit_where_a_healthy_peer_is_flagged_at_alpha() -> None
     # Šidák over 5 parameters: each at 1 - 0.99^(1/5), two-sided
     z5, _ = peer_sigmas(0.01, 5)
     assert 2 * (1 - NormalDist().cdf(z5)) == pytest.approx(1 - 0.99 ** 0.2)
+
+
+def test_two_units_gauges_may_differ_by_both_their_accuracies(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Healthy units A and B, the same friction, their PG_1 gauges 35 counts (44 kPa,
+    within the ±51.7 kPa of ±0.25 % of 20.684 MPa) low and high: each unit's
+    gauges may move its load torque by 6.0 N m (both gauges at their bound);
+    their load torques differ by 7.2 N m, beyond one unit's 6.0 but inside what
+    two units' gauges allow together (6.0 × √2 = 8.5 N m). B against A is no
+    fault."""
+    def cycles(unit: str, offset: int, n: int, seed: int) -> list[str]:
+        folder = tmp_path / unit
+        folder.mkdir()
+        out = []
+        for i in range(n):
+            for k, speed in enumerate((1.0, -1.0)):
+                df = stroke(speed, seed=seed + 2 * i + k, friction=FRICTION)
+                df["PG_1"] += offset
+                path = folder / f"Base_000_{2 * i + k}_s.txt"
+                df.to_csv(path, sep="\t", index=False)
+                out.append(str(path))
+        return out
+
+    db = str(tmp_path / "h.db")
+    assert main(["baseline", "add", *cycles("A", -35, 4, 0), "--unit", "A", "--db", db,
+                 "--model", MODEL]) == 0
+    capsys.readouterr()
+    pair = cycles("B", 35, 1, 100)
+    assert main(["check", *pair, "--unit", "B", "--against", "A", "--model", MODEL,
+                 "--db", db, "--dry-run", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    # A reads Tl 2 - 3.62 N m, B 2 + 3.62 N m
+    a_tl = 2.0 - 35 * PRESSURE_SCALE * DM
+    moved = doc["percent_change"]["Tl@forward + reverse"] / 100.0 * abs(a_tl)
+    assert moved == pytest.approx(2 * 35 * PRESSURE_SCALE * DM, rel=0.1)
+    assert doc["status"] == "go", doc["summary"]

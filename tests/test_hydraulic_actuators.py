@@ -88,8 +88,9 @@ def test_every_record_estimates_with_the_declaration_alone(
         assert [w["regime"] for w in doc["windows"]][-1] == "holding"
 
 
-def _judged(healthy: Counter[str], docs: list[dict]) -> None:  # type: ignore[type-arg]
-    """Known truth: Act_1 is healthy, Act_4 leaks past its seals."""
+def _judged(healthy: Counter[str], docs: list[dict], share: float) -> None:  # type: ignore[type-arg]
+    """Known truth: Act_1 is healthy, Act_4 leaks past its seals: at least
+    ``share`` of its cycles flagged."""
     n = sum(healthy.values())
     assert healthy["no-go"] <= 0.02 * n and healthy["advisory"] <= 0.1 * n, healthy
     assert all(d["regime"] == "forward + reverse" for d in docs)
@@ -97,7 +98,7 @@ def _judged(healthy: Counter[str], docs: list[dict]) -> None:  # type: ignore[ty
     # spread (10 %) at the stated false-alarm probability, once the gauges' offsets
     # cancel between the two strokes
     flagged = [d for d in docs if d["status"] in ("advisory", "no-go")]
-    assert len(flagged) >= 0.9 * len(docs), [d["percent_change"] for d in docs]
+    assert len(flagged) >= share * len(docs), [d["percent_change"] for d in docs]
     first = 0
     for d in flagged:
         named = [f for c in d["candidates"] for f in c["faults"]]
@@ -109,8 +110,10 @@ def _judged(healthy: Counter[str], docs: list[dict]) -> None:  # type: ignore[ty
 
 def test_healthy_records_go_and_the_seal_defect_is_found(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # a sample of 9 cycles against half the session's baseline: most flagged (the
+    # acceptance's 90 % of every cycle is the slow study's)
     healthy, _, docs = _flow(tmp_path, capsys, step=6, part=2)
-    _judged(healthy, docs)
+    _judged(healthy, docs, 0.75)
 
 
 @pytest.mark.slow
@@ -118,7 +121,7 @@ def test_acceptance_every_record(tmp_path: Path, capsys: pytest.CaptureFixture[s
     """Every record: Act_1's other half against its baseline, every Act_4 record
     against Act_1 (benchmarks/bench_routine.py prints the same figures)."""
     healthy, _, docs = _flow(tmp_path, capsys, step=1)
-    _judged(healthy, docs)
+    _judged(healthy, docs, 0.9)
 
 
 def test_a_record_cut_to_its_hold_is_not_identifiable(tmp_path: Path,

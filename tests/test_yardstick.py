@@ -173,3 +173,27 @@ def test_a_spread_stated_of_the_logarithm_reaches_the_same_rise(tmp_path: Path) 
                  "[between_units]\nvib = { ln = 25.0 }\n")
     with pytest.raises(ConfigError, match=r"\[between_units\] vib must be a spread"):
         load_monitor_config(f)
+
+
+@pytest.mark.parametrize("entry, message", [
+    ("Tcc = 10.0", r"breakpoints or spreads name unknown"),
+    ('vib1 = "25 %"', r"\[between_units\] vib1 must be a spread > 0 \[% of the mean\] or "
+                      r"\{ log = s \}"),
+    ("vib1 = { log = -25.0 }", r"vib1 must be .* got -25.0 \[% of ln x\]"),
+    ("vib1 = { ln = 25.0 }", r"vib1 must be .* got \{'ln': 25.0\}"),
+])
+def test_a_bad_spread_between_units_is_refused_naming_it(tmp_path: Path, entry: str,
+                                                        message: str) -> None:
+    """A misspelt name would leave its parameter judged without the spread."""
+    from condmon.models.registry import get_model
+    from condmon.monitor.generic import machine_monitor
+
+    for f in EXAMPLE.glob("*.toml"):
+        text = f.read_text()
+        if f.name == "rotary-actuator-monitor.toml":
+            text = text.replace("Tc = 10.0\n", f"Tc = 10.0\n{entry}\n")
+            if entry.startswith("vib1"):
+                text = text.replace("vib1 = { log = 25.0 }\n", "", 1)
+        (tmp_path / f.name).write_text(text)
+    with pytest.raises(ConfigError, match=message):
+        machine_monitor(get_model(str(tmp_path / "rotary-actuator.toml")))

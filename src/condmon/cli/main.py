@@ -135,17 +135,22 @@ def estimate_cmd(
         return
     for part in res.regimes:
         _print_estimate(part, record, res.systematic)
-    if res.features:
-        table = Table(title=escape(f"{record} — signal features"))
-        for col in ("feature", "value", "std error", "unit"):
-            table.add_column(col, justify="left" if col in ("feature", "unit") else "right")
-        for k, (v, se) in res.features.items():
+    for title, values in (("signal features", res.features),
+                          ("operating conditions", res.conditions)):
+        if not values:
+            continue
+        table = Table(title=escape(f"{record} — {title}"))
+        for col in ("name", "value", "std error", "unit"):
+            table.add_column(col, justify="left" if col in ("name", "unit") else "right")
+        for k, (v, se) in values.items():
             table.add_row(escape(k), fmt(v), fmt(se), escape(res.unit_of(k)))
         out.print(table)
     if res.systematic:
-        out.print("systematic: how far the sensors could move a value by drifting within "
-                  "their stated accuracy (each reading offset by its accuracy, root-sum-square "
-                  "over the sensors), beside the standard error from the record's noise",
+        out.print("systematic: how far the sensors could move a value by erring within "
+                  "their stated accuracy (each reading moved by it as an offset, and as a span "
+                  "error reaching it at the largest reading; the larger, root-sum-square over "
+                  "the sensors; records estimated together take the same error), beside the "
+                  "standard error from the records' noise",
                   highlight=False, markup=False, soft_wrap=True)
 
 

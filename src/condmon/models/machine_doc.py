@@ -133,14 +133,17 @@ def machine_from_doc(plant: PlantModel, doc: Mapping[str, Any],
         raise ConfigError(f"{src}[estimation].max_residual_correlation must be in (0, 1], "
                           f"got {corr!r}")
     cycle = _names(est.get("cycle", []), f"{src}[estimation].cycle")
-    declared = [r.name for r in files["regimes"].regimes]
-    if cycle and (len(cycle) < 2 or len(set(cycle)) != len(cycle)):
+    declared = [r.name for r in files["regimes"].regimes if r.use]
+    if "cycle" in est and (len(cycle) < 2 or len(set(cycle)) != len(cycle)):
         raise ConfigError(f"{src}[estimation].cycle must name two regimes or more, each "
                           f"once, got {list(cycle)!r}")
     for k in cycle:
         if k not in declared:
-            raise ConfigError(f"{src}[estimation].cycle: {k!r} is not a declared regime; "
-                              f"allowed: {', '.join(declared) or 'none ([regimes] is empty)'}")
+            unused = " (use = false: its windows are never estimated)" if k in [
+                r.name for r in files["regimes"].regimes] else ""
+            raise ConfigError(f"{src}[estimation].cycle: {k!r} is not a declared regime the "
+                              f"estimation uses{unused}; allowed: "
+                              f"{', '.join(declared) or 'none ([regimes] is empty)'}")
     spec = EstimationSpec(
         unknowns, report, derived, str(route), order,
         _names(est.get("excitation", []), f"{src}[estimation].excitation"),

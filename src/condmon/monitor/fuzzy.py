@@ -25,6 +25,7 @@ built from scikit-fuzzy membership functions.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -170,16 +171,10 @@ def load_monitor_config(path: str | Path | None = None, k: float | None = None) 
                            "outlier_se, spread_ratio, trend_alpha, outlier_alpha")
         checks = BaselineChecks(**{key: float(v) for key, v in table.items()})
         stated = dict(raw.get("between_units", {}))
-        logs = frozenset(str(p) for p, v in stated.items() if isinstance(v, dict))
-        for p in logs:
-            if set(stated[p]) != {"log"}:
-                raise ConfigError(f"{src}: [between_units] {p} must be a spread [% of the "
-                                  f"mean] or {{ log = spread [% of ln] }}, got {stated[p]!r}")
-        between = {str(p): float(v["log"] if isinstance(v, dict) else v)
-                   for p, v in stated.items()}
     except (KeyError, TypeError, ValueError) as err:
         raise ConfigError(f"{src}: expected [breakpoints] P = {{ r1 = .., r2 = .. }}, "
                           f"k = number and an optional [baseline] table ({err})") from None
+    between, logs = _between_units(stated, src)
     stats = load_statistics(raw.get("statistics", {}), src)
     if not all(np.isfinite(v) and v > 0 for v in (checks.outlier_z, checks.outlier_se,
                                                    checks.spread_ratio)):
@@ -190,11 +185,35 @@ def load_monitor_config(path: str | Path | None = None, k: float | None = None) 
                               f"got r1={r1[p]}, r2={r2[p]}")
     if kk < 0:
         raise ConfigError(f"{src}: k must be >= 0, got {kk}")
-    bad = [p for p, v in between.items() if not (np.isfinite(v) and v > 0)]
-    if bad:
-        raise ConfigError(f"{src}: [between_units] {bad[0]} must be a spread > 0 [% of the "
-                          f"mean], got {between[bad[0]]!r}")
     return MonitorConfig(r1, r2, kk, src, checks, stats, insist, between, between_log=logs)
+
+
+def _between_units(stated: dict[str, Any], src: str) -> tuple[dict[str, float], frozenset[str]]:
+    """``[between_units]``: each a spread > 0 in % of the mean, or ``{ log = s }``
+    (one standard deviation of the logarithm, in %); the spreads and the names
+    stated of the logarithm.
+
+    Raises
+    ------
+    ConfigError
+        Naming the file, the entry and the forms allowed.
+    """
+    out, logs = {}, set()
+    for p, v in stated.items():
+        form = "a spread > 0 [% of the mean] or { log = s } [% of ln x], s > 0"
+        if isinstance(v, dict):
+            if set(v) != {"log"}:
+                raise ConfigError(f"{src}: [between_units] {p} must be {form}, got {v!r}")
+            v, unit = v["log"], "% of ln x"
+            logs.add(str(p))
+        else:
+            unit = "% of the mean"
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (
+                math.isfinite(v) and v > 0):
+            raise ConfigError(f"{src}: [between_units] {p} must be {form}, got {v!r}"
+                              + (f" [{unit}]" if isinstance(v, (int, float)) else ""))
+        out[str(p)] = float(v)
+    return out, frozenset(logs)
 
 
 def load_statistics(table: Any, source: str) -> StatisticsConfig:

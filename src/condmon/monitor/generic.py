@@ -171,7 +171,9 @@ def machine_monitor(machine: Machine, baseline: Baseline | None = None) -> Monit
     from condmon.monitor.fuzzy import load_monitor_config
 
     if machine.breakpoints is not None:
-        return load_monitor_config(machine.breakpoints)
+        declared = load_monitor_config(machine.breakpoints)
+        declared.check_parameters(machine.monitored, machine.name)   # a misspelt name
+        return declared
     cfg = load_generic_settings()
     if machine.indicators is not None and baseline is not None:
         # an imported indicator: detected past r1, no-go at its end of life
@@ -403,8 +405,8 @@ def peer_spread(reference: Baseline, config: MonitorConfig
         if tau is None:
             stds.append(math.sqrt(2.0) * std)
             notes.append(f"{name}: no spread between units is stated ([between_units] of "
-                         f"{config.source}): a difference between two healthy units is read "
-                         "as a change")
+                         f"{config.source}): a difference is judged against the two units' "
+                         "scatter and their sensors' stated accuracy alone")
             continue
         stds.append(math.hypot(math.sqrt(2.0) * std, tau / 100.0 * abs(mean)))
     return dataclasses.replace(reference, std=tuple(stds)), tuple(notes)

@@ -13,6 +13,8 @@ own, its checks are evaluated against that too.
 from __future__ import annotations
 
 import dataclasses
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any
@@ -45,6 +47,7 @@ from condmon.workflows.monitoring import (
     estimate_judged, evaluate, filed_elsewhere, governed, monitoring_of, no_baseline_yet,
     restricted, save_current_baseline,
 )
+from condmon.workflows.cycles import one_cycle
 from condmon.workflows.records import Cycle, EstimateOptions, RecordLike
 from condmon.workflows.unit_model import session_timed, unit_options
 
@@ -351,6 +354,8 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike | Cycle,
                 for k, v in (("alpha", alpha), ("drift_alpha", drift_alpha)) if v is not None}
     opts = unit_options(store, unit, options or EstimateOptions())
     machine = get_model(opts.model or "dc-motor")
+    if isinstance(record, Cycle) and machine.spec.cycle and not record.frames:
+        record = one_cycle(opts, record)
     ref = reference_for(store, unit, machine, against, group)
     if ref is None:
         store.unit_id(unit)  # a unit not in the history: the close names, not "no tests yet"
@@ -394,7 +399,8 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike | Cycle,
     if cond is not None and cond.not_judged is not None:
         return _not_judged(store, unit, res, key, cond, baseline, ids, ref, latest, flags, cfg,
                            against_label, dry_run, machine)
-    row, diag = evaluate(res, judged, cfg, rb, machine.monitored)
+    judged_res = _with_peer_systematic(store, res, ids, ref)
+    row, diag = evaluate(judged_res, judged, cfg, rb, machine.monitored)
     stats = (unit_statistics(store, unit, ids, baseline, res,
                              dataclasses.replace(cfg.statistics, **override), cond)
              if ref is None else None)
@@ -402,7 +408,7 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike | Cycle,
         diag = governed(diag, stats, row, judged)
     missing = missing_regimes(list(res.stored_values()), baseline)
     note = no_baseline_yet(missing, baseline) if missing else None
-    how = (*widened, *judgement_notes(res, judged, cfg),
+    how = (*widened, *judgement_notes(judged_res, judged, cfg),
            *(cond.notes if cond is not None else ()),
            *(f"{p}: judged against its prediction at {', '.join(c)}"
              for p, c in (cond.fitted.items() if cond is not None else ())))
@@ -420,6 +426,24 @@ def check_test(store: HistoryStore, unit: str, record: RecordLike | Cycle,
                        {p: {"high": v["high"], "low": v["low"]} for p, v in row.items()},
                        diag, flags, key.test_date, filed_elsewhere(store, unit, key), note,
                        against_label, stats, _forecast(store, unit, dry_run), None, how)
+
+
+def _with_peer_systematic(store: HistoryStore, res: EstimateResult, ids: Sequence[int],
+                          ref: Reference | None) -> EstimateResult:
+    """``res`` as a check against one other unit is judged: its systematic part
+    with the peer's (the median over the peer's baseline tests; the check's own
+    where the peer has none stored) in root-sum-square. Two units read through
+    two sets of sensors, each within its stated accuracy: their difference may
+    hold both drifts. A group's measured spread between units holds its
+    members' already; against the unit's own baseline the sensors are the
+    same ones."""
+    if ref is None or ref.group is not None or not res.systematic:
+        return res
+    from condmon.monitor.generic import typical_systematic
+
+    peer = typical_systematic(store.systematic_of(list(ids)).add_suffix("_sys"))
+    return dataclasses.replace(res, systematic={
+        k: math.hypot(v, peer.get(k, v)) for k, v in res.systematic.items()})
 
 
 def _bid(store: HistoryStore, unit: str, baseline: Baseline, ids: list[int],
@@ -466,8 +490,15 @@ def judgement_notes(res: EstimateResult, baseline: Baseline, monitor: MonitorCon
     keys = [k for k in baseline.parameters if k in res.stored_values()]
     if not keys:
         return ()
-    return judged_config(monitor, restricted(baseline, keys),
-                         {k: res.systematic[k] for k in keys if k in res.systematic})[1]
+    cfg, raised = judged_config(monitor, restricted(baseline, keys),
+                                {k: res.systematic[k] for k in keys if k in res.systematic})
+    if monitor.sigmas is None:
+        return raised
+    # against peers: where the breakpoints lie, and why (peer_monitor)
+    return (*raised, "breakpoints against the peers: " + ", ".join(
+        f"{k} {cfg.r1[k]:.3g}/{cfg.r2[k]:.3g} %" for k in keys) + f" ({monitor.sigmas[0]:.3g} "
+        f"and {monitor.sigmas[1]:.3g} spreads, at α {monitor.statistics.alpha:g} over "
+        f"{len(baseline.parameters)} values, plus the sensors' accuracy)")
 
 
 def unit_statistics(store: HistoryStore, unit: str, ids: list[int], baseline: Baseline,

@@ -16,6 +16,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from condmon.errors import DataError
 from condmon.identify.estimate import used_regimes
 from condmon.models.registry import get_model
 from condmon.io.columns import Columns
@@ -25,7 +26,7 @@ from condmon.workflows.records import Cycle, EstimateOptions, RecordLike
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["cycles_of"]
+__all__ = ["cycles_of", "one_cycle"]
 
 
 def _name(rec: RecordLike, i: int) -> str:
@@ -99,3 +100,28 @@ def cycles_of(opts: EstimateOptions, records: Sequence[RecordLike]
         leave(f"no record after it holds the cycle's "
               f"{', '.join(r for r in want if r not in covered)}")
     return tests, left
+
+
+def one_cycle(opts: EstimateOptions, cycle: Cycle) -> Cycle:
+    """``cycle``'s records as the one test they must make (``check A B``), in
+    time order, or an error saying what they make instead.
+
+    Raises
+    ------
+    DataError
+        Records that make no cycle, or more than one test, or leave one out
+        (naming them and the cycle; nothing is stored).
+    """
+    tests, left = cycles_of(opts, cycle.records)
+    if len(tests) == 1 and not left and isinstance(tests[0], Cycle) \
+            and len(tests[0].records) == len(cycle.records):
+        return tests[0]
+    machine = get_model(opts.model or "dc-motor")
+    made = ("no cycle" if not tests else f"{len(tests)} tests" if len(tests) > 1 else
+             f"one test of {len(tests[0].records) if isinstance(tests[0], Cycle) else 1} "
+             "of them")
+    out = f" and leave {', '.join(n for n, _ in left)} out" if left else ""
+    raise DataError(f"{cycle.source}: these records make {made}{out}; a test of "
+                    f"{machine.name} is one cycle ({', '.join(machine.spec.cycle)}: "
+                    "[estimation] cycle): check one cycle's records together; nothing was "
+                    "stored")

@@ -131,16 +131,19 @@ class Cycle:
 
 
 def cycle_key(keys: Sequence[RecordKey]) -> RecordKey:
-    """How a test of several records is known: its records' hashes in order,
-    hashed again; the first record's date and hours (no fingerprint: a
-    rounded copy is told by each record's own, not by the test's)."""
+    """How a test of several records is known: its records' hashes, sorted (the
+    same records in another order are the same test) and hashed again; the
+    earliest record's date and its hours (no fingerprint: a rounded copy is
+    told by each record's own, not by the test's)."""
     import hashlib
 
-    def joined(parts: Sequence[str | None]) -> str:
-        return hashlib.sha256("+".join(p or "" for p in parts).encode()).hexdigest()
+    def joined(parts: Sequence[str]) -> str:
+        return hashlib.sha256("+".join(sorted(parts)).encode()).hexdigest()
 
+    dated = sorted((k.test_date, i) for i, k in enumerate(keys) if k.test_date is not None)
+    first = keys[dated[0][1]] if dated else keys[0]
     return RecordKey(joined([k.content for k in keys]), joined([k.file for k in keys]),
-                     keys[0].test_date, None, keys[0].hours)
+                     first.test_date, None, first.hours)
 
 
 @dataclass(frozen=True)

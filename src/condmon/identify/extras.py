@@ -140,7 +140,9 @@ def with_features(res: EstimateResult, rec: Record | Sequence[Record], machine: 
             raise DataError(f"{rec.source}: condition {c.name!r} reads metadata field "
                             f"{c.metadata!r} = {value!r}, which is not a finite number")
         conditions[c.name] = (number, 0.0)
-    return dataclasses.replace(res, features=est.values, feature_units={**conds.units, **est.units},
+    # a condition's unit beside the features' (what unit_of reads)
+    return dataclasses.replace(res, features=est.values,
+                               feature_units={**conds.units, **est.units},
                                conditions=conditions, notes=tuple(notes))
 
 

@@ -222,11 +222,7 @@ def estimate(record: pd.DataFrame | Columns, model: str | Machine = "dc-motor", 
     with recognised_records(machine):
         df = as_columns(_record_frame(record, machine, columns, settings, source))
         exc = _excitation_columns(df, machine, excitation) if chosen == "linear" else ()
-        rec = validate_record(df, (*_required_columns(machine, chosen), *exc),
-                              input_name=machine.linear().input if chosen == "linear" else None,
-                              inputs=machine.plant.input_names,
-                              min_samples=10 * (len(machine.spec.unknowns) + 1), source=source,
-                              optional=_optional_columns(machine))
+        rec = _validated(df, machine, chosen, source, exc)
     consts = dict(df.attrs.get("constants", {}) or {})
     _check_constants(machine, given, strict=tuple(given))
     consts.update(given)
@@ -250,6 +246,18 @@ def estimate(record: pd.DataFrame | Columns, model: str | Machine = "dc-motor", 
         return res
     return dataclasses.replace(res, systematic=systematic_part(
         res, [rec], accuracy, lambda rs: run(rs[0])))
+
+
+def _validated(df: pd.DataFrame | Columns, machine: Machine, route: str, source: str | None,
+               excitation: Sequence[str] = ()) -> Record:
+    """``df`` validated as every estimate of ``machine`` by ``route`` validates a
+    record: the route's columns and ``excitation`` required, the optional ones
+    kept, ten samples per unknown and one."""
+    return validate_record(df, (*_required_columns(machine, route), *excitation),
+                           input_name=machine.linear().input if route == "linear" else None,
+                           inputs=machine.plant.input_names,
+                           min_samples=10 * (len(machine.spec.unknowns) + 1), source=source,
+                           optional=_optional_columns(machine))
 
 
 def _optional_columns(machine: Machine) -> tuple[str, ...]:
@@ -317,10 +325,7 @@ def estimate_joint(records: Sequence[pd.DataFrame | Columns], model: str | Machi
     for df, name in zip(records, names):
         with recognised_records(machine):
             frame = _record_frame(df, machine, columns, settings, name)
-            recs.append(validate_record(frame, _required_columns(machine, chosen),
-                                        inputs=machine.plant.input_names,
-                                        min_samples=10 * (len(machine.spec.unknowns) + 1),
-                                        source=name, optional=_optional_columns(machine)))
+            recs.append(_validated(frame, machine, chosen, name))
         consts.update(dict(frame.attrs.get("constants", {}) or {}))
     consts.update(given)
     consts.update(fixed)
@@ -361,10 +366,7 @@ def used_regimes(record: pd.DataFrame | Columns, model: str | Machine, *,
     chosen = choose_route(machine, route)
     with recognised_records(machine):
         df = as_columns(_record_frame(record, machine, None, None, source))
-        rec = validate_record(df, _required_columns(machine, chosen),
-                              inputs=machine.plant.input_names,
-                              min_samples=10 * (len(machine.spec.unknowns) + 1), source=source,
-                              optional=_optional_columns(machine))
+        rec = _validated(df, machine, chosen, source)
     try:
         windows = plan(rec, machine, chosen, metadata, window).windows
     except CondmonError as err:

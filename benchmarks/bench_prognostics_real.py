@@ -24,7 +24,10 @@ from the cycles up to it only, by:
 - **condmon, recalibrated on the other cells**: the same forecast read at
   the levels where the other cells' true lives fell in their own forecasts
   (leave-one-out: each cell's peers are the other cells; Kuleshov, Fenner
-  and Ermon 2018): what the fleet's failed units change.
+  and Ermon 2018), with the other cells' whole lives as its prior: their
+  rates' wander pooled with its own, their mean rates weighed against its
+  own (:func:`condmon.forecast.path.with_fleet`): what the fleet's failed
+  units change.
 - **condmon, trend method**: the line or exponential chosen by evidence
   (:func:`condmon.forecast.series.forecast_series`), what estimated
   parameters are forecast with.
@@ -69,7 +72,9 @@ from _common import table, write_json  # noqa: E402
 
 from condmon.errors import CondmonError  # noqa: E402
 from condmon.forecast.measured import forecast_path  # noqa: E402
-from condmon.forecast.calibration import Calibration, calibrate, path_pits  # noqa: E402
+from condmon.forecast.calibration import (  # noqa: E402
+    Calibration, calibrate, life_of, path_pits)
+from condmon.forecast.path import Life  # noqa: E402
 from condmon.forecast.series import forecast_series  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "external" / "batteries" / "nasa"
@@ -137,14 +142,22 @@ def trend_row(cycle: np.ndarray, capacity: np.ndarray, k: int, level: float
     return f.remaining
 
 
-def peer_pits(cycle: np.ndarray, capacity: np.ndarray, level: float, draw_set: int = 0
-              ) -> list[float]:
-    """Where a failed peer's true remaining life fell in condmon's forecasts
-    along its series, as ``condmon forecast`` reads its peers
-    (:func:`condmon.forecast.calibration.path_pits`)."""
+def _to_end(cycle: np.ndarray, capacity: np.ndarray, level: float
+            ) -> tuple[np.ndarray, np.ndarray, float]:
+    """A failed peer's change series up to its end of life, and that life's change."""
     end = int(np.searchsorted(cycle, end_of_life(cycle, capacity, level)))
     x, change, _, threshold = _change(cycle, capacity, end, level)
-    return path_pits(x, change, threshold, seed=SEED_STRIDE * draw_set)
+    return x, change, threshold
+
+
+def peer_pits(cycle: np.ndarray, capacity: np.ndarray, level: float, draw_set: int = 0,
+              lives: tuple[Life, ...] = ()) -> list[float]:
+    """Where a failed peer's true remaining life fell in condmon's forecasts
+    along its series, as ``condmon forecast`` reads its peers
+    (:func:`condmon.forecast.calibration.path_pits`), their rate's wander
+    with the other peers' ``lives`` as each forecast's prior."""
+    x, change, threshold = _to_end(cycle, capacity, level)
+    return path_pits(x, change, threshold, seed=SEED_STRIDE * draw_set, lives=lives)
 
 
 def forecast_points(cells: dict[str, tuple[np.ndarray, np.ndarray]], levels: dict[str, float],
@@ -168,15 +181,24 @@ def forecast_points(cells: dict[str, tuple[np.ndarray, np.ndarray]], levels: dic
 
 def recalibrations(cells: dict[str, tuple[np.ndarray, np.ndarray]], levels: dict[str, float],
                    draw_set: int = 0, say: bool = False) -> dict[str, Calibration | None]:
-    """Each cell's recalibration on the others (leave-one-out)."""
-    pits = {}
-    for c in cells:
+    """Each cell's recalibration on the others (leave-one-out), as ``condmon
+    forecast`` makes it (:meth:`condmon.store.forecasts.FleetHistory.calibrations`):
+    each peer's forecasts take the other peers' whole lives as their prior,
+    and so does the cell's."""
+    lives = {c: life_of(*_to_end(*cells[c], levels[c])) for c in cells}
+    out = {}
+    for cell in cells:
         if say:
-            print(f"  {c}: forecasts along its series for the others' recalibration ...",
+            print(f"  {cell}: forecasts along the other cells' series for its recalibration ...",
                   file=sys.stderr, flush=True)
-        pits[c] = peer_pits(*cells[c], levels[c], draw_set)
-    return {cell: calibrate([p for c in cells if c != cell for p in pits[c]], len(cells) - 1)
-            for cell in cells}
+        pits = []
+        for c in cells:
+            if c != cell:
+                pits += peer_pits(*cells[c], levels[c], draw_set, tuple(
+                    w for p, w in lives.items() if w is not None and p not in (c, cell)))
+        out[cell] = calibrate(pits, len(cells) - 1,
+                              [w for p, w in lives.items() if w is not None and p != cell])
+    return out
 
 
 def path_scores(cells: dict[str, tuple[np.ndarray, np.ndarray]], levels: dict[str, float],

@@ -4,14 +4,15 @@ by the fleet's failed units."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from condmon.forecast.calibration import MIN_PEERS, MIN_PITS, calibrate, path_pits
+from condmon.forecast.calibration import MIN_PEERS, MIN_PITS, calibrate, life_of, path_pits
 from condmon.forecast.measured import coverage_note, forecast_by, forecast_path
-from condmon.forecast.path import PathFit, _draws, fit_path, path_remaining
+from condmon.forecast.path import PathFit, _draws, fit_path, path_remaining, with_fleet
 from condmon.errors import DataError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -124,6 +125,80 @@ def test_the_fleet_s_failed_units_recalibrate_the_levels() -> None:
     assert path_pits(x, peer, 1.0) == []   # never reaches its end: no life to learn
 
 
+def test_failed_peers_whole_lives_pool_the_rate_s_wander() -> None:
+    """Known truth: three peers fading steadily at −0.3 %/cycle with fading
+    deviations and no wander, each to −30 % at cycle 100; a unit on the same
+    line seen to cycle 30. Its own quarters give the walk three changes'
+    worth of evidence; the peers' whole lives add theirs, weighted by
+    degrees of freedom. Pooled, the interval narrows and still holds the
+    true 70 cycles left."""
+    rng = np.random.default_rng(3)
+
+    def fade(n: int) -> np.ndarray:
+        e = np.zeros(n)
+        for k in range(1, n):
+            e[k] = 0.6 * e[k - 1] + rng.normal(0.0, 0.3)
+        return -0.3 * np.arange(1.0, n + 1) + e
+
+    x = np.arange(1.0, 121.0)
+    lives = [life_of(x, fade(120), -30.0) for _ in range(3)]
+    assert all(w is not None and w.walk[2] == 3 for w in lives)
+    own = fit_path(x[:30], fade(30))
+    pooled = with_fleet(own, [w for w in lives if w is not None])
+    raws = [own.walk_moments[0]] + [w.walk[0] for w in lives if w is not None]
+    assert pooled.walk_moments[2] == 12
+    assert pooled.walk_moments[0] == pytest.approx(np.mean(raws))
+    assert with_fleet(own, []) is own
+    c = calibrate(np.linspace(0.025, 0.975, 40), MIN_PEERS, [w for w in lives if w is not None])
+    assert c is not None and len(c.lives) == 3
+    y = fade(30)
+    plain = forecast_path(x[:30], y, np.zeros(30), 0.5, -30.0, seed=1,
+                          calibration=dataclasses.replace(c, lives=()))
+    lent = forecast_path(x[:30], y, np.zeros(30), 0.5, -30.0, seed=1, calibration=c)
+    assert plain.remaining is not None and lent.remaining is not None
+    assert lent.remaining[2] - lent.remaining[1] < plain.remaining[2] - plain.remaining[1]
+    assert lent.remaining[1] <= 70.0 <= lent.remaining[2], lent.remaining
+    assert any("3 of their whole lives its prior" in n for n in lent.notes), lent.notes
+
+
+def test_failed_peers_mean_rates_are_the_prior_of_a_poorly_told_rate() -> None:
+    """Known truth: peers fading at −0.25, −0.3 and −0.35 %/cycle; 20 units
+    fading at −0.3 %/cycle, each seen for 15 cycles under recoveries of
+    0.5 %, too short to tell its own rate. With the peers' lives as the
+    prior, the median remaining life is nearer the truth (85 cycles); and a
+    unit whose own rate is well told, −0.6 %/cycle over 60 cycles, keeps it
+    against the same peers (its end at −60 %: 40 cycles left, within 20 %)."""
+    rng = np.random.default_rng(8)
+
+    def fade(n: int, rate: float, sd: float) -> np.ndarray:
+        e = np.zeros(n)
+        for k in range(1, n):
+            e[k] = 0.7 * e[k - 1] + rng.normal(0.0, sd)
+        return rate * np.arange(1.0, n + 1) + e
+
+    x = np.arange(1.0, 161.0)
+    lives = [life_of(x, fade(160, r, 0.2), -30.0) for r in (-0.25, -0.3, -0.35)]
+    assert all(life is not None for life in lives)
+    c = calibrate(np.linspace(0.025, 0.975, 40), MIN_PEERS,
+                  [life for life in lives if life is not None])
+    assert c is not None and [round(life.rate, 2) for life in c.lives] == [-0.25, -0.3, -0.35]
+    alone, lent = [], []
+    for i in range(20):
+        y = fade(15, -0.3, 0.5)
+        a = forecast_path(x[:15], y, np.zeros(15), 0.5, -30.0, seed=i,
+                          calibration=dataclasses.replace(c, lives=()))
+        b = forecast_path(x[:15], y, np.zeros(15), 0.5, -30.0, seed=i, calibration=c)
+        if a.remaining and b.remaining:   # (a short series may show no steady trend)
+            alone.append(abs(np.log(a.remaining[0] / 85.0)))
+            lent.append(abs(np.log(b.remaining[0] / 85.0)))
+    assert len(lent) >= 15
+    assert np.median(lent) < 0.75 * np.median(alone), (np.median(lent), np.median(alone))
+    y = fade(60, -0.6, 0.2)
+    own = forecast_path(x[:60], y, np.zeros(60), 0.5, -60.0, seed=1, calibration=c)
+    # 40 cycles left at its own rate; the peers' would say 140
+    assert own.remaining is not None and 32.0 <= own.remaining[0] <= 48.0, own.remaining
+
+
 def test_the_chance_within_a_horizon_is_read_on_the_fleet_as_the_interval_is() -> None:
     """Peers whose lives all ended early in their forecasts (PITs 0..0.2): the
     recalibrated median comes early, and the chance of no-go by that median
@@ -158,7 +233,8 @@ def test_imported_peers_recalibrate_a_unit_s_forecast(tmp_path: Path) -> None:
                 f"{k},{v:.5f}\n" for k, v in enumerate(cap, 1)))
             import_table(store, table, DECL, unit=f"C{i}")
         f = forecast_unit(store, "C3").parameters[0].forecast
-        assert any("failed peer(s)" in n for n in f.notes), f.notes
+        assert any("failed peer(s)" in n and "3 of their whole lives" in n
+                   for n in f.notes), f.notes
         assert f.remaining is not None
         truth = (1.9 - 1.4) / 0.006 - 40
         assert f.remaining[1] <= truth <= f.remaining[2]

@@ -23,15 +23,17 @@ to 1.6 times the true remaining life (``benchmarks/bench_prognostics_real.py``).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from condmon.errors import CondmonError
-from condmon.forecast.path import PATH_MIN_TESTS, fit_path, path_remaining
+from condmon.forecast.path import PATH_MIN_TESTS, Life, fit_path, path_remaining, with_fleet
 
-__all__ = ["MIN_PITS", "MIN_PEERS", "PER_PEER", "Calibration", "path_pits", "calibrate"]
+__all__ = ["MIN_PITS", "MIN_PEERS", "PER_PEER", "Calibration", "life_of", "path_pits",
+           "calibrate"]
 
 #: Fewest peer forecasts whose PITs may recalibrate a unit's: the 5 % and
 #: 95 % points of fewer than 19 cannot be told from the extremes. [-]
@@ -64,6 +66,11 @@ class Calibration:
     levels : tuple of float
         Those forecasts' PITs, sorted: the map from a draw's level to the
         fleet's (:meth:`probability`). [-]
+    lives : tuple of Life
+        The whole lives (:func:`life_of`) of the failed peers that count as
+        the unit does: its forecast's prior
+        (:func:`~condmon.forecast.path.with_fleet`), as the other peers'
+        were in the peers' forecasts behind the PITs.
     """
 
     median: float
@@ -72,6 +79,7 @@ class Calibration:
     pits: int
     peers: int
     levels: tuple[float, ...] = ()
+    lives: tuple[Life, ...] = ()
 
     def probability(self, raw: float) -> float:
         """A probability the draws give (the share of them within a horizon)
@@ -93,10 +101,47 @@ class Calibration:
         return (f"recalibrated on {self.pits} forecasts along {self.peers} failed peer(s) "
                 f"(where their true lives fell): the 90 % interval read at the draws' "
                 f"{100 * self.low:.0f} % and {100 * self.high:.0f} % points, the median "
-                f"at {100 * self.median:.0f} %")
+                f"at {100 * self.median:.0f} %" + (
+                    f"; {len(self.lives)} of their whole lives its prior: their rates' "
+                    f"wander pooled with its own" + (
+                        ", their mean rates "
+                        + ", ".join(f"{life.rate:.3g}" for life in self.lives)
+                        + " weighed against its own" if len(self.lives) > 1 else "")
+                    if self.lives else ""))
 
 
-def path_pits(x: ArrayLike, y: ArrayLike, threshold: float, seed: int = 0) -> list[float]:
+def _end(ya: np.ndarray, threshold: float) -> int | None:
+    """The index of the first value past ``threshold`` (a fall when below
+    the first value); None when none is, or too early for a path."""
+    past = np.flatnonzero(ya < threshold) if threshold < ya[0] else np.flatnonzero(ya > threshold)
+    return None if past.size == 0 or past[0] < PATH_MIN_TESTS else int(past[0])
+
+
+def life_of(x: ArrayLike, y: ArrayLike, threshold: float) -> Life | None:
+    """A failed series' whole life, what it lends a unit's forecast: a path
+    fitted to it up to its end of life (None: it never passed ``threshold``).
+
+    Example
+    -------
+    >>> x = np.arange(1.0, 61.0)
+    >>> life = life_of(x, 2.0 - 0.01 * x + 0.004 * np.sin(x), 1.5)
+    >>> life.walk[2], round(life.rate, 3)
+    (3, -0.01)
+    """
+    xa = np.asarray(x, dtype=np.float64)
+    ya = np.asarray(y, dtype=np.float64)
+    end = _end(ya, threshold)
+    if end is None:
+        return None
+    try:
+        fit = fit_path(xa[:end + 1], ya[:end + 1])
+    except CondmonError:
+        return None
+    return Life(fit.walk_moments, fit.coef[1])
+
+
+def path_pits(x: ArrayLike, y: ArrayLike, threshold: float, seed: int = 0,
+              lives: Sequence[Life] = ()) -> list[float]:
     """The PITs of path forecasts made along one failed series.
 
     Parameters
@@ -107,6 +152,9 @@ def path_pits(x: ArrayLike, y: ArrayLike, threshold: float, seed: int = 0) -> li
     threshold : float
         Its end of life, in ``y``'s units (a fall when below the first value).
     seed : int
+    lives : sequence of Life
+        Other failed peers' whole lives, each forecast's prior as they are
+        the unit's (:func:`~condmon.forecast.path.with_fleet`).
 
     Returns
     -------
@@ -126,18 +174,16 @@ def path_pits(x: ArrayLike, y: ArrayLike, threshold: float, seed: int = 0) -> li
     """
     xa = np.asarray(x, dtype=np.float64)
     ya = np.asarray(y, dtype=np.float64)
-    below = threshold < ya[0]
-    past = np.flatnonzero(ya < threshold) if below else np.flatnonzero(ya > threshold)
-    if past.size == 0 or past[0] < PATH_MIN_TESTS:
+    end = _end(ya, threshold)
+    if end is None:
         return []
-    end = int(past[0])
     ks = np.arange(PATH_MIN_TESTS - 1, end)
     if ks.size > PER_PEER:
         ks = ks[np.round(np.linspace(0, ks.size - 1, PER_PEER)).astype(int)]
     out = []
     for k in ks:
         try:
-            fit = fit_path(xa[:k + 1], ya[:k + 1])
+            fit = with_fleet(fit_path(xa[:k + 1], ya[:k + 1]), lives)
         except CondmonError:
             continue
         left, _ = path_remaining(fit, threshold, seed + int(k), draws=_PIT_DRAWS)
@@ -146,7 +192,7 @@ def path_pits(x: ArrayLike, y: ArrayLike, threshold: float, seed: int = 0) -> li
     return out
 
 
-def calibrate(pits: ArrayLike, peers: int) -> Calibration | None:
+def calibrate(pits: ArrayLike, peers: int, lives: Sequence[Life] = ()) -> Calibration | None:
     """The levels to read a forecast's draws at, from its fleet's PITs (None:
     fewer than :data:`MIN_PITS`, or from fewer than :data:`MIN_PEERS` peers).
 
@@ -162,4 +208,5 @@ def calibrate(pits: ArrayLike, peers: int) -> Calibration | None:
         return None
     p = np.sort(np.clip(p, 0.0, 1.0))
     lo, med, hi = (float(v) for v in np.quantile(p, [0.05, 0.5, 0.95]))
-    return Calibration(med, lo, hi, int(p.size), int(peers), tuple(float(v) for v in p))
+    return Calibration(med, lo, hi, int(p.size), int(peers), tuple(float(v) for v in p),
+                       tuple(lives))

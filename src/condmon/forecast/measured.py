@@ -25,7 +25,7 @@ from numpy.typing import ArrayLike
 
 from condmon.errors import DataError
 from condmon.forecast.calibration import MIN_PEERS, Calibration
-from condmon.forecast.path import PATH_MIN_TESTS, Z90, fit_path, path_remaining
+from condmon.forecast.path import PATH_MIN_TESTS, Z90, fit_path, path_remaining, with_fleet
 from condmon.forecast.series import (
     Forecast, Prior, checked_horizon, forecast_series, median_interval,
 )
@@ -117,6 +117,8 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
                 f"{PATH_MIN_TESTS}), forecast as a trend")
         return dataclasses.replace(f, notes=(note, *f.notes))
     fit = fit_path(xa, ya)
+    if calibration is not None:
+        fit = with_fleet(fit, calibration.lives)
     sign = 1.0 if threshold > 0 else -1.0
     slope = fit.coef[1]
     sd = math.sqrt(max(fit.cov[1][1], 0.0))

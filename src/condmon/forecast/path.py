@@ -52,7 +52,9 @@ numpy/scipy do the algebra and the draws.
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -63,7 +65,8 @@ from condmon.errors import DataError
 #: The standard normal's 95 % point: a 90 % interval is ± this many sd. [-]
 Z90 = 1.6448536269514722
 
-__all__ = ["PATH_MIN_TESTS", "PathFit", "fit_path", "path_remaining", "path_band"]
+__all__ = ["PATH_MIN_TESTS", "PathFit", "Life", "fit_path", "with_fleet", "path_remaining",
+           "path_band"]
 
 FloatArray = NDArray[np.float64]
 
@@ -110,6 +113,9 @@ class PathFit:
         ``x`` of the last point, the series' span and its usual spacing. [x]
     n : int
         Points used.
+    fleet : tuple of float
+        Failed peers' mean rates over their lives, the prior of this
+        unit's (:func:`with_fleet`); empty: none. [y per x]
     """
 
     coef: tuple[float, float]
@@ -124,6 +130,7 @@ class PathFit:
     step: float
     n: int
     walk_moments: tuple[float, float, int] = (0.0, 0.0, 0)
+    fleet: tuple[float, ...] = ()
 
     @property
     def summary(self) -> tuple[float, ...]:
@@ -253,6 +260,99 @@ def fit_path(x: ArrayLike, y: ArrayLike) -> PathFit:
                    (raw / step, noise / step, dof))
 
 
+@dataclass(frozen=True)
+class Life:
+    """What a failed peer's whole life lends a unit's path forecast: a path
+    fitted to its series up to its end of life.
+
+    Attributes
+    ----------
+    walk : tuple of (float, float, int)
+        Its :attr:`PathFit.walk_moments`. [1 per x, 1 per x, -]
+    rate : float
+        Its mean rate over that life (:attr:`PathFit.coef`'s second). [y per x]
+    """
+
+    walk: tuple[float, float, int]
+    rate: float
+
+
+def with_fleet(fit: PathFit, lives: Sequence[Life]) -> PathFit:
+    """``fit`` with failed peers' whole lives as its prior: their rates' wander
+    pooled with its own, and their mean rates as the prior of its own.
+
+    This is the hierarchical reading of a model's wear (Gebraeel, 2006: a
+    unit's degradation rate drawn from its fleet's, updated by its own
+    series; particle-filter prognostics set the rate's process noise by
+    hand instead):
+
+    - **The walk.** A series' own blocks give the walk's variance three
+      changes' worth of evidence (:func:`_walk`): a scaled inverse χ² on three
+      degrees of freedom is heavy-tailed, and the interval with it. Each
+      peer's blocks' moments are pooled with the unit's, weighted by their
+      degrees of freedom.
+    - **The rate.** Early in a life a unit's own rate is poorly told (a
+      flat start, a recovery under way); its peers' mean rates over their
+      lives say what a life of this model fades at. The drawn rates are
+      weighed by the peers' predictive distribution (a Student t on n − 1
+      degrees of freedom about their mean, scale their sd times
+      ``sqrt(1 + 1/n)``: the normal model of rates between units with its
+      mean and variance unknown), so a well-told rate of its own stands and a
+      poorly told one is drawn towards the fleet's. Two peers at least.
+
+    Relative changes make both free of each unit's scale; the peers must
+    count the same ``x``.
+
+    Parameters
+    ----------
+    fit : PathFit
+    lives : sequence of Life
+
+    Returns
+    -------
+    PathFit
+        ``fit`` unchanged when no peer is given.
+
+    Example
+    -------
+    >>> x = np.arange(1.0, 41.0)
+    >>> f = fit_path(x, 2.0 - 0.005 * x + 0.002 * np.sin(x))
+    >>> g = with_fleet(f, [Life((0.01, 0.0, 3), -0.004), Life((0.03, 0.0, 3), -0.006)])
+    >>> g.walk_moments[2], g.fleet
+    (9, (-0.004, -0.006))
+    """
+    if not lives:
+        return fit
+    raw, noise, dof = fit.walk_moments
+    r, n, d = raw * dof, noise * dof, dof
+    for life in lives:
+        pr, pn, pd_ = life.walk
+        r, n, d = r + pr * pd_, n + pn * pd_, d + pd_
+    walk = (max(r / d - n / d, 0.0), (r / d, n / d, d)) if d > 0 else (fit.walk, fit.walk_moments)
+    return dataclasses.replace(fit, walk=walk[0], walk_moments=walk[1],
+                               fleet=tuple(float(life.rate) for life in lives))
+
+
+def _fleet_weights(fit: PathFit, rate: FloatArray) -> FloatArray | None:
+    """The peers' predictive density at each drawn rate [per check],
+    normalised over the draws (:func:`with_fleet`); None without two peers
+    whose rates differ.
+
+    Why by hand: a Student t's log density is one line, and the path
+    forecast keeps scipy out of its import."""
+    r = np.asarray(fit.fleet, dtype=np.float64) * fit.step   # per check, as drawn
+    if r.size < 2:
+        return None
+    scale = float(r.std(ddof=1)) * math.sqrt(1.0 + 1.0 / r.size)
+    if not scale > 0:
+        return None
+    df = r.size - 1.0
+    z = (rate - r.mean()) / scale
+    logw = -0.5 * (df + 1.0) * np.log1p(z * z / df)
+    w: FloatArray = np.exp(logw - logw.max())
+    return w / float(w.sum())
+
+
 def _draws(fit: PathFit, rng: np.random.Generator, size: int
            ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
     """Drawn (level now, rate, φ, innovation sd, W(0), the walk's variance
@@ -280,7 +380,12 @@ def _draws(fit: PathFit, rng: np.random.Generator, size: int
             else np.zeros(size))
     var0 = walk * fit.span / 3.0
     w0 = rng.normal(0.0, np.sqrt(var0))
-    return level, rate, phis, innovation, w0, walk
+    weights = _fleet_weights(fit, rate)
+    if weights is None:
+        return level, rate, phis, innovation, w0, walk
+    # the fleet's prior on the rate, by importance: the draws resampled by it
+    pick = rng.choice(size, size=size, p=weights)
+    return level[pick], rate[pick], phis[pick], innovation[pick], w0[pick], walk[pick]
 
 
 def path_remaining(fit: PathFit, threshold: float, seed: int = 0,

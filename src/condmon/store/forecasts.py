@@ -19,7 +19,8 @@ import pandas as pd
 
 from condmon.errors import CondmonError, DataError
 from condmon.monitor.baseline import MIN_BASELINE_TESTS, Baseline
-from condmon.forecast.calibration import Calibration, calibrate, path_pits
+from condmon.forecast.calibration import Calibration, calibrate, life_of, path_pits
+from condmon.forecast.path import Life
 from condmon.forecast.prior import FleetPrior, UnitWear, prior_from_wear, unit_wear
 from condmon.forecast.unit import (
     NO_TREND, NoGo, UnitForecast, forecast_axis, forecast_checks, in_test_order,
@@ -73,7 +74,8 @@ class FleetHistory:
         self._current: set[str] = set()   # peers whose kept rates are up to date
         self._limit = 0
         self._recent: dict[tuple[str, str | None], list[str]] = {}
-        self._pits: dict[str, dict[str, list[float]]] = {}
+        self._pits: dict[tuple[str, str, tuple[Life, ...]], list[float]] = {}
+        self._series: dict[str, tuple[str, dict[str, tuple[Any, Any, float]]]] = {}
         self._fitted: set[str] = set()   # wear fitted here from a history, not read back
 
     def know(self, units: Sequence[str]) -> None:
@@ -199,26 +201,39 @@ class FleetHistory:
             self._wear[(unit, key, by)] = found
         return self._wear[(unit, key, by)]
 
-    def calibrations(self, unit: str) -> dict[str, Calibration]:
+    def calibrations(self, unit: str, by: str | None = None) -> dict[str, Calibration]:
         """The recalibration of each indicator's path forecast for ``unit``
         from its failed peers (:mod:`condmon.forecast.calibration`): where
         their true lives fell in the forecasts made along their own series,
         each to its own end of life. The peers are :meth:`learning_peers`,
         at most :data:`CALIBRATION_PEERS` of them; an indicator whose peers
         give fewer than :data:`~condmon.forecast.calibration.MIN_PITS`
-        forecasts gets none."""
+        forecasts gets none. The peers counted ``by`` the unit's axis also
+        lend their whole lives as the prior of its forecast
+        (:func:`~condmon.forecast.path.with_fleet`), and of each other's along
+        theirs."""
+        series = {p: self._peer_series(p) for p in self.learning_peers(unit)[:CALIBRATION_PEERS]}
+        lives = {(p, key): w for p, (axis, found) in series.items() if axis == by
+                 for key, s in found.items() if (w := life_of(*s)) is not None}
         pits: dict[str, list[float]] = {}
         peers: dict[str, int] = {}
-        for p in self.learning_peers(unit)[:CALIBRATION_PEERS]:
-            for key, found in self._peer_pits(p).items():
-                if found:   # a peer short of its end of life teaches no life
-                    pits.setdefault(key, []).extend(found)
+        for p, (axis, found) in series.items():
+            for key, s in found.items():
+                others = tuple(w for (q, k), w in lives.items() if k == key and q != p) \
+                    if axis == by else ()
+                if (p, key, others) not in self._pits:
+                    self._pits[(p, key, others)] = path_pits(*s, lives=others)
+                if self._pits[(p, key, others)]:   # a peer short of its end teaches no life
+                    pits.setdefault(key, []).extend(self._pits[(p, key, others)])
                     peers[key] = peers.get(key, 0) + 1
-        return {k: c for k, v in pits.items() if (c := calibrate(v, peers[k])) is not None}
+        return {k: c for k, v in pits.items() if (c := calibrate(
+            v, peers[k], [w for (_, q), w in lives.items() if q == k])) is not None}
 
-    def _peer_pits(self, peer: str) -> dict[str, list[float]]:
-        if peer not in self._pits:
-            found: dict[str, list[float]] = {}
+    def _peer_series(self, peer: str) -> tuple[str, dict[str, tuple[Any, Any, float]]]:
+        """A peer's axis and, per indicator, its change series and end of life."""
+        if peer not in self._series:
+            found: dict[str, tuple[Any, Any, float]] = {}
+            by = ""
             try:
                 model = self.store.indicator_model(peer)
                 baseline, checks = self.checks(peer) if model is not None else (None, None)
@@ -227,6 +242,7 @@ class FleetHistory:
             if model is not None and baseline is not None and checks is not None \
                     and len(checks):
                 axis = forecast_axis(checks)
+                by = axis.by
                 nogo, _ = indicator_nogo(model, baseline)
                 for key, limit in nogo.items():
                     series = parameter_series(checks, baseline, key, axis)
@@ -234,9 +250,9 @@ class FleetHistory:
                         continue
                     (x, change, _, _), _ = series
                     way = -1.0 if math.isinf(limit.rise) else 1.0
-                    found[key] = path_pits(x, change, way * limit.r2)
-            self._pits[peer] = found
-        return self._pits[peer]
+                    found[key] = (x, change, way * limit.r2)
+            self._series[peer] = (by, found)
+        return self._series[peer]
 
     def priors(self, unit: str, keys: Sequence[str], by: str
                ) -> dict[str | tuple[str, float], FleetPrior]:
@@ -313,7 +329,8 @@ def read_forecast(store: HistoryStore, unit: str, horizon: float | None = None,
         nogo, rules = indicator_nogo(indicators, baseline)
         return forecast_checks(unit, checks, baseline, nogo, rules, indicators.units, horizon,
                                seed, None, method=indicators.method,
-                               calibrations=fleet.calibrations(unit)
+                               calibrations=fleet.calibrations(
+                                   unit, forecast_axis(checks).by if len(checks) else None)
                                if indicators.method == "path" else None)
     machine = get_model(store.unit_model(unit) or "dc-motor")
     priors = (fleet.priors(unit, baseline.parameters, forecast_axis(checks).by)

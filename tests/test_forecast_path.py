@@ -197,6 +197,8 @@ def test_failed_peers_mean_rates_are_the_prior_of_a_poorly_told_rate() -> None:
     own = forecast_path(x[:60], y, np.zeros(60), 0.5, -60.0, seed=1, calibration=c)
     # 40 cycles left at its own rate; the peers' would say 140
     assert own.remaining is not None and 32.0 <= own.remaining[0] <= 48.0, own.remaining
+    said = [n for n in own.notes if "with the fleet's prior" in n]
+    assert said and "its own series alone" in said[0], own.notes
 
 
 def test_the_chance_within_a_horizon_is_read_on_the_fleet_as_the_interval_is() -> None:

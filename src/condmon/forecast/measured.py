@@ -25,7 +25,9 @@ from numpy.typing import ArrayLike
 
 from condmon.errors import DataError
 from condmon.forecast.calibration import MIN_PEERS, Calibration
-from condmon.forecast.path import PATH_MIN_TESTS, Z90, fit_path, path_remaining, with_fleet
+from condmon.forecast.path import (
+    PATH_MIN_TESTS, Z90, drawn_rate, fit_path, path_remaining, with_fleet,
+)
 from condmon.forecast.series import (
     Forecast, Prior, checked_horizon, forecast_series, median_interval,
 )
@@ -157,7 +159,11 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
     else:
         med, lo, hi = (float(np.quantile(left, q, method="inverted_cdf")) for q in (
             calibration.median, calibration.low, calibration.high))
-        notes.append(calibration.describe())
+        notes.append(calibration.describe(per))
+        if fit.fleet:   # what the fleet's rates changed
+            own = dataclasses.replace(fit, fleet=())
+            notes.append(f"the mean rate drawn at {drawn_rate(fit, seed):.3g} %/{per} with the "
+                         f"fleet's prior ({drawn_rate(own, seed):.3g} from its own series alone)")
     said = coverage_note("path", calibration is not None)
     if said:
         notes.append(said)

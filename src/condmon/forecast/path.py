@@ -65,8 +65,8 @@ from condmon.errors import DataError
 #: The standard normal's 95 % point: a 90 % interval is ± this many sd. [-]
 Z90 = 1.6448536269514722
 
-__all__ = ["PATH_MIN_TESTS", "PathFit", "Life", "fit_path", "with_fleet", "path_remaining",
-           "path_band"]
+__all__ = ["PATH_MIN_TESTS", "PathFit", "Life", "fit_path", "with_fleet", "drawn_rate",
+           "path_remaining", "path_band"]
 
 FloatArray = NDArray[np.float64]
 
@@ -386,6 +386,21 @@ def _draws(fit: PathFit, rng: np.random.Generator, size: int
     # the fleet's prior on the rate, by importance: the draws resampled by it
     pick = rng.choice(size, size=size, p=weights)
     return level[pick], rate[pick], phis[pick], innovation[pick], w0[pick], walk[pick]
+
+
+def drawn_rate(fit: PathFit, seed: int = 0, draws: int = _DRAWS) -> float:
+    """The median of the mean rates :func:`path_remaining` draws: with the
+    fleet's prior when ``fit`` has one (:func:`with_fleet`). [y per x]
+
+    Example
+    -------
+    >>> x = np.arange(1.0, 41.0)
+    >>> f = fit_path(x, 2.0 - 0.005 * x + 0.002 * np.sin(x))
+    >>> round(drawn_rate(f), 4)
+    -0.005
+    """
+    rate = _draws(fit, np.random.default_rng(seed), draws)[1]
+    return float(np.median(rate)) / fit.step
 
 
 def path_remaining(fit: PathFit, threshold: float, seed: int = 0,

@@ -105,16 +105,17 @@ class Calibration:
 
     def describe(self, per: str = "x") -> str:
         """One clause for a forecast's notes (``per``: what ``x`` counts)."""
-        return (f"recalibrated on {self.pits} forecasts along {self.peers} failed peer(s) "
+        said = (f"recalibrated on {self.pits} forecasts along {self.peers} failed peer(s) "
                 f"(where their true lives fell): the 90 % interval read at the draws' "
                 f"{100 * self.low:.0f} % and {100 * self.high:.0f} % points, the median "
-                f"at {100 * self.median:.0f} %" + (
-                    f"; {len(self.lives)} of their whole lives its prior: their rates' "
-                    f"wander pooled with its own" + (
-                        ", their mean rates "
-                        + ", ".join(f"{life.rate:.3g}" for life in self.lives)
-                        + f" %/{per} weighed against its own" if len(self.lives) > 1 else "")
-                    if self.lives else ""))
+                f"at {100 * self.median:.0f} %")
+        if self.lives:
+            said += (f"; {len(self.lives)} of their whole lives its prior: their rates' "
+                     "wander pooled with its own")
+        if len({life.rate for life in self.lives}) > 1:   # (the same rates weigh nothing)
+            said += (", their mean rates " + ", ".join(f"{life.rate:.3g}" for life in self.lives)
+                     + f" %/{per} weighed against its own")
+        return said
 
 
 def _end(ya: np.ndarray, threshold: float) -> int | None:

@@ -201,6 +201,28 @@ def test_failed_peers_mean_rates_are_the_prior_of_a_poorly_told_rate() -> None:
     assert said and "its own series alone" in said[0], own.notes
 
 
+def test_a_life_past_its_forecasts_95_percent_point_is_read_there() -> None:
+    """Known truth: a peer fading at −0.5 %/cycle to −20 %, then at −0.05
+    %/cycle to its end at −30 % (cycle 240). Its early forecasts expect the
+    end some 20 cycles on; the truth came about 200 on, past nearly every
+    draw, so those PITs read above 0.99 (the draws stop at the 95 % point
+    only once past the truth). A fleet whose lives came late reads the
+    unit's interval above the draws' 95 % point, and its end is still a
+    number of cycles, not "never"."""
+    rng = np.random.default_rng(4)
+    x = np.arange(1.0, 261.0)
+    y = np.where(x <= 40, -0.5 * x, -20.0 - 0.05 * (x - 40)) + rng.normal(0.0, 0.05, 260)
+    assert max(path_pits(x, y, -30.0)) > 0.99
+    c = calibrate(np.linspace(0.5, 1.0, 41), MIN_PEERS)
+    assert c is not None and c.high > 0.95
+    xs = np.arange(1.0, 61.0)
+    ys = -0.3 * xs + 0.5 * np.sin(xs / 3.0)
+    plain = forecast_path(xs, ys, np.zeros(60), 0.5, -30.0)
+    late = forecast_path(xs, ys, np.zeros(60), 0.5, -30.0, calibration=c)
+    assert plain.remaining is not None and late.remaining is not None
+    assert np.isfinite(late.remaining[2]) and late.remaining[2] > plain.remaining[2]
+
+
 def test_the_chance_within_a_horizon_is_read_on_the_fleet_as_the_interval_is() -> None:
     """Peers whose lives all ended early in their forecasts (PITs 0..0.2): the
     recalibrated median comes early, and the chance of no-go by that median

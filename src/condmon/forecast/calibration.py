@@ -194,8 +194,9 @@ def path_pits(x: ArrayLike, y: ArrayLike, threshold: float, seed: int = 0,
             fit = with_fleet(fit_path(xa[:k + 1], ya[:k + 1]), lives)
         except CondmonError:
             continue
-        left, _ = path_remaining(fit, threshold, seed + int(k), draws=_PIT_DRAWS)
         truth = xa[end] - xa[k]
+        # (drawn on to the truth: a PIT past the 95 % point is read, not capped there)
+        left, _ = path_remaining(fit, threshold, seed + int(k), truth, draws=_PIT_DRAWS)
         out.append(float(np.mean(left < truth) + 0.5 * np.mean(left == truth)))
     return out
 

@@ -153,7 +153,8 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
         return Forecast("path", threshold, slope, interval, (0.0, 0.0, 0.0),
                         1.0 if horizon is not None else None, fit.n, tuple(notes),
                         coef, cov, last, at_nogo=True)
-    left, _ = path_remaining(fit, threshold, seed, horizon)
+    left, _ = path_remaining(fit, threshold, seed, horizon,
+                             upto=0.95 if calibration is None else max(0.95, calibration.high))
     if calibration is None:
         med, lo, hi = median_interval(left, whole=True)
     else:

@@ -404,12 +404,12 @@ def drawn_rate(fit: PathFit, seed: int = 0, draws: int = _DRAWS) -> float:
 
 
 def path_remaining(fit: PathFit, threshold: float, seed: int = 0,
-                   horizon: float | None = None, draws: int = _DRAWS
+                   horizon: float | None = None, draws: int = _DRAWS, upto: float = 0.95
                    ) -> tuple[FloatArray, float]:
     """Draws of the ``x`` left until a check measures past ``threshold``
-    (inf: not within :data:`_FAR_SPANS` spans, or past both the 95 % point
-    and ``horizon``: the draws stop once fewer than 5 % are left), and the
-    step. [x]
+    (inf: not within :data:`_FAR_SPANS` spans, or past both the ``upto``
+    point and ``horizon``: the draws stop once fewer than ``1 − upto`` of
+    them are left), and the step. [x]
 
     Example
     -------
@@ -440,7 +440,7 @@ def path_remaining(fit: PathFit, threshold: float, seed: int = 0,
         left[slot[hit]] = k * fit.step
         alive &= ~hit
         running = int(np.count_nonzero(alive))
-        if running == 0 or (running < 0.05 * draws and (
+        if running == 0 or (running < (1.0 - upto) * draws and (
                 horizon is None or k * fit.step >= horizon)):
             break
         if running < 0.75 * slot.size:

@@ -223,6 +223,25 @@ def test_a_life_past_its_forecasts_95_percent_point_is_read_there() -> None:
     assert np.isfinite(late.remaining[2]) and late.remaining[2] > plain.remaining[2]
 
 
+def test_a_fleet_whose_lives_end_before_every_draw_is_not_read() -> None:
+    """Peers that failed suddenly: 10 % of their forecasts saw the life end
+    before every draw (PIT 0). Reading the fleet's levels there would put the
+    interval's low end, and here its median, at the first draw ("1 (1-1)");
+    the forecast is given unrecalibrated instead, and says why."""
+    pits = np.concatenate([np.zeros(6), np.linspace(0.0, 0.05, 54)])
+    c = calibrate(pits, MIN_PEERS, names=("A", "B", "C"))
+    assert c is not None and c.refused.startswith("not recalibrated: in 7 of 60 forecasts")
+    assert "ended before every draw" in c.refused
+    assert calibrate(np.linspace(0.0, 1.0, 60), MIN_PEERS).refused == ""   # one at 0, one at 1
+    x = np.arange(1.0, 61.0)
+    y = -0.3 * x + 0.5 * np.sin(x / 3.0)
+    plain = forecast_path(x, y, np.zeros(60), 0.5, -30.0)
+    given = forecast_path(x, y, np.zeros(60), 0.5, -30.0, calibration=c)
+    assert given.remaining == plain.remaining
+    assert given.notes[1] == c.refused
+    assert not any("failed peer(s) (A, B, C)" in n for n in given.notes)
+
+
 def test_the_chance_within_a_horizon_is_read_on_the_fleet_as_the_interval_is() -> None:
     """Peers whose lives all ended early in their forecasts (PITs 0..0.2): the
     recalibrated median comes early, and the chance of no-go by that median
@@ -257,7 +276,7 @@ def test_imported_peers_recalibrate_a_unit_s_forecast(tmp_path: Path) -> None:
                 f"{k},{v:.5f}\n" for k, v in enumerate(cap, 1)))
             import_table(store, table, DECL, unit=f"C{i}")
         f = forecast_unit(store, "C3").parameters[0].forecast
-        assert any("failed peer(s)" in n and "3 of their whole lives" in n
+        assert any("3 failed peer(s) (C0, C1, C2)" in n and "3 of their whole lives" in n
                    for n in f.notes), f.notes
         assert f.remaining is not None
         truth = (1.9 - 1.4) / 0.006 - 40
@@ -267,3 +286,30 @@ def test_imported_peers_recalibrate_a_unit_s_forecast(tmp_path: Path) -> None:
             import_table(store, tmp_path / f"c{i}.csv", DECL, unit=f"C{i}")
         f = forecast_unit(store, "C3").parameters[0].forecast
         assert not any("failed peer(s)" in n for n in f.notes), f.notes
+
+
+def test_peers_counted_in_hours_lend_no_life_to_a_unit_counted_in_cycles(tmp_path: Path) -> None:
+    """Two failed cells counted in cycles and two in hours, a fifth at cycle
+    40 counted in cycles: all four recalibrate it (a PIT is free of the
+    axis), but a rate per hour is no rate per cycle, and two lives are too
+    few for a prior: the note names the four and says why none is its prior."""
+    from condmon.store import open_store
+    from condmon.workflows.forecasting import forecast_unit
+    from condmon.workflows.imports import import_table
+
+    rng = np.random.default_rng(6)
+    with open_store("sqlite://") as store:
+        for i, (rate, axis) in enumerate(((0.005, "cycle"), (0.006, "cycle"),
+                                          (0.007, "hours"), (0.006, "hours"), (0.006, "cycle"))):
+            n = 120 if i < 4 else 40
+            cap = 1.9 - rate * np.arange(1, n + 1) + 0.004 * rng.standard_normal(n)
+            table = tmp_path / f"c{i}.csv"
+            table.write_text(f"{axis},capacity\n" + "".join(
+                f"{2.5 * k if axis == 'hours' else k},{v:.5f}\n" for k, v in enumerate(cap, 1)))
+            import_table(store, table, DECL, unit=f"C{i}")
+        f = forecast_unit(store, "C4").parameters[0].forecast
+        said = [n for n in f.notes if "failed peer(s)" in n]
+        assert said and "4 failed peer(s) (C0, C1, C2, C3)" in said[0], f.notes
+        assert "whole lives its prior" not in said[0]
+        assert "2 of them count their lives otherwise than it does (not its prior: 3 that " \
+               "count as it does are needed)" in said[0]

@@ -40,11 +40,15 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Forecast when each parameter of a unit turns no-go, from its checks since the baseline.
 
-        Each parameter's change series is fitted (linear or exponential, chosen by
-        evidence, each test weighted by its standard error and the baseline's spread)
-        and its crossing of the no-go change (where a check turns no-go on it, short of
-        r2) forecast: the tests (days, hours) left as a median and a 90 % interval; "no
-        trend" when the slope's interval holds 0, or no-go cannot come the way it moves."""
+        Each parameter's change series is fitted and its crossing of the no-go change
+        (where a check turns no-go on it, short of r2) forecast: the tests (cycles,
+        days, hours) left as a median and a 90 % interval; "no trend" when the slope's
+        interval holds 0, or no-go cannot come the way it moves. Estimated parameters:
+        a line or an exponential, chosen by evidence, each test weighted by its
+        standard error and the baseline's spread. Imported indicators of a declaration
+        with method "path": a measured degradation path (a wandering rate, recoveries),
+        with three failed units of its model or more in the history their whole lives
+        its prior and their lives' PITs its levels (see --json's notes)."""
         from rich.table import Table
 
         from condmon.store.db import open_store
@@ -113,7 +117,8 @@ def register(app: typer.Typer) -> None:
         out.print("no parameter trends towards no-go" if r is None or e is None else
                   f"earliest: {e.parameter}, at no-go now" if e.forecast.at_nogo else
                   f"earliest: {e.parameter}, due now (its trend is past no-go)" if r[2] == 0 else
-                  f"earliest: {e.parameter} in {n(r[0])} {left.rsplit(' ', 1)[0]} "
+                  f"earliest: {e.parameter} in {n(r[0])} "
+                  f"{left.rsplit(' ', 1)[0].removesuffix('s' if n(r[0]) == '1' else '')} "
                   f"(90 %: {n(r[1])}–{n(r[2])})", markup=False, highlight=False)
         for note in res.notes:
             out.print(f"note: {note}", markup=False, highlight=False, soft_wrap=True)

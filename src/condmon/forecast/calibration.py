@@ -77,7 +77,16 @@ class Calibration:
         The whole lives (:func:`life_of`) of the failed peers that count as
         the unit does: its forecast's prior
         (:func:`~condmon.forecast.path.with_fleet`), as the other peers'
-        were in the peers' forecasts behind the PITs.
+        were in the peers' forecasts behind the PITs; none when fewer than
+        :data:`MIN_PEERS` count so.
+    names : tuple of str
+        The failed peers, by name.
+    apart : int
+        Failed peers whose lives count otherwise than the unit's (hours
+        against cycles): not its prior.
+    refused : str
+        Why the levels cannot be read (the forecast is then not
+        recalibrated, and says why); empty: they can.
     """
 
     median: float
@@ -87,6 +96,9 @@ class Calibration:
     peers: int
     levels: tuple[float, ...] = ()
     lives: tuple[Life, ...] = ()
+    names: tuple[str, ...] = ()
+    apart: int = 0
+    refused: str = ""
 
     def probability(self, raw: float) -> float:
         """A probability the draws give (the share of them within a horizon)
@@ -105,8 +117,9 @@ class Calibration:
 
     def describe(self, per: str = "x") -> str:
         """One clause for a forecast's notes (``per``: what ``x`` counts)."""
-        said = (f"recalibrated on {self.pits} forecasts along {self.peers} failed peer(s) "
-                f"(where their true lives fell): the 90 % interval read at the draws' "
+        named = f" ({', '.join(self.names)})" if self.names else ""
+        said = (f"recalibrated on {self.pits} forecasts along {self.peers} failed peer(s)"
+                f"{named} (where their true lives fell): the 90 % interval read at the draws' "
                 f"{100 * self.low:.0f} % and {100 * self.high:.0f} % points, the median "
                 f"at {100 * self.median:.0f} %")
         if self.lives:
@@ -115,6 +128,10 @@ class Calibration:
         if len({life.rate for life in self.lives}) > 1:   # (the same rates weigh nothing)
             said += (", their mean rates " + ", ".join(f"{life.rate:.3g}" for life in self.lives)
                      + f" %/{per} weighed against its own")
+        if self.apart:
+            said += (f"; {self.apart} of them count their lives otherwise than it does (not "
+                     f"its prior" + ("" if self.lives else
+                                    f": {MIN_PEERS} that count as it does are needed") + ")")
         return said
 
 
@@ -201,9 +218,17 @@ def path_pits(x: ArrayLike, y: ArrayLike, threshold: float, seed: int = 0,
     return out
 
 
-def calibrate(pits: ArrayLike, peers: int, lives: Sequence[Life] = ()) -> Calibration | None:
+def calibrate(pits: ArrayLike, peers: int, lives: Sequence[Life] = (),
+              names: Sequence[str] = (), apart: int = 0) -> Calibration | None:
     """The levels to read a forecast's draws at, from its fleet's PITs (None:
     fewer than :data:`MIN_PITS`, or from fewer than :data:`MIN_PEERS` peers).
+
+    The peers' ``lives`` are the forecast's prior when :data:`MIN_PEERS` or
+    more are given. Levels are refused (:attr:`Calibration.refused`) when
+    5 % or more of the PITs lie at 0 or at 1: the lives ended before (or
+    after) every draw of their forecasts, so an end of the 90 % interval
+    would be read where the draws stop, not from them (a fleet that fails
+    suddenly, as the path method does not describe).
 
     Example
     -------
@@ -217,5 +242,13 @@ def calibrate(pits: ArrayLike, peers: int, lives: Sequence[Life] = ()) -> Calibr
         return None
     p = np.sort(np.clip(p, 0.0, 1.0))
     lo, med, hi = (float(v) for v in np.quantile(p, [0.05, 0.5, 0.95]))
+    early, late = int(np.sum(p <= 0.0)), int(np.sum(p >= 1.0))
+    refused = ""
+    if max(early, late) >= 0.05 * p.size:
+        refused = (f"not recalibrated: in {max(early, late)} of {p.size} forecasts along its "
+                   f"{peers} failed peers the life ended {'before' if early >= late else 'after'}"
+                   " every draw; the path method does not describe how these units end "
+                   "(sudden failures?), so the fleet's levels cannot be read")
     return Calibration(med, lo, hi, int(p.size), int(peers), tuple(float(v) for v in p),
-                       tuple(lives))
+                       tuple(lives) if len(lives) >= MIN_PEERS else (), tuple(names),
+                       int(apart), refused)

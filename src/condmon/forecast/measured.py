@@ -118,9 +118,11 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
         note = (f"{xa.size} checks: too few for a degradation path (it needs "
                 f"{PATH_MIN_TESTS}), forecast as a trend")
         return dataclasses.replace(f, notes=(note, *f.notes))
-    fit = fit_path(xa, ya)
-    if calibration is not None:
-        fit = with_fleet(fit, calibration.lives)
+    own = fit_path(xa, ya)
+    refused = calibration.refused if calibration is not None else ""
+    if refused:
+        calibration = None
+    fit = own if calibration is None else with_fleet(own, calibration.lives)
     sign = 1.0 if threshold > 0 else -1.0
     slope = fit.coef[1]
     sd = math.sqrt(max(fit.cov[1][1], 0.0))
@@ -132,6 +134,8 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
                  f"the rate wandering {100 * math.sqrt(fit.walk):.2g} % per √{per}"
                  if fit.walk > 0 else "the quarters' rates within their own error (their "
                  "wander drawn from it)")]
+    if refused:
+        notes.append(refused)
     if prior is not None:
         notes.append("the fleet's prior is not used by the path method")
     towards = interval[0] > 0 if sign > 0 else interval[1] < 0
@@ -161,10 +165,12 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
         med, lo, hi = (float(np.quantile(left, q, method="inverted_cdf")) for q in (
             calibration.median, calibration.low, calibration.high))
         notes.append(calibration.describe(per))
-        if fit.fleet:   # what the fleet's rates changed
-            own = dataclasses.replace(fit, fleet=())
-            notes.append(f"the mean rate drawn at {drawn_rate(fit, seed):.3g} %/{per} with the "
-                         f"fleet's prior ({drawn_rate(own, seed):.3g} from its own series alone)")
+        if fit.fleet:   # what the fleet's lives changed
+            notes.append(f"with the fleet's prior, the mean rate drawn at "
+                         f"{drawn_rate(fit, seed):.3g} %/{per} and the rate wandering "
+                         f"{100 * math.sqrt(fit.walk):.2g} % per √{per} (from its own series "
+                         f"alone: {drawn_rate(own, seed):.3g} and "
+                         f"{100 * math.sqrt(own.walk):.2g} %)")
     said = coverage_note("path", calibration is not None)
     if said:
         notes.append(said)

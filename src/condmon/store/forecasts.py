@@ -19,7 +19,7 @@ import pandas as pd
 
 from condmon.errors import CondmonError, DataError
 from condmon.monitor.baseline import MIN_BASELINE_TESTS, Baseline
-from condmon.forecast.calibration import Calibration, calibrate, life_of, path_pits
+from condmon.forecast.calibration import MIN_PEERS, Calibration, calibrate, life_of, path_pits
 from condmon.forecast.path import Life
 from condmon.forecast.prior import FleetPrior, UnitWear, prior_from_wear, unit_wear
 from condmon.forecast.unit import (
@@ -213,21 +213,28 @@ class FleetHistory:
         (:func:`~condmon.forecast.path.with_fleet`), and of each other's along
         theirs."""
         series = {p: self._peer_series(p) for p in self.learning_peers(unit)[:CALIBRATION_PEERS]}
-        lives = {(p, key): w for p, (axis, found) in series.items() if axis == by
-                 for key, s in found.items() if (w := life_of(*s)) is not None}
-        pits: dict[str, list[float]] = {}
-        peers: dict[str, int] = {}
+        lives: dict[str, dict[str, Life]] = {}   # per indicator, the lives counted ``by``
         for p, (axis, found) in series.items():
             for key, s in found.items():
-                others = tuple(w for (q, k), w in lives.items() if k == key and q != p) \
-                    if axis == by else ()
+                if axis == by and (life := life_of(*s)) is not None:
+                    lives.setdefault(key, {})[p] = life
+        pits: dict[str, list[float]] = {}
+        names: dict[str, list[str]] = {}
+        apart: dict[str, int] = {}
+        for p, (axis, found) in series.items():
+            for key, s in found.items():
+                mine = lives.get(key, {})
+                # the other peers' lives, as the unit's forecast takes them (or none)
+                others = tuple(life for q, life in mine.items() if q != p) \
+                    if p in mine and len(mine) >= MIN_PEERS else ()
                 if (p, key, others) not in self._pits:
                     self._pits[(p, key, others)] = path_pits(*s, lives=others)
                 if self._pits[(p, key, others)]:   # a peer short of its end teaches no life
                     pits.setdefault(key, []).extend(self._pits[(p, key, others)])
-                    peers[key] = peers.get(key, 0) + 1
+                    names.setdefault(key, []).append(p)
+                    apart[key] = apart.get(key, 0) + int(axis != by)
         return {k: c for k, v in pits.items() if (c := calibrate(
-            v, peers[k], [w for (_, q), w in lives.items() if q == k])) is not None}
+            v, len(names[k]), list(lives.get(k, {}).values()), names[k], apart[k])) is not None}
 
     def _peer_series(self, peer: str) -> tuple[str, dict[str, tuple[Any, Any, float]]]:
         """A peer's axis and, per indicator, its change series and end of life."""

@@ -73,7 +73,7 @@ from _common import table, write_json  # noqa: E402
 from condmon.errors import CondmonError  # noqa: E402
 from condmon.forecast.measured import forecast_path  # noqa: E402
 from condmon.forecast.calibration import (  # noqa: E402
-    Calibration, calibrate, life_of, path_pits)
+    MIN_PEERS, Calibration, calibrate, life_of, path_pits)
 from condmon.forecast.path import Life  # noqa: E402
 from condmon.forecast.series import forecast_series  # noqa: E402
 
@@ -191,13 +191,13 @@ def recalibrations(cells: dict[str, tuple[np.ndarray, np.ndarray]], levels: dict
         if say:
             print(f"  {cell}: forecasts along the other cells' series for its recalibration ...",
                   file=sys.stderr, flush=True)
+        mine = {p: w for p, w in lives.items() if w is not None and p != cell}
         pits = []
         for c in cells:
-            if c != cell:
+            if c != cell:   # the others' lives, as the cell's forecast takes them (or none)
                 pits += peer_pits(*cells[c], levels[c], draw_set, tuple(
-                    w for p, w in lives.items() if w is not None and p not in (c, cell)))
-        out[cell] = calibrate(pits, len(cells) - 1,
-                              [w for p, w in lives.items() if w is not None and p != cell])
+                    w for p, w in mine.items() if p != c) if len(mine) >= MIN_PEERS else ())
+        out[cell] = calibrate(pits, len(cells) - 1, list(mine.values()))
     return out
 
 

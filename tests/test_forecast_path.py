@@ -240,6 +240,7 @@ def test_a_fleet_whose_lives_end_before_every_draw_is_not_read() -> None:
     assert given.remaining == plain.remaining
     assert given.notes[1] == c.refused
     assert not any("failed peer(s) (A, B, C)" in n for n in given.notes)
+    assert not any("the levels their lives call for" in n for n in given.notes), given.notes
 
 
 def test_the_chance_within_a_horizon_is_read_on_the_fleet_as_the_interval_is() -> None:

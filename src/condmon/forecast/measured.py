@@ -52,9 +52,10 @@ def measured_coverage() -> dict[str, Any]:
     return tomllib.loads(text)
 
 
-def coverage_note(method: str, recalibrated: bool = False) -> str:
+def coverage_note(method: str, recalibrated: bool = False, caveat: bool = True) -> str:
     """How often ``method``'s 90 % interval held the truth, where measured
-    (``recalibrated``: read at its fleet's levels).
+    (``recalibrated``: read at its fleet's levels; ``caveat``: say that a
+    fleet of failed units would be read, when it is not).
 
     Example
     -------
@@ -67,11 +68,11 @@ def coverage_note(method: str, recalibrated: bool = False) -> str:
     if not parts:
         return ""
     # measured on one fleet: a unit of another kind may wear otherwise
-    caveat = ("" if recalibrated or method != "path" else
-              f"; measured there, not on units like this one: with {MIN_PEERS} failed units "
-              "of this model or more in the history, the forecast is read at the levels "
-              "their lives call for")
-    return "its 90 % interval held the true remaining life in " + "; ".join(parts) + caveat
+    said = ("" if recalibrated or method != "path" or not caveat else
+            f"; measured there, not on units like this one: with {MIN_PEERS} failed units "
+            "of this model or more in the history, the forecast is read at the levels "
+            "their lives call for")
+    return "its 90 % interval held the true remaining life in " + "; ".join(parts) + said
 
 
 def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
@@ -171,7 +172,7 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
                          f"{100 * math.sqrt(fit.walk):.2g} % per √{per} (from its own series "
                          f"alone: {drawn_rate(own, seed):.3g} and "
                          f"{100 * math.sqrt(own.walk):.2g} %)")
-    said = coverage_note("path", calibration is not None)
+    said = coverage_note("path", calibration is not None, caveat=not refused)
     if said:
         notes.append(said)
     p = float(np.mean(left <= horizon)) if horizon is not None else None

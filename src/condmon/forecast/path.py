@@ -323,14 +323,15 @@ def with_fleet(fit: PathFit, lives: Sequence[Life]) -> PathFit:
     """
     if not lives:
         return fit
-    raw, noise, dof = fit.walk_moments
-    r, n, d = raw * dof, noise * dof, dof
-    for life in lives:
-        pr, pn, pd_ = life.walk
-        r, n, d = r + pr * pd_, n + pn * pd_, d + pd_
-    walk = (max(r / d - n / d, 0.0), (r / d, n / d, d)) if d > 0 else (fit.walk, fit.walk_moments)
-    return dataclasses.replace(fit, walk=walk[0], walk_moments=walk[1],
-                               fleet=tuple(float(life.rate) for life in lives))
+    fleet = tuple(float(life.rate) for life in lives)
+    moments = [fit.walk_moments, *(life.walk for life in lives)]
+    d = sum(dof for _, _, dof in moments)
+    if d == 0:   # no block told a wander: the rates alone
+        return dataclasses.replace(fit, fleet=fleet)
+    raw = sum(r * dof for r, _, dof in moments) / d
+    noise = sum(n * dof for _, n, dof in moments) / d
+    return dataclasses.replace(fit, walk=max(raw - noise, 0.0), walk_moments=(raw, noise, d),
+                               fleet=fleet)
 
 
 def _fleet_weights(fit: PathFit, rate: FloatArray) -> FloatArray | None:

@@ -76,6 +76,7 @@ class FleetHistory:
         self._recent: dict[tuple[str, str | None], list[str]] = {}
         self._pits: dict[tuple[str, str, tuple[Life, ...]], list[float]] = {}
         self._series: dict[str, tuple[str, dict[str, tuple[Any, Any, float]]]] = {}
+        self._lives: dict[tuple[str, str], Life | None] = {}
         self._fitted: set[str] = set()   # wear fitted here from a history, not read back
 
     def know(self, units: Sequence[str]) -> None:
@@ -215,8 +216,8 @@ class FleetHistory:
         series = {p: self._peer_series(p) for p in self.learning_peers(unit)[:CALIBRATION_PEERS]}
         lives: dict[str, dict[str, Life]] = {}   # per indicator, the lives counted ``by``
         for p, (axis, found) in series.items():
-            for key, s in found.items():
-                if axis == by and (life := life_of(*s)) is not None:
+            for key in found:
+                if axis == by and (life := self._life(p, key)) is not None:
                     lives.setdefault(key, {})[p] = life
         pits: dict[str, list[float]] = {}
         names: dict[str, list[str]] = {}
@@ -235,6 +236,13 @@ class FleetHistory:
                     apart[key] = apart.get(key, 0) + int(axis != by)
         return {k: c for k, v in pits.items() if (c := calibrate(
             v, len(names[k]), list(lives.get(k, {}).values()), names[k], apart[k])) is not None}
+
+    def _life(self, peer: str, key: str) -> Life | None:
+        """A peer's whole life in ``key`` (:func:`~condmon.forecast.calibration.life_of`),
+        fitted once."""
+        if (peer, key) not in self._lives:
+            self._lives[(peer, key)] = life_of(*self._peer_series(peer)[1][key])
+        return self._lives[(peer, key)]
 
     def _peer_series(self, peer: str) -> tuple[str, dict[str, tuple[Any, Any, float]]]:
         """A peer's axis and, per indicator, its change series and end of life."""

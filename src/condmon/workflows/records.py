@@ -223,15 +223,17 @@ class EstimateOptions:
         df, key, source = self.parse(record, test_date)
         return self.estimate_parsed(df, source), key
 
-    def parse(self, record: RecordLike, test_date: str | datetime | None = None
+    def parse(self, record: RecordLike, test_date: str | datetime | None = None,
+              read: pd.DataFrame | Columns | None = None
               ) -> tuple[pd.DataFrame | Columns, RecordKey, str]:
         """Read (if a path) and apply the record settings: the record in model
-        columns, how it is known, and its name for messages."""
+        columns, how it is known, and its name for messages; ``read``: the
+        record already read so (not read again)."""
         if not isinstance(record, (str, Path)):
-            df = self.prepared(record)
+            df = self.prepared(record) if read is None else read
             return (df, record_key(df, None, test_date, self.metadata),
                     str(record.attrs.get("source", "record")))
-        df = self.read(record)
+        df = self.read(record) if read is None else read
         return df, record_key(df, record, test_date, self.metadata), str(record)
 
     def unit_hint(self, df: pd.DataFrame | Columns, source: str,
@@ -270,14 +272,9 @@ class EstimateOptions:
         if self.window is not None and len(cycle.records) > 1:
             raise DataError(f"{cycle.source}: --window applies to one record; a test of "
                             "several records is estimated over their windows")
-        if len(cycle.frames) == len(cycle.records):   # read by the grouping: keyed as files
-            parsed = [(df, record_key(df, r if isinstance(r, (str, Path)) else None, test_date,
-                                      self.metadata),
-                       str(r) if isinstance(r, (str, Path)) else str(df.attrs.get("source",
-                                                                                  "record")))
-                      for r, df in zip(cycle.records, cycle.frames)]
-        else:
-            parsed = [self.parse(r, test_date) for r in cycle.records]
+        frames = cycle.frames if len(cycle.frames) == len(cycle.records) else \
+            (None,) * len(cycle.records)   # (read by the grouping: not read twice)
+        parsed = [self.parse(r, test_date, df) for r, df in zip(cycle.records, frames)]
         res = estimate_joint([df for df, _, _ in parsed], self.model or "dc-motor",
                              fit_threshold=self.fit_threshold,
                              sources=[src for _, _, src in parsed], route=self.route,

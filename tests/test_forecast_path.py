@@ -314,3 +314,33 @@ def test_peers_counted_in_hours_lend_no_life_to_a_unit_counted_in_cycles(tmp_pat
         assert "whole lives its prior" not in said[0]
         assert "2 of them count their lives otherwise than it does (not its prior: 3 that " \
                "count as it does are needed)" in said[0]
+
+
+def test_a_unit_imported_twice_is_one_peer_and_no_prior_of_itself(tmp_path: Path) -> None:
+    """Three failed cells, one of them imported again under a second name, and
+    a fourth cell at cycle 40 whose whole life was also imported as a failed
+    'peer': the copies are left out and named, so the prior is the three
+    cells' lives and the recalibration theirs, as without the copies."""
+    from condmon.store import open_store
+    from condmon.workflows.forecasting import forecast_unit
+    from condmon.workflows.imports import import_table
+
+    rng = np.random.default_rng(7)
+    tables = {}
+    for i, rate in enumerate((0.005, 0.006, 0.007, 0.006)):
+        cap = 1.9 - rate * np.arange(1, 121) + 0.004 * rng.standard_normal(120)
+        for name, n in ((f"c{i}", 120 if i < 3 else 40), (f"w{i}", 120)):
+            tables[name] = tmp_path / f"{name}.csv"
+            tables[name].write_text("cycle,capacity\n" + "".join(
+                f"{k},{v:.5f}\n" for k, v in enumerate(cap[:n], 1)))
+    with open_store("sqlite://") as store:
+        for i in range(4):
+            import_table(store, tables[f"c{i}"], DECL, unit=f"C{i}")
+        plain = forecast_unit(store, "C3").parameters[0].forecast
+        import_table(store, tables["c1"], DECL, unit="C1-again")
+        import_table(store, tables["w3"], DECL, unit="C3-whole")
+        f = forecast_unit(store, "C3").parameters[0].forecast
+    said = [n for n in f.notes if "failed peer(s)" in n]
+    assert said and "3 failed peer(s) (C0, C1, C2)" in said[0], f.notes
+    assert "C1-again, C3-whole left out: the same series" in said[0]
+    assert f.remaining == plain.remaining

@@ -87,6 +87,9 @@ class Calibration:
     refused : str
         Why the levels cannot be read (the forecast is then not
         recalibrated, and says why); empty: they can.
+    same : tuple of str
+        Peers left out, by name: their series repeats another peer's, or
+        begins with the unit's own (the same unit imported twice).
     """
 
     median: float
@@ -99,6 +102,7 @@ class Calibration:
     names: tuple[str, ...] = ()
     apart: int = 0
     refused: str = ""
+    same: tuple[str, ...] = ()
 
     def probability(self, raw: float) -> float:
         """A probability the draws give (the share of them within a horizon)
@@ -132,6 +136,9 @@ class Calibration:
             said += (f"; {self.apart} of them count their lives otherwise than it does (not "
                      f"its prior" + ("" if self.lives else
                                     f": {MIN_PEERS} that count as it does are needed") + ")")
+        if self.same:
+            said += (f"; {', '.join(self.same)} left out: the same series as another peer's or "
+                     "as the start of its own (one unit imported twice?)")
         return said
 
 
@@ -219,7 +226,8 @@ def path_pits(x: ArrayLike, y: ArrayLike, threshold: float, seed: int = 0,
 
 
 def calibrate(pits: ArrayLike, peers: int, lives: Sequence[Life] = (),
-              names: Sequence[str] = (), apart: int = 0) -> Calibration | None:
+              names: Sequence[str] = (), apart: int = 0, same: Sequence[str] = ()
+              ) -> Calibration | None:
     """The levels to read a forecast's draws at, from its fleet's PITs (None:
     fewer than :data:`MIN_PITS`, or from fewer than :data:`MIN_PEERS` peers).
 
@@ -251,4 +259,4 @@ def calibrate(pits: ArrayLike, peers: int, lives: Sequence[Life] = (),
                    "(sudden failures?), so the fleet's levels cannot be read")
     return Calibration(med, lo, hi, int(p.size), int(peers), tuple(float(v) for v in p),
                        tuple(lives) if len(lives) >= MIN_PEERS else (), tuple(names),
-                       int(apart), refused)
+                       int(apart), refused, tuple(same))

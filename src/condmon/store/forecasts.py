@@ -15,12 +15,13 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
 import pandas as pd
 
 from condmon.errors import CondmonError, DataError
 from condmon.monitor.baseline import MIN_BASELINE_TESTS, Baseline
 from condmon.forecast.calibration import MIN_PEERS, Calibration, calibrate, life_of, path_pits
-from condmon.forecast.path import Life
+from condmon.forecast.path import PATH_MIN_TESTS, Life
 from condmon.forecast.prior import FleetPrior, UnitWear, prior_from_wear, unit_wear
 from condmon.forecast.unit import (
     NO_TREND, NoGo, UnitForecast, forecast_axis, forecast_checks, in_test_order,
@@ -214,9 +215,12 @@ class FleetHistory:
         (:func:`~condmon.forecast.path.with_fleet`), and of each other's along
         theirs."""
         series = {p: self._peer_series(p) for p in self.learning_peers(unit)[:CALIBRATION_PEERS]}
+        same = _repeats(series, self._peer_series(unit)[1])
         lives: dict[str, dict[str, Life]] = {}   # per indicator, the lives counted ``by``
         for p, (axis, found) in series.items():
             for key in found:
+                if p in same.get(key, ()):
+                    continue
                 if axis == by and (life := self._life(p, key)) is not None:
                     lives.setdefault(key, {})[p] = life
         pits: dict[str, list[float]] = {}
@@ -224,6 +228,8 @@ class FleetHistory:
         apart: dict[str, int] = {}
         for p, (axis, found) in series.items():
             for key, s in found.items():
+                if p in same.get(key, ()):
+                    continue
                 mine = lives.get(key, {})
                 # the other peers' lives, as the unit's forecast takes them (or none)
                 others = tuple(life for q, life in mine.items() if q != p) \
@@ -235,7 +241,8 @@ class FleetHistory:
                     names.setdefault(key, []).append(p)
                     apart[key] = apart.get(key, 0) + int(axis != by)
         return {k: c for k, v in pits.items() if (c := calibrate(
-            v, len(names[k]), list(lives.get(k, {}).values()), names[k], apart[k])) is not None}
+            v, len(names[k]), list(lives.get(k, {}).values()), names[k], apart[k],
+            sorted(same.get(k, ())))) is not None}
 
     def _life(self, peer: str, key: str) -> Life | None:
         """A peer's whole life in ``key`` (:func:`~condmon.forecast.calibration.life_of`),
@@ -301,6 +308,30 @@ UNFITTED = ("the wear of {} degraded peer(s) is not kept yet (the forecast metho
 #: Most failed peers a path forecast is recalibrated on (20 forecasts along
 #: each: 100 PITs place the 5 % and 95 % points to about ±2 %).
 CALIBRATION_PEERS = 5
+
+
+def _repeats(series: dict[str, tuple[str, dict[str, tuple[Any, Any, float]]]],
+             own: dict[str, tuple[Any, Any, float]]) -> dict[str, set[str]]:
+    """Per indicator, the peers whose change series repeats an earlier
+    peer's (by name), or begins with the unit's own whole series (of
+    :data:`~condmon.forecast.path.PATH_MIN_TESTS` checks or more): one unit
+    imported twice lends no second life, and its own future is no prior of
+    itself. Two units' readings agree to the last digit at every check only
+    when they are one unit's."""
+    out: dict[str, set[str]] = {}
+    seen: dict[str, set[tuple[bytes, bytes]]] = {}
+    for p in sorted(series):
+        for key, (x, y, _) in series[p][1].items():
+            xa, ya = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+            mark = (xa.tobytes(), ya.tobytes())
+            mine = own.get(key)
+            n = 0 if mine is None else len(mine[0])
+            if mark in seen.setdefault(key, set()) or (
+                    mine is not None and PATH_MIN_TESTS <= n <= xa.size
+                    and np.array_equal(xa[:n], mine[0]) and np.array_equal(ya[:n], mine[1])):
+                out.setdefault(key, set()).add(p)
+            seen[key].add(mark)
+    return out
 
 
 def read_forecast(store: HistoryStore, unit: str, horizon: float | None = None,

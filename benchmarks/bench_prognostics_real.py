@@ -265,6 +265,34 @@ def score(rows: list[dict[str, Any]]) -> dict[str, float]:
             "too_early": float(np.mean(med < truth))}
 
 
+def matched(rows: list[dict[str, Any]], target: float) -> tuple[float, float]:
+    """The factor each interval's ends would be moved by, about its median on
+    a log(1 + cycles) scale, for the intervals to hold ``target`` of these
+    true remaining lives, and the median relative width they would then have.
+
+    In-sample: read on the forecasts it is scored on, it is not a forecast
+    but a measure of sharpness at equal coverage: which method's intervals
+    are narrower once both cover the same share. (inf, inf): no factor does.
+    """
+    done = [r for r in rows if r["forecast"] is not None]
+    if not done:
+        return math.nan, math.nan
+    truth = np.array([r["truth"] for r in done])
+    med, lo, hi = (np.log1p(np.array([r["forecast"][i] for r in done])) for i in range(3))
+    t = np.log1p(truth)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        need = np.where(t < med, (med - t) / (med - lo), (t - med) / (hi - med))
+    need = np.where(t == med, 0.0, np.where(np.isnan(need), np.inf, need))
+    factor = float(np.quantile(need, target, method="inverted_cdf"))
+    if not np.isfinite(factor):
+        return math.inf, math.inf
+    bounded = np.isfinite(hi)     # (an unbounded interval stays so, whatever its factor)
+    with np.errstate(invalid="ignore", over="ignore"):
+        low = np.expm1(med - factor * (med - lo))
+        high = np.expm1(med + factor * (hi - med))
+    return factor, float(np.median(np.where(bounded, (high - low) / truth, np.inf)))
+
+
 def draw_spread(spread: dict[str, list[dict[str, float]]], best: float,
                 progpy_width: float | None) -> list[dict[str, str]]:
     """Per path row, each figure's median [lowest, highest] over the draw sets,
@@ -382,12 +410,24 @@ def main() -> None:
                      f"{ours['median_relative_width'] / measured[0]['median_relative_width']:.2f}")
         print(line, end="")
     print()
+    at_cover = []
+    for m, r in rows.items():
+        row: dict[str, Any] = {"method": m}
+        for target in (0.8, 0.9):
+            factor, width = matched(r, target)
+            row[f"factor for {target:.0%}"] = factor
+            row[f"median width at {target:.0%}"] = width
+        at_cover.append(row)
+    print(table(at_cover, "\nsharpness at equal coverage (in-sample, not a forecast): each "
+                          "method's intervals moved about their medians, on log(1 + cycles), "
+                          "until they hold 80 % (90 %) of these true lives; the factor and the "
+                          "median relative width it gives"))
     ranges = draw_spread(spread, best, measured[0]["median_relative_width"] if measured else None)
     print(table(ranges, f"\ncondmon's path rows over {args.draw_sets} Monte-Carlo draw set(s) "
                         "(median [lowest, highest]); the first set is the table's"))
     path = write_json("prognostics_real", {"load": [load, end], "seconds": elapsed,
                                            "levels": levels, "scores": scores, "forecasts": rows,
-                                           "draw_sets": spread})
+                                           "draw_sets": spread, "equal_coverage": at_cover})
     print(f"wrote {path}")
 
 

@@ -118,7 +118,8 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
                             step=step, unreachable=unreachable)
         note = (f"{xa.size} checks: too few for a degradation path (it needs "
                 f"{PATH_MIN_TESTS}), forecast as a trend")
-        return dataclasses.replace(f, notes=(note, *f.notes))
+        said = coverage_note("trend")   # what that interval is worth on measured series
+        return dataclasses.replace(f, notes=(note, *f.notes, *([said] if said else [])))
     own = fit_path(xa, ya)
     refused = calibration.refused if calibration is not None else ""
     if refused:

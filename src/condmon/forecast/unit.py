@@ -317,11 +317,12 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
         raise DataError(f"not enough tests to forecast: unit {unit!r} has {len(checks)} "
                         f"check(s) since its baseline, need {MIN_TESTS}")
     if method == "path" and len(checks) < PATH_MIN_TESTS:
-        # (the trend method's fallback interval held the truth in about one real
-        # forecast in four: no interval, rather than that one)
+        # (a trend in the path's place held real lives about one time in four: no
+        # interval, rather than that one)
+        why = _trend_on_real()
         raise DataError(f"not enough tests to forecast: unit {unit!r} has {len(checks)} "
                         f"check(s) since its baseline, a measured degradation path needs "
-                        f"{PATH_MIN_TESTS}" + (f" ({_trend_on_real()})" if _trend_on_real() else ""))
+                        f"{PATH_MIN_TESTS}" + (f" ({why})" if why else ""))
     checks = in_test_order(checks)
     axis = forecast_axis(checks)
     out = []

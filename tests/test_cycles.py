@@ -224,3 +224,27 @@ def test_two_units_gauges_may_differ_by_both_their_accuracies(
     moved = doc["percent_change"]["Tl@forward + reverse"] / 100.0 * abs(a_tl)
     assert moved == pytest.approx(2 * 35 * PRESSURE_SCALE * DM, rel=0.1)
     assert doc["status"] == "go", doc["summary"]
+
+
+def test_fleet_run_says_a_cycle_declared_unit_is_checked_record_by_record(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`fleet run` checks one record at a time: a unit whose model declares a
+    cycle is named with what that means, in the summary and the JSON; one
+    whose model declares none is not."""
+    from _strokes import STROKE_DECLARATION
+
+    for unit, model in (("A", DECLARATION), ("B", STROKE_DECLARATION)):
+        folder = tmp_path / "inbox" / unit
+        folder.mkdir(parents=True)
+        (folder / "unit.toml").write_text(f'model = "{model.as_posix()}"\n')
+        for i, speed in enumerate((0.5, -0.5, 0.5, -0.5)):
+            write_stroke(folder / f"s{i}.txt", speed, seed=i)
+    db = str(tmp_path / "f.db")
+    assert main(["fleet", "run", str(tmp_path / "inbox"), "--db", db]) == 0
+    said = capsys.readouterr().out
+    assert "A: its model declares a cycle (forward, reverse" in said
+    assert "`condmon check A B` estimate and check whole cycles" in said
+    assert "B: " not in said
+    assert main(["fleet", "run", str(tmp_path / "inbox"), "--db", db, "--json"]) == 0
+    units = {u["unit"]: u for u in json.loads(capsys.readouterr().out)["units"]}
+    assert "declares a cycle" in units["A"]["note"] and "note" not in units["B"]

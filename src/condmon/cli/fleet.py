@@ -140,6 +140,9 @@ def _print_result(res: FleetResult, source: str) -> None:
         label = f"[bold {color}]{status}[/]" if color else escape(status)
         table.add_row(label, str(len(names)), escape(shown))
     out.print(table)
+    for u in res.units:
+        if u.note:
+            out.print(f"{u.unit}: {u.note}", highlight=False, markup=False, soft_wrap=True)
     taken = res.count("stored") + res.count("rejected")
     rate = (f" ({taken / res.seconds:.1f} records stored/s)"
             if res.workers > 0 and res.seconds > 0 and taken else "")

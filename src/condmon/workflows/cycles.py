@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from condmon.errors import DataError
+from condmon.errors import CondmonError, DataError
 from condmon.identify.estimate import used_regimes
 from condmon.models.registry import get_model
 from condmon.io.columns import Columns
@@ -26,7 +26,7 @@ from condmon.workflows.records import Cycle, EstimateOptions, RecordLike
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["cycles_of", "one_cycle"]
+__all__ = ["cycles_of", "one_cycle", "record_by_record"]
 
 
 def _name(rec: RecordLike, i: int) -> str:
@@ -125,3 +125,24 @@ def one_cycle(opts: EstimateOptions, cycle: Cycle) -> Cycle:
                     f"{machine.name} is one cycle ({', '.join(machine.spec.cycle)}: "
                     "[estimation] cycle): check one cycle's records together; nothing was "
                     "stored")
+
+
+def record_by_record(model: str | None) -> str:
+    """What a command that checks one record at a time (``fleet run``) says
+    of a unit whose ``model`` declares a cycle: its tests there are single
+    records, not cycles. Empty when the model declares none (or cannot be
+    loaded: the run says that itself).
+
+    Example
+    -------
+    >>> record_by_record("dc-motor")
+    ''
+    """
+    try:
+        cycle = get_model(model or "dc-motor").spec.cycle
+    except CondmonError:
+        return ""
+    return "" if not cycle else (
+        f"its model declares a cycle ({', '.join(cycle)}: [estimation] cycle), but here each "
+        "record is its own test, checked against a baseline of single records; "
+        "`condmon baseline add` and `condmon check A B` estimate and check whole cycles")

@@ -62,6 +62,7 @@ from condmon.workflows.fleet_inbox import (
 )
 from condmon.workflows.fleet_work import Kind as Kind
 from condmon.workflows.fleet_work import RecordOutcome, RecordTask, _named, process_record
+from condmon.workflows.cycles import record_by_record
 from condmon.workflows.records import EstimateOptions
 
 if TYPE_CHECKING:
@@ -125,6 +126,9 @@ class UnitReport:
         None when the history has nothing of it.
     records : dict of str to int
         How many of its records had each outcome.
+    note : str
+        What the run could not do as its model declares (a cycle checked
+        record by record, :func:`~condmon.workflows.cycles.record_by_record`).
     """
 
     unit: str
@@ -132,11 +136,13 @@ class UnitReport:
     kind: str | None
     status: str | None
     records: dict[str, int]
+    note: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready unit."""
         return {"unit": self.unit, "model": self.model, "kind": self.kind,
-                "status": self.status, "records": dict(self.records)}
+                "status": self.status, "records": dict(self.records),
+                **({"note": self.note} if self.note else {})}
 
 
 @dataclass(frozen=True)
@@ -572,5 +578,7 @@ def _unit_reports(store: HistoryStore | None, plans: dict[str, _Unit],
         summary = summaries.get(name)
         status = None if summary is None or summary["status"] is None else str(summary["status"])
         out.append(UnitReport(name, plan.model if plan is not None else None,
-                              plan.kind if plan is not None else None, status, counts))
+                              plan.kind if plan is not None else None, status, counts,
+                              record_by_record(plan.model) if plan is not None
+                              and plan.kind == "estimate" else ""))
     return tuple(out)

@@ -31,7 +31,7 @@ from condmon.monitor.baseline import Baseline
 from condmon.forecast.axis import Axis, Series, forecast_axis, in_test_order, parameter_series
 from condmon.forecast.degradation import steady_direction
 from condmon.forecast.calibration import Calibration
-from condmon.forecast.measured import forecast_by, measured_coverage
+from condmon.forecast.measured import forecast_by, real_coverage
 from condmon.forecast.path import PATH_MIN_TESTS
 from condmon.forecast.series import MIN_TESTS, Forecast, Prior, checked_horizon
 
@@ -243,16 +243,6 @@ class UnitForecast:
                 "at_no_go": e.forecast.at_nogo}
 
 
-def _trend_on_real() -> str:
-    """What a trend's interval held on real measured series (``data/coverage.toml``)."""
-    real = [v for v in measured_coverage().get("trend", {}).values()
-            if "real" in str(v.get("data", ""))]
-    return "" if not real else (
-        f"a trend instead: its 90 % interval held the true remaining life in only "
-        f"{100 * real[0]['coverage']:.0f} % of {real[0]['forecasts']} forecasts on "
-        f"{str(real[0]['data']).split(' (')[0]}")
-
-
 def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
                     r2: Mapping[str, float | NoGo], rules: Mapping[str, str],
                     units: Mapping[str, str] | None = None, horizon: float | None = None,
@@ -319,10 +309,12 @@ def forecast_checks(unit: str, checks: pd.DataFrame, baseline: Baseline,
     if method == "path" and len(checks) < PATH_MIN_TESTS:
         # (a trend in the path's place held real lives about one time in four: no
         # interval, rather than that one)
-        why = _trend_on_real()
+        held = real_coverage("trend")
         raise DataError(f"not enough tests to forecast: unit {unit!r} has {len(checks)} "
                         f"check(s) since its baseline, a measured degradation path needs "
-                        f"{PATH_MIN_TESTS}" + (f" ({why})" if why else ""))
+                        f"{PATH_MIN_TESTS}" + (f" (a trend instead: its 90 % interval held the "
+                                               f"true remaining life in only {held})"
+                                               if held else ""))
     checks = in_test_order(checks)
     axis = forecast_axis(checks)
     out = []

@@ -216,11 +216,11 @@ class FleetHistory:
         theirs."""
         series = {p: self._peer_series(p) for p in self.learning_peers(unit)[:CALIBRATION_PEERS]}
         same = _repeats(series, self._peer_series(unit)[1])
+        series = {p: (axis, {k: s for k, s in found.items() if p not in same.get(k, ())})
+                  for p, (axis, found) in series.items()}
         lives: dict[str, dict[str, Life]] = {}   # per indicator, the lives counted ``by``
         for p, (axis, found) in series.items():
             for key in found:
-                if p in same.get(key, ()):
-                    continue
                 if axis == by and (life := self._life(p, key)) is not None:
                     lives.setdefault(key, {})[p] = life
         pits: dict[str, list[float]] = {}
@@ -228,8 +228,6 @@ class FleetHistory:
         apart: dict[str, int] = {}
         for p, (axis, found) in series.items():
             for key, s in found.items():
-                if p in same.get(key, ()):
-                    continue
                 mine = lives.get(key, {})
                 # the other peers' lives, as the unit's forecast takes them (or none)
                 others = tuple(life for q, life in mine.items() if q != p) \

@@ -203,6 +203,48 @@ def test_failed_peers_mean_rates_are_the_prior_of_a_poorly_told_rate() -> None:
     assert said and "its own series alone" in said[0], own.notes
 
 
+def test_peers_lend_the_rate_they_went_on_at_from_as_near_their_end() -> None:
+    """Known truth: wear that speeds up with damage, ``y = −(e^(x/τ) − 1)``
+    [%], ends at −30 % (x = τ·ln 31). Peers with τ = 36, 40 and 44 cycles
+    went on from −20 % to their end at 10/(τ·ln(31/21)) %/cycle: 0.71,
+    0.64 and 0.58, above their lines' mean rates over their lives (about
+    0.4). A unit with τ = 40 seen up to −20 % (x = 40·ln 21, 122 cycles) has
+    15.6 cycles left; its own line through the whole series says far more.
+    The peers' rates from its distance are its prior; their mean rates
+    over their lives would put it late. (The rates lent are read from the
+    peers' trends as their own forecasts read them then, as the unit's is:
+    a line through a bending series lags its end, so they are faster still
+    than the curve's own from −20 %.)"""
+    rng = np.random.default_rng(3)
+
+    def wear(tau: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+        x = np.arange(1.0, n + 1.0)
+        return x, -(np.exp(x / tau) - 1.0) + rng.normal(0.0, 0.05, n)
+
+    lives = [life_of(*wear(tau, int(tau * np.log(31.0)) + 2), -30.0) for tau in (36.0, 40.0, 44.0)]
+    assert all(life is not None and life.track for life in lives)
+    known = [life for life in lives if life is not None]
+    rates = [-10.0 / (tau * np.log(31.0 / 21.0)) for tau in (36.0, 40.0, 44.0)]
+    lent = [life.rate_from(-10.0) for life in known]
+    assert lent[0] < lent[1] < lent[2] and all(a < r for a, r in zip(lent, rates)), (lent, rates)
+    assert all(life.rate > 0.5 * a for life, a in zip(known, lent))   # (whole lives: slower)
+    c = calibrate(np.linspace(0.025, 0.975, 40), MIN_PEERS, known)
+    assert c is not None
+    bare = dataclasses.replace(c, lives=tuple(dataclasses.replace(life, track=())
+                                              for life in known))
+    truth = 40.0 * np.log(31.0) - 40.0 * np.log(21.0)
+    near, far = [], []
+    for i in range(8):
+        x, y = wear(40.0, 122)
+        a = forecast_path(x, y, np.zeros(x.size), 0.05, -30.0, seed=i, calibration=c)
+        b = forecast_path(x, y, np.zeros(x.size), 0.05, -30.0, seed=i, calibration=bare)
+        assert a.remaining is not None and b.remaining is not None
+        near.append(abs(np.log(a.remaining[0] / truth)))
+        far.append(abs(np.log(b.remaining[0] / truth)))
+    assert np.median(near) < 0.5 * np.median(far), (near, far)
+    assert np.median(near) < np.log(1.3), near
+
+
 def test_a_life_past_its_forecasts_95_percent_point_is_read_there() -> None:
     """Known truth: a peer fading at −0.5 %/cycle to −20 %, then at −0.05
     %/cycle to its end at −30 % (cycle 240). Its early forecasts expect the

@@ -141,7 +141,7 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
     refused = calibration.refused if calibration is not None else ""
     if refused:
         calibration = None
-    fit = own if calibration is None else with_fleet(own, calibration.lives)
+    fit = own if calibration is None else with_fleet(own, calibration.lives, threshold)
     sign = 1.0 if threshold > 0 else -1.0
     slope = fit.coef[1]
     sd = math.sqrt(max(fit.cov[1][1], 0.0))
@@ -185,10 +185,11 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
             calibration.median, calibration.low, calibration.high))
         notes.append(calibration.describe(per))
         if fit.fleet:   # what the fleet's lives changed
-            notes.append(f"with the fleet's prior, the mean rate drawn at "
-                         f"{drawn_rate(fit, seed):.3g} %/{per} and the rate wandering "
-                         f"{100 * math.sqrt(fit.walk):.2g} % per √{per} (from its own series "
-                         f"alone: {drawn_rate(own, seed):.3g} and "
+            notes.append(f"with the fleet's prior (its peers went on from as near their ends "
+                         f"at " + ", ".join(f"{r:.3g}" for r in fit.fleet) + f" %/{per}), the "
+                         f"rate now drawn at {drawn_rate(fit, seed):.3g} %/{per} and the rate "
+                         f"wandering {100 * math.sqrt(fit.walk):.2g} % per √{per} (from its "
+                         f"own series alone: {drawn_rate(own, seed):.3g} and "
                          f"{100 * math.sqrt(own.walk):.2g} %)")
     said = coverage_note("path", calibration is not None, caveat=not refused)
     if said:

@@ -114,8 +114,9 @@ class PathFit:
     n : int
         Points used.
     fleet : tuple of float
-        Failed peers' mean rates over their lives, the prior of this
-        unit's (:func:`with_fleet`); empty: none. [y per x]
+        Failed peers' rates from as near their ends as this unit is (or
+        their mean rates over their lives), the prior of its rate now
+        (:func:`with_fleet`); empty: none. [y per x]
     """
 
     coef: tuple[float, float]
@@ -263,7 +264,8 @@ def fit_path(x: ArrayLike, y: ArrayLike) -> PathFit:
 @dataclass(frozen=True)
 class Life:
     """What a failed peer's whole life lends a unit's path forecast: a path
-    fitted to its series up to its end of life.
+    fitted to its series up to its end of life, and where its trend stood
+    along the way.
 
     Attributes
     ----------
@@ -271,15 +273,40 @@ class Life:
         Its :attr:`PathFit.walk_moments`. [1 per x, 1 per x, -]
     rate : float
         Its mean rate over that life (:attr:`PathFit.coef`'s second). [y per x]
+    track : tuple of (float, float)
+        At checks along the life, in order: the change its trend had still
+        to make to its end of life (the end's level less the trend's value
+        there, as its own path forecast read it then) and the ``x`` it had
+        left; empty: not known (its mean rate stands for every point). [y, x]
     """
 
     walk: tuple[float, float, int]
     rate: float
+    track: tuple[tuple[float, float], ...] = ()
+
+    def rate_from(self, gap: float) -> float:
+        """The rate at which this life went on to its end from the first
+        point its trend was within ``gap`` of it (its first tracked point
+        when never that far; its last when never that near): the
+        change still to make over the ``x`` it had left. [y per x]
+
+        Example
+        -------
+        >>> Life((0.0, 0.0, 0), -0.01, ((-2.0, 100.0), (-1.0, 20.0))).rate_from(-1.5)
+        -0.05
+        """
+        if not self.track:
+            return self.rate
+        near = [i for i, (g, _) in enumerate(self.track) if abs(g) <= abs(gap)]
+        g, left = self.track[near[0]] if near else self.track[-1]
+        return g / left
 
 
-def with_fleet(fit: PathFit, lives: Sequence[Life]) -> PathFit:
+def with_fleet(fit: PathFit, lives: Sequence[Life], threshold: float | None = None
+               ) -> PathFit:
     """``fit`` with failed peers' whole lives as its prior: their rates' wander
-    pooled with its own, and their mean rates as the prior of its own.
+    pooled with its own, and the rates at which they went on from as near
+    their ends of life as it is now as the prior of its rate now.
 
     This is the hierarchical reading of a model's wear (Gebraeel, 2006: a
     unit's degradation rate drawn from its fleet's, updated by its own
@@ -291,22 +318,33 @@ def with_fleet(fit: PathFit, lives: Sequence[Life]) -> PathFit:
       degrees of freedom is heavy-tailed, and the interval with it. Each
       peer's blocks' moments are pooled with the unit's, weighted by their
       degrees of freedom.
-    - **The rate.** Early in a life a unit's own rate is poorly told (a
-      flat start, a recovery under way); its peers' mean rates over their
-      lives say what a life of this model fades at. The drawn rates are
+    - **The rate.** A unit's own rate now is poorly told (a flat start, a
+      recovery under way, a fade that speeds up towards the end); its
+      peers say at what rate a unit of this model went on to its end from
+      as near it as this unit is now (:meth:`Life.rate_from`, matched on the
+      change still to make, as each one's own path forecast read its trend
+      then: wear that speeds up with damage is matched on damage, not on
+      age; the similarity-based prognostics of Wang, Yu, Siegel and Lee,
+      2008, match a unit's health to its fleet's in the same way). The
+      drawn rates now (the trend's rate times the walk's factor now) are
       weighed by the peers' predictive distribution (a Student t on n − 1
       degrees of freedom about their mean, scale their sd times
       ``sqrt(1 + 1/n)``: the normal model of rates between units with its
-      mean and variance unknown), so a well-told rate of its own stands and a
-      poorly told one is drawn towards the fleet's. Two peers at least.
+      mean and variance unknown), so a well-told rate of its own stands and
+      a poorly told one is drawn towards the fleet's. Two peers at least.
+      Without ``threshold`` (or a peer's track), a peer's mean rate over its
+      life stands for it.
 
     Relative changes make both free of each unit's scale; the peers must
-    count the same ``x``.
+    count the same ``x``, and ``threshold`` is the unit's end of life in its
+    ``y``, as each peer's track is to its own.
 
     Parameters
     ----------
     fit : PathFit
     lives : sequence of Life
+    threshold : float, optional
+        The unit's end of life. [y]
 
     Returns
     -------
@@ -323,7 +361,8 @@ def with_fleet(fit: PathFit, lives: Sequence[Life]) -> PathFit:
     """
     if not lives:
         return fit
-    fleet = tuple(float(life.rate) for life in lives)
+    gap = None if threshold is None else threshold - fit.coef[0]
+    fleet = tuple(float(life.rate if gap is None else life.rate_from(gap)) for life in lives)
     moments = [fit.walk_moments, *(life.walk for life in lives)]
     d = sum(dof for _, _, dof in moments)
     if d == 0:   # no block told a wander: the rates alone
@@ -335,7 +374,7 @@ def with_fleet(fit: PathFit, lives: Sequence[Life]) -> PathFit:
 
 
 def _fleet_weights(fit: PathFit, rate: FloatArray) -> FloatArray | None:
-    """The peers' predictive density at each drawn rate [per check],
+    """The peers' predictive density at each drawn rate now [per check],
     normalised over the draws (:func:`with_fleet`); None without two peers
     whose rates differ.
 
@@ -381,7 +420,7 @@ def _draws(fit: PathFit, rng: np.random.Generator, size: int
             else np.zeros(size))
     var0 = walk * fit.span / 3.0
     w0 = rng.normal(0.0, np.sqrt(var0))
-    weights = _fleet_weights(fit, rate)
+    weights = _fleet_weights(fit, rate * np.exp(np.minimum(w0, _EXP_MAX)))   # the rate now
     if weights is None:
         return level, rate, phis, innovation, w0, walk
     # the fleet's prior on the rate, by importance: the draws resampled by it
@@ -390,8 +429,9 @@ def _draws(fit: PathFit, rng: np.random.Generator, size: int
 
 
 def drawn_rate(fit: PathFit, seed: int = 0, draws: int = _DRAWS) -> float:
-    """The median of the mean rates :func:`path_remaining` draws: with the
-    fleet's prior when ``fit`` has one (:func:`with_fleet`). [y per x]
+    """The median of the rates now :func:`path_remaining` draws (the
+    trend's rate times the walk's factor now): with the fleet's prior when
+    ``fit`` has one (:func:`with_fleet`). [y per x]
 
     Example
     -------
@@ -400,8 +440,8 @@ def drawn_rate(fit: PathFit, seed: int = 0, draws: int = _DRAWS) -> float:
     >>> round(drawn_rate(f), 4)
     -0.005
     """
-    rate = _draws(fit, np.random.default_rng(seed), draws)[1]
-    return float(np.median(rate)) / fit.step
+    _, rate, _, _, w0, _ = _draws(fit, np.random.default_rng(seed), draws)
+    return float(np.median(rate * np.exp(np.minimum(w0, _EXP_MAX)))) / fit.step
 
 
 def path_remaining(fit: PathFit, threshold: float, seed: int = 0,

@@ -248,3 +248,55 @@ def test_fleet_run_says_a_cycle_declared_unit_is_checked_record_by_record(
     assert main(["fleet", "run", str(tmp_path / "inbox"), "--db", db, "--json"]) == 0
     units = {u["unit"]: u for u in json.loads(capsys.readouterr().out)["units"]}
     assert "declares a cycle" in units["A"]["note"] and "note" not in units["B"]
+
+
+def test_watch_says_once_a_cycle_declared_unit_is_checked_test_by_test(
+        tmp_path: Path) -> None:
+    """`watch` checks each streamed test, and each dropped record file, on
+    its own: a unit whose model declares a cycle is named once with what
+    that means, whichever way it comes; one whose model declares none is
+    not."""
+    import threading
+    import time
+
+    from _strokes import STROKE_DECLARATION
+    from condmon.store import open_store
+    from condmon.workflows.watch import Watcher
+    from condmon.workflows.watch_folder import watch_folder
+
+    lines: list[str] = []
+    with open_store(str(tmp_path / "w.db")) as store:
+        w = Watcher(store, model=str(DECLARATION), log=lines.append)
+        for unit in ("A", "A"):
+            w.machine_of(unit)
+        Watcher(store, model=str(STROKE_DECLARATION), log=lines.append).machine_of("B")
+        w.close()
+    assert len(lines) == 1 and lines[0].startswith("A: its model declares a cycle"), lines
+    assert "each streamed test" in lines[0]
+
+    for unit, model in (("A", DECLARATION), ("B", STROKE_DECLARATION)):
+        folder = tmp_path / "inbox" / unit
+        folder.mkdir(parents=True)
+        (folder / "unit.toml").write_text(f'model = "{model.as_posix()}"\n')
+        for i, speed in enumerate((0.5, -0.5)):
+            write_stroke(folder / f"s{i}.txt", speed, seed=i)
+    said: list[str] = []
+    stop = threading.Event()
+    th = threading.Thread(target=lambda: watch_folder(
+        tmp_path / "inbox", str(tmp_path / "f.db"), settle=0.2, poll=0.1, stop=stop,
+        log=said.append), daemon=True)
+    th.start()
+    deadline = time.monotonic() + 60.0
+    while not any("declares a cycle" in s for s in said) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    for i, speed in enumerate((0.5, -0.5), start=2):   # a second batch: not said again
+        write_stroke(tmp_path / "inbox" / "A" / f"s{i}.txt", speed, seed=i)
+    while sum(": stored" in s or "s3.txt" in s for s in said) < 1 and (
+            time.monotonic() < deadline):
+        time.sleep(0.1)
+    time.sleep(1.0)
+    stop.set()
+    th.join(30.0)
+    noted = [s for s in said if "declares a cycle" in s]
+    assert len(noted) == 1 and noted[0].startswith("A: "), said
+    assert "each record is its own test" in noted[0]

@@ -127,11 +127,11 @@ def one_cycle(opts: EstimateOptions, cycle: Cycle) -> Cycle:
                     "stored")
 
 
-def record_by_record(model: str | None) -> str:
-    """What a command that checks one record at a time (``fleet run``) says
-    of a unit whose ``model`` declares a cycle: its tests there are single
-    records, not cycles. Empty when the model declares none (or cannot be
-    loaded: the run says that itself).
+def record_by_record(model: str | None, each: str = "record") -> str:
+    """What a command that checks one record at a time (``fleet run``,
+    ``watch``) says of a unit whose ``model`` declares a cycle: its tests
+    there are single records (``each`` names them), not cycles. Empty when
+    the model declares none (or cannot be loaded: the run says that itself).
 
     Example
     -------
@@ -144,5 +144,5 @@ def record_by_record(model: str | None) -> str:
         return ""
     return "" if not cycle else (
         f"its model declares a cycle ({', '.join(cycle)}: [estimation] cycle), but here each "
-        "record is its own test, checked against a baseline of single records; "
+        f"{each} is its own test, checked against a baseline of single ones; "
         "`condmon baseline add` and `condmon check A B` estimate and check whole cycles")

@@ -44,6 +44,7 @@ from condmon.models.registry import get_model
 from condmon.store.db import HistoryStore
 from condmon.store.engine import StoreError
 from condmon.store.history import DuplicateTestError
+from condmon.workflows.cycles import record_by_record
 from condmon.workflows.watch_bounds import Bounds, Refused, by_length, nbytes, pieces
 
 __all__ = ["WatchEvent", "WatchCounters", "Watcher"]
@@ -184,6 +185,9 @@ class Watcher:
                 raise DataError(f"unit {unit!r} is new to the history and no model was given "
                                 "(watch --model NAME|FILE)")
             self._machines[unit] = (name, get_model(name))
+            said = record_by_record(name, "streamed test (up to its {\"end\": true})")
+            if said:   # (once per unit and watch)
+                self.log(f"{unit}: {said}")
         return self._machines[unit]
 
     def handle(self, chunk: Chunk) -> list[WatchEvent]:

@@ -132,6 +132,7 @@ def watch_folder(folder: str | Path, db: str, *, settle: float = 2.0, poll: floa
         "marker": f"a file is complete once NAME{MARKER} is beside it"}[complete] + ")")
     summary = FolderSummary()
     started = time.monotonic()
+    noted: set[str] = set()
     with ExitStack() as outer:
         stack = outer.enter_context(ExitStack())   # the local cluster, while files come
         scheduler: str | None = None
@@ -164,6 +165,10 @@ def watch_folder(folder: str | Path, db: str, *, settle: float = 2.0, poll: floa
                     summary.events.append(event)
                     publish(event)
                     log(f"{event.unit}: {event.status}: {event.reason}")
+                for u in res.units:   # (a unit's note once per watch: it does not change)
+                    if u.note and u.unit not in noted:
+                        noted.add(u.unit)
+                        log(f"{u.unit}: {u.note}")
             halt.wait(poll)
     summary.seconds = time.monotonic() - started
     return summary

@@ -245,6 +245,24 @@ def test_peers_lend_the_rate_they_went_on_at_from_as_near_their_end() -> None:
     assert np.median(near) < np.log(1.3), near
 
 
+def test_a_peer_s_rate_is_read_where_its_trend_still_headed_for_its_end() -> None:
+    """A peer's track matched on the change still to make: the first point
+    as near; the first point when the unit is farther from its end than the
+    peer ever was; its last point heading for its end when the unit is
+    nearer; a point where the peer's trend had passed its end (a recovery
+    held its readings up) tells no rate; no track: its mean rate."""
+    from condmon.forecast.path import Life
+
+    track = ((-4.0, 80.0), (-2.0, 40.0), (-1.0, 25.0), (0.5, 4.0))   # falling to its end
+    peer = Life((0.0, 0.0, 0), -0.05, track)
+    assert peer.rate_from(-1.5) == -1.0 / 25.0
+    assert peer.rate_from(-9.0) == -4.0 / 80.0
+    assert peer.rate_from(-0.2) == -1.0 / 25.0          # not +0.5 / 4: past its end there
+    assert Life((0.0, 0.0, 0), -0.05).rate_from(-1.5) == -0.05
+    rising = Life((0.0, 0.0, 0), 0.05, tuple((-g, x) for g, x in track))
+    assert rising.rate_from(1.5) == 1.0 / 25.0
+
+
 def test_a_life_past_its_forecasts_95_percent_point_is_read_there() -> None:
     """Known truth: a peer fading at −0.5 %/cycle to −20 %, then at −0.05
     %/cycle to its end at −30 % (cycle 240). Its early forecasts expect the

@@ -288,17 +288,20 @@ class Life:
         """The rate at which this life went on to its end from the first
         point its trend was within ``gap`` of it (its first tracked point
         when never that far; its last when never that near): the
-        change still to make over the ``x`` it had left. [y per x]
+        change still to make over the ``x`` it had left. Points where its
+        trend had already passed its end (a recovery held the readings up)
+        tell no rate towards it and are passed over. [y per x]
 
         Example
         -------
         >>> Life((0.0, 0.0, 0), -0.01, ((-2.0, 100.0), (-1.0, 20.0))).rate_from(-1.5)
         -0.05
         """
-        if not self.track:
+        towards = [(g, left) for g, left in self.track if g * self.rate > 0]
+        if not towards:
             return self.rate
-        near = [i for i, (g, _) in enumerate(self.track) if abs(g) <= abs(gap)]
-        g, left = self.track[near[0]] if near else self.track[-1]
+        near = [i for i, (g, _) in enumerate(towards) if abs(g) <= abs(gap)]
+        g, left = towards[near[0]] if near else towards[-1]
         return g / left
 
 

@@ -126,8 +126,8 @@ class Calibration:
         return float(np.searchsorted(np.asarray(self.levels), raw, side="right")
                      / len(self.levels))
 
-    def describe(self, per: str = "x") -> str:
-        """One clause for a forecast's notes (``per``: what ``x`` counts)."""
+    def describe(self) -> str:
+        """One clause for a forecast's notes."""
         named = f" ({', '.join(self.names)})" if self.names else ""
         said = (f"recalibrated on {self.pits} forecasts along {self.peers} failed peer(s)"
                 f"{named} (where their true lives fell): the 90 % interval read at the draws' "

@@ -183,7 +183,7 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
     else:
         med, lo, hi = (float(np.quantile(left, q, method="inverted_cdf")) for q in (
             calibration.median, calibration.low, calibration.high))
-        notes.append(calibration.describe(per))
+        notes.append(calibration.describe())
         if fit.fleet:   # what the fleet's lives changed
             notes.append(f"with the fleet's prior (its peers went on from as near their ends "
                          f"at " + ", ".join(f"{r:.3g}" for r in fit.fleet) + f" %/{per}), the "

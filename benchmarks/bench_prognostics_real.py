@@ -73,7 +73,7 @@ from _common import table, write_json  # noqa: E402
 from condmon.errors import CondmonError  # noqa: E402
 from condmon.forecast.measured import forecast_path  # noqa: E402
 from condmon.forecast.calibration import (  # noqa: E402
-    MIN_PEERS, Calibration, calibrate, life_of, path_pits)
+    MIN_PEERS, Calibration, calibrate, life_of, path_scores)
 from condmon.forecast.path import Life  # noqa: E402
 from condmon.forecast.series import forecast_series  # noqa: E402
 
@@ -151,13 +151,13 @@ def _to_end(cycle: np.ndarray, capacity: np.ndarray, level: float
 
 
 def peer_pits(cycle: np.ndarray, capacity: np.ndarray, level: float, draw_set: int = 0,
-              lives: tuple[Life, ...] = ()) -> list[float]:
+              lives: tuple[Life, ...] = ()) -> list[tuple[float, float, float, float]]:
     """Where a failed peer's true remaining life fell in condmon's forecasts
-    along its series, as ``condmon forecast`` reads its peers
-    (:func:`condmon.forecast.calibration.path_pits`), their rate's wander
-    with the other peers' ``lives`` as each forecast's prior."""
+    along its series, and in its fleet's remaining lives, as ``condmon
+    forecast`` reads its peers (:func:`condmon.forecast.calibration.path_scores`),
+    the other peers' ``lives`` as each forecast's prior and fleet."""
     x, change, threshold = _to_end(cycle, capacity, level)
-    return path_pits(x, change, threshold, seed=SEED_STRIDE * draw_set, lives=lives)
+    return path_scores(x, change, threshold, seed=SEED_STRIDE * draw_set, lives=lives)
 
 
 def forecast_points(cells: dict[str, tuple[np.ndarray, np.ndarray]], levels: dict[str, float],
@@ -192,7 +192,7 @@ def recalibrations(cells: dict[str, tuple[np.ndarray, np.ndarray]], levels: dict
             print(f"  {cell}: forecasts along the other cells' series for its recalibration ...",
                   file=sys.stderr, flush=True)
         mine = {p: w for p, w in lives.items() if w is not None and p != cell}
-        pits = []
+        pits: list[tuple[float, float, float, float]] = []
         for c in cells:
             if c != cell:   # the others' lives, as the cell's forecast takes them (or none)
                 pits += peer_pits(*cells[c], levels[c], draw_set, tuple(
@@ -201,7 +201,7 @@ def recalibrations(cells: dict[str, tuple[np.ndarray, np.ndarray]], levels: dict
     return out
 
 
-def path_scores(cells: dict[str, tuple[np.ndarray, np.ndarray]], levels: dict[str, float],
+def draw_set_scores(cells: dict[str, tuple[np.ndarray, np.ndarray]], levels: dict[str, float],
                 start: float, every: int, draw_set: int) -> dict[str, dict[str, float]]:
     """condmon's two path rows scored with another set of Monte-Carlo draws."""
     recal = recalibrations(cells, levels, draw_set)
@@ -380,7 +380,7 @@ def main() -> None:
     for draw_set in range(1, args.draw_sets):
         print(f"  Monte-Carlo draw set {draw_set + 1} of {args.draw_sets} "
               f"({time.perf_counter() - started:.0f} s so far)", file=sys.stderr, flush=True)
-        for m, sc in path_scores(cells, levels, args.start, args.every, draw_set).items():
+        for m, sc in draw_set_scores(cells, levels, args.start, args.every, draw_set).items():
             spread[m].append(sc)
     elapsed = time.perf_counter() - started
     scores = [{"method": m, **score(r), "seconds": timing[m]} for m, r in rows.items()]

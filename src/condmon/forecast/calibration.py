@@ -32,6 +32,7 @@ the seeds ``condmon forecast`` uses; over five sets of draws: 91-92 %,
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -40,9 +41,10 @@ from numpy.typing import ArrayLike
 
 from condmon.errors import CondmonError
 from condmon.forecast.path import PATH_MIN_TESTS, Life, fit_path, path_remaining, with_fleet
+from condmon.forecast.similar import fleet_left, fleet_score, path_log_density
 
-__all__ = ["MIN_PITS", "MIN_PEERS", "PER_PEER", "TRACK", "Calibration", "life_of", "path_pits",
-           "calibrate"]
+__all__ = ["MIN_PITS", "MIN_PEERS", "PER_PEER", "TRACK", "WEIGHTS", "Calibration", "life_of",
+           "path_pits", "path_scores", "calibrate"]
 
 #: Fewest peer forecasts whose PITs may recalibrate a unit's: the 5 % and
 #: 95 % points of fewer than 19 cannot be told from the extremes. [-]
@@ -61,6 +63,10 @@ PER_PEER = 20
 #: unit's distance is matched to within 1/60 of the peer's life, at a path
 #: fit each. [-]
 TRACK = 60
+#: The weights of the fleet's remaining lives (:mod:`condmon.forecast.similar`)
+#: beside the path's that the stacking chooses from: a twentieth apart, finer
+#: than ~60 peer forecasts' log scores tell. [-]
+WEIGHTS = np.linspace(0.0, 1.0, 21)
 #: Draws of each peer forecast (a PIT to ±1 %). [-]
 _PIT_DRAWS = 1000
 
@@ -97,6 +103,11 @@ class Calibration:
     same : tuple of str
         Peers left out, by name: their series repeats another peer's, or
         begins with the unit's own (the same unit imported twice).
+    weight : float
+        The share of the forecast's draws taken from the fleet's remaining
+        lives from as near their ends (:mod:`condmon.forecast.similar`), the
+        rest the path's: the stacking weight that scored best along the
+        peers' series (:func:`calibrate`). [-]
     """
 
     median: float
@@ -110,6 +121,7 @@ class Calibration:
     apart: int = 0
     refused: str = ""
     same: tuple[str, ...] = ()
+    weight: float = 0.0
 
     def probability(self, raw: float) -> float:
         """A probability the draws give (the share of them within a horizon)
@@ -139,6 +151,10 @@ class Calibration:
         if len(self.lives) > 1:
             said += (", and the rates at which they went on to their ends from as near them "
                      "as it is weighed against its own rate now")
+        if self.weight > 0:
+            said += (f"; {100 * self.weight:.0f} % of its draws from the lives they had left "
+                     "from as near their ends (the weight that scored best at their true "
+                     "lives)")
         if self.apart:
             said += (f"; {self.apart} of them count their lives otherwise than it does (not "
                      f"its prior" + ("" if self.lives else
@@ -198,7 +214,24 @@ def life_of(x: ArrayLike, y: ArrayLike, threshold: float) -> Life | None:
 
 def path_pits(x: ArrayLike, y: ArrayLike, threshold: float, seed: int = 0,
               lives: Sequence[Life] = ()) -> list[float]:
-    """The PITs of path forecasts made along one failed series.
+    """The PITs of path forecasts made along one failed series: the first
+    column of :func:`path_scores`.
+
+    Example
+    -------
+    >>> x = np.arange(1.0, 61.0)
+    >>> y = 2.0 - 0.01 * x + 0.004 * np.sin(x)
+    >>> p = path_pits(x, y, 1.5)
+    >>> len(p), all(0.0 <= v <= 1.0 for v in p)
+    (20, True)
+    """
+    return [s[0] for s in path_scores(x, y, threshold, seed, lives)]
+
+
+def path_scores(x: ArrayLike, y: ArrayLike, threshold: float, seed: int = 0,
+                lives: Sequence[Life] = ()) -> list[tuple[float, float, float, float]]:
+    """How path forecasts made along one failed series, and the fleet's
+    remaining lives beside them, scored at the life it really had.
 
     Parameters
     ----------
@@ -210,22 +243,26 @@ def path_pits(x: ArrayLike, y: ArrayLike, threshold: float, seed: int = 0,
     seed : int
     lives : sequence of Life
         Other failed peers' whole lives, each forecast's prior as they are
-        the unit's (:func:`~condmon.forecast.path.with_fleet`).
+        the unit's (:func:`~condmon.forecast.path.with_fleet`), and their
+        remaining lives from as near their ends its fleet's
+        (:func:`~condmon.forecast.similar.fleet_left`).
 
     Returns
     -------
-    list of float
+    list of (float, float, float, float)
         At up to :data:`PER_PEER` checks from the
-        :data:`~condmon.forecast.path.PATH_MIN_TESTS`-th on, the share of the
-        forecast's draws below the true remaining life (ties counted half);
-        empty when the series never passes the threshold.
+        :data:`~condmon.forecast.path.PATH_MIN_TESTS`-th on: the path
+        forecast's PIT (the share of its draws below the true remaining
+        life, ties counted half) and its log density there, then the same
+        two of the fleet's (NaN without two lives to tell it), on the log of
+        the remaining life; empty when the series never passes the threshold.
 
     Example
     -------
     >>> x = np.arange(1.0, 61.0)
     >>> y = 2.0 - 0.01 * x + 0.004 * np.sin(x)
-    >>> p = path_pits(x, y, 1.5)
-    >>> len(p), all(0.0 <= v <= 1.0 for v in p)
+    >>> s = path_scores(x, y, 1.5)
+    >>> len(s), all(0.0 <= v[0] <= 1.0 and np.isnan(v[2]) for v in s)
     (20, True)
     """
     xa = np.asarray(x, dtype=np.float64)
@@ -241,9 +278,31 @@ def path_pits(x: ArrayLike, y: ArrayLike, threshold: float, seed: int = 0,
             continue
         truth = xa[end] - xa[k]
         # (drawn on to the truth: a PIT past the 95 % point is read, not capped there)
-        left, _ = path_remaining(fit, threshold, seed + int(k), truth, draws=_PIT_DRAWS)
-        out.append(float(np.mean(left < truth) + 0.5 * np.mean(left == truth)))
+        left, step = path_remaining(fit, threshold, seed + int(k), truth, draws=_PIT_DRAWS)
+        fleet = fleet_left(lives, threshold - fit.coef[0])
+        theirs = (math.nan, math.nan) if fleet is None else fleet_score(
+            fleet, truth, step, seed + int(k), _PIT_DRAWS)
+        out.append((float(np.mean(left < truth) + 0.5 * np.mean(left == truth)),
+                    path_log_density(left, truth, step), *theirs))
     return out
+
+
+def stacked(scores: np.ndarray) -> tuple[float, np.ndarray]:
+    """The weight of the fleet's remaining lives (of :data:`WEIGHTS`) whose
+    mixture with the path's scores best at the true lives (the sum of the
+    log densities, over the forecasts that have a fleet), and the mixture's
+    PITs (the path's where no fleet was). [-]"""
+    path_pit, path_log, fleet_pit, fleet_log = scores.T
+    has = np.isfinite(fleet_log)
+    if not has.any():
+        return 0.0, path_pit
+    with np.errstate(divide="ignore"):
+        total = [float(np.sum(np.logaddexp(math.log(w) + fleet_log[has],
+                                           math.log1p(-w) + path_log[has])))
+                 if 0 < w < 1 else float(np.sum((fleet_log if w == 1 else path_log)[has]))
+                 for w in WEIGHTS]
+    w = float(WEIGHTS[int(np.argmax(total))])
+    return w, np.where(has, w * np.nan_to_num(fleet_pit) + (1 - w) * path_pit, path_pit)
 
 
 def calibrate(pits: ArrayLike, peers: int, lives: Sequence[Life] = (),
@@ -252,8 +311,13 @@ def calibrate(pits: ArrayLike, peers: int, lives: Sequence[Life] = (),
     """The levels to read a forecast's draws at, from its fleet's PITs (None:
     fewer than :data:`MIN_PITS`, or from fewer than :data:`MIN_PEERS` peers).
 
+    ``pits`` are the path forecasts' PITs, or :func:`path_scores`' rows.
     The peers' ``lives`` are the forecast's prior when :data:`MIN_PEERS` or
-    more are given. Levels are refused (:attr:`Calibration.refused`) when
+    more are given; with rows, the forecast's draws are then a mixture of
+    the path's and of the fleet's remaining lives
+    (:mod:`condmon.forecast.similar`), the fleet's share the one of
+    :data:`WEIGHTS` whose mixture scored best at the peers' true lives
+    (:func:`stacked`), and the levels are read on the mixture's PITs. Levels are refused (:attr:`Calibration.refused`) when
     5 % or more of the PITs lie at 0 or at 1: the lives ended before (or
     after) every draw of their forecasts, so an end of the 90 % interval
     would be read where the draws stop, not from them (a fleet that fails
@@ -266,6 +330,11 @@ def calibrate(pits: ArrayLike, peers: int, lives: Sequence[Life] = (),
     (0.32, 0.5, 0.68)
     """
     p = np.asarray(pits, dtype=np.float64)
+    weight = 0.0
+    if p.ndim == 2:   # path_scores' rows
+        p = p[np.isfinite(p[:, 0])]
+        weight, mix = stacked(p) if len(lives) >= MIN_PEERS and p.size else (0.0, p[:, 0])
+        p = mix
     p = p[np.isfinite(p)]
     if p.size < MIN_PITS or peers < MIN_PEERS:
         return None
@@ -280,4 +349,4 @@ def calibrate(pits: ArrayLike, peers: int, lives: Sequence[Life] = (),
                    "(sudden failures?), so the fleet's levels cannot be read")
     return Calibration(med, lo, hi, int(p.size), int(peers), tuple(float(v) for v in p),
                        tuple(lives) if len(lives) >= MIN_PEERS else (), tuple(names),
-                       int(apart), refused, tuple(same))
+                       int(apart), refused, tuple(same), weight)

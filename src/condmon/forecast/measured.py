@@ -31,6 +31,7 @@ from condmon.forecast.path import (
 from condmon.forecast.series import (
     Forecast, Prior, checked_horizon, forecast_series, median_interval,
 )
+from condmon.forecast.similar import fleet_left, mixed
 
 __all__ = ["METHODS", "forecast_path", "forecast_by", "coverage_note", "measured_coverage",
            "real_coverage"]
@@ -176,8 +177,11 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
         return Forecast("path", threshold, slope, interval, (0.0, 0.0, 0.0),
                         1.0 if horizon is not None else None, fit.n, tuple(notes),
                         coef, cov, last, at_nogo=True)
-    left, _ = path_remaining(fit, threshold, seed, horizon,
-                             upto=0.95 if calibration is None else max(0.95, calibration.high))
+    left, step_x = path_remaining(fit, threshold, seed, horizon,
+                                  upto=0.95 if calibration is None else max(0.95, calibration.high))
+    if calibration is not None and calibration.weight > 0:   # the stacked mixture
+        left = mixed(left, fleet_left(calibration.lives, threshold - fit.coef[0]),
+                     calibration.weight, step_x, seed)
     if calibration is None:
         med, lo, hi = median_interval(left, whole=True)
     else:

@@ -297,12 +297,18 @@ class Life:
         >>> Life((0.0, 0.0, 0), -0.01, ((-2.0, 100.0), (-1.0, 20.0))).rate_from(-1.5)
         -0.05
         """
+        found = self.matched(gap)
+        return self.rate if found is None else found[0] / found[1]
+
+    def matched(self, gap: float) -> tuple[float, float] | None:
+        """The tracked point :meth:`rate_from` reads: the change still to
+        make there and the ``x`` left; None without a track heading for its
+        end. [y, x]"""
         towards = [(g, left) for g, left in self.track if g * self.rate > 0]
         if not towards:
-            return self.rate
+            return None
         near = [i for i, (g, _) in enumerate(towards) if abs(g) <= abs(gap)]
-        g, left = towards[near[0]] if near else towards[-1]
-        return g / left
+        return towards[near[0]] if near else towards[-1]
 
 
 def with_fleet(fit: PathFit, lives: Sequence[Life], threshold: float | None = None

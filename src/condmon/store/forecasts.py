@@ -20,7 +20,7 @@ import pandas as pd
 
 from condmon.errors import CondmonError, DataError
 from condmon.monitor.baseline import MIN_BASELINE_TESTS, Baseline
-from condmon.forecast.calibration import MIN_PEERS, Calibration, calibrate, life_of, path_pits
+from condmon.forecast.calibration import MIN_PEERS, Calibration, calibrate, life_of, path_scores
 from condmon.forecast.path import PATH_MIN_TESTS, Life
 from condmon.forecast.prior import FleetPrior, UnitWear, prior_from_wear, unit_wear
 from condmon.forecast.unit import (
@@ -75,7 +75,8 @@ class FleetHistory:
         self._current: set[str] = set()   # peers whose kept rates are up to date
         self._limit = 0
         self._recent: dict[tuple[str, str | None], list[str]] = {}
-        self._pits: dict[tuple[str, str, tuple[Life, ...]], list[float]] = {}
+        self._pits: dict[tuple[str, str, tuple[Life, ...]],
+                         list[tuple[float, float, float, float]]] = {}
         self._series: dict[str, tuple[str, dict[str, tuple[Any, Any, float]]]] = {}
         self._lives: dict[tuple[str, str], Life | None] = {}
         self._fitted: set[str] = set()   # wear fitted here from a history, not read back
@@ -223,7 +224,7 @@ class FleetHistory:
             for key in found:
                 if axis == by and (life := self._life(p, key)) is not None:
                     lives.setdefault(key, {})[p] = life
-        pits: dict[str, list[float]] = {}
+        pits: dict[str, list[tuple[float, float, float, float]]] = {}
         names: dict[str, list[str]] = {}
         apart: dict[str, int] = {}
         for p, (axis, found) in series.items():
@@ -233,7 +234,7 @@ class FleetHistory:
                 others = tuple(life for q, life in mine.items() if q != p) \
                     if p in mine and len(mine) >= MIN_PEERS else ()
                 if (p, key, others) not in self._pits:
-                    self._pits[(p, key, others)] = path_pits(*s, lives=others)
+                    self._pits[(p, key, others)] = path_scores(*s, lives=others)
                 if self._pits[(p, key, others)]:   # a peer short of its end teaches no life
                     pits.setdefault(key, []).extend(self._pits[(p, key, others)])
                     names.setdefault(key, []).append(p)

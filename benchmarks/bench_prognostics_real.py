@@ -26,7 +26,10 @@ from the cycles up to it only, by:
   (leave-one-out: each cell's peers are the other cells; Kuleshov, Fenner
   and Ermon 2018), with the other cells' whole lives as its prior: their
   rates' wander pooled with its own, the rates at which they went on from as
-  near their ends as it is weighed against its own rate now (:func:`condmon.forecast.path.with_fleet`): what the fleet's failed
+  near their ends as it is weighed against its own rate now
+  (:func:`condmon.forecast.path.with_fleet`), and the cycles they had left
+  from there a share of its draws, the share that scored best along their
+  own series (:mod:`condmon.forecast.similar`): what the fleet's failed
   units change.
 - **condmon, trend method**: the line or exponential chosen by evidence
   (:func:`condmon.forecast.series.forecast_series`), what estimated

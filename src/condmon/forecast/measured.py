@@ -180,8 +180,12 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
     left, step_x = path_remaining(fit, threshold, seed, horizon,
                                   upto=0.95 if calibration is None else max(0.95, calibration.high))
     if calibration is not None and calibration.weight > 0:   # the stacked mixture
-        left = mixed(left, fleet_left(calibration.lives, threshold - fit.coef[0]),
-                     calibration.weight, step_x, seed)
+        gap = threshold - fit.coef[0]
+        left = mixed(left, fleet_left(calibration.lives, gap), calibration.weight, step_x, seed)
+        had = sorted(m[1] for life in calibration.lives if (m := life.matched(gap)) is not None)
+        notes.append("the failed peers' remaining lives from as near their ends as it is: "
+                     + ", ".join(f"{v:.4g}" for v in had)
+                     + f" [{per}] ({100 * calibration.weight:.0f} % of its draws)")
     if calibration is None:
         med, lo, hi = median_interval(left, whole=True)
     else:

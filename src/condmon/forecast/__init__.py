@@ -5,7 +5,8 @@ their evidence, the fleet's prior); ``degradation`` fits them; ``prior``
 learns from a fleet's degraded units; ``path`` forecasts a measured
 degradation path (a wandering rate, recoveries), ``measured`` makes it a
 forecast like the others and states each method's measured coverage, and
-``calibration`` reads it at the levels the fleet's failed units call for;
+``calibration`` reads it at the levels the fleet's failed units call for,
+``similar`` sets their remaining lives beside it (stacked);
 ``axis`` puts a unit's checks on one axis (tests, days, operating hours or
 cycles); ``unit`` forecasts every parameter of a unit to its no-go change. The stage reads baselines from :mod:`condmon.monitor` and
 is read by diagnosis, the store and the reports.

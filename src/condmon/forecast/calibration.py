@@ -44,7 +44,7 @@ from condmon.forecast.path import PATH_MIN_TESTS, Life, fit_path, path_remaining
 from condmon.forecast.similar import fleet_left, fleet_score, path_log_density
 
 __all__ = ["MIN_PITS", "MIN_PEERS", "PER_PEER", "TRACK", "WEIGHTS", "Calibration", "life_of",
-           "path_pits", "path_scores", "calibrate"]
+           "path_pits", "path_scores", "stacked", "calibrate"]
 
 #: Fewest peer forecasts whose PITs may recalibrate a unit's: the 5 % and
 #: 95 % points of fewer than 19 cannot be told from the extremes. [-]
@@ -64,8 +64,7 @@ PER_PEER = 20
 #: fit each. [-]
 TRACK = 60
 #: The weights of the fleet's remaining lives (:mod:`condmon.forecast.similar`)
-#: beside the path's that the stacking chooses from: a twentieth apart, finer
-#: than ~60 peer forecasts' log scores tell. [-]
+#: beside the path's that the stacking chooses from, a twentieth apart. [-]
 WEIGHTS = np.linspace(0.0, 1.0, 21)
 #: Draws of each peer forecast (a PIT to ±1 %). [-]
 _PIT_DRAWS = 1000
@@ -317,11 +316,12 @@ def calibrate(pits: ArrayLike, peers: int, lives: Sequence[Life] = (),
     the path's and of the fleet's remaining lives
     (:mod:`condmon.forecast.similar`), the fleet's share the one of
     :data:`WEIGHTS` whose mixture scored best at the peers' true lives
-    (:func:`stacked`), and the levels are read on the mixture's PITs. Levels are refused (:attr:`Calibration.refused`) when
-    5 % or more of the PITs lie at 0 or at 1: the lives ended before (or
-    after) every draw of their forecasts, so an end of the 90 % interval
-    would be read where the draws stop, not from them (a fleet that fails
-    suddenly, as the path method does not describe).
+    (:func:`stacked`), and the levels are read on the mixture's PITs.
+    Levels are refused (:attr:`Calibration.refused`) when 5 % or more of the
+    PITs lie at 0 or at 1: the lives ended before (or after) every draw of
+    their forecasts, so an end of the 90 % interval would be read where the
+    draws stop, not from them (a fleet that fails suddenly, as the path method
+    does not describe).
 
     Example
     -------

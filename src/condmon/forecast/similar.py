@@ -18,8 +18,9 @@ and the weight that scores best is kept (stacking of predictive
 distributions: Yao, Vehtari, Simpson and Gelman, "Using stacking to average
 Bayesian predictive distributions", Bayesian Analysis 2018).
 
-Why by hand: no library matches a unit's damage to its fleet's; scipy gives
-the Student t.
+Why by hand: no library matches a unit's damage to its fleet's; numpy
+draws the Student t, and its log density is one line here, so that the
+forecast (which ``condmon check`` imports) keeps scipy out of its import.
 """
 
 from __future__ import annotations
@@ -29,7 +30,6 @@ from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
 
 from condmon.forecast.path import Life
 
@@ -67,8 +67,7 @@ def fleet_draws(fleet: FleetLeft, step: float, size: int, seed: int) -> NDArray[
     """``size`` draws of the remaining life from the fleet's predictive, in
     whole steps (at least one), as the path's draws count it. [x]"""
     loc, scale, df = fleet
-    t = stats.t.rvs(df, loc=loc, scale=scale, size=size, random_state=np.random.default_rng(
-        seed))
+    t = loc + scale * np.random.default_rng(seed).standard_t(df, size)
     out: NDArray[np.float64] = np.maximum(np.ceil(np.exp(np.minimum(t, 700.0)) / step),
                                           1.0) * step
     return out
@@ -82,7 +81,11 @@ def fleet_score(fleet: FleetLeft, truth: float, step: float, seed: int, size: in
     left = fleet_draws(fleet, step, size, seed)
     pit = float(np.mean(left < truth) + 0.5 * np.mean(left == truth))
     loc, scale, df = fleet
-    return pit, float(stats.t.logpdf(math.log(truth), df, loc=loc, scale=scale))
+    z = (math.log(truth) - loc) / scale
+    log_density = (math.lgamma((df + 1.0) / 2.0) - math.lgamma(df / 2.0)
+                   - 0.5 * math.log(df * math.pi) - math.log(scale)
+                   - 0.5 * (df + 1.0) * math.log1p(z * z / df))
+    return pit, log_density
 
 
 def path_log_density(left: NDArray[np.float64], truth: float, step: float) -> float:

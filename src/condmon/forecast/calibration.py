@@ -41,7 +41,7 @@ from numpy.typing import ArrayLike
 
 from condmon.errors import CondmonError
 from condmon.forecast.path import PATH_MIN_TESTS, Life, fit_path, path_remaining, with_fleet
-from condmon.forecast.similar import fleet_left, fleet_score, path_log_density
+from condmon.forecast.similar import fleet_left, fleet_score, path_log_density, pit
 
 __all__ = ["MIN_PITS", "MIN_PEERS", "PER_PEER", "TRACK", "WEIGHTS", "Calibration", "life_of",
            "path_pits", "path_scores", "stacked", "calibrate"]
@@ -281,8 +281,7 @@ def path_scores(x: ArrayLike, y: ArrayLike, threshold: float, seed: int = 0,
         fleet = fleet_left(lives, threshold - fit.coef[0])
         theirs = (math.nan, math.nan) if fleet is None else fleet_score(
             fleet, truth, step, seed + int(k), _PIT_DRAWS)
-        out.append((float(np.mean(left < truth) + 0.5 * np.mean(left == truth)),
-                    path_log_density(left, truth, step), *theirs))
+        out.append((pit(left, truth), path_log_density(left, truth, step), *theirs))
     return out
 
 

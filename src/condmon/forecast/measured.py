@@ -31,7 +31,7 @@ from condmon.forecast.path import (
 from condmon.forecast.series import (
     Forecast, Prior, checked_horizon, forecast_series, median_interval,
 )
-from condmon.forecast.similar import fleet_left, mixed
+from condmon.forecast.similar import fleet_left, lives_left, mixed
 
 __all__ = ["METHODS", "forecast_path", "forecast_by", "coverage_note", "measured_coverage",
            "real_coverage"]
@@ -182,7 +182,7 @@ def forecast_path(x: ArrayLike, change: ArrayLike, se: ArrayLike, spread: float,
     if calibration is not None and calibration.weight > 0:   # the stacked mixture
         gap = threshold - fit.coef[0]
         left = mixed(left, fleet_left(calibration.lives, gap), calibration.weight, step_x, seed)
-        had = sorted(m[1] for life in calibration.lives if (m := life.matched(gap)) is not None)
+        had = sorted(lives_left(calibration.lives, gap))
         notes.append("the failed peers' remaining lives from as near their ends as it is: "
                      + ", ".join(f"{v:.4g}" for v in had)
                      + f" [{per}] ({100 * calibration.weight:.0f} % of its draws)")

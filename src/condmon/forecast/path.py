@@ -65,7 +65,8 @@ from condmon.errors import DataError
 #: The standard normal's 95 % point: a 90 % interval is ± this many sd. [-]
 Z90 = 1.6448536269514722
 
-__all__ = ["PATH_MIN_TESTS", "PathFit", "Life", "fit_path", "with_fleet", "drawn_rate",
+__all__ = ["PATH_MIN_TESTS", "PathFit", "Life", "fit_path", "with_fleet", "between_units",
+           "drawn_rate",
            "path_remaining", "path_band"]
 
 FloatArray = NDArray[np.float64]
@@ -382,6 +383,27 @@ def with_fleet(fit: PathFit, lives: Sequence[Life], threshold: float | None = No
                                fleet=fleet)
 
 
+def between_units(values: ArrayLike) -> tuple[float, float, float] | None:
+    """A new unit's predictive from its peers' ``values``, under the normal
+    model of values between units with its mean and variance unknown: a
+    Student t about their mean, scale their sd times ``sqrt(1 + 1/n)``, on
+    n − 1 degrees of freedom. None without two values that differ.
+
+    Example
+    -------
+    >>> loc, scale, df = between_units([1.0, 2.0, 3.0])
+    >>> loc, round(scale, 3), df
+    (2.0, 1.155, 2.0)
+    """
+    v = np.asarray(values, dtype=np.float64).ravel()
+    if v.size < 2:
+        return None
+    scale = float(v.std(ddof=1)) * math.sqrt(1.0 + 1.0 / v.size)
+    if not scale > 0:
+        return None
+    return float(v.mean()), scale, float(v.size - 1)
+
+
 def _fleet_weights(fit: PathFit, rate: FloatArray) -> FloatArray | None:
     """The peers' predictive density at each drawn rate now [per check],
     normalised over the draws (:func:`with_fleet`); None without two peers
@@ -389,14 +411,11 @@ def _fleet_weights(fit: PathFit, rate: FloatArray) -> FloatArray | None:
 
     Why by hand: a Student t's log density is one line, and the path
     forecast keeps scipy out of its import."""
-    r = np.asarray(fit.fleet, dtype=np.float64) * fit.step   # per check, as drawn
-    if r.size < 2:
+    fleet = between_units(np.asarray(fit.fleet, dtype=np.float64) * fit.step)  # per check
+    if fleet is None:
         return None
-    scale = float(r.std(ddof=1)) * math.sqrt(1.0 + 1.0 / r.size)
-    if not scale > 0:
-        return None
-    df = r.size - 1.0
-    z = (rate - r.mean()) / scale
+    loc, scale, df = fleet
+    z = (rate - loc) / scale
     logw = -0.5 * (df + 1.0) * np.log1p(z * z / df)
     w: FloatArray = np.exp(logw - logw.max())
     return w / float(w.sum())

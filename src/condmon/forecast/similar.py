@@ -31,13 +31,26 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from condmon.forecast.path import Life
+from condmon.forecast.path import Life, between_units
 
-__all__ = ["FleetLeft", "fleet_left", "fleet_draws", "fleet_score", "path_log_density", "mixed"]
+__all__ = ["FleetLeft", "lives_left", "fleet_left", "fleet_draws", "fleet_score", "pit",
+           "path_log_density", "mixed"]
 
 FleetLeft = tuple[float, float, float]
 """The fleet's predictive of a unit's remaining life: the location and scale
 of its log [log x] and the degrees of freedom of its Student t."""
+
+
+def lives_left(lives: Sequence[Life], gap: float) -> list[float]:
+    """The ``x`` each peer had left from the first point its trend was as
+    near its end as ``gap`` [y] (:meth:`~condmon.forecast.path.Life.matched`);
+    peers without a track heading for their end left out. [x]"""
+    return [m[1] for life in lives if (m := life.matched(gap)) is not None]
+
+
+def pit(left: NDArray[np.float64], truth: float) -> float:
+    """The share of the draws ``left`` below ``truth``, ties counted half. [-]"""
+    return float(np.mean(left < truth) + 0.5 * np.mean(left == truth))
 
 
 def fleet_left(lives: Sequence[Life], gap: float) -> FleetLeft | None:
@@ -53,14 +66,7 @@ def fleet_left(lives: Sequence[Life], gap: float) -> FleetLeft | None:
     >>> round(math.exp(loc), 1), df
     (24.5, 1.0)
     """
-    left = np.array([m[1] for life in lives if (m := life.matched(gap)) is not None])
-    if left.size < 2:
-        return None
-    logs = np.log(left)
-    sd = float(logs.std(ddof=1))
-    if not sd > 0:
-        return None
-    return float(logs.mean()), sd * math.sqrt(1.0 + 1.0 / logs.size), float(logs.size - 1)
+    return between_units(np.log(lives_left(lives, gap)))
 
 
 def fleet_draws(fleet: FleetLeft, step: float, size: int, seed: int) -> NDArray[np.float64]:
@@ -78,14 +84,12 @@ def fleet_score(fleet: FleetLeft, truth: float, step: float, seed: int, size: in
     """Where ``truth`` fell in the fleet's predictive (its PIT, from ``size``
     draws counted as :func:`fleet_draws` counts them) and its log density
     there, on the log of the remaining life. [-, -]"""
-    left = fleet_draws(fleet, step, size, seed)
-    pit = float(np.mean(left < truth) + 0.5 * np.mean(left == truth))
     loc, scale, df = fleet
     z = (math.log(truth) - loc) / scale
     log_density = (math.lgamma((df + 1.0) / 2.0) - math.lgamma(df / 2.0)
                    - 0.5 * math.log(df * math.pi) - math.log(scale)
                    - 0.5 * (df + 1.0) * math.log1p(z * z / df))
-    return pit, log_density
+    return pit(fleet_draws(fleet, step, size, seed), truth), log_density
 
 
 def path_log_density(left: NDArray[np.float64], truth: float, step: float) -> float:
